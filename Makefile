@@ -1,0 +1,42 @@
+# tri360 — every target sets up .venv by itself, so each works on a fresh machine with Python 3.11.
+PYTHON ?= python3.11
+VENV   := .venv
+PY     := $(VENV)/bin/python
+TRI    := $(VENV)/bin/tri360
+STAMP  := $(VENV)/.installed
+DATA   ?= data
+RESULTS ?= results
+
+.PHONY: setup render evaluate report test bench regress-update clean
+
+$(STAMP): pyproject.toml
+	@command -v $(PYTHON) >/dev/null 2>&1 || { echo "error: $(PYTHON) not found (tri360 needs Python 3.11; set PYTHON=...)" >&2; exit 1; }
+	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --quiet --upgrade pip
+	$(PY) -m pip install --quiet -e '.[dev]'
+	@touch $(STAMP)
+
+setup: $(STAMP) ## create .venv and install tri360 with its pinned dependencies
+
+render: $(STAMP) ## render the default scene set (classroom, 3 viewpoints, 1000x500) into $(DATA)/
+	$(TRI) render --scene classroom --viewpoints 3 --out $(DATA)
+
+evaluate: $(STAMP) ## render the default scene if missing, evaluate every flow x variant, write $(RESULTS)/ and print the MAE table
+	$(TRI) render --scene classroom --viewpoints 1 --out $(DATA)
+	$(TRI) evaluate $(DATA) --out $(RESULTS)
+
+report: $(STAMP) ## rebuild the report (tables, plots, point clouds, report.html) from $(RESULTS)/
+	$(TRI) report $(RESULTS)
+
+test: $(STAMP) ## run the whole test suite (fast tests, then Blender and browser tests)
+	$(PY) -m pytest -q
+
+bench: $(STAMP) ## time every stage at 1000x500, peak memory, vectorised LM vs per-pixel scipy
+	$(PY) -m harness.bench
+
+regress-update: $(STAMP) ## rewrite the CI regression bounds (tests/regression_bounds.json) from a fresh run
+	$(PY) -m reports.regression --update
+
+clean: ## remove the venv, caches, rendered data and results
+	rm -rf $(VENV) .pytest_cache .ruff_cache $(RESULTS) build *.egg-info
+	find . -name __pycache__ -type d -prune -exec rm -rf {} +

@@ -1,0 +1,173 @@
+"""Equirectangular camera model (pure numpy).
+
+Conventions (DESIGN.md, verified against Blender renders):
+
+* Camera frame: X right, Y forward, Z up.  A pose is ``position`` (3,) and ``rotation`` (3, 3),
+  world-from-camera (columns are the camera axes in world coordinates).
+* Image W x H with W == 2H.  Pixel coordinates ``(u, v)`` are *continuous* with the centre of pixel
+  column ``i`` at ``u = i`` and of row ``j`` at ``v = j`` (the OpenCV ``remap`` convention), so
+  ``lam = 2*pi*(u + 0.5)/W - pi`` and ``phi = pi/2 - pi*(v + 0.5)/H``.
+* Bearing in the camera frame: ``(cos(phi)*sin(lam), cos(phi)*cos(lam), sin(phi))``.
+  The image centre looks forward (+Y), ``u + 0.5 = 0.75 W`` looks right (+X), the top row looks up (+Z),
+  and the left and right edges are the same (backward) meridian.
+
+All functions broadcast over leading dimensions; angles are radians, lengths metres, pixels pixels.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = [
+    "pixel_to_lonlat",
+    "lonlat_to_pixel",
+    "lonlat_to_bearing",
+    "bearing_to_lonlat",
+    "pixel_to_bearing",
+    "bearing_to_pixel",
+    "bearing_grid",
+    "project",
+    "project_with_derivative",
+    "wrap_pixel",
+]
+
+
+def pixel_to_lonlat(u, v, width: int, height: int):
+    """Pixel coordinates -> (longitude, latitude).
+
+    Args:
+        u, v: arrays of the same shape, continuous pixel coordinates (pixel centres at integers).
+        width, height: image size in pixels.
+    Returns:
+        ``(lam, phi)`` in radians, same shape as ``u``; ``lam`` in [-pi, pi), ``phi`` in (-pi/2, pi/2).
+    """
+    u = np.asarray(u, dtype=np.float64)
+    v = np.asarray(v, dtype=np.float64)
+    lam = 2.0 * np.pi * (u + 0.5) / width - np.pi
+    phi = 0.5 * np.pi - np.pi * (v + 0.5) / height
+    return lam, phi
+
+
+def lonlat_to_pixel(lam, phi, width: int, height: int):
+    """(longitude, latitude) in radians -> continuous pixel coordinates ``(u, v)``.
+
+    ``u`` is not wrapped: ``lam`` in [-pi, pi) gives ``u`` in [-0.5, W - 0.5).
+    """
+    u = (np.asarray(lam, dtype=np.float64) + np.pi) * width / (2.0 * np.pi) - 0.5
+    v = (0.5 * np.pi - np.asarray(phi, dtype=np.float64)) * height / np.pi - 0.5
+    return u, v
+
+
+def lonlat_to_bearing(lam, phi):
+    """(longitude, latitude) -> unit bearing, shape ``lam.shape + (3,)`` (camera frame)."""
+    lam = np.asarray(lam, dtype=np.float64)
+    phi = np.asarray(phi, dtype=np.float64)
+    cphi = np.cos(phi)
+    return np.stack([cphi * np.sin(lam), cphi * np.cos(lam), np.sin(phi)], axis=-1)
+
+
+def bearing_to_lonlat(b):
+    """Bearing(s) ``(..., 3)`` (any positive length) -> ``(lam, phi)`` in radians, ``lam`` in [-pi, pi]."""
+    b = np.asarray(b, dtype=np.float64)
+    x, y, z = b[..., 0], b[..., 1], b[..., 2]
+    lam = np.arctan2(x, y)
+    phi = np.arctan2(z, np.hypot(x, y))
+    return lam, phi
+
+
+def pixel_to_bearing(u, v, width: int, height: int):
+    """Continuous pixel coordinates -> unit bearing ``(..., 3)`` in the camera frame."""
+    return lonlat_to_bearing(*pixel_to_lonlat(u, v, width, height))
+
+
+def bearing_to_pixel(b, width: int, height: int):
+    """Bearing(s) ``(..., 3)`` in the camera frame -> continuous pixel coordinates ``(u, v)``.
+
+    ``u`` lies in [-0.5, W - 0.5]; both -0.5 and W - 0.5 are the backward meridian (the seam).
+    """
+    return lonlat_to_pixel(*bearing_to_lonlat(b), width, height)
+
+
+def bearing_grid(width: int, height: int, rotation=None, dtype=np.float64):
+    """Bearings of every pixel centre, shape ``(H, W, 3)``.
+
+    Args:
+        rotation: optional (3, 3) world-from-camera matrix; if given, bearings are in world coordinates.
+    """
+    v, u = np.mgrid[0:height, 0:width]
+    b = pixel_to_bearing(u, v, width, height)
+    if rotation is not None:
+        b = b @ np.asarray(rotation, dtype=np.float64).T
+    return b.astype(dtype, copy=False)
+
+
+def project(points, position, rotation, width: int, height: int):
+    """Project world points into a posed equirectangular camera.
+
+    Args:
+        points: (..., 3) world coordinates, metres.
+        position: (3,) camera centre, metres.
+        rotation: (3, 3) world-from-camera rotation.
+    Returns:
+        ``(u, v)`` continuous pixel coordinates, each of shape ``points.shape[:-1]``.
+    """
+    rel = np.asarray(points, dtype=np.float64) - np.asarray(position, dtype=np.float64)
+    b_cam = rel @ np.asarray(rotation, dtype=np.float64)  # R^T (X - p), row-vector form
+    return bearing_to_pixel(b_cam, width, height)
+
+
+def project_with_derivative(origin, bearing, distance, position, rotation, width: int, height: int):
+    """Project ``X = origin + distance * bearing`` and differentiate the pixel w.r.t. ``distance``.
+
+    Args:
+        origin: (3,) or (..., 3) world point the rays start from (the reference camera centre), metres.
+        bearing: (..., 3) unit ray directions in world coordinates.
+        distance: (...) distances along the rays, metres.
+        position, rotation: pose of the camera projected into (world-from-camera rotation).
+    Returns:
+        ``u, v, du_dd, dv_dd``: pixel coordinates (pixels) and their analytic derivatives (pixels per metre),
+        each of shape ``distance.shape``.  The derivative of ``u`` is that of the unwrapped longitude, so it
+        is continuous across the seam; both are undefined (returned as 0) exactly at the poles.
+    """
+    rot = np.asarray(rotation, dtype=np.float64)
+    bearing = np.asarray(bearing, dtype=np.float64)
+    d = np.asarray(distance, dtype=np.float64)[..., None]
+    X = np.asarray(origin, dtype=np.float64) + d * bearing
+    b = (X - np.asarray(position, dtype=np.float64)) @ rot  # camera-frame vector, not normalised
+    db = bearing @ rot  # d b / d distance
+    x, y, z = b[..., 0], b[..., 1], b[..., 2]
+    rho2 = x * x + y * y
+    r2 = rho2 + z * z
+    rho = np.sqrt(rho2)
+    safe_rho2 = np.where(rho2 > 0, rho2, 1.0)
+    safe_rho = np.where(rho > 0, rho, 1.0)
+    dlam = (y * db[..., 0] - x * db[..., 1]) / safe_rho2
+    dphi = (rho2 * db[..., 2] - z * (x * db[..., 0] + y * db[..., 1])) / (safe_rho * r2)
+    dlam = np.where(rho2 > 0, dlam, 0.0)
+    dphi = np.where(rho2 > 0, dphi, 0.0)
+    lam, phi = np.arctan2(x, y), np.arctan2(z, rho)
+    u, v = lonlat_to_pixel(lam, phi, width, height)
+    return u, v, dlam * width / (2.0 * np.pi), -dphi * height / np.pi
+
+
+def wrap_pixel(u, v, width: int, height: int):
+    """Map pixel coordinates that left the image back onto the sphere.
+
+    A point above the top edge (``v < -0.5``) has crossed the north pole: it reappears at
+    ``v' = -1 - v`` on the meridian half a turn away (``u + W/2``); likewise below the bottom edge.
+    Columns are then wrapped into [-0.5, W - 0.5).
+
+    Args:
+        u, v: arrays of continuous pixel coordinates (any values).
+    Returns:
+        ``(u, v)`` with ``u`` in [-0.5, W - 0.5) and ``v`` in [-0.5, H - 0.5].
+    """
+    u = np.asarray(u, dtype=np.float64).copy()
+    v = np.asarray(v, dtype=np.float64).copy()
+    # latitude is periodic with period 2H along a great circle through the poles
+    v = np.mod(v + 0.5, 2.0 * height) - 0.5
+    over = v > height - 0.5
+    v = np.where(over, 2.0 * height - 1.0 - v, v)
+    u = np.where(over, u + width / 2.0, u)
+    u = np.mod(u + 0.5, width) - 0.5
+    return u, v
