@@ -137,7 +137,11 @@ def read_distance_exr(path: Path, channel: str = DISTANCE_CHANNEL) -> np.ndarray
     if not path.is_file():
         raise FrameError(f"{path}: file is missing")
     try:
-        channels = OpenEXR.File(str(path)).channels()
+        # separate_channels + every part: Blender 5.0 writes multilayer EXRs as multi-part files
+        # (Combined in part 0, Depth in part 1), and ``File.channels()`` only sees part 0.
+        channels = {}
+        for part in OpenEXR.File(str(path), separate_channels=True).parts:
+            channels.update(part.channels)
     except Exception as exc:  # OpenEXR raises a bare Exception on corrupt input
         raise FrameError(f"{path}: not a readable OpenEXR file ({exc})") from None
     if channel not in channels:
