@@ -1,0 +1,216 @@
+"""Per-pixel Levenberg-Marquardt refinement of the distance along C's bearings (paper section 3).
+
+The unknown is one scalar per pixel, the distance ``d`` (metres) of the surface seen through that pixel
+of C.  All pixels are solved at once: every array is (N,) or (N, m), never a Python loop per pixel.
+
+Residuals, all in *pixel equivalents* (radians x H / pi: one row of a rectified equirect image):
+
+* geometric, per pair k in {U, R}: ``sqrt(w_k) * (beta_k(d) - beta_obs_k) * H/pi`` — the reprojection
+  error of X = C + d a into camera k along its epipolar curve (see :mod:`reconstruction.triangulate`);
+* colour (``color_weight > 0``), per pair: ``sqrt(color_weight) * s * tanh((I_k(x_k(d)) - I_C(p)) / s)``,
+  the intensity difference between C's pixel and camera k's image at the projection x_k(d), with
+  intensities in [0, 1] and the saturation ``s`` making it robust to occlusions (paper eq. 2).
+
+Weights ``w_k`` (:mod:`reconstruction.weights`): ``angle`` = sin(alpha_k)^p (Yin et al. 2019: trust a pair
+less near its epipoles), ``gradient`` = angle weight x the image gradient along pair k's epipolar
+direction (paper eq. 1: the confidence of the flow).  A pair invalid at a pixel gets weight 0.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from reconstruction.equirect import project_with_derivative
+from reconstruction.spherical import sample_equirect
+from reconstruction.triangulate import PairGeometry, beta_of_distance
+
+__all__ = ["RefineConfig", "VARIANTS", "register_variant", "get_variant", "RefineProblem", "levenberg_marquardt",
+           "ColorTerm"]
+
+
+@dataclass(frozen=True)
+class RefineConfig:
+    """A refinement variant.  Every field has a unit; defaults were chosen by measurement (docs/refinement.md).
+
+    Attributes:
+        name: the ``--variants`` name.
+        angle_power: p in the angle weight sin(alpha_k)^p (dimensionless; 0 disables angle weighting).
+        gradient: multiply the angle weight by the epipolar-gradient confidence (paper eq. 1).
+        gradient_scale: g0, intensity change per pixel (intensity in [0, 1]) at which the gradient
+            confidence reaches half of its range.
+        gradient_floor: confidence of a texture-less pixel, in [0, 1] (keeps the pair in play).
+        color_weight: lambda_c, weight of the colour residual relative to one pixel-equivalent of
+            geometric residual, per unit intensity squared (0 disables the colour term).
+        color_saturation: s, intensity (in [0, 1]) beyond which a colour difference stops pulling
+            (occlusions, specularities).
+        color_blur_px: Gaussian sigma, pixels, applied to the images used by the colour term.
+        color_rgb: use the three RGB channels instead of grayscale (the paper's future work).
+        lateral_px: sigma, pixel equivalents, of the lateral-flow confidence 1 / (1 + (e / sigma)^2), where e
+            is the match's distance from the epipolar curve (0 disables it).
+        lateral_max_px: a match farther than this from its epipolar curve, pixel equivalents, is treated as
+            a failed match (the pair is not used at that pixel); pixels left with no usable pair are
+            interpolated from refined neighbours.
+        fb_max_px: likewise for a forward-backward flow inconsistency above this, pixels.
+        max_iters: LM iterations (the geometric problem converges in < 10).
+        tol_m: stop a pixel when its step is below this, metres.
+    """
+
+    name: str
+    angle_power: float = 2.0
+    gradient: bool = False
+    gradient_scale: float = 0.02
+    gradient_floor: float = 0.05
+    color_weight: float = 0.0
+    color_saturation: float = 0.1
+    color_blur_px: float = 1.0
+    color_rgb: bool = False
+    lateral_px: float = 1.0
+    lateral_max_px: float = 3.0
+    fb_max_px: float = 2.0
+    max_iters: int = 30
+    tol_m: float = 1e-7
+    description: str = ""
+
+
+VARIANTS: dict[str, RefineConfig] = {}
+
+
+def register_variant(config: RefineConfig) -> None:
+    """Add (or replace) a refinement variant under ``config.name``."""
+    VARIANTS[config.name] = config
+
+
+register_variant(RefineConfig("angle", description="LM on reprojection error, angle weights (Yin et al. 2019)"))
+register_variant(RefineConfig("gradient", gradient=True,
+                              description="LM, angle x epipolar-gradient weights (paper eq. 1)"))
+register_variant(RefineConfig("color", color_weight=10.0,
+                              description="LM, angle weights + grayscale intensity consistency (paper eq. 2)"))
+
+
+def get_variant(name: str) -> RefineConfig:
+    if name not in VARIANTS:
+        raise ValueError(f"unknown variant {name!r} (known: average, {', '.join(sorted(VARIANTS))})")
+    return VARIANTS[name]
+
+
+@dataclass
+class ColorTerm:
+    """Data for the colour residual of one pair.
+
+    Attributes:
+        stack: (H, W, 3c) float32 image of camera k with its u- and v-derivatives, channels
+            [I_1..I_c, dI/du_1.., dI/dv_1..] (intensity in [0, 1] per pixel).
+        ref: (N, c) C's intensities at the refined pixels.
+        position, rotation: camera k's pose.
+    """
+
+    stack: np.ndarray
+    ref: np.ndarray
+    position: np.ndarray
+    rotation: np.ndarray
+
+
+@dataclass
+class RefineProblem:
+    """The least-squares problem of all refined pixels.
+
+    Attributes:
+        origin: (3,) C's centre, metres.
+        bearings: (N, 3) unit world bearings of the pixels.
+        pairs: epipolar geometry per pair (arrays (N,)).
+        weights: (N,) geometric weight per pair (0 = pair not used at that pixel).
+        height: image height H (sets the pixel-equivalent scale H/pi).
+        width: image width W.
+        color: colour terms per pair (empty: no colour term).
+        color_weight, color_saturation: lambda_c and s of :class:`RefineConfig`.
+    """
+
+    origin: np.ndarray
+    bearings: np.ndarray
+    pairs: list[PairGeometry]
+    weights: list[np.ndarray]
+    height: int
+    width: int
+    color: list[ColorTerm] = field(default_factory=list)
+    color_weight: float = 0.0
+    color_saturation: float = 0.1
+
+    @property
+    def n(self) -> int:
+        return self.bearings.shape[0]
+
+    def residuals(self, d: np.ndarray, idx: np.ndarray | None = None):
+        """Residuals and Jacobian at distances ``d``.
+
+        Args:
+            d: (M,) distances, metres, for pixels ``idx`` (all pixels if None, M = N).
+            idx: optional (M,) integer indices into the problem's pixels.
+        Returns:
+            ``(r, J)``, each (M, m): residuals (pixel equivalents) and d r / d d (per metre).
+        """
+        sel = slice(None) if idx is None else idx
+        scale = self.height / np.pi
+        rs, js = [], []
+        for g, w in zip(self.pairs, self.weights, strict=True):
+            gi = PairGeometry(g.baseline_m, g.cos_alpha[sel], g.sin_alpha[sel], g.beta_obs[sel])
+            beta, dbeta = beta_of_distance(gi, d)
+            sw = np.sqrt(w[sel]) * scale
+            rs.append(sw * (beta - gi.beta_obs))
+            js.append(sw * dbeta)
+        if self.color and self.color_weight > 0:
+            s = self.color_saturation
+            lam = np.sqrt(self.color_weight)
+            a = self.bearings[sel]
+            for term in self.color:
+                u, v, du, dv = project_with_derivative(self.origin, a, d, term.position, term.rotation,
+                                                       self.width, self.height)
+                c = term.ref.shape[1]
+                smp = sample_equirect(term.stack, u, v).reshape(len(d), 3 * c).astype(np.float64)
+                e = smp[:, :c] - term.ref[sel]
+                de = smp[:, c:2 * c] * du[:, None] + smp[:, 2 * c:] * dv[:, None]
+                th = np.tanh(e / s)
+                rs.extend((lam * s * th).T)
+                js.extend((lam * (1.0 - th * th) * de).T)
+        return np.stack(rs, axis=1), np.stack(js, axis=1)
+
+
+def levenberg_marquardt(problem: RefineProblem, d0: np.ndarray, d_min: float = 0.05, d_max: float = 100.0,
+                        max_iters: int = 30, tol: float = 1e-7, lam0: float = 1e-3):
+    """Minimise ``sum(r(d)**2)`` for every pixel independently, all pixels at once.
+
+    Marquardt's scaled damping for a scalar unknown: step = -(J.r) / ((J.J)(1 + lambda)); a step that
+    lowers a pixel's cost is taken and its lambda divided by 10, otherwise lambda is multiplied by 10.
+    Distances stay inside ``[d_min, d_max]`` (metres).  Pixels stop when the step is below ``tol`` metres.
+
+    Returns:
+        ``(d, iterations)``: (N,) refined distances and the number of iterations run.
+    """
+    d = np.clip(np.asarray(d0, dtype=np.float64).copy(), d_min, d_max)
+    lam = np.full(d.shape, lam0)
+    active = np.arange(d.size)
+    r, J = problem.residuals(d)
+    cost = np.einsum("ij,ij->i", r, r)
+    iterations = 0
+    while active.size and iterations < max_iters:
+        iterations += 1
+        ra, Ja = r[active], J[active]
+        g = np.einsum("ij,ij->i", Ja, ra)
+        h = np.einsum("ij,ij->i", Ja, Ja)
+        step = -g / np.maximum(h * (1.0 + lam[active]), 1e-30)
+        before = d[active]
+        trial = np.clip(before + step, d_min, d_max)
+        r_new, J_new = problem.residuals(trial, active)
+        cost_new = np.einsum("ij,ij->i", r_new, r_new)
+        better = cost_new <= cost[active]
+        acc = active[better]
+        d[acc] = trial[better]
+        cost[acc] = cost_new[better]
+        r[acc], J[acc] = r_new[better], J_new[better]
+        lam[acc] = np.maximum(lam[acc] / 10.0, 1e-9)
+        rej = active[~better]
+        lam[rej] = lam[rej] * 10.0
+        done = (better & (np.abs(trial - before) < tol)) | (lam[active] > 1e8) | (h < 1e-30)
+        active = active[~done]
+    return d, iterations
