@@ -1,0 +1,304 @@
+"""Figures of the report, each returned as PNG bytes (matplotlib's object API on Agg; no pyplot state).
+
+* :func:`fig4_mae`: paper Fig. 4 style bars, MAE per variant grouped by configuration, min-max error bars.
+* :func:`error_maps`: ground-truth distance and ``|pred - gt|`` per variant on one shared colour scale.
+* :func:`breakdown_lines`: error against a breakdown quantity (angle to a baseline, distance, texture).
+* :func:`cloud_views`: paper Fig. 3 style top-down and side views of point clouds.
+"""
+
+from __future__ import annotations
+
+import io
+import math
+
+import numpy as np
+import pandas as pd
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+from matplotlib.ticker import FormatStrFormatter
+
+from reports.tables import PAPER_MAE_M, config_label, config_order, variant_order
+
+__all__ = ["variant_colors", "png_bytes", "fig4_mae", "error_maps", "breakdown_lines", "cloud_views"]
+
+DPI = 90
+NO_SURFACE_RGBA = (0.78, 0.78, 0.78, 1.0)  # light grey: pixel with no surface (not scored)
+NO_PREDICTION_RGBA = (1.0, 0.0, 1.0, 1.0)  # magenta: invalid prediction (scored with |err| = gt)
+
+
+def variant_colors(variants) -> dict[str, tuple]:
+    """A stable colour per variant (tab10 in :func:`variant_order`)."""
+    from matplotlib import colormaps
+
+    cmap = colormaps["tab10"]
+    return {v: cmap(i % 10) for i, v in enumerate(variant_order(variants))}
+
+
+def png_bytes(fig: Figure, dpi: int = DPI) -> bytes:
+    """Render a figure to PNG bytes."""
+    FigureCanvasAgg(fig)
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=dpi)
+    return buf.getvalue()
+
+
+# ------------------------------------------------------------------------------------------------ Fig. 4
+
+
+def fig4_mae(results: pd.DataFrame) -> bytes:
+    """Paper Fig. 4 style bar chart.
+
+    Args:
+        results: the validated ``results.csv`` table (:func:`reports.tables.load_results`).
+    Returns:
+        PNG: one group of bars per flow/rectify configuration, one bar per variant with height = mean of
+        the per-frame MAE (metres) over all frames, error bars = min..max of the per-frame MAE; a last,
+        hatched group shows the paper's own Fig. 4 numbers.
+    """
+    configs = config_order(zip(results["flow"], results["rectify"], strict=True))
+    variants = variant_order([*results["variant"], *PAPER_MAE_M])
+    colors = variant_colors(variants)
+    stats = results.groupby(["flow", "rectify", "variant"])["mae_m"].agg(["mean", "min", "max", "count"])
+    n_groups = len(configs) + 1
+    fig = Figure(figsize=(max(7.0, 1.1 * n_groups * max(1, len(variants)) * 0.45 + 2), 5.2),
+                 layout="constrained")
+    ax = fig.add_subplot()
+    width = 0.8 / len(variants)
+    labels = [config_label(f, r).replace(" (", "\n(") for f, r in configs] + ["paper Fig. 4\n(quoted)"]
+    for j, variant in enumerate(variants):
+        xs, ys, lo, hi = [], [], [], []
+        for i, (flow, rect) in enumerate(configs):
+            if (flow, rect, variant) in stats.index:
+                s = stats.loc[(flow, rect, variant)]
+                xs.append(i + (j - (len(variants) - 1) / 2) * width)
+                ys.append(s["mean"])
+                lo.append(s["mean"] - s["min"])
+                hi.append(s["max"] - s["mean"])
+        if xs:
+            ax.bar(xs, ys, width, color=colors[variant], label=variant, yerr=[lo, hi], capsize=2,
+                   error_kw={"elinewidth": 0.8, "ecolor": "0.2"})
+            for x, y in zip(xs, ys, strict=True):
+                ax.annotate(f"{y:.3f}", (x, y), xytext=(0, 2), textcoords="offset points", ha="center",
+                            va="bottom", fontsize=6, rotation=90)
+        if variant in PAPER_MAE_M:
+            x = len(configs) + (j - (len(variants) - 1) / 2) * width
+            ax.bar([x], [PAPER_MAE_M[variant]], width, color=colors[variant], hatch="//", edgecolor="0.25")
+            ax.annotate(f"{PAPER_MAE_M[variant]:.5f}", (x, PAPER_MAE_M[variant]), xytext=(0, 2),
+                        textcoords="offset points", ha="center", va="bottom", fontsize=6, rotation=90)
+    ax.set_xticks(range(n_groups), labels, fontsize=8)
+    ax.set_ylabel("mean absolute error of distance (m)")
+    ax.set_title("MAE per variant and configuration\nbars: mean over frames; error bars: min-max over frames;"
+                 " hatched: the paper's own figures (quoted)", fontsize=9)
+    ax.set_ylim(0, ax.get_ylim()[1] * 1.12)
+    ax.grid(axis="y", alpha=0.3)
+    ax.legend(fontsize=8, ncols=min(len(variants), 6), loc="upper left")
+    return png_bytes(fig)
+
+
+# ------------------------------------------------------------------------------------------- error maps
+
+
+def _overlay(mask: np.ndarray, rgba) -> np.ndarray:
+    img = np.zeros(mask.shape + (4,), dtype=np.float32)
+    img[mask] = rgba
+    return img
+
+
+def error_maps(gt: np.ndarray, preds: dict[str, np.ndarray], title: str) -> bytes:
+    """Ground truth and per-variant absolute error maps of one frame and configuration.
+
+    Args:
+        gt: (H, W) true distance, metres (+inf = no surface).
+        preds: variant -> (H, W) predicted distance, metres (NaN / inf / <= 0 = invalid).
+        title: figure title.
+    Returns:
+        PNG: first panel the ground-truth distance (viridis, own colour bar, metres); then one panel of
+        ``|pred - gt|`` per variant (magma), all on one shared colour scale from 0 to the 99th percentile of
+        the pooled errors (one colour bar, metres; larger errors saturate).  Light grey: no surface (not
+        scored); magenta: invalid prediction (scored with error = gt).  Each panel title gives its MAE.
+    """
+    from matplotlib import colormaps
+
+    from reports.metrics import score_pixels
+
+    gt = np.asarray(gt, dtype=np.float64)
+    scored = np.isfinite(gt) & (gt > 0)
+    errs, invalid, maes = {}, {}, {}
+    for v, p in preds.items():
+        mask, e, valid = score_pixels(p, gt)
+        full = np.full(gt.shape, np.nan)
+        full[mask] = np.where(valid, e, np.nan)
+        errs[v] = full
+        inv = np.zeros(gt.shape, dtype=bool)
+        inv[mask] = ~valid
+        invalid[v] = inv
+        maes[v] = float(e.mean()) if e.size else float("nan")
+    pooled = np.concatenate([e[np.isfinite(e)] for e in errs.values()] or [np.zeros(0)])
+    vmax = float(np.percentile(pooled, 99)) if pooled.size else 1.0
+    vmax = max(vmax, 1e-3)
+    n = 1 + len(preds)
+    ncols = 1 if n == 1 else 2
+    nrows = math.ceil(n / ncols)
+    fig = Figure(figsize=(6.2 * ncols + 1.2, 3.2 * nrows + 0.6), layout="constrained")
+    fig.suptitle(f"{title}\nlight grey: no surface (not scored); magenta: no valid prediction "
+                 "(scored with error = true distance)", fontsize=9)
+    axes = fig.subplots(nrows, ncols, squeeze=False).ravel()
+    for ax in axes[n:]:
+        ax.set_axis_off()
+    gt_cmap = colormaps["viridis"].with_extremes(bad=NO_SURFACE_RGBA)
+    shown = np.where(scored, gt, np.nan)
+    gmax = float(np.nanpercentile(shown, 99.5)) if scored.any() else 1.0
+    im = axes[0].imshow(shown, cmap=gt_cmap, vmin=0, vmax=gmax, interpolation="nearest")
+    axes[0].set_title("ground truth distance", fontsize=9)
+    fig.colorbar(im, ax=axes[0], label="distance (m)", shrink=0.9, extend="max")
+    err_cmap = colormaps["magma"].with_extremes(bad=NO_SURFACE_RGBA, over=colormaps["magma"](1.0))
+    err_axes = []
+    im = None
+    for ax, v in zip(axes[1:n], preds, strict=True):
+        im = ax.imshow(errs[v], cmap=err_cmap, vmin=0, vmax=vmax, interpolation="nearest")
+        if invalid[v].any():
+            ax.imshow(_overlay(invalid[v], NO_PREDICTION_RGBA), interpolation="nearest")
+        ax.set_title(f"|pred - gt|: {v} (MAE {maes[v]:.4f} m)", fontsize=9)
+        err_axes.append(ax)
+    for ax in axes[:n]:
+        ax.set_xticks([])
+        ax.set_yticks([])
+    if im is not None:
+        fig.colorbar(im, ax=err_axes, label="absolute error (m), shared scale", shrink=0.9, extend="max")
+    return png_bytes(fig)
+
+
+# -------------------------------------------------------------------------------------------- breakdown
+
+
+def _aggregate_breakdown(bd: pd.DataFrame) -> pd.DataFrame:
+    """Pool frames: pixel-weighted MAE per (flow, rectify, variant, kind, bin)."""
+    b = bd[bd["n_px"] > 0].copy()
+    b["err_sum"] = b["mae_m"] * b["n_px"]
+    g = b.groupby(["flow", "rectify", "variant", "kind", "bin_lo", "bin_hi"], as_index=False)[
+        ["err_sum", "n_px"]].sum()
+    g["mae_m"] = g["err_sum"] / g["n_px"]
+    return g
+
+
+def _bin_label(lo: float, hi: float) -> str:
+    def f(x):
+        return f"{x:g}"
+    return f"{f(lo)}+" if math.isinf(hi) else f"{f(lo)}-{f(hi)}"
+
+
+KIND_AXIS = {
+    "angle_U": "angle between bearing and C-U baseline (deg)",
+    "angle_R": "angle between bearing and C-R baseline (deg)",
+    "distance": "true distance (m)",
+    "texture": "image gradient magnitude (grey levels / px)",
+}
+
+
+def breakdown_lines(bd: pd.DataFrame, kinds: list[str], title: str) -> bytes:
+    """Error against breakdown bins, one row of panels per configuration, one line per variant.
+
+    Args:
+        bd: validated ``breakdown.csv`` table.
+        kinds: which ``kind`` values to plot, one panel column each (e.g. ``["angle_U", "angle_R"]``).
+        title: figure title.
+    Returns:
+        PNG.  y: MAE (m, log scale) pooled over frames, weighting each frame's bin by its pixel count;
+        x: bin centre in degrees for ``angle_*`` kinds, bin labels otherwise.
+    """
+    agg = _aggregate_breakdown(bd[bd["kind"].isin(kinds)])
+    configs = config_order(zip(agg["flow"], agg["rectify"], strict=True)) if len(agg) else []
+    colors = variant_colors(bd["variant"])
+    nrows = max(1, len(configs))
+    fig = Figure(figsize=(5.2 * len(kinds) + 1.5, 2.6 * nrows + 0.8), layout="constrained")
+    fig.suptitle(f"{title}\nMAE per bin pooled over frames (pixel-weighted), log scale", fontsize=10)
+    axes = fig.subplots(nrows, len(kinds), squeeze=False)
+    if not configs:
+        for ax in axes.ravel():
+            ax.text(0.5, 0.5, "no data", ha="center", va="center", transform=ax.transAxes)
+            ax.set_axis_off()
+        return png_bytes(fig)
+    for r, (flow, rect) in enumerate(configs):
+        conf = agg[(agg["flow"] == flow) & (agg["rectify"] == rect)]
+        for c, kind in enumerate(kinds):
+            ax = axes[r, c]
+            part = conf[conf["kind"] == kind]
+            bins = part[["bin_lo", "bin_hi"]].drop_duplicates().sort_values("bin_lo")
+            angle = kind.startswith("angle")
+            for variant in variant_order(part["variant"]):
+                pv = part[part["variant"] == variant].sort_values("bin_lo")
+                if angle:
+                    x = 0.5 * (pv["bin_lo"] + pv["bin_hi"])
+                else:
+                    pos = {lo: i for i, lo in enumerate(bins["bin_lo"])}
+                    x = pv["bin_lo"].map(pos)
+                ax.plot(x, pv["mae_m"], marker="o", ms=3, lw=1.2, color=colors[variant], label=variant)
+            if angle:
+                ax.set_xlim(0, 180)
+                ax.set_xticks(range(0, 181, 30))
+            else:
+                ticks = [_bin_label(lo, hi) for lo, hi in zip(bins["bin_lo"], bins["bin_hi"], strict=True)]
+                ax.set_xticks(range(len(bins)), ticks, fontsize=7)
+            if (part["mae_m"] > 0).any():
+                ax.set_yscale("log")
+                ax.yaxis.set_major_formatter(FormatStrFormatter("%.3g"))
+                ax.yaxis.set_minor_formatter(FormatStrFormatter("%.3g"))
+                ax.tick_params(axis="y", which="both", labelsize=7)
+            ax.grid(alpha=0.3, which="both")
+            ax.set_title(f"{config_label(flow, rect)}", fontsize=9)
+            ax.set_xlabel(KIND_AXIS.get(kind, kind), fontsize=8)
+            ax.set_ylabel("MAE (m)", fontsize=8)
+            if r == 0 and c == 0:
+                ax.legend(fontsize=7)
+    return png_bytes(fig)
+
+
+# ---------------------------------------------------------------------------------------------- clouds
+
+
+def cloud_views(clouds: dict[str, tuple[np.ndarray, np.ndarray]], centre, title: str,
+                reference: str | None = None) -> bytes:
+    """Paper Fig. 3 style views of point clouds: top-down (X-Y) and side (X-Z), one column per cloud.
+
+    Args:
+        clouds: name -> ``(points (N, 3) metres world, colors (N, 3) uint8)``; non-finite points are skipped.
+            Pass the same pixel subsample for every cloud so the columns are comparable.
+        centre: (3,) camera C position (drawn as a black cross), metres.
+        title: figure title.
+        reference: name of the cloud whose 1..99 % coordinate range sets the shared axis limits (default: the
+            first); points of other clouds outside those limits are cut off by the axes.
+    Returns:
+        PNG with two rows (top-down: x right, y up; side: x right, z up) and ``len(clouds)`` columns.
+    """
+    names = list(clouds)
+    ref = clouds[reference or names[0]][0]
+    ref = ref[np.isfinite(ref).all(axis=1)]
+    if ref.size:
+        lo, hi = np.percentile(ref, 1, axis=0), np.percentile(ref, 99, axis=0)
+    else:
+        lo, hi = np.full(3, -1.0), np.full(3, 1.0)
+    pad = 0.08 * np.maximum(hi - lo, 0.5)
+    lo, hi = lo - pad, hi + pad
+    c = np.asarray(centre, dtype=np.float64)
+    ncols = len(names)
+    fig = Figure(figsize=(3.3 * ncols + 0.4, 6.6), layout="constrained")
+    fig.suptitle(f"{title}\npoints X = C + d * bearing coloured by C's image (subsample); cross: camera C",
+                 fontsize=9)
+    axes = fig.subplots(2, ncols, squeeze=False)
+    n_max = max(1, max(len(p) for p, _ in clouds.values()))
+    size = float(np.clip(4000.0 / n_max, 0.8, 6.0))  # marker area (pt^2): denser clouds, smaller dots
+    for j, name in enumerate(names):
+        pts, col = clouds[name]
+        keep = np.isfinite(pts).all(axis=1)
+        pts, col = pts[keep], np.asarray(col)[keep].astype(np.float64) / 255.0
+        for i, (a, b, lab) in enumerate(((0, 1, "top-down (x, y)"), (0, 2, "side (x, z)"))):
+            ax = axes[i, j]
+            ax.scatter(pts[:, a], pts[:, b], s=size, c=col, marker=".", linewidths=0, rasterized=True)
+            ax.plot([c[a]], [c[b]], "k+", ms=8, mew=1.5)
+            ax.set_xlim(lo[a], hi[a])
+            ax.set_ylim(lo[b], hi[b])
+            ax.set_aspect("equal", adjustable="box")
+            ax.tick_params(labelsize=7)
+            ax.set_title(f"{name}: {lab}", fontsize=8)
+            ax.set_facecolor("0.93")
+    return png_bytes(fig)
