@@ -78,37 +78,45 @@ class _BoxGeom:
         return np.stack([c * v[:, 0] - s * v[:, 1], s * v[:, 0] + c * v[:, 1], v[:, 2]], axis=1)
 
 
-def _intersect_box(g: _BoxGeom, origins: np.ndarray, directions: np.ndarray):
-    """Slab test of rays against one box.
+def _face_of(g: _BoxGeom, points: np.ndarray) -> np.ndarray:
+    """Face index of points (N, 3) lying on the surface of box ``g``: (N,) int8 ``2 * axis + side``.
+
+    The face is the local axis along which the point is (relatively) farthest out, ``|p_local| / half``
+    being 1 on that face and at most 1 on the others (ties only on edges, where either face is right).
+    """
+    rel = g.to_local(points - g.center)
+    axis = np.argmax(np.abs(rel) / g.half, axis=1)
+    side = rel[np.arange(len(rel)), axis] > 0
+    return (2 * axis + side).astype(np.int8)
+
+
+def _slab_t(g: _BoxGeom, lo, ld, inv) -> np.ndarray:
+    """Fast slab test (ray parameter only) in the box's local frame.
 
     Args:
-        origins, directions: (N, 3) world rays (directions need not be unit).
+        lo: local origin, 3 entries, each a scalar or an (N,) array, metres.
+        ld: local directions, 3 (N,) arrays (only their count is used, via ``inv``).
+        inv: 3 (N,) arrays 1 / ld (zero components replaced by a tiny number).
     Returns:
-        ``(t, face)``: (N,) ray parameter of the first surface crossing with ``t > 0`` (+inf if none) and
-        (N,) int8 face index ``2 * axis + (1 if the face is on the box's local + side else 0)``.
+        (N,) ray parameter of the first surface crossing with ``t > 0``, +inf if none.
     """
-    lo = g.to_local(origins - g.center)
-    ld = g.to_local(directions)
-    ld = np.where(ld == 0.0, 1e-300, ld)  # parallel rays: huge finite slab times, never NaN
-    inv = 1.0 / ld
-    t1 = (-g.half - lo) * inv
-    t2 = (g.half - lo) * inv
-    tmin = np.minimum(t1, t2)
-    tmax = np.maximum(t1, t2)
-    ax_near = np.argmax(tmin, axis=1)
-    ax_far = np.argmin(tmax, axis=1)
-    rows = np.arange(len(lo))
-    t_near = tmin[rows, ax_near]
-    t_far = tmax[rows, ax_far]
-    # entering through the near face: the ray moves toward +axis -> it enters at the - side
-    side_near = (ld[rows, ax_near] < 0).astype(np.int8)
-    side_far = (ld[rows, ax_far] > 0).astype(np.int8)
-    hit = t_near <= t_far
-    use_near = hit & (t_near > _T_EPS)
-    use_far = hit & ~use_near & (t_far > _T_EPS)
-    t = np.where(use_near, t_near, np.where(use_far, t_far, np.inf))
-    face = np.where(use_near, 2 * ax_near + side_near, 2 * ax_far + side_far).astype(np.int8)
-    return t, face
+    t_near = t_far = None
+    for k in range(3):
+        a = (-g.half[k] - lo[k]) * inv[k]
+        b = (g.half[k] - lo[k]) * inv[k]
+        lo_k = np.minimum(a, b)
+        hi_k = np.maximum(a, b, out=b)
+        t_near = lo_k if t_near is None else np.maximum(t_near, lo_k, out=t_near)
+        t_far = hi_k if t_far is None else np.minimum(t_far, hi_k, out=t_far)
+    miss = t_near > t_far
+    t = np.where(t_near > _T_EPS, t_near, t_far)
+    t[miss | (t <= _T_EPS)] = np.inf
+    return t
+
+
+def _safe_inv(v: np.ndarray) -> np.ndarray:
+    """1 / v with exact zeros replaced by 1e-300 (parallel rays: huge finite slab times, never NaN)."""
+    return 1.0 / np.where(v == 0.0, 1e-300, v)
 
 
 def raycast(spec: SceneSpec, origins, directions, chunk: int = CHUNK_RAYS):
@@ -116,7 +124,7 @@ def raycast(spec: SceneSpec, origins, directions, chunk: int = CHUNK_RAYS):
 
     Args:
         spec: the scene (only ``spec.boxes`` is used).
-        origins: (3,) or (N, 3) ray origins, world metres.
+        origins: (3,) (one origin for all rays, the fast path) or (N, 3) ray origins, world metres.
         directions: (N, 3) ray directions, world; need not be unit.
         chunk: rays processed at once.
     Returns:
@@ -127,26 +135,45 @@ def raycast(spec: SceneSpec, origins, directions, chunk: int = CHUNK_RAYS):
         side 1 = the + face), -1 for no hit; ``points`` (N, 3) float64 world hit points (NaN for no hit).
     """
     d = np.asarray(directions, dtype=np.float64).reshape(-1, 3)
-    o = np.broadcast_to(np.asarray(origins, dtype=np.float64), d.shape)
+    o = np.asarray(origins, dtype=np.float64)
+    single = o.shape == (3,)
+    if not single:
+        o = np.broadcast_to(o.reshape(-1, 3), d.shape)
     n = len(d)
     geoms = [_BoxGeom.of(b) for b in spec.boxes]
     t_all = np.full(n, np.inf)
     box_all = np.full(n, -1, dtype=np.int32)
     face_all = np.full(n, -1, dtype=np.int8)
     for s in range(0, n, chunk):
-        oc, dc = o[s:s + chunk], d[s:s + chunk]
+        dc = d[s:s + chunk]
+        oc = o if single else o[s:s + chunk]
+        dcols = (dc[:, 0].copy(), dc[:, 1].copy(), dc[:, 2].copy())
+        inv_world = None  # 1 / direction, shared by every unrotated box
         t_best = t_all[s:s + chunk]
         box_best = box_all[s:s + chunk]
-        face_best = face_all[s:s + chunk]
         for k, g in enumerate(geoms):
-            t, face = _intersect_box(g, oc, dc)
+            rel = oc - g.center
+            if g.sin == 0.0 and g.cos == 1.0:
+                if inv_world is None:
+                    inv_world = tuple(_safe_inv(c) for c in dcols)
+                inv = inv_world
+                lo = tuple(rel[..., i] for i in range(3))
+            else:
+                c, sn = g.cos, g.sin
+                inv = (_safe_inv(c * dcols[0] + sn * dcols[1]), _safe_inv(-sn * dcols[0] + c * dcols[1]),
+                       inv_world[2] if inv_world is not None else _safe_inv(dcols[2]))
+                lo = (c * rel[..., 0] + sn * rel[..., 1], -sn * rel[..., 0] + c * rel[..., 1], rel[..., 2])
+            t = _slab_t(g, lo, dcols, inv)
             closer = t < t_best
             t_best[closer] = t[closer]
             box_best[closer] = k
-            face_best[closer] = face[closer]
     points = np.full((n, 3), np.nan)
     hit = box_all >= 0
-    points[hit] = o[hit] + t_all[hit, None] * d[hit]
+    points[hit] = (o if single else o[hit]) + t_all[hit, None] * d[hit]
+    for k, g in enumerate(geoms):  # the face of the winning box, from the hit point
+        sel = np.flatnonzero(box_all == k)
+        if len(sel):
+            face_all[sel] = _face_of(g, points[sel])
     return t_all, box_all, face_all, points
 
 
@@ -187,24 +214,27 @@ def value_noise(q: np.ndarray, seed: int) -> np.ndarray:
     w = (q - f).astype(np.float32)
     w = w * w * w * (w * (w * np.float32(6) - np.float32(15)) + np.float32(10))
     i = f.astype(np.int64)
+    # corner hash: mix(x * P1 ^ y * P2 ^ mix(z * P3 ^ seed)); the z part is mixed once per z-corner
     hx0 = _lattice(i[:, 0]) * _P1
     hy0 = _lattice(i[:, 1]) * _P2
-    hz0 = _lattice(i[:, 2]) * _P3 ^ np.uint32(seed)
-    hx1, hy1, hz1 = hx0 + _P1, hy0 + _P2, (_lattice(i[:, 2]) + np.uint32(1)) * _P3 ^ np.uint32(seed)
+    hz = _lattice(i[:, 2]) * _P3
+    sd = np.uint32(seed & 0xFFFFFFFF)
+    mz0, mz1 = _mix(hz ^ sd), _mix((hz + _P3) ^ sd)
+    hx1, hy1 = hx0 + _P1, hy0 + _P2
     scale = np.float32(1.0 / 4294967296.0)
 
-    def val(hx, hy, hz):
-        return _mix(hx ^ _mix(hy ^ _mix(hz))).astype(np.float32) * scale
+    def val(hx, hy, mz):
+        return _mix(hx ^ hy ^ mz).astype(np.float32) * scale
 
     wx, wy, wz = w[:, 0], w[:, 1], w[:, 2]
-    x00 = val(hx0, hy0, hz0)
-    x00 += wx * (val(hx1, hy0, hz0) - x00)
-    x10 = val(hx0, hy1, hz0)
-    x10 += wx * (val(hx1, hy1, hz0) - x10)
-    x01 = val(hx0, hy0, hz1)
-    x01 += wx * (val(hx1, hy0, hz1) - x01)
-    x11 = val(hx0, hy1, hz1)
-    x11 += wx * (val(hx1, hy1, hz1) - x11)
+    x00 = val(hx0, hy0, mz0)
+    x00 += wx * (val(hx1, hy0, mz0) - x00)
+    x10 = val(hx0, hy1, mz0)
+    x10 += wx * (val(hx1, hy1, mz0) - x10)
+    x01 = val(hx0, hy0, mz1)
+    x01 += wx * (val(hx1, hy0, mz1) - x01)
+    x11 = val(hx0, hy1, mz1)
+    x11 += wx * (val(hx1, hy1, mz1) - x11)
     x00 += wy * (x10 - x00)
     x01 += wy * (x11 - x01)
     return x00 + wz * (x01 - x00)
@@ -386,10 +416,11 @@ def shade(spec: SceneSpec, points: np.ndarray, box_index: np.ndarray, face_index
         and its face, never on the ray, so every camera sees the same colour at the same surface point.
     """
     out = np.broadcast_to(np.asarray(spec.background, np.float32), (len(points), 3)).copy()
-    for k in np.unique(box_index[box_index >= 0]):
-        box = spec.boxes[int(k)]
-        g = _BoxGeom.of(box)
+    for k, box in enumerate(spec.boxes):
         sel = np.flatnonzero(box_index == k)
+        if not len(sel):
+            continue
+        g = _BoxGeom.of(box)
         p = points[sel]
         face = face_index[sel].astype(np.int64)
         axis, side = face // 2, face % 2
@@ -480,8 +511,13 @@ def render_frame(spec: SceneSpec, rig: Rig, width: int, scene_name: str, viewpoi
     Returns:
         A frame with images (H, W, 3) uint8 sRGB, distance (H, W) float32 metres (+inf: no hit), poses,
         and ``renderer`` provenance (engine, supersample, seconds, tri360 version, ...).
+    Raises:
+        ValueError: the spec is invalid, or places model files (boxes only here).
     """
     spec.validate()
+    if spec.models:
+        raise ValueError(f"scene {spec.name!r} places {len(spec.models)} model file(s); the numpy ray-caster "
+                         "renders boxes only (use the Blender backend)")
     t0 = time.perf_counter()
     poses = rig.poses()
     images, distance, per_camera = {}, {}, {}

@@ -34,13 +34,13 @@ def _materials(weak_contrast: float) -> list[Material]:
         Material("floor", kind="tiles", color=(0.55, 0.47, 0.38), color2=(0.12, 0.12, 0.12), scale=0.5,
                  contrast=0.5),
         Material("board", kind="board", color=(0.08, 0.12, 0.10), scale=0.5, contrast=weak_contrast),
-        Material("wood", kind="wood", color=(0.50, 0.32, 0.17), color2=(0.22, 0.12, 0.05), scale=0.025,
+        Material("wood", kind="wood", color=(0.50, 0.32, 0.17), color2=(0.22, 0.12, 0.05), scale=0.035,
                  contrast=0.7),
         Material("cabinet", kind="paint", color=(0.35, 0.45, 0.55), scale=0.12, contrast=0.45),
         Material("cube", kind="noise", color=(0.70, 0.25, 0.15), color2=(0.95, 0.85, 0.30), scale=0.08,
                  contrast=0.8),
         Material("fabric", kind="fabric", color=(0.20, 0.45, 0.25), scale=0.05, contrast=0.5),
-        Material("shelf", kind="wood", color=(0.62, 0.50, 0.36), color2=(0.35, 0.25, 0.15), scale=0.02,
+        Material("shelf", kind="wood", color=(0.62, 0.50, 0.36), color2=(0.35, 0.25, 0.15), scale=0.05,
                  contrast=0.6),
     ]
 
