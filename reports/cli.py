@@ -95,9 +95,38 @@ def _safe_part(name: str) -> bool:
     return bool(name) and "/" not in name and "\\" not in name and name not in (".", "..")
 
 
+SECTION_HALF_ANGLE_DEG = 15.0
+SECTION_NOTE = (f"top-down: pixels whose bearing is within {SECTION_HALF_ANGLE_DEG:g} deg of horizontal; "
+                f"side: within {SECTION_HALF_ANGLE_DEG:g} deg of the world x-z plane")
+
+
+def _section_sample(frame, n_points: int):
+    """Seeded pixel subsample for the cloud views: half near the horizon, half near the x-z plane.
+
+    Returns:
+        ``(idx, masks)``: (N,) flat pixel indices of camera C (scored pixels only, sorted) and one (N,) bool
+        mask per view of :data:`reports.plots.CLOUD_VIEWS` (top-down, side).
+    """
+    import numpy as np
+
+    from reconstruction.equirect import bearing_grid
+
+    gt = frame.distance["C"].ravel()
+    b = bearing_grid(frame.width, frame.height, frame.cameras["C"].rotation).reshape(-1, 3)
+    s = np.sin(np.radians(SECTION_HALF_ANGLE_DEG))
+    scored = np.isfinite(gt) & (gt > 0)
+    rng = np.random.default_rng(0)  # seeded: the same subsample every run
+    picks = []
+    for axis in (2, 1):  # top-down: |b_z| small; side: |b_y| small
+        cand = np.flatnonzero(scored & (np.abs(b[:, axis]) < s))
+        picks.append(rng.choice(cand, size=min(max(1, n_points // 2), cand.size), replace=False))
+    idx = np.unique(np.concatenate(picks))
+    masks = [np.isin(idx, p) for p in picks]
+    return idx, masks
+
+
 def build_report(results_dir, *, ply: str = "all", cloud_points: int = DEFAULT_CLOUD_POINTS) -> ReportOutcome:
     """Like :func:`write_report` but returns the :class:`ReportOutcome` (markdown, problems, files)."""
-    import numpy as np
 
     from harness.errors import UserError
     from harness.frame import FrameError, atomic_write_bytes, atomic_write_text, read_distance_exr, read_frame
@@ -184,9 +213,7 @@ def build_report(results_dir, *, ply: str = "all", cloud_points: int = DEFAULT_C
         cam = frame.cameras["C"]
         colors = frame.images["C"].reshape(-1, 3)
         gt_pts = point_grid(gt, cam.position, cam.rotation).reshape(-1, 3)
-        scored = np.flatnonzero(np.isfinite(gt.ravel()) & (gt.ravel() > 0))
-        rng = np.random.default_rng(0)  # seeded: the same subsample every run
-        idx = np.sort(rng.choice(scored, size=min(cloud_points, scored.size), replace=False))
+        idx, view_masks = _section_sample(frame, cloud_points)
         links = []
         if ply != "none":
             rel = f"clouds/{scene}/{viewpoint}/ground_truth.ply"
@@ -226,13 +253,14 @@ def build_report(results_dir, *, ply: str = "all", cloud_points: int = DEFAULT_C
                     n = write_ply(d / rel, pts, colors, comment=f"tri360 {title} {variant}")
                     out.files.append(d / rel)
                     conf_links.append(H.link(rel, f"{variant} ({n} points)"))
-            cloud_png = plots.cloud_views(clouds, cam.position, title, reference="ground truth")
+            cloud_png = plots.cloud_views(clouds, cam.position, title, view_masks, reference="ground truth",
+                                          subtitle=SECTION_NOTE)
             put(f"figures/{scene}/{viewpoint}/{key}.clouds.png", cloud_png)
             block = (H.img(err_png, f"error maps {title}",
                            "Ground truth distance and |pred - gt| per variant (shared colour scale, metres).")
                      + H.img(cloud_png, f"point clouds {title}",
-                             f"Top-down and side views of {idx.size} sampled points (same pixels in every "
-                             "column); limits from the ground truth's 1-99 % range."))
+                             f"Fig. 3 style sections, {idx.size} sampled pixels (the same in every column): "
+                             f"{SECTION_NOTE}. Axis limits from the ground truth's 1-99 % range."))
             if conf_links:
                 block += '<p class="note">PLY point clouds: ' + ", ".join(conf_links) + "</p>"
             conf_blocks.append(H.details(config_label(flow, rect), block,

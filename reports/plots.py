@@ -3,7 +3,7 @@
 * :func:`fig4_mae`: paper Fig. 4 style bars, MAE per variant grouped by configuration, min-max error bars.
 * :func:`error_maps`: ground-truth distance and ``|pred - gt|`` per variant on one shared colour scale.
 * :func:`breakdown_lines`: error against a breakdown quantity (angle to a baseline, distance, texture).
-* :func:`cloud_views`: paper Fig. 3 style top-down and side views of point clouds.
+* :func:`cloud_views`: paper Fig. 3 style top-down and side sections of point clouds.
 """
 
 from __future__ import annotations
@@ -19,7 +19,8 @@ from matplotlib.ticker import FormatStrFormatter
 
 from reports.tables import PAPER_MAE_M, config_label, config_order, variant_order
 
-__all__ = ["variant_colors", "png_bytes", "fig4_mae", "error_maps", "breakdown_lines", "cloud_views"]
+__all__ = ["variant_colors", "png_bytes", "fig4_mae", "error_maps", "breakdown_lines", "cloud_views",
+           "CLOUD_VIEWS"]
 
 DPI = 90
 NO_SURFACE_RGBA = (0.78, 0.78, 0.78, 1.0)  # light grey: pixel with no surface (not scored)
@@ -256,21 +257,31 @@ def breakdown_lines(bd: pd.DataFrame, kinds: list[str], title: str) -> bytes:
 # ---------------------------------------------------------------------------------------------- clouds
 
 
+#: default views of :func:`cloud_views`: (label, (horizontal axis, vertical axis)) with 0, 1, 2 = world x, y, z
+CLOUD_VIEWS = (("top-down (x, y)", (0, 1)), ("side (x, z)", (0, 2)))
+
+
 def cloud_views(clouds: dict[str, tuple[np.ndarray, np.ndarray]], centre, title: str,
-                reference: str | None = None) -> bytes:
-    """Paper Fig. 3 style views of point clouds: top-down (X-Y) and side (X-Z), one column per cloud.
+                view_masks: list[np.ndarray] | None = None, reference: str | None = None,
+                subtitle: str = "") -> bytes:
+    """Paper Fig. 3 style views of point clouds: top-down (x-y) and side (x-z), one column per cloud.
 
     Args:
         clouds: name -> ``(points (N, 3) metres world, colors (N, 3) uint8)``; non-finite points are skipped.
-            Pass the same pixel subsample for every cloud so the columns are comparable.
+            Pass the same pixels for every cloud so the columns are comparable.
         centre: (3,) camera C position (drawn as a black cross), metres.
         title: figure title.
+        view_masks: optional (N,) bool per view in :data:`CLOUD_VIEWS`: which points each view draws
+            (e.g. only pixels near the horizon for the top-down view, giving a floor-plan section).
         reference: name of the cloud whose 1..99 % coordinate range sets the shared axis limits (default: the
             first); points of other clouds outside those limits are cut off by the axes.
+        subtitle: second title line (what was sampled).
     Returns:
-        PNG with two rows (top-down: x right, y up; side: x right, z up) and ``len(clouds)`` columns.
+        PNG with one row per view (top-down: x right, y up; side: x right, z up), ``len(clouds)`` columns.
     """
     names = list(clouds)
+    n = len(clouds[names[0]][0])
+    masks = view_masks if view_masks is not None else [np.ones(n, dtype=bool)] * len(CLOUD_VIEWS)
     ref = clouds[reference or names[0]][0]
     ref = ref[np.isfinite(ref).all(axis=1)]
     if ref.size:
@@ -281,19 +292,18 @@ def cloud_views(clouds: dict[str, tuple[np.ndarray, np.ndarray]], centre, title:
     lo, hi = lo - pad, hi + pad
     c = np.asarray(centre, dtype=np.float64)
     ncols = len(names)
-    fig = Figure(figsize=(3.3 * ncols + 0.4, 6.6), layout="constrained")
-    fig.suptitle(f"{title}\npoints X = C + d * bearing coloured by C's image (subsample); cross: camera C",
-                 fontsize=9)
-    axes = fig.subplots(2, ncols, squeeze=False)
-    n_max = max(1, max(len(p) for p, _ in clouds.values()))
-    size = float(np.clip(4000.0 / n_max, 0.8, 6.0))  # marker area (pt^2): denser clouds, smaller dots
-    for j, name in enumerate(names):
-        pts, col = clouds[name]
-        keep = np.isfinite(pts).all(axis=1)
-        pts, col = pts[keep], np.asarray(col)[keep].astype(np.float64) / 255.0
-        for i, (a, b, lab) in enumerate(((0, 1, "top-down (x, y)"), (0, 2, "side (x, z)"))):
+    fig = Figure(figsize=(3.3 * ncols + 0.4, 6.8), layout="constrained")
+    fig.suptitle(f"{title}\npoints X = C + d * bearing coloured by C's image; cross: camera C"
+                 + (f"\n{subtitle}" if subtitle else ""), fontsize=9)
+    axes = fig.subplots(len(CLOUD_VIEWS), ncols, squeeze=False)
+    for i, ((lab, (a, b)), mask) in enumerate(zip(CLOUD_VIEWS, masks, strict=True)):
+        size = float(np.clip(3000.0 / max(1, int(mask.sum())), 0.8, 6.0))  # marker area, pt^2
+        for j, name in enumerate(names):
+            pts, col = clouds[name]
+            keep = mask & np.isfinite(pts).all(axis=1)
+            p, cc = pts[keep], np.asarray(col)[keep].astype(np.float64) / 255.0
             ax = axes[i, j]
-            ax.scatter(pts[:, a], pts[:, b], s=size, c=col, marker=".", linewidths=0, rasterized=True)
+            ax.scatter(p[:, a], p[:, b], s=size, c=cc, marker=".", linewidths=0, rasterized=True)
             ax.plot([c[a]], [c[b]], "k+", ms=8, mew=1.5)
             ax.set_xlim(lo[a], hi[a])
             ax.set_ylim(lo[b], hi[b])

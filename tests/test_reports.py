@@ -220,6 +220,7 @@ def test_html_is_self_contained(report):
 
 def test_ply_paper_only_and_none(tmp_path):
     res = make_results(tmp_path)
+    (res / "breakdown.csv").unlink()  # not needed here; saves two plots
     build_report(res, ply="paper", cloud_points=100)
     assert sorted(p.relative_to(res).as_posix() for p in res.rglob("*.ply")) == sorted(
         ["clouds/room/v0/ground_truth.ply"] + [f"clouds/room/v0/deepflow-plain/{v}.ply" for v in VARIANTS])
@@ -328,3 +329,17 @@ def test_reports_does_not_import_blender():
 def test_report_timing_is_small(report):
     _, _, seconds = report
     assert seconds < 60  # a 64x32 frame, 2 configurations, 3 variants on a shared 2-core machine
+
+
+def test_cloud_sections_sample_the_right_pixels(tmp_path):
+    from reports.cli import SECTION_HALF_ANGLE_DEG, _section_sample
+
+    frame = make_frame(tmp_path / "data")
+    idx, (top, side) = _section_sample(frame, 200)
+    b = bearing_grid(W, H).reshape(-1, 3)[idx]
+    limit = np.sin(np.radians(SECTION_HALF_ANGLE_DEG))
+    assert top.sum() == 100 and side.sum() == 100
+    assert np.all(np.abs(b[top, 2]) < limit) and np.all(np.abs(b[side, 1]) < limit)
+    assert np.isfinite(frame.distance["C"].ravel()[idx]).all()  # sky pixels are never drawn
+    again, _ = _section_sample(frame, 200)
+    np.testing.assert_array_equal(idx, again)  # seeded
