@@ -343,3 +343,17 @@ def test_cloud_sections_sample_the_right_pixels(tmp_path):
     assert np.isfinite(frame.distance["C"].ravel()[idx]).all()  # sky pixels are never drawn
     again, _ = _section_sample(frame, 200)
     np.testing.assert_array_equal(idx, again)  # seeded
+
+
+def test_malformed_breakdown_and_frames_json(tmp_path):
+    _write_csv(tmp_path / "r" / "results.csv", RESULT_COLUMNS, [GOOD])
+    (tmp_path / "r" / "frames.json").write_text('{"scene": "room"}')
+    with pytest.raises(UserError, match=r"frames\.json: must be a JSON list"):
+        write_report(tmp_path / "r")
+    (tmp_path / "r" / "frames.json").write_text("[{")
+    with pytest.raises(UserError, match=r"frames\.json: not valid JSON"):
+        write_report(tmp_path / "r")
+    (tmp_path / "r" / "frames.json").unlink()
+    _write_csv(tmp_path / "r" / "breakdown.csv", ["scene", "kind"], [["room", "distance"]])
+    with pytest.raises(UserError, match=r"breakdown\.csv: missing column"):
+        write_report(tmp_path / "r")
