@@ -23,7 +23,8 @@ from reconstruction.refine import (
     get_variant,
     levenberg_marquardt,
 )
-from reconstruction.triangulate import TriangulationLimits, pair_geometry, triangulate_sines
+from reconstruction.spherical import EquirectSampler
+from reconstruction.triangulate import PairGeometry, TriangulationLimits, pair_geometry, triangulate_sines
 from reconstruction.weights import (
     angle_weight,
     epipolar_gradient,
@@ -33,7 +34,7 @@ from reconstruction.weights import (
 )
 
 __all__ = ["DEFAULT_FLOW", "PAIRS", "Reconstruction", "reconstruct", "available_variants", "fuse_average",
-           "fill_invalid"]
+           "fill_invalid", "fill_edge_aware", "Prepared", "prepare", "variant_problem", "refine_variant"]
 
 DEFAULT_FLOW = "dis"  # chosen by measurement, see docs/refinement.md
 PAIRS = ("U", "R")
@@ -91,6 +92,31 @@ def fill_invalid(d: np.ndarray, valid: np.ndarray, max_sigma_px: float = 64.0) -
     return out
 
 
+def fill_edge_aware(d: np.ndarray, valid: np.ndarray, guide: np.ndarray, lam: float, sigma_color: float) -> np.ndarray:
+    """Interpolate distances from valid pixels without crossing image edges.
+
+    Normalised edge-aware smoothing of inverse distance: ``S(valid / d) / S(valid)`` with ``S`` OpenCV's
+    fast global smoother guided by ``guide``; pixels the smoother cannot reach fall back to
+    :func:`fill_invalid`.
+
+    Args:
+        d: (H, W) distances, metres (positive); valid: (H, W) bool; guide: (H, W, 3) uint8 image.
+        lam: smoothness (larger reaches farther); sigma_color: edge scale in 8-bit levels.
+    Returns:
+        (H, W) float64 interpolated distances (at every pixel, valid ones included), metres.
+    """
+    fgs = cv2.ximgproc.createFastGlobalSmootherFilter(guide, lam, sigma_color)
+    m = valid.astype(np.float32)
+    num = fgs.filter((m / np.maximum(d, 1e-6)).astype(np.float32))
+    den = fgs.filter(m)
+    reached = den > 1e-4
+    inv = num / np.where(reached, den, 1.0)
+    out = 1.0 / np.maximum(inv, 1e-3).astype(np.float64)
+    if not reached.all():
+        out = np.where(reached, out, fill_invalid(d, valid))
+    return out
+
+
 def fuse_average(d_pairs: Sequence[np.ndarray], valid: Sequence[np.ndarray], shape: tuple[int, int]) -> np.ndarray:
     """The paper's "before optimisation" distance: the mean of the pairs' distances.
 
@@ -109,7 +135,8 @@ def fuse_average(d_pairs: Sequence[np.ndarray], valid: Sequence[np.ndarray], sha
     return fill_invalid(mean_valid.reshape(shape), (n > 0).reshape(shape)).reshape(-1)
 
 
-def _color_terms(frame, config: RefineConfig, idx_shape) -> list[ColorTerm]:
+def _color_terms(frame, config: RefineConfig, bearings: np.ndarray) -> list[ColorTerm]:
+    """Colour-residual data of both pairs: blurred intensities (gray or RGB, [0, 1]) with their derivatives."""
     def prep(img):
         x = img.astype(np.float32) / 255.0 if config.color_rgb else to_gray(img)[..., None]
         if config.color_blur_px > 0:
@@ -118,6 +145,7 @@ def _color_terms(frame, config: RefineConfig, idx_shape) -> list[ColorTerm]:
         return x
 
     ref = prep(frame.images["C"]).reshape(-1, 3 if config.color_rgb else 1).astype(np.float64)
+    origin = np.asarray(frame.cameras["C"].position, np.float64)
     terms = []
     for k in PAIRS:
         img = prep(frame.images[k])
@@ -125,23 +153,39 @@ def _color_terms(frame, config: RefineConfig, idx_shape) -> list[ColorTerm]:
         dv = np.zeros_like(img)
         dv[1:-1] = (img[2:] - img[:-2]) / 2.0
         cam = frame.cameras[k]
-        terms.append(ColorTerm(stack=np.ascontiguousarray(np.concatenate([img, du, dv], axis=2)), ref=ref,
-                               position=np.asarray(cam.position), rotation=np.asarray(cam.rotation)))
+        rot = np.asarray(cam.rotation, np.float64)
+        terms.append(ColorTerm(sampler=EquirectSampler(np.ascontiguousarray(np.concatenate([img, du, dv], axis=2))),
+                               ref=ref, start=(origin - np.asarray(cam.position, np.float64)) @ rot,
+                               direction=bearings @ rot))
     return terms
 
 
-def usable(geom, match: PairMatch, valid: np.ndarray, config: RefineConfig, height: int) -> np.ndarray:
+def color_texture_mask(image: np.ndarray, config: RefineConfig) -> np.ndarray:
+    """(H, W) bool: pixels of C whose blurred gray gradient magnitude exceeds ``config.color_min_gradient``."""
+    gray = to_gray(image)
+    if config.color_blur_px > 0:
+        gray = cv2.GaussianBlur(gray, (0, 0), config.color_blur_px)
+    gu = (np.roll(gray, -1, axis=1) - np.roll(gray, 1, axis=1)) / 2.0
+    gv = np.zeros_like(gray)
+    gv[1:-1] = (gray[2:] - gray[:-2]) / 2.0
+    return np.hypot(gu, gv) > config.color_min_gradient
+
+
+def match_checks(geom, match: PairMatch, valid: np.ndarray, config: RefineConfig, height: int) -> np.ndarray:
     """(N,) bool: the pair's estimate is valid, its match lies within ``lateral_max_px`` of the epipolar
-    curve and its flow is forward-backward consistent within ``fb_max_px`` (otherwise a failed match)."""
+    curve and its flow is forward-backward consistent within ``fb_max_px``."""
     lateral_px = np.abs(geom.off_plane) * height / np.pi
     return valid & (lateral_px <= config.lateral_max_px) & (match.fb_error_px.reshape(-1) <= config.fb_max_px)
 
 
-def build_problem(frame, matches: dict[str, PairMatch], valid: dict[str, np.ndarray], config: RefineConfig,
-                  bearings: np.ndarray, geoms: dict) -> RefineProblem:
+def build_problem(frame, matches: dict[str, PairMatch], valid: dict[str, np.ndarray], checked: dict[str, np.ndarray],
+                  config: RefineConfig, bearings: np.ndarray, geoms: dict) -> RefineProblem:
     """Assemble the per-pixel least-squares problem of one variant (all of C's pixels).
 
-    ``valid`` is per pair the (N,) mask of pixels where the pair may be used (see :func:`usable`).
+    Args:
+        valid: per pair, (N,) pixels where the pair's triangulation is meaningful (weight 0 elsewhere).
+        checked: per pair, (N,) pixels whose match passed :func:`match_checks` (others are down-weighted
+            by ``config.fallback_weight``).
     """
     weights = []
     gray = to_gray(frame.images["C"]) if config.gradient else None
@@ -151,12 +195,110 @@ def build_problem(frame, matches: dict[str, PairMatch], valid: dict[str, np.ndar
         if config.gradient:
             g = epipolar_gradient(gray, frame.cameras["C"].rotation, matches[k].rect_rotation, bearings)
             w = w * gradient_confidence(g, config.gradient_scale, config.gradient_floor)
+        w = w * np.where(checked[k], 1.0, config.fallback_weight)
         weights.append(np.where(valid[k], w, 0.0))
-    color = _color_terms(frame, config, bearings.shape) if config.color_weight > 0 else []
+    color = _color_terms(frame, config, bearings) if config.color_weight > 0 else []
     return RefineProblem(origin=np.asarray(frame.cameras["C"].position, np.float64), bearings=bearings,
                          pairs=[geoms[k] for k in PAIRS], weights=weights, height=frame.height,
                          width=frame.width, color=color, color_weight=config.color_weight,
                          color_saturation=config.color_saturation)
+
+
+def replace_outliers(d: np.ndarray, checked_any: np.ndarray, guide: np.ndarray, config: RefineConfig) -> np.ndarray:
+    """Where no pair passed the checks, replace results far from the edge-aware interpolation of checked
+    neighbours by that interpolation (see ``RefineConfig.outlier_log_ratio``).  (H, W) arrays, metres."""
+    if checked_any.all() or not checked_any.any():
+        return d
+    fill = fill_edge_aware(d, checked_any, guide, config.fill_lambda, config.fill_sigma_color)
+    outlier = ~checked_any & (np.abs(np.log(d / fill)) > config.outlier_log_ratio)
+    return np.where(outlier, fill, d)
+
+
+@dataclass
+class Prepared:
+    """Everything the refinement variants share: matches, per-pair geometry and the ``average`` start.
+
+    Attributes:
+        bearings: (N, 3) world bearings of C's pixels (N = H * W, row-major).
+        matches: per pair, the :class:`PairMatch`.
+        geoms: per pair, the :class:`~reconstruction.triangulate.PairGeometry` (arrays (N,)).
+        d_pair: per pair, (N,) triangulated distances, metres; valid: per pair, (N,) bool.
+        d0: (N,) the ``average`` distances, metres (every variant starts from them).
+        limits: the triangulation limits used.
+        seconds: wall time of ``flow_U``, ``flow_R``, ``triangulate`` and ``average``.
+    """
+
+    bearings: np.ndarray
+    matches: dict[str, PairMatch]
+    geoms: dict[str, PairGeometry]
+    d_pair: dict[str, np.ndarray]
+    valid: dict[str, np.ndarray]
+    d0: np.ndarray
+    limits: TriangulationLimits
+    seconds: dict[str, float] = field(default_factory=dict)
+
+
+def prepare(frame, flow: str = DEFAULT_FLOW, rectify: bool = True,
+            limits: TriangulationLimits = TriangulationLimits(),
+            on_stage: Callable[[str], None] | None = None) -> Prepared:
+    """Flow for both pairs, triangulation and the ``average`` fusion, each timed."""
+    note = on_stage or (lambda _s: None)
+    h, w = frame.height, frame.width
+    seconds = {}
+    bearings = bearing_grid(w, h, frame.cameras["C"].rotation).reshape(-1, 3)
+    matches = {}
+    for k in PAIRS:
+        note(f"flow_{k}")
+        matches[k] = match_pair(frame, k, flow, rectify)
+        seconds[f"flow_{k}"] = matches[k].seconds
+    note("triangulate")
+    start = time.perf_counter()
+    geoms, d_pair, valid = {}, {}, {}
+    for k in PAIRS:
+        geoms[k] = pair_geometry(bearings, matches[k].baseline, matches[k].bearing.reshape(-1, 3))
+        d_pair[k], valid[k] = triangulate_sines(geoms[k], limits)
+    seconds["triangulate"] = time.perf_counter() - start
+    start = time.perf_counter()
+    d0 = fuse_average([d_pair[k] for k in PAIRS], [valid[k] for k in PAIRS], (h, w))
+    seconds["average"] = time.perf_counter() - start
+    return Prepared(bearings, matches, geoms, d_pair, valid, d0, limits, seconds)
+
+
+def variant_problem(frame, prep: Prepared, config: RefineConfig):
+    """The least-squares problem of one variant over all of C's pixels.
+
+    Returns:
+        ``(problem, checked)``: the :class:`RefineProblem` (with its colour terms, if any) and per pair the
+        (N,) mask of pixels whose match passed :func:`match_checks`.
+    """
+    checked = {k: match_checks(prep.geoms[k], prep.matches[k], prep.valid[k], config, frame.height) for k in PAIRS}
+    problem = build_problem(frame, prep.matches, prep.valid, checked, config, prep.bearings, prep.geoms)
+    return problem, checked
+
+
+def refine_variant(frame, prep: Prepared, config: RefineConfig):
+    """Run one refinement variant from ``prep.d0``.
+
+    Two stages: LM on the geometric residuals to convergence, then (colour variants) ``color_iters`` LM
+    iterations with the colour residuals added, on textured pixels only; finally outliers among pixels
+    without a checked pair are replaced (:func:`replace_outliers`).
+
+    Returns:
+        ``(d, iterations)``: (H, W) float64 refined distances, metres, and the LM iterations run.
+    """
+    h, w = frame.height, frame.width
+    lim = prep.limits
+    problem, checked = variant_problem(frame, prep, config)
+    color, problem.color = problem.color, []  # geometric stage first
+    d, iters = levenberg_marquardt(problem, prep.d0, lim.d_min_m, lim.d_max_m, config.max_iters, config.tol_m)
+    if color:
+        problem.color = color
+        textured = color_texture_mask(frame.images["C"], config).reshape(-1)
+        d, more = levenberg_marquardt(problem, d, lim.d_min_m, lim.d_max_m, config.color_iters, config.tol_m,
+                                      only=textured)
+        iters += more
+    checked_any = (checked["U"] | checked["R"]).reshape(h, w)
+    return replace_outliers(d.reshape(h, w), checked_any, frame.images["C"], config), iters
 
 
 def reconstruct(frame, flow: str = DEFAULT_FLOW, rectify: bool = True, variants: Sequence[str] | None = None,
@@ -179,41 +321,19 @@ def reconstruct(frame, flow: str = DEFAULT_FLOW, rectify: bool = True, variants:
     variants = list(available_variants() if variants is None else variants)
     configs = {v: get_variant(v) for v in variants if v != "average"}  # validate names before any work
     h, w = frame.height, frame.width
-    out = Reconstruction()
     note = on_stage or (lambda _s: None)
-    bearings = bearing_grid(w, h, frame.cameras["C"].rotation).reshape(-1, 3)
-
-    matches = {}
+    prep = prepare(frame, flow, rectify, limits, note)
+    out = Reconstruction(seconds=dict(prep.seconds))
     for k in PAIRS:
-        note(f"flow_{k}")
-        matches[k] = match_pair(frame, k, flow, rectify)
-        out.seconds[f"flow_{k}"] = matches[k].seconds
-
-    note("triangulate")
-    start = time.perf_counter()
-    geoms, d_pair, valid = {}, {}, {}
-    for k in PAIRS:
-        geoms[k] = pair_geometry(bearings, matches[k].baseline, matches[k].bearing.reshape(-1, 3))
-        d_pair[k], valid[k] = triangulate_sines(geoms[k], limits)
-        out.pair_distance[k] = d_pair[k].reshape(h, w).astype(np.float32)
-        out.pair_valid[k] = valid[k].reshape(h, w)
-    out.seconds["triangulate"] = time.perf_counter() - start
-
-    start = time.perf_counter()
-    d0 = fuse_average([d_pair[k] for k in PAIRS], [valid[k] for k in PAIRS], (h, w))
-    out.seconds["average"] = time.perf_counter() - start
+        out.pair_distance[k] = prep.d_pair[k].reshape(h, w).astype(np.float32)
+        out.pair_valid[k] = prep.valid[k].reshape(h, w)
     if "average" in variants:
-        out.distance["average"] = d0.reshape(h, w).astype(np.float32)
-
+        out.distance["average"] = prep.d0.reshape(h, w).astype(np.float32)
     for name, config in configs.items():
         note(name)
         start = time.perf_counter()
-        ok = {k: usable(geoms[k], matches[k], valid[k], config, h) for k in PAIRS}
-        problem = build_problem(frame, matches, ok, config, bearings, geoms)
-        d, iters = levenberg_marquardt(problem, d0, limits.d_min_m, limits.d_max_m, config.max_iters, config.tol_m)
-        any_ok = (ok["U"] | ok["R"]).reshape(h, w)
-        d = fill_invalid(d.reshape(h, w), any_ok)
+        d, iters = refine_variant(frame, prep, config)
         out.seconds[name] = time.perf_counter() - start
         out.iterations[name] = iters
-        out.distance[name] = d.reshape(h, w).astype(np.float32)
+        out.distance[name] = d.astype(np.float32)
     return out

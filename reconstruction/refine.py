@@ -22,8 +22,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from reconstruction.equirect import project_with_derivative
-from reconstruction.spherical import sample_equirect
+from reconstruction.equirect import _fast_project_rays_camera
+from reconstruction.spherical import EquirectSampler
 from reconstruction.triangulate import PairGeometry, beta_of_distance
 
 __all__ = ["RefineConfig", "VARIANTS", "register_variant", "get_variant", "RefineProblem", "levenberg_marquardt",
@@ -47,12 +47,22 @@ class RefineConfig:
             (occlusions, specularities).
         color_blur_px: Gaussian sigma, pixels, applied to the images used by the colour term.
         color_rgb: use the three RGB channels instead of grayscale (the paper's future work).
+        color_iters: LM iterations of the colour stage, which starts from the converged geometric solution
+            (the colour cost is non-convex: it refines locally, it does not search).
+        color_min_gradient: the colour stage refines only pixels whose blurred image gradient in C exceeds
+            this, intensity per pixel (elsewhere the colour residual has no slope and cannot move d).
         lateral_px: sigma, pixel equivalents, of the lateral-flow confidence 1 / (1 + (e / sigma)^2), where e
             is the match's distance from the epipolar curve (0 disables it).
-        lateral_max_px: a match farther than this from its epipolar curve, pixel equivalents, is treated as
-            a failed match (the pair is not used at that pixel); pixels left with no usable pair are
-            interpolated from refined neighbours.
+        lateral_max_px: a match farther than this from its epipolar curve, pixel equivalents, fails the
+            match checks.
         fb_max_px: likewise for a forward-backward flow inconsistency above this, pixels.
+        fallback_weight: weight factor, dimensionless, of a pair whose match failed the checks: at a pixel
+            with a checked pair it is all but ignored; where no pair passed, the unchecked pairs still decide.
+        outlier_log_ratio: at a pixel where no pair passed the checks, a result differing from the
+            edge-aware interpolation of its checked neighbours by more than this in |log(d / d_fill)|
+            (0.5: a factor 1.65) is an outlier and takes the interpolated distance.
+        fill_lambda, fill_sigma_color: smoothness (dimensionless) and colour-edge scale (8-bit levels) of
+            that edge-aware interpolation (OpenCV fast global smoother guided by C's image).
         max_iters: LM iterations (the geometric problem converges in < 10).
         tol_m: stop a pixel when its step is below this, metres.
     """
@@ -66,9 +76,15 @@ class RefineConfig:
     color_saturation: float = 0.1
     color_blur_px: float = 1.0
     color_rgb: bool = False
+    color_iters: int = 6
+    color_min_gradient: float = 0.01
     lateral_px: float = 1.0
     lateral_max_px: float = 3.0
-    fb_max_px: float = 2.0
+    fb_max_px: float = 1.0
+    fallback_weight: float = 1e-3
+    outlier_log_ratio: float = 0.5
+    fill_lambda: float = 1e4
+    fill_sigma_color: float = 8.0
     max_iters: int = 30
     tol_m: float = 1e-7
     description: str = ""
@@ -85,7 +101,7 @@ def register_variant(config: RefineConfig) -> None:
 register_variant(RefineConfig("angle", description="LM on reprojection error, angle weights (Yin et al. 2019)"))
 register_variant(RefineConfig("gradient", gradient=True,
                               description="LM, angle x epipolar-gradient weights (paper eq. 1)"))
-register_variant(RefineConfig("color", color_weight=10.0,
+register_variant(RefineConfig("color", color_weight=30.0,
                               description="LM, angle weights + grayscale intensity consistency (paper eq. 2)"))
 
 
@@ -100,16 +116,17 @@ class ColorTerm:
     """Data for the colour residual of one pair.
 
     Attributes:
-        stack: (H, W, 3c) float32 image of camera k with its u- and v-derivatives, channels
-            [I_1..I_c, dI/du_1.., dI/dv_1..] (intensity in [0, 1] per pixel).
+        sampler: samples camera k's image stacked with its u- and v-derivatives, channels
+            [I_1..I_c, dI/du_1.., dI/dv_1..] (intensity in [0, 1]; derivatives per pixel).
         ref: (N, c) C's intensities at the refined pixels.
-        position, rotation: camera k's pose.
+        start: (3,) C's centre relative to camera k's centre, in camera k's frame, metres.
+        direction: (N, 3) the pixels' bearings in camera k's frame.
     """
 
-    stack: np.ndarray
+    sampler: EquirectSampler
     ref: np.ndarray
-    position: np.ndarray
-    rotation: np.ndarray
+    start: np.ndarray
+    direction: np.ndarray
 
 
 @dataclass
@@ -162,14 +179,12 @@ class RefineProblem:
         if self.color and self.color_weight > 0:
             s = self.color_saturation
             lam = np.sqrt(self.color_weight)
-            a = self.bearings[sel]
             for term in self.color:
-                u, v, du, dv = project_with_derivative(self.origin, a, d, term.position, term.rotation,
-                                                       self.width, self.height)
+                u, v, du, dv = _fast_project_rays_camera(term.start, term.direction[sel], d, self.width, self.height)
                 c = term.ref.shape[1]
-                smp = sample_equirect(term.stack, u, v).reshape(len(d), 3 * c).astype(np.float64)
+                smp = term.sampler(u, v).reshape(len(d), 3 * c).astype(np.float64)
                 e = smp[:, :c] - term.ref[sel]
-                de = smp[:, c:2 * c] * du[:, None] + smp[:, 2 * c:] * dv[:, None]
+                de = smp[:, c:2 * c] * du[:, None].astype(np.float64) + smp[:, 2 * c:] * dv[:, None].astype(np.float64)
                 th = np.tanh(e / s)
                 rs.extend((lam * s * th).T)
                 js.extend((lam * (1.0 - th * th) * de).T)
@@ -177,40 +192,45 @@ class RefineProblem:
 
 
 def levenberg_marquardt(problem: RefineProblem, d0: np.ndarray, d_min: float = 0.05, d_max: float = 100.0,
-                        max_iters: int = 30, tol: float = 1e-7, lam0: float = 1e-3):
+                        max_iters: int = 30, tol: float = 1e-7, lam0: float = 1e-3, only: np.ndarray | None = None):
     """Minimise ``sum(r(d)**2)`` for every pixel independently, all pixels at once.
 
     Marquardt's scaled damping for a scalar unknown: step = -(J.r) / ((J.J)(1 + lambda)); a step that
-    lowers a pixel's cost is taken and its lambda divided by 10, otherwise lambda is multiplied by 10.
-    Distances stay inside ``[d_min, d_max]`` (metres).  Pixels stop when the step is below ``tol`` metres.
+    does not raise a pixel's cost is taken and its lambda divided by 10, otherwise lambda is multiplied by
+    10.  Distances stay inside ``[d_min, d_max]`` (metres).  A pixel stops when its accepted step is below
+    ``tol`` metres, its cost stops decreasing (relative change <= 1e-12), or it has no information.
+    Only the per-pixel sums (cost, J.r, J.J) are kept, so memory is O(N) whatever the residual count.
+    ``only`` (optional (N,) bool) restricts the solve to those pixels; the others keep ``d0``.
 
     Returns:
         ``(d, iterations)``: (N,) refined distances and the number of iterations run.
     """
     d = np.clip(np.asarray(d0, dtype=np.float64).copy(), d_min, d_max)
     lam = np.full(d.shape, lam0)
-    active = np.arange(d.size)
-    r, J = problem.residuals(d)
-    cost = np.einsum("ij,ij->i", r, r)
+    active = np.arange(d.size) if only is None else np.flatnonzero(only)
+    cost, g, h = (np.zeros(d.size) for _ in range(3))
+    cost[active], g[active], h[active] = _normal_terms(*problem.residuals(d[active], active))
     iterations = 0
     while active.size and iterations < max_iters:
         iterations += 1
-        ra, Ja = r[active], J[active]
-        g = np.einsum("ij,ij->i", Ja, ra)
-        h = np.einsum("ij,ij->i", Ja, Ja)
-        step = -g / np.maximum(h * (1.0 + lam[active]), 1e-30)
-        before = d[active]
+        ga, ha, cost_prev, before = g[active], h[active], cost[active], d[active]
+        step = -ga / np.maximum(ha * (1.0 + lam[active]), 1e-30)
         trial = np.clip(before + step, d_min, d_max)
-        r_new, J_new = problem.residuals(trial, active)
-        cost_new = np.einsum("ij,ij->i", r_new, r_new)
-        better = cost_new <= cost[active]
+        cost_new, g_new, h_new = _normal_terms(*problem.residuals(trial, active))
+        better = cost_new <= cost_prev
         acc = active[better]
-        d[acc] = trial[better]
-        cost[acc] = cost_new[better]
-        r[acc], J[acc] = r_new[better], J_new[better]
+        d[acc], cost[acc], g[acc], h[acc] = trial[better], cost_new[better], g_new[better], h_new[better]
         lam[acc] = np.maximum(lam[acc] / 10.0, 1e-9)
         rej = active[~better]
         lam[rej] = lam[rej] * 10.0
-        done = (better & (np.abs(trial - before) < tol)) | (lam[active] > 1e8) | (h < 1e-30)
+        # done: accepted step below tol, cost no longer decreasing (flat stretches of the colour cost),
+        # damping exploded, or no information (all weights 0)
+        stalled = better & (cost_prev - cost_new <= 1e-12 * np.maximum(cost_prev, 1e-30))
+        done = (better & (np.abs(trial - before) < tol)) | stalled | (lam[active] > 1e8) | (ha < 1e-30)
         active = active[~done]
     return d, iterations
+
+
+def _normal_terms(r: np.ndarray, J: np.ndarray):
+    """Per-pixel cost sum(r^2), gradient sum(J r) and Gauss-Newton Hessian sum(J^2), each (M,)."""
+    return np.einsum("ij,ij->i", r, r), np.einsum("ij,ij->i", J, r), np.einsum("ij,ij->i", J, J)
