@@ -61,8 +61,16 @@ class RenderSettings:
         denoise: run OpenImageDenoise (CPU) on Combined; Depth is never denoised.
         max_bounces: total light bounces; diffuse/glossy are capped at this, transmission/transparent
             may go a little higher so glass stays clear.
+        diffuse_bounces, glossy_bounces: per-type bounce limits (each also capped at ``max_bounces``).
         filter_width: pixel filter (Blackman-Harris) width, pixels.
         clamp_indirect: clamp on indirect sample values (0 = off); suppresses fireflies at low samples.
+        light_tree: Cycles' light tree for picking which light to sample.
+        denoise_prefilter: OIDN guide-pass prefilter, ``"ACCURATE"``, ``"FAST"`` or ``"NONE"``.
+        denoise_quality: OIDN quality, ``"HIGH"``, ``"BALANCED"`` or ``"FAST"``.
+
+    The defaults are the result of the study in ``docs/rendering.md`` (1000 x 500 classroom): the cheaper
+    settings tried there (light tree off, FAST prefilter, diffuse 1 / glossy 1 bounces, fewer samples,
+    fast GI) each cost reconstruction accuracy, so none of them is the default.
     """
 
     width: int = 1000
@@ -71,8 +79,13 @@ class RenderSettings:
     threads: int = 0
     denoise: bool = True
     max_bounces: int = 4
+    diffuse_bounces: int = 3
+    glossy_bounces: int = 2
     filter_width: float = 1.5
     clamp_indirect: float = 10.0
+    light_tree: bool = True
+    denoise_prefilter: str = "ACCURATE"
+    denoise_quality: str = "HIGH"
 
     @property
     def height(self) -> int:
@@ -398,11 +411,12 @@ class SceneRenderer:
         if s.denoise:
             cy.denoiser = "OPENIMAGEDENOISE"
             cy.denoising_input_passes = "RGB_ALBEDO_NORMAL"
-            cy.denoising_prefilter = "ACCURATE"
+            cy.denoising_prefilter = s.denoise_prefilter
+            cy.denoising_quality = s.denoise_quality
             cy.denoising_use_gpu = False
         cy.max_bounces = s.max_bounces
-        cy.diffuse_bounces = min(s.max_bounces, 3)
-        cy.glossy_bounces = min(s.max_bounces, 2)
+        cy.diffuse_bounces = min(s.max_bounces, s.diffuse_bounces)
+        cy.glossy_bounces = min(s.max_bounces, s.glossy_bounces)
         cy.transmission_bounces = max(s.max_bounces, 4)
         cy.transparent_max_bounces = 8
         cy.volume_bounces = 0
@@ -410,6 +424,8 @@ class SceneRenderer:
         cy.caustics_refractive = False
         cy.sample_clamp_direct = 0.0
         cy.sample_clamp_indirect = s.clamp_indirect
+        cy.use_light_tree = s.light_tree
+        cy.use_fast_gi = False
         sc.view_settings.view_transform = VIEW_TRANSFORM
         sc.view_settings.look = "None"
         sc.view_settings.exposure = 0.0
@@ -430,12 +446,19 @@ class SceneRenderer:
         sc.world = world
 
     def provenance(self) -> dict:
-        s = self.settings
+        s, cy = self.settings, self.scene.cycles
         return {
             "engine": "CYCLES", "device": "CPU", "blender_version": bpy.app.version_string,
             "samples": s.samples, "adaptive_sampling": False,
             "denoiser": "OPENIMAGEDENOISE" if s.denoise else "none",
+            "denoiser_settings": ({"input_passes": "RGB_ALBEDO_NORMAL", "prefilter": s.denoise_prefilter,
+                                   "quality": s.denoise_quality} if s.denoise else None),
             "seed": s.seed, "threads": s.threads or os.cpu_count(), "max_bounces": s.max_bounces,
+            "bounces": {k: getattr(cy, f"{k}_bounces") for k in ("max", "diffuse", "glossy", "transmission",
+                                                                   "volume")}
+                       | {"transparent": cy.transparent_max_bounces},
+            "caustics": {"reflective": cy.caustics_reflective, "refractive": cy.caustics_refractive},
+            "light_tree": cy.use_light_tree, "fast_gi": cy.use_fast_gi,
             "pixel_filter": {"type": "BLACKMAN_HARRIS", "width_px": s.filter_width},
             "clamp_indirect": s.clamp_indirect, "view_transform": VIEW_TRANSFORM,
             "distance": "Cycles Depth pass (panoramic camera: Euclidean, pixel centre, sample 0)",

@@ -24,7 +24,9 @@ from harness.frame import frame_dir, is_complete, write_frame
 from harness.kit import choose_viewpoints
 from harness.rig import CAMERA_NAMES, DEFAULT_BASELINE_M
 
-# Defaults chosen by the study in docs/rendering.md.
+# Defaults chosen by the study in docs/rendering.md (16 spp + OIDN 'accurate', light tree, max bounces 4:
+# every cheaper setting measured there costs reconstruction accuracy; the other Cycles settings live in
+# harness.blender.RenderSettings and are recorded in each frame's renderer provenance).
 DEFAULT_WIDTH = 1000
 DEFAULT_SAMPLES = 16
 DEFAULT_MAX_BOUNCES = 4
@@ -173,12 +175,15 @@ def add_arguments(parser) -> None:
                         help="scene family and optional preset (see `tri360 scenes`)")
     parser.add_argument("--viewpoints", type=int, default=1, metavar="N", help="number of rig placements")
     parser.add_argument("--width", type=int, default=DEFAULT_WIDTH, help="panorama width in pixels (height = width/2)")
-    parser.add_argument("--samples", type=int, default=DEFAULT_SAMPLES, help="Cycles samples per pixel")
+    parser.add_argument("--samples", type=int, default=DEFAULT_SAMPLES,
+                        help="Cycles samples per pixel (render time grows about linearly; see docs/rendering.md)")
     parser.add_argument("--seed", type=int, default=0, help="seed for layout jitter, viewpoints and render noise")
     parser.add_argument("--threads", type=int, default=0, help="CPU threads for Cycles (0 = all)")
     parser.add_argument("--baseline", type=float, default=DEFAULT_BASELINE_M, help="rig baseline, metres")
-    parser.add_argument("--max-bounces", type=int, default=DEFAULT_MAX_BOUNCES, help="Cycles light bounces")
-    parser.add_argument("--no-denoise", action="store_true", help="disable OpenImageDenoise")
+    parser.add_argument("--max-bounces", type=int, default=DEFAULT_MAX_BOUNCES,
+                        help="Cycles total light bounces (diffuse capped at 3, glossy at 2)")
+    parser.add_argument("--no-denoise", action="store_true",
+                        help="disable OpenImageDenoise (much noisier colour, far worse reconstruction)")
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", dest="overrides",
                         help="override a scene parameter (value parsed as JSON if possible); repeatable")
     parser.add_argument("--out", default="data", help="data root directory")
