@@ -74,7 +74,7 @@ class RenderSettings:
     """
 
     width: int = 1000
-    samples: int = 16
+    samples: int = 12
     seed: int = 0
     threads: int = 0
     denoise: bool = True
@@ -120,12 +120,12 @@ def _noise(nt, vec, scale=1.0, detail=4.0, roughness=0.5):
 
 def _pattern_paint(nt, mat):
     """Faint multi-octave noise (painted plaster)."""
-    return _noise(nt, _coords(nt, mat), scale=1.0, detail=6.0, roughness=0.6), (0.3, 0.7)
+    return _noise(nt, _coords(nt, mat), scale=1.0, detail=4.0, roughness=0.6), (0.3, 0.7)
 
 
 def _pattern_noise(nt, mat):
     """Strong, detailed noise: a richly textured synthetic surface."""
-    return _noise(nt, _coords(nt, mat), scale=1.0, detail=10.0, roughness=0.65), (0.25, 0.75)
+    return _noise(nt, _coords(nt, mat), scale=1.0, detail=6.0, roughness=0.65), (0.25, 0.75)
 
 
 def _pattern_wood(nt, mat):
@@ -166,17 +166,17 @@ def _pattern_tiles(nt, mat):
 
 def _pattern_board(nt, mat):
     """Chalkboard: large soft smudges plus fine dust."""
-    return _noise(nt, _coords(nt, mat), scale=1.0, detail=8.0, roughness=0.7), (0.3, 0.75)
+    return _noise(nt, _coords(nt, mat), scale=1.0, detail=5.0, roughness=0.7), (0.3, 0.75)
 
 
 def _pattern_fabric(nt, mat):
     """Fabric: fine, high-frequency weave noise."""
-    return _noise(nt, _coords(nt, mat), scale=4.0, detail=12.0, roughness=0.8), (0.3, 0.7)
+    return _noise(nt, _coords(nt, mat), scale=4.0, detail=6.0, roughness=0.8), (0.3, 0.7)
 
 
 def _pattern_metal(nt, mat):
     """Brushed metal: noise stretched along object X."""
-    return _noise(nt, _coords(nt, mat, stretch=(0.05, 1.0, 1.0)), scale=2.0, detail=6.0), (0.3, 0.7)
+    return _noise(nt, _coords(nt, mat, stretch=(0.05, 1.0, 1.0)), scale=2.0, detail=4.0), (0.3, 0.7)
 
 
 def _pattern_plastic(nt, mat):

@@ -28,7 +28,7 @@ from harness.rig import CAMERA_NAMES, DEFAULT_BASELINE_M
 # every cheaper setting measured there costs reconstruction accuracy; the other Cycles settings live in
 # harness.blender.RenderSettings and are recorded in each frame's renderer provenance).
 DEFAULT_WIDTH = 1000
-DEFAULT_SAMPLES = 16
+DEFAULT_SAMPLES = 12
 DEFAULT_MAX_BOUNCES = 4
 DEFAULT_SCENE = "classroom"
 

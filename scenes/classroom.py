@@ -21,9 +21,11 @@ from scenes import SceneEntry
 MATERIALS = [
     Material("floor", kind="tiles", color=(0.55, 0.52, 0.46), color2=(0.32, 0.30, 0.27), scale=0.3,
              contrast=0.5, roughness=0.45),
-    Material("walls", kind="paint", color=(0.72, 0.68, 0.58), color2=(0.55, 0.52, 0.45), scale=0.4,
-             contrast=0.25, roughness=0.85),
-    Material("ceiling", kind="paint", color=(0.85, 0.85, 0.83), contrast=0.0, roughness=0.9),
+    Material("walls", kind="paint", color=(0.72, 0.68, 0.58), color2=(0.55, 0.52, 0.45), scale=0.15,
+             contrast=0.35, roughness=0.85),
+    # suspended acoustic ceiling: 60 cm tiles, darker T-bar grid, fissured speckle
+    Material("ceiling", kind="tiles", color=(0.84, 0.84, 0.82), color2=(0.50, 0.50, 0.50), scale=0.6,
+             contrast=0.45, roughness=0.9),
     Material("baseboard", kind="plastic", color=(0.12, 0.10, 0.09), contrast=0.3, roughness=0.5),
     Material("desk_wood", kind="wood", color=(0.50, 0.32, 0.16), color2=(0.26, 0.14, 0.06), scale=0.04,
              contrast=0.8, roughness=0.4),
