@@ -160,28 +160,6 @@ def project_rays_camera(start, direction, distance, width: int, height: int):
     return u, v, dlam * width / (2.0 * np.pi), -dphi * height / np.pi
 
 
-def _fast_project_rays_camera(start, direction, distance, width: int, height: int):
-    """:func:`project_rays_camera` with the trigonometry in float32 (positions good to ~1e-4 px at W = 1000).
-
-    Used where speed matters more than the last digits: the colour term samples images, whose bilinear
-    interpolation is itself quantised to 1/32 pixel.
-    """
-    d = np.asarray(distance, dtype=np.float32)[..., None]
-    b = np.asarray(start, np.float32) + d * np.asarray(direction, np.float32)
-    x, y, z = b[..., 0], b[..., 1], b[..., 2]
-    dx, dy, dz = (np.asarray(direction[..., i], np.float32) for i in range(3))
-    rho2 = x * x + y * y
-    r2 = rho2 + z * z
-    rho = np.sqrt(rho2)
-    pole = rho2 <= 0
-    safe_rho2 = np.where(pole, np.float32(1), rho2)
-    dlam = np.where(pole, 0, (y * dx - x * dy) / safe_rho2)
-    dphi = np.where(pole, 0, (rho2 * dz - z * (x * dx + y * dy)) / (np.where(pole, np.float32(1), rho) * r2))
-    u = (np.arctan2(x, y) + np.float32(np.pi)) * np.float32(width / (2.0 * np.pi)) - np.float32(0.5)
-    v = (np.float32(np.pi / 2) - np.arctan2(z, rho)) * np.float32(height / np.pi) - np.float32(0.5)
-    return u, v, dlam * np.float32(width / (2.0 * np.pi)), -dphi * np.float32(height / np.pi)
-
-
 def wrap_pixel(u, v, width: int, height: int):
     """Map pixel coordinates that left the image back onto the sphere.
 

@@ -23,7 +23,6 @@ from reconstruction.refine import (
     get_variant,
     levenberg_marquardt,
 )
-from reconstruction.spherical import EquirectSampler
 from reconstruction.triangulate import PairGeometry, TriangulationLimits, pair_geometry, triangulate_sines
 from reconstruction.weights import (
     angle_weight,
@@ -136,26 +135,22 @@ def fuse_average(d_pairs: Sequence[np.ndarray], valid: Sequence[np.ndarray], sha
 
 
 def _color_terms(frame, config: RefineConfig, bearings: np.ndarray) -> list[ColorTerm]:
-    """Colour-residual data of both pairs: blurred intensities (gray or RGB, [0, 1]) with their derivatives."""
+    """Colour-residual data of both pairs: blurred intensities (gray or RGB, in [0, 1])."""
     def prep(img):
         x = img.astype(np.float32) / 255.0 if config.color_rgb else to_gray(img)[..., None]
         if config.color_blur_px > 0:
             x = cv2.GaussianBlur(x, (0, 0), config.color_blur_px)
             x = x if x.ndim == 3 else x[..., None]
-        return x
+        return x.astype(np.float64)
 
-    ref = prep(frame.images["C"]).reshape(-1, 3 if config.color_rgb else 1).astype(np.float64)
+    ref = prep(frame.images["C"]).reshape(-1, 3 if config.color_rgb else 1)
     origin = np.asarray(frame.cameras["C"].position, np.float64)
     terms = []
     for k in PAIRS:
-        img = prep(frame.images[k])
-        du = (np.roll(img, -1, axis=1) - np.roll(img, 1, axis=1)) / 2.0  # wraps across the seam
-        dv = np.zeros_like(img)
-        dv[1:-1] = (img[2:] - img[:-2]) / 2.0
         cam = frame.cameras[k]
         rot = np.asarray(cam.rotation, np.float64)
-        terms.append(ColorTerm(sampler=EquirectSampler(np.ascontiguousarray(np.concatenate([img, du, dv], axis=2))),
-                               ref=ref, start=(origin - np.asarray(cam.position, np.float64)) @ rot,
+        terms.append(ColorTerm(image=prep(frame.images[k]), ref=ref,
+                               start=(origin - np.asarray(cam.position, np.float64)) @ rot,
                                direction=bearings @ rot))
     return terms
 

@@ -22,8 +22,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from reconstruction.equirect import _fast_project_rays_camera
-from reconstruction.spherical import EquirectSampler
+from reconstruction.equirect import project_rays_camera
+from reconstruction.spherical import bilinear_with_gradient
 from reconstruction.triangulate import PairGeometry, beta_of_distance
 
 __all__ = ["RefineConfig", "VARIANTS", "register_variant", "get_variant", "RefineProblem", "levenberg_marquardt",
@@ -116,14 +116,14 @@ class ColorTerm:
     """Data for the colour residual of one pair.
 
     Attributes:
-        sampler: samples camera k's image stacked with its u- and v-derivatives, channels
-            [I_1..I_c, dI/du_1.., dI/dv_1..] (intensity in [0, 1]; derivatives per pixel).
+        image: (H, W, c) float64 intensities of camera k in [0, 1] (sampled with exact bilinear
+            interpolation, whose own derivatives give the Jacobian).
         ref: (N, c) C's intensities at the refined pixels.
         start: (3,) C's centre relative to camera k's centre, in camera k's frame, metres.
         direction: (N, 3) the pixels' bearings in camera k's frame.
     """
 
-    sampler: EquirectSampler
+    image: np.ndarray
     ref: np.ndarray
     start: np.ndarray
     direction: np.ndarray
@@ -180,11 +180,10 @@ class RefineProblem:
             s = self.color_saturation
             lam = np.sqrt(self.color_weight)
             for term in self.color:
-                u, v, du, dv = _fast_project_rays_camera(term.start, term.direction[sel], d, self.width, self.height)
-                c = term.ref.shape[1]
-                smp = term.sampler(u, v).reshape(len(d), 3 * c).astype(np.float64)
-                e = smp[:, :c] - term.ref[sel]
-                de = smp[:, c:2 * c] * du[:, None].astype(np.float64) + smp[:, 2 * c:] * dv[:, None].astype(np.float64)
+                u, v, du, dv = project_rays_camera(term.start, term.direction[sel], d, self.width, self.height)
+                val, gu, gv = bilinear_with_gradient(term.image, u, v)
+                e = val - term.ref[sel]
+                de = gu * du[:, None] + gv * dv[:, None]
                 th = np.tanh(e / s)
                 rs.extend((lam * s * th).T)
                 js.extend((lam * (1.0 - th * th) * de).T)

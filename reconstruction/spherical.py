@@ -12,7 +12,8 @@ import numpy as np
 
 from reconstruction.equirect import bearing_grid, bearing_to_pixel
 
-__all__ = ["rectifying_rotation", "EquirectSampler", "sample_equirect", "rotation_maps", "warp_equirect", "WRAP_PAD"]
+__all__ = ["rectifying_rotation", "EquirectSampler", "bilinear_with_gradient", "sample_equirect", "rotation_maps",
+           "warp_equirect", "WRAP_PAD"]
 
 WRAP_PAD = 4  # columns copied from the opposite edge before bilinear sampling
 
@@ -72,6 +73,41 @@ class EquirectSampler:
                         borderMode=cv2.BORDER_REPLICATE)
         out = out.reshape((rows * cols,) + self.shape[2:])[:n]
         return out.reshape(shape + self.shape[2:])
+
+
+def bilinear_with_gradient(image: np.ndarray, u, v):
+    """Exact bilinear interpolation of an equirect image and its derivatives, wrapping across the seam.
+
+    Unlike ``cv2.remap`` (positions quantised to 1/32 pixel) this is continuous in ``(u, v)``, and the
+    derivatives are those of the interpolant itself, so a cost built on it and its Jacobian agree.
+
+    Args:
+        image: (H, W, C) float array (intensities).
+        u, v: (N,) continuous pixel coordinates (centres at integers); ``u`` wraps, ``v`` is clamped to
+            [0, H - 1] (where clamped, the v-derivative is 0).
+    Returns:
+        ``(value, d_du, d_dv)``, each (N, C) float64: samples and their derivatives per pixel.
+    """
+    h, w, c = image.shape
+    flat = image.reshape(h * w, c)
+    u = np.asarray(u, dtype=np.float64)
+    v_raw = np.asarray(v, dtype=np.float64)
+    v = np.clip(v_raw, 0.0, h - 1.0)
+    u0 = np.floor(u)
+    fu = (u - u0)[:, None]
+    i0 = u0.astype(np.int64) % w
+    i1 = (i0 + 1) % w
+    r0 = np.minimum(np.floor(v), h - 2).astype(np.int64)
+    fv = (v - r0)[:, None]
+    p00, p01 = flat[r0 * w + i0], flat[r0 * w + i1]
+    p10, p11 = flat[(r0 + 1) * w + i0], flat[(r0 + 1) * w + i1]
+    top = p00 + fu * (p01 - p00)
+    bottom = p10 + fu * (p11 - p10)
+    value = top + fv * (bottom - top)
+    d_du = (p01 - p00) + fv * ((p11 - p10) - (p01 - p00))
+    inside = ((v_raw > 0.0) & (v_raw < h - 1.0))[:, None]
+    d_dv = np.where(inside, bottom - top, 0.0)
+    return value, d_du, d_dv
 
 
 def sample_equirect(image: np.ndarray, u, v, interpolation: int = cv2.INTER_LINEAR) -> np.ndarray:

@@ -8,6 +8,7 @@ from reconstruction.equirect import bearing_grid
 from reconstruction.flow import FLOWS, FlowBackend, equirect_flow, get_flow
 from reconstruction.matching import match_pair
 from reconstruction.pipeline import available_variants, fill_invalid, reconstruct
+from reconstruction.refine import get_variant
 from reconstruction.spherical import rectifying_rotation, sample_equirect, warp_equirect
 
 
@@ -16,13 +17,21 @@ def _mae(pred, gt):
     return float(np.abs(pred[m] - gt[m]).mean())
 
 
+@pytest.fixture(scope="module")
+def frame400():
+    return make_synthetic_frame(400)
+
+
 @pytest.mark.parametrize("rectify", [True, False])
-def test_oracle_is_exact_for_every_variant(synthetic_frame, rectify):
-    result = reconstruct(synthetic_frame, flow="oracle", rectify=rectify)
+def test_oracle_is_exact_for_every_variant(frame400, rectify):
+    """Exact correspondences: the geometric variants land on the truth to float precision; the colour term
+    moves distances by the views' sub-pixel intensity differences (anti-aliasing), well under 1 mm."""
+    result = reconstruct(frame400, flow="oracle", rectify=rectify)
     assert set(result.distance) == set(available_variants())
     for name, d in result.distance.items():
-        assert d.shape == (synthetic_frame.height, synthetic_frame.width) and np.isfinite(d).all()
-        assert _mae(d, synthetic_frame.distance["C"]) < 1e-3, name  # metres
+        assert d.shape == (frame400.height, frame400.width) and np.isfinite(d).all()
+        limit = 1e-3 if get_variant(name if name != "average" else "angle").color_weight > 0 else 1e-5
+        assert _mae(d, frame400.distance["C"]) < limit, name  # metres
 
 
 def test_oracle_needs_ground_truth(synthetic_frame):
@@ -39,11 +48,6 @@ def test_unknown_flow_and_variant_are_rejected(synthetic_frame):
         reconstruct(synthetic_frame, flow="nope")
     with pytest.raises(ValueError, match="unknown variant"):
         reconstruct(synthetic_frame, flow="oracle", variants=["average", "nope"])
-
-
-@pytest.fixture(scope="module")
-def frame400():
-    return make_synthetic_frame(400)
 
 
 def test_rectified_flow_beats_plain_and_refinement_beats_average(frame400):
