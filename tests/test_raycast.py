@@ -185,15 +185,21 @@ def _c_surface_points(spec, frame):
     return pts
 
 
-@pytest.mark.parametrize("other", ["U", "R"])
-def test_cameras_agree_on_geometry(box_frame, other):
+def _seen_from(box_frame, other):
+    """C's surface points projected into camera ``other``: the frame, (u, v) there, the distance ``other``
+    ray-casts along that direction and the distance it should be if the point is visible."""
     spec, rig, frame = box_frame
     pts = _c_surface_points(spec, frame)
     pose = frame.cameras[other]
     u, v = project(pts, pose.position, pose.rotation, frame.width, frame.height)
     dirs = pixel_to_bearing(u, v, frame.width, frame.height) @ pose.rotation.T
     t, _, _, _ = raycast(spec, pose.position, dirs)
-    expected = np.linalg.norm(pts - pose.position, axis=1)
+    return frame, u, v, t, np.linalg.norm(pts - pose.position, axis=1)
+
+
+@pytest.mark.parametrize("other", ["U", "R"])
+def test_cameras_agree_on_geometry(box_frame, other):
+    frame, u, v, t, expected = _seen_from(box_frame, other)
     rel = (t - expected) / expected
     seen = np.abs(rel) < 1e-6
     assert seen.mean() > 0.85, f"{other} sees only {seen.mean():.1%} of C's surface points"
@@ -211,13 +217,7 @@ def test_cameras_agree_on_geometry(box_frame, other):
 
 @pytest.mark.parametrize("other", ["U", "R"])
 def test_cameras_agree_on_colour(box_frame, other):
-    spec, rig, frame = box_frame
-    pts = _c_surface_points(spec, frame)
-    pose = frame.cameras[other]
-    u, v = project(pts, pose.position, pose.rotation, frame.width, frame.height)
-    dirs = pixel_to_bearing(u, v, frame.width, frame.height) @ pose.rotation.T
-    t, _, _, _ = raycast(spec, pose.position, dirs)
-    expected = np.linalg.norm(pts - pose.position, axis=1)
+    frame, u, v, t, expected = _seen_from(box_frame, other)
     seen = (np.abs(t - expected) < 1e-6 * expected).reshape(frame.height, frame.width)
     seen[:4] = seen[-4:] = False  # poles: bilinear sampling across the pole is not meaningful
     warped = cv2.remap(frame.images[other], u.reshape(frame.height, -1).astype(np.float32),
