@@ -119,20 +119,23 @@ def _cross_check(f, k):
 def test_cross_camera_consistency(tmp_path):
     """Project C's ground-truth points into U and R: their own ground truth and colour must agree.
 
-    box_room has no occlusion, so agreement must be (nearly) total; in the classroom, points hidden from
-    U or R by a nearer surface (0.4 m parallax over desks and chairs) are the only allowed exception.
+    box_room has no occlusion, so agreement must be (nearly) total.  In the classroom, points hidden from
+    U or R by a nearer surface (0.4 m parallax around desks and chairs) are the only disagreement, and with
+    the rig standing in an aisle they stay under 5 % (measured at 1000x500: 96-99 %); the classroom is
+    rendered at 512 wide because at 256 the depth edges' share of pixels alone costs ~2 %.
     """
     (box,) = render_frames("box_room", out_root=tmp_path, width=256, samples=1, threads=2, denoise=False,
                            progress=False)
-    (cls,) = render_frames("classroom", out_root=tmp_path, width=256, samples=16, threads=2, progress=False)
+    (cls,) = render_frames("classroom", out_root=tmp_path, width=512, samples=8, threads=2, progress=False)
     fb, fc = read_frame(box), read_frame(cls)
     for k in "UR":
         agree, _, _ = _cross_check(fb, k)
         assert agree.mean() >= 0.995, f"box_room {k}: only {agree.mean():.2%} agree within 2 %"
         agree, occluded, diff = _cross_check(fc, k)
         assert (agree | occluded).mean() >= 0.95, f"classroom {k}: {(agree | occluded).mean():.1%} consistent"
-        assert agree.mean() >= 0.85, f"classroom {k}: only {agree.mean():.1%} agree within 2 %"
-        assert np.median(diff[agree]) < 4.0, f"classroom {k}: median colour diff {np.median(diff[agree]):.2f}/255"
+        # the issue's own criterion: >= 95 % of C's pixels agree within 2 % (viewpoints stand in aisles)
+        assert agree.mean() >= 0.95, f"classroom {k}: only {agree.mean():.1%} agree within 2 %"
+        assert np.median(diff) < 4.0, f"classroom {k}: median colour diff {np.median(diff):.2f}/255"
 
 
 @pytest.mark.blender
