@@ -194,8 +194,8 @@ def diagnose(problem: RefineProblem, idx: np.ndarray, d_vec: np.ndarray, d_sp: n
         c = costs(problem, grid, np.full(grid.size, idx[j]))
         mins.append(int(((c[1:-1] < c[:-2]) & (c[1:-1] < c[2:])).sum()))
     lines.append(f"    cost scanned over 2001 distances spanning both solutions +- 2 mm: local minima per pixel "
-                 f"median {np.median(mins):.0f}, max {max(mins)} (the colour cost samples images bilinearly, "
-                 "with positions quantised to 1/32 px by OpenCV: a staircase in d)")
+                 f"median {np.median(mins):.0f}, max {max(mins)} (the colour cost is piecewise smooth: bilinear "
+                 "interpolation has kinks at pixel boundaries)")
     return lines
 
 

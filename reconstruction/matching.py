@@ -99,8 +99,8 @@ def match_pair(frame, name: str, flow: str, rectify: bool = True, pad: int | Non
         if rectify:
             # where each C pixel sits in the rectified frame, and the flow there (bilinear, wrap-aware)
             p_u, p_v = bearing_to_pixel(a @ rot_fc, w, h)
-            f = sample_equirect(field, p_u, p_v).astype(np.float64)
-            fb_err = sample_equirect(fb_field, p_u, p_v).astype(np.float64)
+            both = sample_equirect(np.dstack([field, fb_field]), p_u, p_v).astype(np.float64)
+            f, fb_err = both[..., :2], both[..., 2]
         else:
             p_u, p_v = g_u, g_v
             f = field.astype(np.float64)

@@ -12,8 +12,8 @@ import numpy as np
 
 from reconstruction.equirect import bearing_grid, bearing_to_pixel
 
-__all__ = ["rectifying_rotation", "EquirectSampler", "bilinear_with_gradient", "sample_equirect", "rotation_maps",
-           "warp_equirect", "WRAP_PAD"]
+__all__ = ["rectifying_rotation", "bilinear_with_gradient", "sample_equirect", "rotation_maps", "warp_equirect",
+           "WRAP_PAD"]
 
 WRAP_PAD = 4  # columns copied from the opposite edge before bilinear sampling
 
@@ -39,40 +39,6 @@ def rectifying_rotation(baseline, reference_rotation) -> np.ndarray:
     y = y / np.linalg.norm(y)
     x = np.cross(y, z)
     return np.stack([x, y, z], axis=1)
-
-
-class EquirectSampler:
-    """Bilinear sampling of one equirect image at many points, padded for the seam once.
-
-    Args:
-        image: (H, W) or (H, W, C) array (uint8 or float32).
-        interpolation: an OpenCV interpolation flag.
-    """
-
-    def __init__(self, image: np.ndarray, interpolation: int = cv2.INTER_LINEAR):
-        self.shape = image.shape
-        self.width = image.shape[1]
-        self.padded = np.concatenate([image[:, self.width - WRAP_PAD:], image, image[:, :WRAP_PAD]], axis=1)
-        self.interpolation = interpolation
-
-    def __call__(self, u, v) -> np.ndarray:
-        """Samples at continuous pixel coordinates ``u, v`` (any equal shapes; ``u`` wrapped, ``v`` clamped
-        to the first/last row).  Returns ``u.shape`` (+ (C,)), the image's dtype."""
-        w = self.width
-        uu = (np.mod(np.asarray(u, dtype=np.float64) + 0.5, w) - 0.5 + WRAP_PAD).astype(np.float32)
-        vv = np.asarray(v, dtype=np.float32)
-        shape = uu.shape
-        # remap wants 2-D maps narrower than 32767 columns: lay the samples out in rows of 1024
-        n = uu.size
-        cols = 1024
-        rows = max(1, -(-n // cols))
-        flat_u = np.zeros(rows * cols, np.float32)
-        flat_v = np.zeros(rows * cols, np.float32)
-        flat_u[:n], flat_v[:n] = uu.ravel(), vv.ravel()
-        out = cv2.remap(self.padded, flat_u.reshape(rows, cols), flat_v.reshape(rows, cols), self.interpolation,
-                        borderMode=cv2.BORDER_REPLICATE)
-        out = out.reshape((rows * cols,) + self.shape[2:])[:n]
-        return out.reshape(shape + self.shape[2:])
 
 
 def bilinear_with_gradient(image: np.ndarray, u, v):
@@ -121,7 +87,20 @@ def sample_equirect(image: np.ndarray, u, v, interpolation: int = cv2.INTER_LINE
     Returns:
         Samples of shape ``u.shape`` (+ (C,) for multi-channel images), dtype of ``image``.
     """
-    return EquirectSampler(image, interpolation)(u, v)
+    h, w = image.shape[:2]
+    padded = np.concatenate([image[:, w - WRAP_PAD:], image, image[:, :WRAP_PAD]], axis=1)
+    uu = (np.mod(np.asarray(u, dtype=np.float64) + 0.5, w) - 0.5 + WRAP_PAD).astype(np.float32)
+    vv = np.asarray(v, dtype=np.float32)
+    # remap wants 2-D maps narrower than 32767 columns: lay the samples out in rows of 1024
+    n, cols = uu.size, 1024
+    rows = max(1, -(-n // cols))
+    flat_u = np.zeros(rows * cols, np.float32)
+    flat_v = np.zeros(rows * cols, np.float32)
+    flat_u[:n], flat_v[:n] = uu.ravel(), vv.ravel()
+    out = cv2.remap(padded, flat_u.reshape(rows, cols), flat_v.reshape(rows, cols), interpolation,
+                    borderMode=cv2.BORDER_REPLICATE)
+    out = out.reshape((rows * cols,) + image.shape[2:])[:n]
+    return out.reshape(uu.shape + image.shape[2:])
 
 
 def rotation_maps(width: int, height: int, target_rotation, source_rotation):
