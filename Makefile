@@ -32,10 +32,10 @@ test: $(STAMP) ## run the whole test suite (fast tests, then Blender and browser
 	$(PY) -m pytest -q
 
 bench: $(STAMP) ## time every stage at 1000x500, peak memory, vectorised LM vs per-pixel scipy
-	$(PY) -m harness.bench
+	$(PY) -m harness.jobs.bench
 
 regress-update: $(STAMP) ## rewrite the CI regression bounds (tests/regression_bounds.json) from a fresh run
-	$(PY) -m reports.regression --update
+	$(PY) -m harness.jobs.regression --update
 
 clean: ## remove the venv, caches, rendered data and results
 	rm -rf $(VENV) .pytest_cache .ruff_cache $(RESULTS) build *.egg-info

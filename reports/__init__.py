@@ -2,5 +2,5 @@
 
 Pure numpy / pandas / matplotlib (Agg, no pyplot state); never imports Blender.  Importing this package
 does no work: import the sub-modules you need, e.g. ``from reports.metrics import summary, breakdown`` or
-``from reports.cli import write_report``.
+``from reports.build import write_report``.
 """

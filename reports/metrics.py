@@ -19,6 +19,8 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+from reconstruction.camera.equirect import bearing_grid
+
 __all__ = [
     "ANGLE_EDGES_DEG",
     "DISTANCE_EDGES_M",
@@ -117,12 +119,11 @@ def angle_to_baseline_deg(frame, other: str) -> np.ndarray:
     """Angle between each pixel's bearing of camera C and the baseline C -> ``other``, degrees.
 
     Args:
-        frame: a :class:`harness.frame.Frame`.
+        frame: a :class:`harness.data.frame.Frame`.
         other: "U" or "R"; the baseline direction is ``other.position - C.position`` (world frame).
     Returns:
         (H, W) float64 degrees in [0, 180]; 0 = looking straight at camera ``other`` (its epipole).
     """
-    from reconstruction.equirect import bearing_grid
 
     c = frame.cameras["C"]
     t = np.asarray(frame.cameras[other].position, dtype=np.float64) - np.asarray(c.position, dtype=np.float64)
@@ -196,7 +197,7 @@ def breakdown(frame, pred) -> list[dict]:
     """Error of camera C's predicted distance broken down by geometry, distance and texture.
 
     Args:
-        frame: a :class:`harness.frame.Frame` with ground truth (``frame.distance["C"]``).
+        frame: a :class:`harness.data.frame.Frame` with ground truth (``frame.distance["C"]``).
         pred: (H, W) predicted distance of camera C, metres (invalid values scored as in the module doc).
     Returns:
         One dict per bin (empty bins included, with ``n_px == 0`` and NaN errors), keys

@@ -17,6 +17,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.ticker import FormatStrFormatter
 
+from reports.metrics import score_pixels
 from reports.tables import PAPER_MAE_M, config_label, config_order, variant_order
 
 __all__ = ["variant_colors", "png_bytes", "fig4_mae", "error_maps", "breakdown_lines", "cloud_views",
@@ -120,7 +121,6 @@ def error_maps(gt: np.ndarray, preds: dict[str, np.ndarray], title: str) -> byte
     """
     from matplotlib import colormaps
 
-    from reports.metrics import score_pixels
 
     gt = np.asarray(gt, dtype=np.float64)
     scored = np.isfinite(gt) & (gt > 0)

@@ -22,7 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
-from harness.frame import atomic_write_bytes
+from harness.data.frame import atomic_write_bytes
+from reconstruction.camera.equirect import bearing_grid
 
 __all__ = ["VERTEX_DTYPE", "point_grid", "ply_bytes", "write_ply", "read_ply"]
 
@@ -40,7 +41,6 @@ def point_grid(distance, position, rotation) -> np.ndarray:
     Returns:
         (H, W, 3) float64 world coordinates, metres; NaN where there is no point.
     """
-    from reconstruction.equirect import bearing_grid
 
     d = np.asarray(distance, dtype=np.float64)
     h, w = d.shape

@@ -2,7 +2,7 @@
 
 A results directory (written by ``tri360 evaluate``) holds ``results.csv`` (one row per scene, viewpoint,
 flow, rectify, variant), ``breakdown.csv`` (long format), ``frames.json`` and ``maps/``.  Readers here raise
-:class:`harness.errors.UserError` with one line naming the file and what is wrong.
+:class:`harness.data.errors.UserError` with one line naming the file and what is wrong.
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from harness.errors import UserError
+from harness.data.errors import UserError
 
 __all__ = [
     "RESULT_COLUMNS",

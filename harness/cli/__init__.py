@@ -1,0 +1,64 @@
+"""The ``tri360`` command line: argument parsing only, one thin module per command.
+
+Each command module exposes ``HELP``, ``add_arguments(parser)`` and ``run(args) -> int`` and calls into
+``harness.jobs``.  Anticipated failures (bad input, unknown name, malformed file, an unusable output path)
+print one line naming the culprit and exit with status 2; Ctrl-C exits with status 130.  Nothing
+half-written is left behind (every writer is atomic).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from harness import __version__
+from harness.cli import evaluate, reconstruct, render, report
+from harness.cli import scenes as scenes_cmd
+from harness.data.errors import UserError
+from scenes.registry import SceneError
+
+COMMANDS = {"render": render, "scenes": scenes_cmd, "reconstruct": reconstruct, "evaluate": evaluate,
+            "report": report}
+EXIT_USAGE = 2
+EXIT_INTERRUPTED = 130
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="tri360", description=__doc__.splitlines()[0].strip("`. "))
+    parser.add_argument("--version", action="version", version=f"tri360 {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for name, mod in COMMANDS.items():
+        p = sub.add_parser(name, help=mod.HELP, description=mod.HELP,
+                           formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+        mod.add_arguments(p)
+        p.set_defaults(_module=mod)
+    return parser
+
+
+def _os_error_line(exc: OSError) -> str:
+    where = exc.filename if exc.filename is not None else ""
+    if exc.filename2 is not None:
+        where = f"{where} -> {exc.filename2}"
+    reason = exc.strerror or str(exc)
+    return f"{where}: {reason}" if where else reason
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args._module.run(args) or 0)
+    except (UserError, SceneError) as exc:
+        print(f"tri360 {args.command}: error: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    except OSError as exc:
+        print(f"tri360 {args.command}: error: {_os_error_line(exc)}", file=sys.stderr)
+        return EXIT_USAGE
+    except KeyboardInterrupt:
+        print(f"tri360 {args.command}: interrupted (finished outputs are complete; partial ones were removed)",
+              file=sys.stderr)
+        return EXIT_INTERRUPTED
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,35 @@
+"""``tri360 report``: argument parsing for :func:`reports.build.build_report`."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+from harness.data.errors import UserError
+from reports.build import DEFAULT_CLOUD_POINTS, PLY_CHOICES, build_report
+
+HELP = "write tables, plots, point clouds and report.html from a results dir"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("results", type=Path, metavar="RESULTS",
+                        help="results directory written by `tri360 evaluate`")
+    parser.add_argument("--ply", choices=PLY_CHOICES, default="all",
+                        help="which point clouds to write as PLY: every configuration, only the paper set-up "
+                             "(deepflow-plain), or none")
+    parser.add_argument("--cloud-points", type=int, default=DEFAULT_CLOUD_POINTS, metavar="N",
+                        help="points per cloud in the Fig. 3 style scatter views (a seeded subsample)")
+
+
+def run(args) -> int:
+    if args.cloud_points < 1:
+        raise UserError(f"--cloud-points must be at least 1, got {args.cloud_points}")
+    t0 = time.perf_counter()
+    out = build_report(args.results, ply=args.ply, cloud_points=args.cloud_points)
+    print(out.markdown)
+    for p in out.problems:
+        print(f"tri360 report: warning: {p}", file=sys.stderr)
+    print(f"wrote {len(out.files)} files in {time.perf_counter() - t0:.1f} s; open {out.html_path}")
+    return 0

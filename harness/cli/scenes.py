@@ -1,0 +1,32 @@
+"""``tri360 scenes``: list the registered scenes, their presets, backend and description."""
+
+from __future__ import annotations
+
+import sys
+
+from scenes.registry import discover
+
+HELP = "list the registered scenes and their presets"
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument("--params", action="store_true", help="also print every preset's parameters")
+
+
+def run(args) -> int:
+    entries, errors = discover()
+    for name in sorted(entries):
+        e = entries[name]
+        presets = ", ".join(f"{p}*" if p == e.default_preset else p for p in e.presets)
+        print(f"{name:<16} [{e.backend}] presets: {presets}")
+        if e.description:
+            print(f"{'':<16} {e.description}")
+        if getattr(args, "params", False):
+            for p, params in e.presets.items():
+                print(f"{'':<16}   {p}: {params}")
+    if not entries:
+        print("no scenes registered")
+    print("(* = default preset; use --scene NAME:PRESET)")
+    for source, msg in errors.items():
+        print(f"warning: {source} failed to load: {msg}", file=sys.stderr)
+    return 0

@@ -1,0 +1,339 @@
+"""Benchmark of the reconstruction pipeline at 1000x500: stage times, peak memory, vectorised LM vs scipy.
+
+Run as ``python -m harness.jobs.bench`` (``make bench``).  It
+
+1. makes (or reuses, ``--frame DIR``) a synthetic_box frame with exact ground truth, rendered by the numpy
+   ray-caster in a child process (so the renderer's memory does not count towards the peak);
+2. times every stage of :func:`reconstruction.methods.flow_pipeline.reconstruct` for the default flow, rectified: flow
+   per pair, triangulation, ``average``, each refinement variant, and the whole call with all variants;
+   DeepFlow (the paper's flow) is timed once per pair for comparison;
+3. for each refinement variant, builds exactly the per-pixel problem the pipeline builds, runs the
+   vectorised :func:`reconstruction.refine.lm.levenberg_marquardt` over all pixels, and a plain per-pixel
+   :func:`scipy.optimize.least_squares` loop (trf, bounds [d_min, d_max], tolerances 1e-12, Jacobian from
+   the same ``problem.residuals``) over a seeded random subset of the refined pixels, extrapolated to all
+   of them; reports the speedup and the agreement (share of subset pixels with |d_vec - d_scipy| <= 1e-4 m)
+   and, where the two disagree, which one found the lower cost and whether more LM iterations help;
+4. prints goals vs measured values and, as its last line, ``refine speedup vs per-pixel scipy: N x``.
+
+Timings are wall-clock on a shared machine: expect noise of tens of percent.
+"""
+
+from __future__ import annotations
+
+import argparse
+import multiprocessing as mp
+import resource
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from harness.data.frame import find_frames, read_frame, write_frame
+from harness.render.raycast import render_frame
+from reconstruction.flow.matching import match_pair
+from reconstruction.methods.flow_pipeline import (
+    DEFAULT_FLOW,
+    PAIRS,
+    color_texture_mask,
+    prepare,
+    reconstruct,
+    refine_variant,
+    variant_problem,
+)
+from reconstruction.refine.lm import VARIANTS, RefineConfig, RefineProblem, levenberg_marquardt
+from reconstruction.refine.triangulate import TriangulationLimits
+from scenes.model import choose_viewpoints
+from scenes.registry import get_scene
+
+__all__ = ["AGREE_TOL_M", "run_vectorised", "scipy_pixel", "run_scipy", "agreement", "costs", "compare_variant",
+           "load_or_render_frame", "main"]
+
+AGREE_TOL_M = 1e-4  # |d_vec - d_scipy| counted as "the same result", metres
+GOAL_AGREE = 0.999  # share of subset pixels that must agree
+GOAL_VARIANT_S = 1.0  # each refinement variant, seconds
+GOAL_SPEEDUP = 100.0  # vectorised LM vs per-pixel scipy
+GOAL_TOTAL_S = 10.0  # whole reconstruct() with all variants, seconds
+GOAL_PEAK_MB = 2048.0  # peak resident memory, MB
+SCIPY_TOL = 1e-12  # xtol = ftol = gtol of the per-pixel scipy solve
+SCENE = "synthetic_box"
+
+
+# ------------------------------------------------------------------------------------------------ frame
+
+
+def _render_into(root: str, width: int) -> None:
+
+    entry, preset = get_scene(SCENE)
+    spec = entry.spec(preset, seed=0)
+    rig = choose_viewpoints(spec, 1, 0)[0]
+    write_frame(render_frame(spec, rig, width, SCENE, f"bench-w{width}"), Path(root))
+
+
+def load_or_render_frame(directory: Path | None, width: int):
+    """A synthetic_box frame ``width`` x ``width/2`` with ground truth.
+
+    ``directory`` may be a frame directory, or a cache root searched for a frame of that width; if none is
+    found one is rendered into it (into a temporary directory when ``directory`` is None).  Rendering runs
+    in a child process so that its memory does not raise this process's peak.
+
+    Returns:
+        ``(frame, description)``.
+    """
+
+    tmp = None
+    if directory is None:
+        tmp = tempfile.TemporaryDirectory(prefix="tri360-bench-")
+        directory = Path(tmp.name)
+    directory = Path(directory)
+    try:
+        if (directory / "frame.json").is_file():
+            frame = read_frame(directory)
+            if frame.width != width:
+                raise SystemExit(f"error: {directory} holds a {frame.width}-wide frame, --width is {width}")
+            return frame, f"reused {directory}"
+        for d in find_frames(directory) if directory.is_dir() else []:
+            frame = read_frame(d)
+            if frame.width == width and frame.has_ground_truth:
+                return frame, f"reused {d}"
+        start = time.perf_counter()
+        proc = mp.get_context("spawn").Process(target=_render_into, args=(str(directory), width))
+        proc.start()
+        proc.join()
+        if proc.exitcode != 0:
+            raise SystemExit(f"error: rendering the bench frame into {directory} failed (exit {proc.exitcode})")
+        found = [d for d in find_frames(directory) if read_frame(d, load_distance=False).width == width]
+        frame = read_frame(found[0])
+        where = "a temporary directory" if tmp else str(found[0])
+        return frame, f"rendered into {where} in {time.perf_counter() - start:.1f} s"
+    finally:
+        if tmp is not None:
+            tmp.cleanup()
+
+
+# ------------------------------------------------------------------------------- vectorised vs scipy
+
+
+def run_vectorised(problem: RefineProblem, d0: np.ndarray, limits: TriangulationLimits, max_iters: int,
+                   tol: float, only: np.ndarray | None = None):
+    """``(d, iterations, seconds)`` of one vectorised LM solve over all (or ``only``) pixels."""
+    start = time.perf_counter()
+    d, iters = levenberg_marquardt(problem, d0, limits.d_min_m, limits.d_max_m, max_iters, tol, only=only)
+    return d, iters, time.perf_counter() - start
+
+
+# --------------------------------------------------------------------------------------- per-pixel scipy
+
+
+def scipy_pixel(problem: RefineProblem, i: int, x0: float, d_min: float, d_max: float, tol: float = SCIPY_TOL):
+    """Solve pixel ``i`` alone with scipy's trust-region reflective least squares.
+
+    Residuals and Jacobian come from ``problem.residuals(d, [i])`` (one evaluation per distinct x).
+    Returns:
+        ``(d, nfev)``.
+    """
+    ii = np.array([i])
+    cache: dict = {}
+
+    def evaluate(x):
+        key = float(x[0])
+        if cache.get("x") != key:
+            r, jac = problem.residuals(np.array([key]), ii)
+            cache.update(x=key, r=r[0], J=jac[0][:, None])
+        return cache
+
+    x0 = float(np.clip(x0, d_min, d_max))
+    res = least_squares(lambda x: evaluate(x)["r"], [x0], jac=lambda x: evaluate(x)["J"], bounds=(d_min, d_max),
+                        method="trf", xtol=tol, ftol=tol, gtol=tol)
+    return float(res.x[0]), int(res.nfev)
+
+
+def run_scipy(problem: RefineProblem, d0: np.ndarray, idx: np.ndarray, limits: TriangulationLimits,
+              desc: str = "scipy", progress: bool = True):
+    """Per-pixel scipy over ``idx``: ``(d (len(idx),), seconds)``, with a tqdm bar on stderr."""
+    from tqdm import tqdm
+
+    out = np.empty(len(idx))
+    start = time.perf_counter()
+    for j, i in enumerate(tqdm(idx, desc=desc, file=sys.stderr, disable=not progress, leave=False,
+                               mininterval=0.5)):
+        out[j], _ = scipy_pixel(problem, int(i), d0[i], limits.d_min_m, limits.d_max_m)
+    return out, time.perf_counter() - start
+
+
+def agreement(d_vec: np.ndarray, d_sp: np.ndarray, tol: float = AGREE_TOL_M):
+    """``(share within tol, max |difference|)``."""
+    diff = np.abs(np.asarray(d_vec) - np.asarray(d_sp))
+    return float(np.mean(diff <= tol)), float(diff.max()) if diff.size else 0.0
+
+
+def costs(problem: RefineProblem, d: np.ndarray, idx: np.ndarray) -> np.ndarray:
+    """(len(idx),) sum of squared residuals of pixels ``idx`` at distances ``d``."""
+    r, _ = problem.residuals(np.asarray(d, np.float64), idx)
+    return np.einsum("ij,ij->i", r, r)
+
+
+def diagnose(problem: RefineProblem, idx: np.ndarray, d_vec: np.ndarray, d_sp: np.ndarray) -> list[str]:
+    """Lines explaining the subset pixels where the vectorised LM and scipy disagree: which found the lower
+    cost, and how many local minima a fine scan of the cost finds between the two solutions."""
+    diff = np.abs(d_vec - d_sp)
+    bad = diff > AGREE_TOL_M
+    if not bad.any():
+        return []
+    c_vec, c_sp = costs(problem, d_vec, idx), costs(problem, d_sp, idx)
+    lower_sp = bad & (c_sp < c_vec * (1 - 1e-9))
+    lower_vec = bad & (c_vec < c_sp * (1 - 1e-9))
+    lines = [f"    disagree: {bad.sum()} px; |diff| median {np.median(diff[bad]):.3g} m; scipy cost lower at "
+             f"{lower_sp.sum()}, LM cost lower at {lower_vec.sum()}, equal at {(bad & ~lower_sp & ~lower_vec).sum()}"]
+    mins = []
+    for j in np.flatnonzero(bad)[:200]:
+        grid = np.linspace(min(d_vec[j], d_sp[j]) - 2e-3, max(d_vec[j], d_sp[j]) + 2e-3, 2001)
+        c = costs(problem, grid, np.full(grid.size, idx[j]))
+        mins.append(int(((c[1:-1] < c[:-2]) & (c[1:-1] < c[2:])).sum()))
+    lines.append(f"    cost scanned over 2001 distances spanning both solutions +- 2 mm: local minima per pixel "
+                 f"median {np.median(mins):.0f}, max {max(mins)} (the colour cost is piecewise smooth: bilinear "
+                 "interpolation has kinks at pixel boundaries)")
+    return lines
+
+
+def compare_variant(frame, prep, config: RefineConfig, subset: int, rng, progress: bool = True) -> dict:
+    """Vectorised LM vs per-pixel scipy for one variant, stage by stage, from the same starting distances.
+
+    Geometric stage: from ``prep.d0`` over every pixel with information.  Colour stage (colour variants):
+    from the geometric solution over the textured pixels, both solvers run to convergence (the pipeline
+    itself stops after ``config.color_iters``).  Returns a dict of timings, speedup and agreement.
+    """
+    limits = prep.limits
+    problem, _ = variant_problem(frame, prep, config)
+    color, problem.color = problem.color, []
+    d_geo, iters, t_lm = run_vectorised(problem, prep.d0, limits, config.max_iters, config.tol_m)
+    informed = np.flatnonzero(sum(problem.weights) > 0)
+    stages = [("geometric", problem, prep.d0, d_geo, t_lm, informed, iters)]
+    if color:
+        cproblem, _ = variant_problem(frame, prep, config)
+        textured = color_texture_mask(frame.images["C"], config).reshape(-1)
+        d_col, iters_c, t_c = run_vectorised(cproblem, d_geo, limits, 200, config.tol_m, only=textured)
+        stages.append(("colour", cproblem, d_geo, d_col, t_c, np.flatnonzero(textured), iters_c))
+    out = {"stages": {}, "diag": []}
+    for label, prob, start, d_vec, t_vec, cand, it in stages:
+        idx = np.sort(rng.choice(cand, size=min(subset, cand.size), replace=False))
+        d_sp, t_sp = run_scipy(prob, start, idx, limits, desc=f"scipy {config.name} {label}", progress=progress)
+        share, worst = agreement(d_vec[idx], d_sp)
+        t_full = t_sp / max(idx.size, 1) * cand.size
+        out["stages"][label] = dict(lm=t_vec, iters=it, sp=t_sp, sp_full=t_full, speedup=t_full / t_vec,
+                                    share=share, worst=worst, m=idx.size, n=cand.size)
+        if share < GOAL_AGREE:
+            out["diag"].append(f"  {config.name} ({label} stage):")
+            out["diag"].extend(diagnose(prob, idx, d_vec[idx], d_sp))
+    return out
+
+
+# ------------------------------------------------------------------------------------------------- main
+
+
+def _peak_mb() -> float:
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0  # Linux: kilobytes
+
+
+def _goal(ok: bool, text: str) -> str:
+    return f"  [{'PASS' if ok else 'FAIL'}] {text}"
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m harness.jobs.bench", description=__doc__.split("\n\n")[0])
+    ap.add_argument("--width", type=int, default=1000, help="frame width in pixels (height = width / 2)")
+    ap.add_argument("--subset", type=int, default=2000, help="pixels solved one by one with scipy per variant")
+    ap.add_argument("--seed", type=int, default=0, help="seed of the random scipy subset")
+    ap.add_argument("--frame", type=Path, default=None,
+                    help="frame directory, or cache root to reuse / render into (default: a temporary dir)")
+    ap.add_argument("--no-progress", action="store_true", help="no tqdm progress bar")
+    args = ap.parse_args(argv)
+    if args.width < 8 or args.width % 2:
+        ap.error("--width must be an even number >= 8")
+
+    def out(line: str = "") -> None:
+        print(line, flush=True)
+
+    frame, how = load_or_render_frame(args.frame, args.width)
+    out(f"tri360 bench: {frame.scene}/{frame.viewpoint} {frame.width}x{frame.height} ({how}); flow "
+        f"{DEFAULT_FLOW}, rectified; variants {', '.join(VARIANTS)}")
+    limits = TriangulationLimits()
+
+    # the whole pipeline first (its peak memory is read right after it)
+    start = time.perf_counter()
+    result = reconstruct(frame, flow=DEFAULT_FLOW, rectify=True)
+    total_s = time.perf_counter() - start
+    peak_reconstruct = _peak_mb()
+
+    prep = prepare(frame, DEFAULT_FLOW, True, limits)
+    deep = {k: match_pair(frame, k, "deepflow", True).seconds for k in PAIRS}
+
+    out("")
+    out("stage times, seconds (staged replay | inside reconstruct()):")
+    for k in PAIRS:
+        out(f"  flow {DEFAULT_FLOW} {k:<14s} {prep.seconds[f'flow_{k}']:8.3f} | {result.seconds[f'flow_{k}']:8.3f}")
+    for k in PAIRS:
+        out(f"  flow deepflow {k:<9s} {deep[k]:8.3f} |        - (paper's flow, for comparison)")
+    out(f"  triangulate            {prep.seconds['triangulate']:8.3f} | {result.seconds['triangulate']:8.3f}")
+    out(f"  average                {prep.seconds['average']:8.3f} | {result.seconds['average']:8.3f}")
+    stage_s = {}
+    for name, config in VARIANTS.items():
+        start = time.perf_counter()
+        d, iters = refine_variant(frame, prep, config)
+        stage_s[name] = time.perf_counter() - start
+        same = float(np.abs(d.astype(np.float32) - result.distance[name]).max())
+        out(f"  {name:<22s} {stage_s[name]:8.3f} | {result.seconds[name]:8.3f}   ({iters} LM iterations; "
+            f"max |replay - reconstruct| {same:.2g} m)")
+    out(f"  reconstruct() total    {total_s:8.3f}   (all of: average, {', '.join(VARIANTS)})")
+
+    rng = np.random.default_rng(args.seed)
+    rows, diag_lines = {}, []
+    for name, config in VARIANTS.items():
+        res = compare_variant(frame, prep, config, args.subset, rng, progress=not args.no_progress)
+        diag_lines.extend(res["diag"])
+        for label, r in res["stages"].items():
+            rows[f"{name}/{label}"] = r
+    out("")
+    out(f"vectorised LM vs per-pixel scipy least_squares (trf, bounds, tol {SCIPY_TOL:g}), same start, same residuals:")
+    out(f"  {'variant/stage':<20s} {'LM s':>7s} {'it':>4s} {'scipy subset':>16s} {'scipy extrap.':>14s} "
+        f"{'speedup':>9s} {'agree<=1e-4m':>13s} {'max |diff| m':>13s}")
+    for key, r in rows.items():
+        out(f"  {key:<20s} {r['lm']:7.3f} {r['iters']:4d} {r['sp']:8.2f} s/{r['m']:<5d}px {r['sp_full']:12.1f} s "
+            f"{r['speedup']:8.0f}x {100 * r['share']:12.2f}% {r['worst']:13.3g}")
+    out("  (subsets drawn from the pixels each stage solves; scipy time extrapolated to all of them; the colour "
+        "stage of both solvers runs to convergence here)")
+    if diag_lines:
+        out("")
+        out("disagreement analysis:")
+        for line in diag_lines:
+            out(line)
+
+    peak = _peak_mb()
+    out("")
+    out(f"peak memory (ru_maxrss): {peak_reconstruct:.0f} MB after reconstruct(), {peak:.0f} MB whole bench")
+    out("")
+    out("goals vs measured:")
+    slowest = max(stage_s, key=stage_s.get)
+    out(_goal(stage_s[slowest] <= GOAL_VARIANT_S,
+              f"each refinement variant <= {GOAL_VARIANT_S:g} s: slowest {slowest} {stage_s[slowest]:.3f} s "
+              f"(inside reconstruct(): {max(result.seconds[k] for k in VARIANTS):.3f} s)"))
+    slow = min(rows, key=lambda k: rows[k]["speedup"])
+    out(_goal(rows[slow]["speedup"] >= GOAL_SPEEDUP,
+              f">= {GOAL_SPEEDUP:g}x faster than per-pixel scipy: smallest {rows[slow]['speedup']:.0f}x ({slow})"))
+    low = min(rows, key=lambda k: rows[k]["share"])
+    out(_goal(rows[low]["share"] >= GOAL_AGREE,
+              f"same result (>= {100 * GOAL_AGREE:g} % within {AGREE_TOL_M:g} m): lowest "
+              f"{100 * rows[low]['share']:.2f} % ({low})"))
+    out(_goal(total_s <= GOAL_TOTAL_S, f"whole reconstruct() with all variants <= {GOAL_TOTAL_S:g} s: {total_s:.2f} s"))
+    out(_goal(peak_reconstruct <= GOAL_PEAK_MB,
+              f"peak memory <= {GOAL_PEAK_MB / 1024:g} GB: {peak_reconstruct:.0f} MB (reconstruct), "
+              f"{peak:.0f} MB (whole bench)"))
+    smallest = min((r["speedup"] for r in rows.values()), default=float("nan"))
+    out(f"refine speedup vs per-pixel scipy: {smallest:.0f} x")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,521 @@
+"""The Blender (Cycles) backend: translate a :class:`scenes.model.SceneSpec` into a bpy scene and render it.
+
+This is the ONLY module of tri360 that imports ``bpy``.  ``harness.jobs.render`` imports it lazily, only when a
+scene whose backend is ``"blender"`` is rendered, so ``import harness.cli`` never loads Blender.
+
+Usage::
+
+    renderer = SceneRenderer(spec, RenderSettings(width=1000, samples=16))   # builds the scene once
+    frame = renderer.render(rig, scene="classroom", viewpoint="vp000")       # -> harness.data.frame.Frame
+
+What a render is (the choices a reader of the data needs to know):
+
+- Cycles on the CPU, equirectangular panoramic cameras (``PANO`` / ``EQUIRECTANGULAR``), adaptive sampling
+  off (``samples`` means samples per pixel), fixed seed, optional OpenImageDenoise (albedo + normal guides).
+- Each camera is written by Cycles straight to a multi-layer EXR (Combined + Depth).  The Depth pass of a
+  panoramic camera is the Euclidean distance to the surface seen through the pixel centre (sample 0), so
+  it is exact ground truth whatever the sample count or denoiser; Cycles' 1e10 "no hit" becomes +inf.
+- Colour: Combined is scene-linear Rec.709.  We apply the **Standard** view transform ourselves (exposure 0,
+  gamma 1, no look): clip to [0, 1], sRGB transfer function, round to 8 bits.  This equals what Blender's
+  own 'Standard' PNG output gives, and avoids AgX's tone curve (which would make colour depend on the
+  view transform rather than on the surface).
+- Camera pose: tri360 camera axes are X right, Y forward, Z up.  A Blender camera looks along its local
+  -Z with local +Y up, so its world matrix has columns ``[X, Z, -Y]`` of our pose (equivalently: a camera
+  object with ``rotation_euler = (90 deg, 0, 0)`` relative to the rig).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import tempfile
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import bpy
+import mathutils
+import numpy as np
+import OpenEXR
+
+from harness import __version__
+from harness.data.frame import Frame, read_distance_exr
+from reconstruction.camera.rig import CAMERA_NAMES, CameraPose, Rig
+from scenes.model import Box, Light, Material, ModelFile, SceneSpec
+
+DEPTH_CHANNEL = "ViewLayer.Depth.Z"
+COMBINED_LAYER = "ViewLayer.Combined"
+VIEW_TRANSFORM = "Standard"
+
+
+@dataclass(frozen=True)
+class RenderSettings:
+    """Cycles settings for one render job.
+
+    Attributes:
+        width: panorama width, pixels (height = width / 2).
+        samples: path-traced samples per pixel (adaptive sampling is off).
+        seed: Cycles sampling seed (noise pattern); same seed + samples + threads -> identical pixels.
+        threads: CPU threads, 0 = all cores.
+        denoise: run OpenImageDenoise (CPU) on Combined; Depth is never denoised.
+        max_bounces: total light bounces; diffuse/glossy are capped at this, transmission/transparent
+            may go a little higher so glass stays clear.
+        diffuse_bounces, glossy_bounces: per-type bounce limits (each also capped at ``max_bounces``).
+        filter_width: pixel filter (Blackman-Harris) width, pixels.
+        clamp_indirect: clamp on indirect sample values (0 = off); suppresses fireflies at low samples.
+        light_tree: Cycles' light tree for picking which light to sample.
+        denoise_prefilter: OIDN guide-pass prefilter, ``"ACCURATE"``, ``"FAST"`` or ``"NONE"``.
+        denoise_quality: OIDN quality, ``"HIGH"``, ``"BALANCED"`` or ``"FAST"``.
+
+    The defaults are the result of the study in ``docs/rendering.md`` (1000 x 500 classroom): the cheaper
+    settings tried there (light tree off, FAST prefilter, diffuse 1 / glossy 1 bounces, fewer samples,
+    fast GI) each cost reconstruction accuracy, so none of them is the default.
+    """
+
+    width: int = 1000
+    samples: int = 12
+    seed: int = 0
+    threads: int = 0
+    denoise: bool = True
+    max_bounces: int = 4
+    diffuse_bounces: int = 3
+    glossy_bounces: int = 2
+    filter_width: float = 1.5
+    clamp_indirect: float = 10.0
+    light_tree: bool = True
+    denoise_prefilter: str = "ACCURATE"
+    denoise_quality: str = "HIGH"
+
+    @property
+    def height(self) -> int:
+        return self.width // 2
+
+
+# ------------------------------------------------------------------------------------------- materials
+#
+# Each material kind is a *pattern* (a scalar field in [0, 1] over object-space coordinates measured in
+# units of ``Material.scale`` metres) plus *surface* settings.  The pattern drives a colour ramp from
+# ``color`` to ``color + contrast * (color2 - color)``, so ``contrast = 0`` is a uniform surface.
+
+
+def _coords(nt, mat: Material, stretch=(1.0, 1.0, 1.0)):
+    """Object-space coordinates divided by ``mat.scale`` (and stretched per axis) -> vector socket."""
+    tc = nt.nodes.new("ShaderNodeTexCoord")
+    mp = nt.nodes.new("ShaderNodeMapping")
+    s = 1.0 / max(mat.scale, 1e-6)
+    mp.inputs["Scale"].default_value = (s * stretch[0], s * stretch[1], s * stretch[2])
+    nt.links.new(tc.outputs["Object"], mp.inputs["Vector"])
+    return mp.outputs["Vector"]
+
+
+def _noise(nt, vec, scale=1.0, detail=4.0, roughness=0.5):
+    n = nt.nodes.new("ShaderNodeTexNoise")
+    n.inputs["Scale"].default_value = scale
+    n.inputs["Detail"].default_value = detail
+    n.inputs["Roughness"].default_value = roughness
+    nt.links.new(vec, n.inputs["Vector"])
+    return n.outputs["Fac"]
+
+
+def _pattern_paint(nt, mat):
+    """Faint multi-octave noise (painted plaster)."""
+    return _noise(nt, _coords(nt, mat), scale=1.0, detail=4.0, roughness=0.6), (0.3, 0.7)
+
+
+def _pattern_noise(nt, mat):
+    """Strong, detailed noise: a richly textured synthetic surface."""
+    return _noise(nt, _coords(nt, mat), scale=1.0, detail=6.0, roughness=0.65), (0.25, 0.75)
+
+
+def _pattern_wood(nt, mat):
+    """Wavy grain lines running along object X (wave bands across Y, distorted by noise)."""
+    w = nt.nodes.new("ShaderNodeTexWave")
+    w.wave_type = "BANDS"
+    w.bands_direction = "Y"
+    w.wave_profile = "SAW"
+    w.inputs["Scale"].default_value = 1.0
+    w.inputs["Distortion"].default_value = 6.0
+    w.inputs["Detail"].default_value = 3.0
+    w.inputs["Detail Scale"].default_value = 1.5
+    nt.links.new(_coords(nt, mat, stretch=(0.15, 1.0, 1.0)), w.inputs["Vector"])
+    return w.outputs["Fac"], (0.0, 1.0)
+
+
+def _pattern_tiles(nt, mat):
+    """Square tiles of side ``scale`` (object XY), random shade per tile, light grout lines."""
+    b = nt.nodes.new("ShaderNodeTexBrick")
+    b.offset = 0.0
+    b.squash = 1.0
+    b.inputs["Color1"].default_value = (0.15, 0.15, 0.15, 1.0)
+    b.inputs["Color2"].default_value = (0.55, 0.55, 0.55, 1.0)
+    b.inputs["Mortar"].default_value = (1.0, 1.0, 1.0, 1.0)
+    b.inputs["Scale"].default_value = 1.0
+    b.inputs["Mortar Size"].default_value = 0.015
+    b.inputs["Brick Width"].default_value = 1.0
+    b.inputs["Row Height"].default_value = 1.0
+    nt.links.new(_coords(nt, mat), b.inputs["Vector"])
+    # add a little speckle so tiles are not perfectly flat
+    mix = nt.nodes.new("ShaderNodeMath")
+    mix.operation = "MULTIPLY_ADD"
+    nt.links.new(_noise(nt, _coords(nt, mat), scale=8.0, detail=2.0), mix.inputs[0])
+    mix.inputs[1].default_value = 0.25
+    nt.links.new(b.outputs["Color"], mix.inputs[2])
+    return mix.outputs["Value"], (0.1, 1.1)
+
+
+def _pattern_board(nt, mat):
+    """Chalkboard: large soft smudges plus fine dust."""
+    return _noise(nt, _coords(nt, mat), scale=1.0, detail=5.0, roughness=0.7), (0.3, 0.75)
+
+
+def _pattern_fabric(nt, mat):
+    """Fabric: fine, high-frequency weave noise."""
+    return _noise(nt, _coords(nt, mat), scale=4.0, detail=6.0, roughness=0.8), (0.3, 0.7)
+
+
+def _pattern_metal(nt, mat):
+    """Brushed metal: noise stretched along object X."""
+    return _noise(nt, _coords(nt, mat, stretch=(0.05, 1.0, 1.0)), scale=2.0, detail=4.0), (0.3, 0.7)
+
+
+def _pattern_plastic(nt, mat):
+    """Moulded plastic: soft, low-frequency mottling."""
+    return _noise(nt, _coords(nt, mat), scale=1.0, detail=3.0, roughness=0.4), (0.35, 0.65)
+
+
+_PATTERNS: dict[str, Callable] = {
+    "paint": _pattern_paint, "noise": _pattern_noise, "wood": _pattern_wood, "tiles": _pattern_tiles,
+    "board": _pattern_board, "fabric": _pattern_fabric, "metal": _pattern_metal, "plastic": _pattern_plastic,
+    "glass": _pattern_plastic, "emission": _pattern_paint,
+}
+
+# Principled BSDF inputs per kind (besides Base Color and Roughness, which come from the Material).
+_SURFACE: dict[str, dict] = {
+    "paint": {}, "noise": {}, "wood": {"Coat Weight": 0.2}, "tiles": {"Coat Weight": 0.1}, "board": {},
+    "fabric": {"Sheen Weight": 0.3}, "metal": {"Metallic": 1.0}, "plastic": {"Specular IOR Level": 0.5},
+    "glass": {"Transmission Weight": 1.0, "IOR": 1.45},
+}
+
+
+def _build_material(mat: Material):
+    bm = bpy.data.materials.new(mat.name)
+    bm.use_nodes = True
+    nt = bm.node_tree
+    nt.nodes.clear()
+    out = nt.nodes.new("ShaderNodeOutputMaterial")
+    fac, (lo, hi) = _PATTERNS[mat.kind](nt, mat)
+    ramp = nt.nodes.new("ShaderNodeValToRGB")
+    c1 = np.asarray(mat.color, float)
+    c2 = c1 + float(mat.contrast) * (np.asarray(mat.secondary, float) - c1)
+    e0, e1 = ramp.color_ramp.elements[0], ramp.color_ramp.elements[1]
+    e0.position, e1.position = lo, hi
+    e0.color, e1.color = (*c1, 1.0), (*c2, 1.0)
+    nt.links.new(fac, ramp.inputs["Fac"])
+    if mat.kind == "emission":
+        em = nt.nodes.new("ShaderNodeEmission")
+        em.inputs["Strength"].default_value = float(mat.emission)
+        nt.links.new(ramp.outputs["Color"], em.inputs["Color"])
+        nt.links.new(em.outputs["Emission"], out.inputs["Surface"])
+        return bm
+    bsdf = nt.nodes.new("ShaderNodeBsdfPrincipled")
+    bsdf.inputs["Roughness"].default_value = float(mat.roughness)
+    for key, value in _SURFACE[mat.kind].items():
+        bsdf.inputs[key].default_value = value
+    nt.links.new(ramp.outputs["Color"], bsdf.inputs["Base Color"])
+    nt.links.new(bsdf.outputs["BSDF"], out.inputs["Surface"])
+    return bm
+
+
+# -------------------------------------------------------------------------------------------- geometry
+
+_CUBE_VERTS = [(x, y, z) for x in (-0.5, 0.5) for y in (-0.5, 0.5) for z in (-0.5, 0.5)]
+# outward-facing quads (counter-clockwise seen from outside) over _CUBE_VERTS (index = 4x + 2y + z)
+_CUBE_FACES = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
+
+
+def _build_box(box: Box, index: int, materials: dict, collection) -> None:
+    sx, sy, sz = box.size
+    verts = [(x * sx, y * sy, z * sz) for x, y, z in _CUBE_VERTS]
+    faces = [tuple(reversed(f)) for f in _CUBE_FACES] if box.inward else _CUBE_FACES
+    name = box.name or f"box{index:04d}"
+    me = bpy.data.meshes.new(name)
+    me.from_pydata(verts, [], faces)
+    me.update()
+    me.materials.append(materials[box.material])
+    ob = bpy.data.objects.new(name, me)
+    ob.location = box.center
+    ob.rotation_euler = (0.0, 0.0, float(box.yaw))
+    collection.objects.link(ob)
+
+
+def _build_light(light: Light, index: int, collection) -> None:
+    kind = {"area": "AREA", "point": "POINT", "sun": "SUN"}.get(light.kind)
+    if kind is None:
+        raise ValueError(f"light {index}: unknown kind {light.kind!r} (area, point, sun)")
+    data = bpy.data.lights.new(f"light{index:03d}", kind)
+    data.color = light.color
+    data.energy = float(light.power)
+    if kind == "AREA":
+        data.shape = "RECTANGLE"
+        data.size, data.size_y = float(light.size[0]), float(light.size[1])
+    ob = bpy.data.objects.new(f"light{index:03d}", data)
+    ob.location = light.position
+    ob.visible_camera = False  # lights never appear in the image or in the ground-truth distance
+    collection.objects.link(ob)
+
+
+def _import_model(model: ModelFile, collection) -> list:
+    """Import a .blend/.glb/.gltf/.obj file, place its root objects by the model's transform."""
+    path = Path(model.path).expanduser()
+    if not path.is_file():
+        raise FileNotFoundError(f"model file {path} does not exist")
+    before = set(bpy.data.objects)
+    suffix = path.suffix.lower()
+    if suffix == ".blend":
+        with bpy.data.libraries.load(str(path), link=False) as (src, dst):
+            dst.objects = list(src.objects)
+        for ob in dst.objects:
+            if ob is not None and ob.type not in ("CAMERA",):
+                collection.objects.link(ob)
+    elif suffix in (".glb", ".gltf"):
+        bpy.ops.import_scene.gltf(filepath=str(path))
+    elif suffix == ".obj":
+        bpy.ops.wm.obj_import(filepath=str(path), forward_axis="Y", up_axis="Z")
+    else:
+        raise ValueError(f"model file {path}: unsupported format {suffix!r} (.blend, .glb, .gltf, .obj)")
+    new = [ob for ob in bpy.data.objects if ob not in before]
+    for ob in new:
+        if ob.type == "CAMERA":  # a model's own cameras must not replace ours
+            bpy.data.objects.remove(ob)
+    new = [ob for ob in bpy.data.objects if ob not in before]
+    place = (mathutils.Matrix.Translation(model.location)
+             @ mathutils.Euler(model.rotation_euler).to_matrix().to_4x4()
+             @ mathutils.Matrix.Scale(float(model.scale), 4))
+    for ob in new:
+        if ob.parent is None:
+            ob.matrix_world = place @ ob.matrix_world
+    return new
+
+
+# ---------------------------------------------------------------------------------------------- camera
+
+
+def blender_camera_matrix(pose: CameraPose) -> np.ndarray:
+    """(4, 4) Blender world matrix for a tri360 camera pose: rotation columns [X, Z, -Y], translation = position."""
+    r = np.asarray(pose.rotation, dtype=np.float64)
+    m = np.eye(4)
+    m[:3, :3] = np.stack([r[:, 0], r[:, 2], -r[:, 1]], axis=1)
+    m[:3, 3] = np.asarray(pose.position, dtype=np.float64)
+    return m
+
+
+def linear_to_srgb8(rgb: np.ndarray) -> np.ndarray:
+    """Scene-linear RGB (H, W, 3) float -> 8-bit sRGB (Blender's 'Standard' view transform, exposure 0)."""
+    x = np.clip(np.nan_to_num(np.asarray(rgb, dtype=np.float64), nan=0.0), 0.0, 1.0)
+    s = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1.0 / 2.4) - 0.055)
+    return np.floor(s * 255.0 + 0.5).astype(np.uint8)
+
+
+def _read_combined(path: Path) -> np.ndarray:
+    """(H, W, 3) float32 linear RGB from the Combined layer of a (multi-part) Blender EXR."""
+    channels = {}
+    for part in OpenEXR.File(str(path), separate_channels=True).parts:
+        channels.update(part.channels)
+    try:
+        return np.stack([channels[f"{COMBINED_LAYER}.{c}"].pixels for c in "RGB"], axis=-1).astype(np.float32)
+    except KeyError:
+        raise RuntimeError(f"{path}: no {COMBINED_LAYER} RGB channels (found {sorted(channels)})") from None
+
+
+@contextlib.contextmanager
+def _stdout_to(log_path: Path):
+    """Send C-level stdout (Cycles' progress lines) to ``log_path`` while rendering."""
+    import sys
+
+    sys.stdout.flush()
+    saved = os.dup(1)
+    with open(log_path, "ab") as log:
+        os.dup2(log.fileno(), 1)
+        try:
+            yield
+        finally:
+            sys.stdout.flush()
+            os.dup2(saved, 1)
+            os.close(saved)
+
+
+# -------------------------------------------------------------------------------------------- renderer
+
+
+class SceneRenderer:
+    """A built Blender scene for one :class:`SceneSpec`; renders rig placements into :class:`Frame` objects.
+
+    The constructor resets Blender to an empty factory scene and builds materials, boxes, lights and models
+    once; :meth:`render` only moves the three cameras, so consecutive viewpoints reuse the synced scene
+    (``render.use_persistent_data``).  Only one SceneRenderer is meaningful at a time (bpy is global state).
+    """
+
+    def __init__(self, spec: SceneSpec, settings: RenderSettings, verbose: bool = False):
+        if settings.width < 8 or settings.width % 2:
+            raise ValueError(f"width must be even and >= 8, got {settings.width}")
+        if settings.samples < 1:
+            raise ValueError(f"samples must be >= 1, got {settings.samples}")
+        spec.validate()
+        self.spec = spec
+        self.settings = settings
+        self.verbose = verbose
+        t0 = time.perf_counter()
+        bpy.ops.wm.read_factory_settings(use_empty=True)
+        self.scene = bpy.context.scene
+        self._configure()
+        coll = self.scene.collection
+        mats = {name: _build_material(m) for name, m in spec.materials.items()}
+        for i, box in enumerate(spec.boxes):
+            _build_box(box, i, mats, coll)
+        for i, light in enumerate(spec.lights):
+            _build_light(light, i, coll)
+        for model in spec.models:
+            _import_model(model, coll)
+        self.cameras = {}
+        for name in CAMERA_NAMES:
+            cam = bpy.data.cameras.new(name)
+            cam.type = "PANO"
+            cam.panorama_type = "EQUIRECTANGULAR"
+            cam.clip_start = 1e-3
+            cam.clip_end = 1e5
+            ob = bpy.data.objects.new(name, cam)
+            coll.objects.link(ob)
+            self.cameras[name] = ob
+        self.build_seconds = time.perf_counter() - t0
+
+    def _configure(self) -> None:
+        s, sc = self.settings, self.scene
+        r = sc.render
+        r.engine = "CYCLES"
+        r.resolution_x, r.resolution_y, r.resolution_percentage = s.width, s.height, 100
+        r.use_persistent_data = True
+        r.use_compositing = False
+        r.use_sequencer = False
+        r.threads_mode = "FIXED" if s.threads > 0 else "AUTO"
+        if s.threads > 0:
+            r.threads = s.threads
+        r.filter_size = s.filter_width  # Blackman-Harris width, pixels
+        cy = sc.cycles
+        cy.device = "CPU"
+        cy.samples = s.samples
+        cy.use_adaptive_sampling = False
+        cy.seed = s.seed
+        cy.use_animated_seed = False
+        cy.use_denoising = s.denoise
+        if s.denoise:
+            cy.denoiser = "OPENIMAGEDENOISE"
+            cy.denoising_input_passes = "RGB_ALBEDO_NORMAL"
+            cy.denoising_prefilter = s.denoise_prefilter
+            cy.denoising_quality = s.denoise_quality
+            cy.denoising_use_gpu = False
+        cy.max_bounces = s.max_bounces
+        cy.diffuse_bounces = min(s.max_bounces, s.diffuse_bounces)
+        cy.glossy_bounces = min(s.max_bounces, s.glossy_bounces)
+        cy.transmission_bounces = max(s.max_bounces, 4)
+        cy.transparent_max_bounces = 8
+        cy.volume_bounces = 0
+        cy.caustics_reflective = False
+        cy.caustics_refractive = False
+        cy.sample_clamp_direct = 0.0
+        cy.sample_clamp_indirect = s.clamp_indirect
+        cy.use_light_tree = s.light_tree
+        cy.use_fast_gi = False
+        sc.view_settings.view_transform = VIEW_TRANSFORM
+        sc.view_settings.look = "None"
+        sc.view_settings.exposure = 0.0
+        sc.view_settings.gamma = 1.0
+        vl = sc.view_layers[0]
+        vl.use_pass_combined = True
+        vl.use_pass_z = True
+        im = r.image_settings
+        im.media_type = "MULTI_LAYER_IMAGE"  # Blender 5.0: must precede file_format
+        im.file_format = "OPEN_EXR_MULTILAYER"
+        im.color_depth = "32"
+        im.exr_codec = "ZIP"
+        world = bpy.data.worlds.new("world")
+        world.use_nodes = True
+        bg = world.node_tree.nodes.get("Background") or world.node_tree.nodes.new("ShaderNodeBackground")
+        bg.inputs["Color"].default_value = (*self.spec.background, 1.0)
+        bg.inputs["Strength"].default_value = 1.0
+        sc.world = world
+
+    def provenance(self) -> dict:
+        s, cy = self.settings, self.scene.cycles
+        return {
+            "engine": "CYCLES", "device": "CPU", "blender_version": bpy.app.version_string,
+            "samples": s.samples, "adaptive_sampling": False,
+            "denoiser": "OPENIMAGEDENOISE" if s.denoise else "none",
+            "denoiser_settings": ({"input_passes": "RGB_ALBEDO_NORMAL", "prefilter": s.denoise_prefilter,
+                                   "quality": s.denoise_quality} if s.denoise else None),
+            "seed": s.seed, "threads": s.threads or os.cpu_count(), "max_bounces": s.max_bounces,
+            "bounces": {k: getattr(cy, f"{k}_bounces") for k in ("max", "diffuse", "glossy", "transmission",
+                                                                   "volume")}
+                       | {"transparent": cy.transparent_max_bounces},
+            "caustics": {"reflective": cy.caustics_reflective, "refractive": cy.caustics_refractive},
+            "light_tree": cy.use_light_tree, "fast_gi": cy.use_fast_gi,
+            "pixel_filter": {"type": "BLACKMAN_HARRIS", "width_px": s.filter_width},
+            "clamp_indirect": s.clamp_indirect, "view_transform": VIEW_TRANSFORM,
+            "distance": "Cycles Depth pass (panoramic camera: Euclidean, pixel centre, sample 0)",
+            "scene": self.spec.name, "scene_params": self.spec.params,
+            "tri360_version": __version__, "build_seconds": round(self.build_seconds, 3),
+            "settings": asdict(s),
+        }
+
+    def render_camera(self, name: str, pose: CameraPose, workdir: Path) -> tuple[np.ndarray, np.ndarray, float]:
+        """Render one camera -> ((H, W, 3) uint8 sRGB, (H, W) float32 distance metres, seconds)."""
+        ob = self.cameras[name]
+        ob.matrix_world = mathutils.Matrix(blender_camera_matrix(pose).tolist())
+        self.scene.camera = ob
+        path = workdir / f"{name}.exr"
+        self.scene.render.filepath = str(path)
+        t0 = time.perf_counter()
+        ctx = contextlib.nullcontext() if self.verbose else _stdout_to(workdir / "blender.log")
+        with ctx:
+            bpy.ops.render.render(write_still=True, scene=self.scene.name)
+        seconds = time.perf_counter() - t0
+        if not path.is_file():
+            raise RuntimeError(f"Cycles wrote no image for camera {name} (see {workdir / 'blender.log'})")
+        image = linear_to_srgb8(_read_combined(path))
+        distance = read_distance_exr(path, channel=DEPTH_CHANNEL)
+        path.unlink()
+        return image, distance, seconds
+
+    def render(self, rig: Rig, scene: str, viewpoint: str,
+               on_camera: Callable[[str, float], None] | None = None) -> Frame:
+        """Render the rig's three cameras (C, U, R) -> a :class:`Frame` (not yet written to disk).
+
+        Args:
+            rig: the rig placement.
+            scene, viewpoint: names recorded in the frame (its directory levels).
+            on_camera: called as ``on_camera(camera_name, seconds)`` after each camera (progress bars).
+        """
+        poses = rig.poses()
+        images, distance, seconds = {}, {}, {}
+        with tempfile.TemporaryDirectory(prefix="tri360-blender-") as tmp:
+            for name in CAMERA_NAMES:
+                images[name], distance[name], seconds[name] = self.render_camera(name, poses[name], Path(tmp))
+                if on_camera is not None:
+                    on_camera(name, seconds[name])
+        renderer = self.provenance()
+        renderer["render_seconds"] = {k: round(v, 3) for k, v in seconds.items()}
+        renderer["rig"] = {"position": [float(x) for x in rig.position], "yaw_rad": float(rig.yaw_rad),
+                           "baseline_m": float(rig.baseline_m)}
+        s = self.settings
+        return Frame(scene=scene, viewpoint=viewpoint, width=s.width, height=s.height,
+                     baseline_m=float(rig.baseline_m), cameras=poses, images=images, distance=distance,
+                     renderer=renderer)
+
+
+def render_frame(spec: SceneSpec, rig: Rig, settings: RenderSettings, scene: str, viewpoint: str) -> Frame:
+    """Convenience: build ``spec`` and render one rig placement (use :class:`SceneRenderer` for several)."""
+    return SceneRenderer(spec, settings).render(rig, scene, viewpoint)
+
+
+__all__ = ["RenderSettings", "SceneRenderer", "render_frame", "blender_camera_matrix", "linear_to_srgb8",
+           "DEPTH_CHANNEL"]

@@ -1,0 +1,334 @@
+"""The reconstruction pipeline: flow -> per-pair triangulation -> ``average`` -> LM refinement variants.
+
+>>> result = reconstruct(frame, flow="dis", rectify=True)        # doctest: +SKIP
+>>> result.distance["gradient"]                                  # (H, W) float32 metres, camera C
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+
+from reconstruction.camera.equirect import bearing_grid
+from reconstruction.flow.matching import PairMatch, match_pair
+from reconstruction.refine.lm import (
+    VARIANTS,
+    ColorTerm,
+    RefineConfig,
+    RefineProblem,
+    get_variant,
+    levenberg_marquardt,
+)
+from reconstruction.refine.triangulate import PairGeometry, TriangulationLimits, pair_geometry, triangulate_sines
+from reconstruction.refine.weights import (
+    angle_weight,
+    epipolar_gradient,
+    gradient_confidence,
+    lateral_confidence,
+    to_gray,
+)
+
+__all__ = ["DEFAULT_FLOW", "PAIRS", "Reconstruction", "reconstruct", "available_variants", "fuse_average",
+           "fill_invalid", "fill_edge_aware", "Prepared", "prepare", "variant_problem", "refine_variant"]
+
+DEFAULT_FLOW = "dis"  # chosen by measurement, see docs/refinement.md
+PAIRS = ("U", "R")
+
+
+def available_variants() -> list[str]:
+    """``average`` (no refinement) followed by the registered LM variants."""
+    return ["average", *VARIANTS]
+
+
+@dataclass
+class Reconstruction:
+    """Output of :func:`reconstruct`.
+
+    Attributes:
+        distance: (H, W) float32 distance of camera C per variant, metres (finite everywhere).
+        pair_distance: (H, W) float32 per-pair triangulated distance ("U", "R"), metres.
+        pair_valid: (H, W) bool per pair: False at the pair's epipoles or where its flow is unusable.
+        seconds: wall time per stage (``flow_U``, ``flow_R``, ``triangulate``, ``average``, each variant).
+        iterations: LM iterations per variant.
+    """
+
+    distance: dict[str, np.ndarray] = field(default_factory=dict)
+    pair_distance: dict[str, np.ndarray] = field(default_factory=dict)
+    pair_valid: dict[str, np.ndarray] = field(default_factory=dict)
+    seconds: dict[str, float] = field(default_factory=dict)
+    iterations: dict[str, int] = field(default_factory=dict)
+
+
+def fill_invalid(d: np.ndarray, valid: np.ndarray, max_sigma_px: float = 64.0) -> np.ndarray:
+    """Fill pixels without a valid estimate from their valid neighbours (normalised convolution).
+
+    Args:
+        d: (H, W) distances, metres; valid: (H, W) bool.
+        max_sigma_px: the largest Gaussian radius tried, pixels; sigma doubles from 2 until every pixel
+            has support (any pixel still empty after that takes the median of the valid ones).
+    Returns:
+        (H, W) float64: ``d`` where valid, interpolated elsewhere.
+    """
+    if valid.all() or not valid.any():
+        return d.astype(np.float64) if valid.all() else np.full(d.shape, 1.0)
+    num_src = np.where(valid, d, 0.0).astype(np.float32)
+    den_src = valid.astype(np.float32)
+    out = d.astype(np.float64).copy()
+    todo = ~valid
+    sigma = 2.0
+    while todo.any() and sigma <= max_sigma_px:
+        num = cv2.GaussianBlur(num_src, (0, 0), sigma, borderType=cv2.BORDER_REFLECT)
+        den = cv2.GaussianBlur(den_src, (0, 0), sigma, borderType=cv2.BORDER_REFLECT)
+        ok = todo & (den > 1e-3)
+        out[ok] = num[ok] / den[ok]
+        todo &= ~ok
+        sigma *= 2.0
+    out[todo] = np.median(d[valid])
+    return out
+
+
+def fill_edge_aware(d: np.ndarray, valid: np.ndarray, guide: np.ndarray, lam: float, sigma_color: float) -> np.ndarray:
+    """Interpolate distances from valid pixels without crossing image edges.
+
+    Normalised edge-aware smoothing of inverse distance: ``S(valid / d) / S(valid)`` with ``S`` OpenCV's
+    fast global smoother guided by ``guide``; pixels the smoother cannot reach fall back to
+    :func:`fill_invalid`.
+
+    Args:
+        d: (H, W) distances, metres (positive); valid: (H, W) bool; guide: (H, W, 3) uint8 image.
+        lam: smoothness (larger reaches farther); sigma_color: edge scale in 8-bit levels.
+    Returns:
+        (H, W) float64 interpolated distances (at every pixel, valid ones included), metres.
+    """
+    fgs = cv2.ximgproc.createFastGlobalSmootherFilter(guide, lam, sigma_color)
+    m = valid.astype(np.float32)
+    num = fgs.filter((m / np.maximum(d, 1e-6)).astype(np.float32))
+    den = fgs.filter(m)
+    reached = den > 1e-4
+    inv = num / np.where(reached, den, 1.0)
+    out = 1.0 / np.maximum(inv, 1e-3).astype(np.float64)
+    if not reached.all():
+        out = np.where(reached, out, fill_invalid(d, valid))
+    return out
+
+
+def fuse_average(d_pairs: Sequence[np.ndarray], valid: Sequence[np.ndarray], shape: tuple[int, int]) -> np.ndarray:
+    """The paper's "before optimisation" distance: the mean of the pairs' distances.
+
+    Where only one pair is valid its distance is used alone; where neither is (at both epipoles, or the
+    flow failed for both), the distance is interpolated from neighbouring pixels (:func:`fill_invalid`).
+
+    Args:
+        d_pairs: per pair (N,) distances, metres; valid: per pair (N,) bool; shape: (H, W), N = H * W.
+    Returns:
+        (N,) fused distances, metres.
+    """
+    d = np.stack(d_pairs)
+    v = np.stack(valid).astype(np.float64)
+    n = v.sum(axis=0)
+    mean_valid = (d * v).sum(axis=0) / np.maximum(n, 1.0)
+    return fill_invalid(mean_valid.reshape(shape), (n > 0).reshape(shape)).reshape(-1)
+
+
+def _color_terms(frame, config: RefineConfig, bearings: np.ndarray) -> list[ColorTerm]:
+    """Colour-residual data of both pairs: blurred intensities (gray or RGB, in [0, 1])."""
+    def prep(img):
+        x = img.astype(np.float32) / 255.0 if config.color_rgb else to_gray(img)[..., None]
+        if config.color_blur_px > 0:
+            x = cv2.GaussianBlur(x, (0, 0), config.color_blur_px)
+            x = x if x.ndim == 3 else x[..., None]
+        return x.astype(np.float64)
+
+    ref = prep(frame.images["C"]).reshape(-1, 3 if config.color_rgb else 1)
+    origin = np.asarray(frame.cameras["C"].position, np.float64)
+    terms = []
+    for k in PAIRS:
+        cam = frame.cameras[k]
+        rot = np.asarray(cam.rotation, np.float64)
+        terms.append(ColorTerm(image=prep(frame.images[k]), ref=ref,
+                               start=(origin - np.asarray(cam.position, np.float64)) @ rot,
+                               direction=bearings @ rot))
+    return terms
+
+
+def color_texture_mask(image: np.ndarray, config: RefineConfig) -> np.ndarray:
+    """(H, W) bool: pixels of C whose blurred gray gradient magnitude exceeds ``config.color_min_gradient``."""
+    gray = to_gray(image)
+    if config.color_blur_px > 0:
+        gray = cv2.GaussianBlur(gray, (0, 0), config.color_blur_px)
+    gu = (np.roll(gray, -1, axis=1) - np.roll(gray, 1, axis=1)) / 2.0
+    gv = np.zeros_like(gray)
+    gv[1:-1] = (gray[2:] - gray[:-2]) / 2.0
+    return np.hypot(gu, gv) > config.color_min_gradient
+
+
+def match_checks(geom, match: PairMatch, valid: np.ndarray, config: RefineConfig, height: int) -> np.ndarray:
+    """(N,) bool: the pair's estimate is valid, its match lies within ``lateral_max_px`` of the epipolar
+    curve and its flow is forward-backward consistent within ``fb_max_px``."""
+    lateral_px = np.abs(geom.off_plane) * height / np.pi
+    return valid & (lateral_px <= config.lateral_max_px) & (match.fb_error_px.reshape(-1) <= config.fb_max_px)
+
+
+def build_problem(frame, matches: dict[str, PairMatch], valid: dict[str, np.ndarray], checked: dict[str, np.ndarray],
+                  config: RefineConfig, bearings: np.ndarray, geoms: dict) -> RefineProblem:
+    """Assemble the per-pixel least-squares problem of one variant (all of C's pixels).
+
+    Args:
+        valid: per pair, (N,) pixels where the pair's triangulation is meaningful (weight 0 elsewhere).
+        checked: per pair, (N,) pixels whose match passed :func:`match_checks` (others are down-weighted
+            by ``config.fallback_weight``).
+    """
+    weights = []
+    gray = to_gray(frame.images["C"]) if config.gradient else None
+    for k in PAIRS:
+        w = angle_weight(geoms[k].sin_alpha, config.angle_power)
+        w = w * lateral_confidence(geoms[k].off_plane, frame.height, config.lateral_px)
+        if config.gradient:
+            g = epipolar_gradient(gray, frame.cameras["C"].rotation, matches[k].rect_rotation, bearings)
+            w = w * gradient_confidence(g, config.gradient_scale, config.gradient_floor)
+        w = w * np.where(checked[k], 1.0, config.fallback_weight)
+        weights.append(np.where(valid[k], w, 0.0))
+    color = _color_terms(frame, config, bearings) if config.color_weight > 0 else []
+    return RefineProblem(origin=np.asarray(frame.cameras["C"].position, np.float64), bearings=bearings,
+                         pairs=[geoms[k] for k in PAIRS], weights=weights, height=frame.height,
+                         width=frame.width, color=color, color_weight=config.color_weight,
+                         color_saturation=config.color_saturation)
+
+
+def replace_outliers(d: np.ndarray, checked_any: np.ndarray, guide: np.ndarray, config: RefineConfig) -> np.ndarray:
+    """Where no pair passed the checks, replace results far from the edge-aware interpolation of checked
+    neighbours by that interpolation (see ``RefineConfig.outlier_log_ratio``).  (H, W) arrays, metres."""
+    if checked_any.all() or not checked_any.any():
+        return d
+    fill = fill_edge_aware(d, checked_any, guide, config.fill_lambda, config.fill_sigma_color)
+    outlier = ~checked_any & (np.abs(np.log(d / fill)) > config.outlier_log_ratio)
+    return np.where(outlier, fill, d)
+
+
+@dataclass
+class Prepared:
+    """Everything the refinement variants share: matches, per-pair geometry and the ``average`` start.
+
+    Attributes:
+        bearings: (N, 3) world bearings of C's pixels (N = H * W, row-major).
+        matches: per pair, the :class:`PairMatch`.
+        geoms: per pair, the :class:`~reconstruction.refine.triangulate.PairGeometry` (arrays (N,)).
+        d_pair: per pair, (N,) triangulated distances, metres; valid: per pair, (N,) bool.
+        d0: (N,) the ``average`` distances, metres (every variant starts from them).
+        limits: the triangulation limits used.
+        seconds: wall time of ``flow_U``, ``flow_R``, ``triangulate`` and ``average``.
+    """
+
+    bearings: np.ndarray
+    matches: dict[str, PairMatch]
+    geoms: dict[str, PairGeometry]
+    d_pair: dict[str, np.ndarray]
+    valid: dict[str, np.ndarray]
+    d0: np.ndarray
+    limits: TriangulationLimits
+    seconds: dict[str, float] = field(default_factory=dict)
+
+
+def prepare(frame, flow: str = DEFAULT_FLOW, rectify: bool = True,
+            limits: TriangulationLimits = TriangulationLimits(),
+            on_stage: Callable[[str], None] | None = None) -> Prepared:
+    """Flow for both pairs, triangulation and the ``average`` fusion, each timed."""
+    note = on_stage or (lambda _s: None)
+    h, w = frame.height, frame.width
+    seconds = {}
+    bearings = bearing_grid(w, h, frame.cameras["C"].rotation).reshape(-1, 3)
+    matches = {}
+    for k in PAIRS:
+        note(f"flow_{k}")
+        matches[k] = match_pair(frame, k, flow, rectify)
+        seconds[f"flow_{k}"] = matches[k].seconds
+    note("triangulate")
+    start = time.perf_counter()
+    geoms, d_pair, valid = {}, {}, {}
+    for k in PAIRS:
+        geoms[k] = pair_geometry(bearings, matches[k].baseline, matches[k].bearing.reshape(-1, 3))
+        d_pair[k], valid[k] = triangulate_sines(geoms[k], limits)
+    seconds["triangulate"] = time.perf_counter() - start
+    start = time.perf_counter()
+    d0 = fuse_average([d_pair[k] for k in PAIRS], [valid[k] for k in PAIRS], (h, w))
+    seconds["average"] = time.perf_counter() - start
+    return Prepared(bearings, matches, geoms, d_pair, valid, d0, limits, seconds)
+
+
+def variant_problem(frame, prep: Prepared, config: RefineConfig):
+    """The least-squares problem of one variant over all of C's pixels.
+
+    Returns:
+        ``(problem, checked)``: the :class:`RefineProblem` (with its colour terms, if any) and per pair the
+        (N,) mask of pixels whose match passed :func:`match_checks`.
+    """
+    checked = {k: match_checks(prep.geoms[k], prep.matches[k], prep.valid[k], config, frame.height) for k in PAIRS}
+    problem = build_problem(frame, prep.matches, prep.valid, checked, config, prep.bearings, prep.geoms)
+    return problem, checked
+
+
+def refine_variant(frame, prep: Prepared, config: RefineConfig):
+    """Run one refinement variant from ``prep.d0``.
+
+    Two stages: LM on the geometric residuals to convergence, then (colour variants) ``color_iters`` LM
+    iterations with the colour residuals added, on textured pixels only; finally outliers among pixels
+    without a checked pair are replaced (:func:`replace_outliers`).
+
+    Returns:
+        ``(d, iterations)``: (H, W) float64 refined distances, metres, and the LM iterations run.
+    """
+    h, w = frame.height, frame.width
+    lim = prep.limits
+    problem, checked = variant_problem(frame, prep, config)
+    color, problem.color = problem.color, []  # geometric stage first
+    d, iters = levenberg_marquardt(problem, prep.d0, lim.d_min_m, lim.d_max_m, config.max_iters, config.tol_m)
+    if color:
+        problem.color = color
+        textured = color_texture_mask(frame.images["C"], config).reshape(-1)
+        d, more = levenberg_marquardt(problem, d, lim.d_min_m, lim.d_max_m, config.color_iters, config.tol_m,
+                                      only=textured)
+        iters += more
+    checked_any = (checked["U"] | checked["R"]).reshape(h, w)
+    return replace_outliers(d.reshape(h, w), checked_any, frame.images["C"], config), iters
+
+
+def reconstruct(frame, flow: str = DEFAULT_FLOW, rectify: bool = True, variants: Sequence[str] | None = None,
+                limits: TriangulationLimits = TriangulationLimits(),
+                on_stage: Callable[[str], None] | None = None) -> Reconstruction:
+    """Reconstruct camera C's per-pixel distance from a frame's three images.
+
+    Args:
+        frame: a :class:`harness.data.frame.Frame`.
+        flow: flow backend name (:func:`reconstruction.flow.backends.available_flows`) or "oracle".
+        rectify: compute each pair's flow on rectified images (default) or plain equirect ones.
+        variants: which outputs to produce (default: all of :func:`available_variants`).
+        limits: when a pair's estimate counts as invalid, and the distance clamp.
+        on_stage: optional callback called with each stage name before it runs (progress display).
+    Returns:
+        A :class:`Reconstruction`.
+    Raises:
+        ValueError: unknown flow or variant, or the oracle without ground truth.
+    """
+    variants = list(available_variants() if variants is None else variants)
+    configs = {v: get_variant(v) for v in variants if v != "average"}  # validate names before any work
+    h, w = frame.height, frame.width
+    note = on_stage or (lambda _s: None)
+    prep = prepare(frame, flow, rectify, limits, note)
+    out = Reconstruction(seconds=dict(prep.seconds))
+    for k in PAIRS:
+        out.pair_distance[k] = prep.d_pair[k].reshape(h, w).astype(np.float32)
+        out.pair_valid[k] = prep.valid[k].reshape(h, w)
+    if "average" in variants:
+        out.distance["average"] = prep.d0.reshape(h, w).astype(np.float32)
+    for name, config in configs.items():
+        note(name)
+        start = time.perf_counter()
+        d, iters = refine_variant(frame, prep, config)
+        out.seconds[name] = time.perf_counter() - start
+        out.iterations[name] = iters
+        out.distance[name] = d.astype(np.float32)
+    return out

@@ -1,0 +1,235 @@
+"""Per-pixel Levenberg-Marquardt refinement of the distance along C's bearings (paper section 3).
+
+The unknown is one scalar per pixel, the distance ``d`` (metres) of the surface seen through that pixel
+of C.  All pixels are solved at once: every array is (N,) or (N, m), never a Python loop per pixel.
+
+Residuals, all in *pixel equivalents* (radians x H / pi: one row of a rectified equirect image):
+
+* geometric, per pair k in {U, R}: ``sqrt(w_k) * (beta_k(d) - beta_obs_k) * H/pi`` — the reprojection
+  error of X = C + d a into camera k along its epipolar curve (see :mod:`reconstruction.refine.triangulate`);
+* colour (``color_weight > 0``), per pair: ``sqrt(color_weight) * s * tanh((I_k(x_k(d)) - I_C(p)) / s)``,
+  the intensity difference between C's pixel and camera k's image at the projection x_k(d), with
+  intensities in [0, 1] and the saturation ``s`` making it robust to occlusions (paper eq. 2).
+
+Weights ``w_k`` (:mod:`reconstruction.refine.weights`): ``angle`` = sin(alpha_k)^p (Yin et al. 2019: trust a pair
+less near its epipoles), ``gradient`` = angle weight x the image gradient along pair k's epipolar
+direction (paper eq. 1: the confidence of the flow).  A pair invalid at a pixel gets weight 0.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from reconstruction.camera.equirect import project_rays_camera
+from reconstruction.camera.resample import bilinear_with_gradient
+from reconstruction.refine.triangulate import PairGeometry, beta_of_distance
+
+__all__ = ["RefineConfig", "VARIANTS", "register_variant", "get_variant", "RefineProblem", "levenberg_marquardt",
+           "ColorTerm"]
+
+
+@dataclass(frozen=True)
+class RefineConfig:
+    """A refinement variant.  Every field has a unit; defaults were chosen by measurement (docs/refinement.md).
+
+    Attributes:
+        name: the ``--variants`` name.
+        angle_power: p in the angle weight sin(alpha_k)^p (dimensionless; 0 disables angle weighting).
+        gradient: multiply the angle weight by the epipolar-gradient confidence (paper eq. 1).
+        gradient_scale: g0, intensity change per pixel (intensity in [0, 1]) at which the gradient
+            confidence reaches half of its range.
+        gradient_floor: confidence of a texture-less pixel, in [0, 1] (keeps the pair in play).
+        color_weight: lambda_c, weight of the colour residual relative to one pixel-equivalent of
+            geometric residual, per unit intensity squared (0 disables the colour term).
+        color_saturation: s, intensity (in [0, 1]) beyond which a colour difference stops pulling
+            (occlusions, specularities).
+        color_blur_px: Gaussian sigma, pixels, applied to the images used by the colour term.
+        color_rgb: use the three RGB channels instead of grayscale (the paper's future work).
+        color_iters: LM iterations of the colour stage, which starts from the converged geometric solution
+            (the colour cost is non-convex: it refines locally, it does not search).
+        color_min_gradient: the colour stage refines only pixels whose blurred image gradient in C exceeds
+            this, intensity per pixel (elsewhere the colour residual has no slope and cannot move d).
+        lateral_px: sigma, pixel equivalents, of the lateral-flow confidence 1 / (1 + (e / sigma)^2), where e
+            is the match's distance from the epipolar curve (0 disables it).
+        lateral_max_px: a match farther than this from its epipolar curve, pixel equivalents, fails the
+            match checks.
+        fb_max_px: likewise for a forward-backward flow inconsistency above this, pixels.
+        fallback_weight: weight factor, dimensionless, of a pair whose match failed the checks: at a pixel
+            with a checked pair it is all but ignored; where no pair passed, the unchecked pairs still decide.
+        outlier_log_ratio: at a pixel where no pair passed the checks, a result differing from the
+            edge-aware interpolation of its checked neighbours by more than this in |log(d / d_fill)|
+            (0.5: a factor 1.65) is an outlier and takes the interpolated distance.
+        fill_lambda, fill_sigma_color: smoothness (dimensionless) and colour-edge scale (8-bit levels) of
+            that edge-aware interpolation (OpenCV fast global smoother guided by C's image).
+        max_iters: LM iterations of the geometric stage (measured at 1000x500: all pixels done within 21).
+        tol_m: stop a pixel when its step is below this, metres.
+    """
+
+    name: str
+    angle_power: float = 2.0
+    gradient: bool = False
+    gradient_scale: float = 0.02
+    gradient_floor: float = 0.05
+    color_weight: float = 0.0
+    color_saturation: float = 0.1
+    color_blur_px: float = 1.0
+    color_rgb: bool = False
+    color_iters: int = 6
+    color_min_gradient: float = 0.01
+    lateral_px: float = 1.0
+    lateral_max_px: float = 3.0
+    fb_max_px: float = 1.0
+    fallback_weight: float = 1e-3
+    outlier_log_ratio: float = 0.5
+    fill_lambda: float = 1e4
+    fill_sigma_color: float = 8.0
+    max_iters: int = 30
+    tol_m: float = 1e-7
+    description: str = ""
+
+
+VARIANTS: dict[str, RefineConfig] = {}
+
+
+def register_variant(config: RefineConfig) -> None:
+    """Add (or replace) a refinement variant under ``config.name``."""
+    VARIANTS[config.name] = config
+
+
+register_variant(RefineConfig("angle", description="LM on reprojection error, angle weights (Yin et al. 2019)"))
+register_variant(RefineConfig("gradient", gradient=True,
+                              description="LM, angle x epipolar-gradient weights (paper eq. 1)"))
+register_variant(RefineConfig("color", color_weight=30.0,
+                              description="LM, angle weights + grayscale intensity consistency (paper eq. 2)"))
+
+
+def get_variant(name: str) -> RefineConfig:
+    if name not in VARIANTS:
+        raise ValueError(f"unknown variant {name!r} (known: average, {', '.join(sorted(VARIANTS))})")
+    return VARIANTS[name]
+
+
+@dataclass
+class ColorTerm:
+    """Data for the colour residual of one pair.
+
+    Attributes:
+        image: (H, W, c) float64 intensities of camera k in [0, 1] (sampled with exact bilinear
+            interpolation, whose own derivatives give the Jacobian).
+        ref: (N, c) C's intensities at the refined pixels.
+        start: (3,) C's centre relative to camera k's centre, in camera k's frame, metres.
+        direction: (N, 3) the pixels' bearings in camera k's frame.
+    """
+
+    image: np.ndarray
+    ref: np.ndarray
+    start: np.ndarray
+    direction: np.ndarray
+
+
+@dataclass
+class RefineProblem:
+    """The least-squares problem of all refined pixels.
+
+    Attributes:
+        origin: (3,) C's centre, metres.
+        bearings: (N, 3) unit world bearings of the pixels.
+        pairs: epipolar geometry per pair (arrays (N,)).
+        weights: (N,) geometric weight per pair (0 = pair not used at that pixel).
+        height: image height H (sets the pixel-equivalent scale H/pi).
+        width: image width W.
+        color: colour terms per pair (empty: no colour term).
+        color_weight, color_saturation: lambda_c and s of :class:`RefineConfig`.
+    """
+
+    origin: np.ndarray
+    bearings: np.ndarray
+    pairs: list[PairGeometry]
+    weights: list[np.ndarray]
+    height: int
+    width: int
+    color: list[ColorTerm] = field(default_factory=list)
+    color_weight: float = 0.0
+    color_saturation: float = 0.1
+
+    @property
+    def n(self) -> int:
+        return self.bearings.shape[0]
+
+    def residuals(self, d: np.ndarray, idx: np.ndarray | None = None):
+        """Residuals and Jacobian at distances ``d``.
+
+        Args:
+            d: (M,) distances, metres, for pixels ``idx`` (all pixels if None, M = N).
+            idx: optional (M,) integer indices into the problem's pixels.
+        Returns:
+            ``(r, J)``, each (M, m): residuals (pixel equivalents) and d r / d d (per metre).
+        """
+        sel = slice(None) if idx is None else idx
+        scale = self.height / np.pi
+        rs, js = [], []
+        for g, w in zip(self.pairs, self.weights, strict=True):
+            gi = PairGeometry(g.baseline_m, g.cos_alpha[sel], g.sin_alpha[sel], g.beta_obs[sel])
+            beta, dbeta = beta_of_distance(gi, d)
+            sw = np.sqrt(w[sel]) * scale
+            rs.append(sw * (beta - gi.beta_obs))
+            js.append(sw * dbeta)
+        if self.color and self.color_weight > 0:
+            s = self.color_saturation
+            lam = np.sqrt(self.color_weight)
+            for term in self.color:
+                u, v, du, dv = project_rays_camera(term.start, term.direction[sel], d, self.width, self.height)
+                val, gu, gv = bilinear_with_gradient(term.image, u, v)
+                e = val - term.ref[sel]
+                de = gu * du[:, None] + gv * dv[:, None]
+                th = np.tanh(e / s)
+                rs.extend((lam * s * th).T)
+                js.extend((lam * (1.0 - th * th) * de).T)
+        return np.stack(rs, axis=1), np.stack(js, axis=1)
+
+
+def levenberg_marquardt(problem: RefineProblem, d0: np.ndarray, d_min: float = 0.05, d_max: float = 100.0,
+                        max_iters: int = 30, tol: float = 1e-7, lam0: float = 1e-3, only: np.ndarray | None = None):
+    """Minimise ``sum(r(d)**2)`` for every pixel independently, all pixels at once.
+
+    Marquardt's scaled damping for a scalar unknown: step = -(J.r) / ((J.J)(1 + lambda)); a step that
+    does not raise a pixel's cost is taken and its lambda divided by 10, otherwise lambda is multiplied by
+    10.  Distances stay inside ``[d_min, d_max]`` (metres).  A pixel stops when its accepted step is below
+    ``tol`` metres, its cost stops decreasing (relative change <= 1e-12), or it has no information.
+    Only the per-pixel sums (cost, J.r, J.J) are kept, so memory is O(N) whatever the residual count.
+    ``only`` (optional (N,) bool) restricts the solve to those pixels; the others keep ``d0``.
+
+    Returns:
+        ``(d, iterations)``: (N,) refined distances and the number of iterations run.
+    """
+    d = np.clip(np.asarray(d0, dtype=np.float64).copy(), d_min, d_max)
+    lam = np.full(d.shape, lam0)
+    active = np.arange(d.size) if only is None else np.flatnonzero(only)
+    cost, g, h = (np.zeros(d.size) for _ in range(3))
+    cost[active], g[active], h[active] = _normal_terms(*problem.residuals(d[active], active))
+    iterations = 0
+    while active.size and iterations < max_iters:
+        iterations += 1
+        ga, ha, cost_prev, before = g[active], h[active], cost[active], d[active]
+        step = -ga / np.maximum(ha * (1.0 + lam[active]), 1e-30)
+        trial = np.clip(before + step, d_min, d_max)
+        cost_new, g_new, h_new = _normal_terms(*problem.residuals(trial, active))
+        better = cost_new <= cost_prev
+        acc = active[better]
+        d[acc], cost[acc], g[acc], h[acc] = trial[better], cost_new[better], g_new[better], h_new[better]
+        lam[acc] = np.maximum(lam[acc] / 10.0, 1e-9)
+        rej = active[~better]
+        lam[rej] = lam[rej] * 10.0
+        # done: accepted step below tol, cost no longer decreasing (flat stretches of the colour cost),
+        # damping exploded, or no information (all weights 0)
+        stalled = better & (cost_prev - cost_new <= 1e-12 * np.maximum(cost_prev, 1e-30))
+        done = (better & (np.abs(trial - before) < tol)) | stalled | (lam[active] > 1e8) | (ha < 1e-30)
+        active = active[~done]
+    return d, iterations
+
+
+def _normal_terms(r: np.ndarray, J: np.ndarray):
+    """Per-pixel cost sum(r^2), gradient sum(J r) and Gauss-Newton Hessian sum(J^2), each (M,)."""
+    return np.einsum("ij,ij->i", r, r), np.einsum("ij,ij->i", J, r), np.einsum("ij,ij->i", J, J)

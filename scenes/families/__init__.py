@@ -1,0 +1,1 @@
+"""One module per scene family; each defines ``SCENES`` (a list of ``scenes.registry.SceneEntry``)."""

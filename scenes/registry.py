@@ -1,0 +1,136 @@
+"""Scene registry.
+
+A scene family is one Python file in ``scenes/families/`` that defines ``SCENES``: a list of :class:`SceneEntry`.
+Files are found automatically; outside packages register through the entry-point group
+``tri360.scenes`` (each entry point loads to a ``SceneEntry`` or a list of them).  See ``scenes/README.md``.
+
+Scene names may carry a preset: ``classroom:large`` is the family ``classroom`` with its preset ``large``.
+"""
+
+from __future__ import annotations
+
+import importlib
+import pkgutil
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from importlib.metadata import entry_points
+
+import scenes.families
+from scenes.model import SceneSpec
+
+ENTRY_POINT_GROUP = "tri360.scenes"
+BACKENDS = ("blender", "numpy")
+
+
+class SceneError(ValueError):
+    """Unknown scene, unknown preset, or a scene file/build function that failed."""
+
+
+@dataclass(frozen=True)
+class SceneEntry:
+    """A registered scene family.
+
+    Attributes:
+        name: what users type after ``--scene``.
+        build: ``build(params: dict, seed: int) -> SceneSpec``.
+        description: one line for ``tri360 scenes``.
+        presets: named parameter sets; ``default_preset`` is used when none is given.
+        default_preset: key into ``presets``.
+        backend: "blender" (Cycles) or "numpy" (the analytic ray-caster, no Blender needed).
+        source: where it was found (file or entry point), for error messages.
+    """
+
+    name: str
+    build: Callable[[dict, int], SceneSpec]
+    description: str = ""
+    presets: dict[str, dict] = field(default_factory=lambda: {"default": {}})
+    default_preset: str = "default"
+    backend: str = "blender"
+    source: str = ""
+
+    def __post_init__(self):
+        if self.backend not in BACKENDS:
+            raise SceneError(f"scene {self.name!r}: backend must be one of {BACKENDS}, got {self.backend!r}")
+        if self.default_preset not in self.presets:
+            raise SceneError(f"scene {self.name!r}: default preset {self.default_preset!r} not in presets")
+
+    def spec(self, preset: str | None = None, seed: int = 0, **overrides) -> SceneSpec:
+        """Build the scene for a preset (default if None), with parameter ``overrides``."""
+        preset = preset or self.default_preset
+        if preset not in self.presets:
+            raise SceneError(f"scene {self.name!r}: unknown preset {preset!r} (known: {sorted(self.presets)})")
+        params = {**self.presets[preset], **overrides}
+        try:
+            spec = self.build(dict(params), int(seed))
+            spec.validate()
+        except SceneError:
+            raise
+        except Exception as exc:
+            raise SceneError(f"scene {self.name!r} ({self.source}) failed to build: "
+                             f"{type(exc).__name__}: {exc}") from exc
+        spec.params = {"preset": preset, "seed": int(seed), **params}
+        return spec
+
+
+def _collect(obj, source: str) -> list[SceneEntry]:
+    items = obj if isinstance(obj, list | tuple) else [obj]
+    out = []
+    for item in items:
+        if not isinstance(item, SceneEntry):
+            raise SceneError(f"{source}: expected SceneEntry objects, got {type(item).__name__}")
+        out.append(SceneEntry(**{**item.__dict__, "source": item.source or source}))
+    return out
+
+
+def discover() -> tuple[dict[str, SceneEntry], dict[str, str]]:
+    """Find every scene: files in this package, then entry points.
+
+    Returns:
+        ``(entries by name, errors by source)``; a file that raises on import is reported in ``errors``
+        rather than hiding the other scenes.
+    """
+    entries: dict[str, SceneEntry] = {}
+    errors: dict[str, str] = {}
+    for info in sorted(pkgutil.iter_modules(scenes.families.__path__), key=lambda i: i.name):
+        if info.name.startswith("_"):
+            continue
+        modname = f"{scenes.families.__name__}.{info.name}"
+        source = f"scenes/families/{info.name}.py"
+        try:
+            module = importlib.import_module(modname)
+            found = _collect(getattr(module, "SCENES", []), source)
+        except Exception as exc:
+            errors[source] = f"{type(exc).__name__}: {exc}"
+            continue
+        for entry in found:
+            entries[entry.name] = entry
+    for ep in entry_points(group=ENTRY_POINT_GROUP):
+        source = f"entry point {ep.name} ({ep.value})"
+        try:
+            found = _collect(ep.load(), source)
+        except Exception as exc:
+            errors[source] = f"{type(exc).__name__}: {exc}"
+            continue
+        for entry in found:
+            entries[entry.name] = entry
+    return entries, errors
+
+
+def get_scene(name: str) -> tuple[SceneEntry, str]:
+    """Resolve ``"family"`` or ``"family:preset"`` -> (entry, preset name).
+
+    Raises:
+        SceneError: naming the unknown scene and listing the known ones (and any scene file that failed).
+    """
+    family, _, preset = name.partition(":")
+    entries, errors = discover()
+    if family not in entries:
+        msg = f"unknown scene {family!r} (known: {', '.join(sorted(entries)) or 'none'})"
+        if errors:
+            msg += "; scene files that failed to load: " + "; ".join(f"{k}: {v}" for k, v in errors.items())
+        raise SceneError(msg)
+    entry = entries[family]
+    preset = preset or entry.default_preset
+    if preset not in entry.presets:
+        raise SceneError(f"scene {family!r}: unknown preset {preset!r} (known: {', '.join(sorted(entry.presets))})")
+    return entry, preset

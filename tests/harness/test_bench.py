@@ -1,0 +1,54 @@
+"""The bench's comparison machinery (``harness.jobs.bench``) on a tiny frame: not speed, only that the vectorised LM
+and the per-pixel scipy solve are compared on the pipeline's own problem and agree.
+
+Tolerance: ``AGREE_TOL_M`` = 1e-4 m, the bench's own "same result" criterion.  On the geometric stage both
+solvers reach the smooth per-pixel minimum to ~1e-8 m, so every pixel must agree.  The colour term's cost is a
+staircase in d (cv2.remap quantises sample positions to 1/32 px), so there the two local solvers may stop on
+neighbouring stairs; at 64 px wide one stair is centimetres.  So there: at least 70 % agree and none differs by
+more than 2 cm (a real bug -- wrong Jacobian sign, wrong pixel, wrong problem -- moves them by decimetres).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from helpers import make_synthetic_frame
+
+from harness.jobs import bench
+from reconstruction.methods.flow_pipeline import prepare, variant_problem
+from reconstruction.refine.lm import VARIANTS
+
+
+@pytest.fixture(scope="module")
+def tiny():
+    frame = make_synthetic_frame(64)
+    return frame, prepare(frame)
+
+
+@pytest.mark.parametrize("name", sorted(VARIANTS))
+def test_vectorised_lm_agrees_with_per_pixel_scipy(tiny, name):
+    frame, prep = tiny
+    res = bench.compare_variant(frame, prep, VARIANTS[name], subset=50, rng=np.random.default_rng(0), progress=False)
+    geo = res["stages"]["geometric"]
+    assert geo["m"] == 50 and geo["share"] == 1.0 and geo["worst"] < bench.AGREE_TOL_M
+    if VARIANTS[name].color_weight > 0:
+        col = res["stages"]["colour"]
+        assert col["share"] >= 0.7 and col["worst"] < 0.02  # metres, see the module docstring
+
+
+def test_scipy_pixel_solves_a_known_minimum(tiny):
+    """One pixel, exact matches (oracle): scipy must land on the true distance."""
+    frame, _ = tiny
+    prep = prepare(frame, flow="oracle")
+
+    problem, _ = variant_problem(frame, prep, VARIANTS["angle"])
+    i = frame.width * (frame.height // 2) + 5
+    d, _ = bench.scipy_pixel(problem, i, prep.d0[i] * 1.3, 0.05, 100.0)
+    assert d == pytest.approx(float(frame.distance["C"].reshape(-1)[i]), abs=1e-6)  # metres
+
+
+def test_main_prints_the_summary_line_last(tmp_path, capsys):
+    assert bench.main(["--width", "32", "--subset", "5", "--frame", str(tmp_path), "--no-progress"]) == 0
+    lines = capsys.readouterr().out.strip().splitlines()
+    assert lines[-1].startswith("refine speedup vs per-pixel scipy: ") and lines[-1].endswith(" x")
+    assert any("goals vs measured" in line for line in lines)

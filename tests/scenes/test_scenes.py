@@ -1,0 +1,107 @@
+"""Every registered scene and preset builds, validates and offers free rig placements; registry errors."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import scenes.families
+from scenes.families.box_room import box_interior_distance
+from scenes.model import Box, Material, SceneSpec, choose_viewpoints
+from scenes.registry import SceneEntry, SceneError, discover, get_scene
+
+ENTRIES, LOAD_ERRORS = discover()
+CASES = [(name, preset) for name, e in sorted(ENTRIES.items()) for preset in e.presets]
+
+
+def test_every_scene_file_loads():
+    assert LOAD_ERRORS == {}
+    assert {"classroom", "box_room"} <= set(ENTRIES)
+
+
+@pytest.mark.parametrize(("name", "preset"), CASES, ids=[f"{n}:{p}" for n, p in CASES])
+def test_scene_builds_and_has_free_viewpoints(name, preset):
+    entry, got = get_scene(f"{name}:{preset}")
+    assert got == preset
+    spec = entry.spec(preset, seed=0)
+    spec.validate()
+    assert spec.boxes, "a scene without geometry"
+    assert spec.params["preset"] == preset and spec.params["seed"] == 0
+    rigs = choose_viewpoints(spec, 3, seed=1)
+    assert len(rigs) == 3
+    solids = [b for b in spec.boxes if not b.inward]
+    lo, hi = np.asarray(spec.bounds[0]), np.asarray(spec.bounds[1])
+    for rig in rigs:
+        pts = np.array([p.position for p in rig.poses().values()])
+        assert np.all(pts > lo) and np.all(pts < hi)
+        assert not any(b.contains(pts, 0.29).any() for b in solids)
+
+
+@pytest.mark.parametrize("preset", sorted(ENTRIES["classroom"].presets))
+def test_classroom_seed_jitters_layout_deterministically(preset):
+    entry = ENTRIES["classroom"]
+    a, b, c = entry.spec(preset, 0), entry.spec(preset, 0), entry.spec(preset, 1)
+    centres = lambda s: np.array([bx.center for bx in s.boxes])  # noqa: E731
+    assert np.array_equal(centres(a), centres(b))
+    if preset != "empty":  # furniture moves with the seed
+        assert len(a.boxes) != len(c.boxes) or not np.allclose(centres(a), centres(c))
+
+
+def test_classroom_standard_is_paper_sized_and_furnished():
+    spec = ENTRIES["classroom"].spec("standard", 0)
+    (x0, y0, z0), (x1, y1, z1) = spec.bounds
+    assert (x1 - x0, y1 - y0, z1 - z0) == (8.0, 7.0, 3.0)
+    names = " ".join(b.name for b in spec.boxes)
+    for part in ("desk", "chair", "teacher_desk", "chalkboard", "whiteboard", "window", "door", "lamp",
+                 "locker", "shelf"):
+        assert part in names, part
+    kinds = {spec.materials[b.material].kind for b in spec.boxes}
+    assert {"wood", "tiles", "paint", "board", "emission", "metal"} <= kinds
+    assert any(spec.materials[b.material].contrast == 0 for b in spec.boxes), "no weak-texture surface"
+    assert len(spec.lights) >= 4
+
+
+def test_box_room_closed_form_distance():
+
+    d = np.array([[1.0, 0, 0], [0, -1.0, 0], [0, 0, 1.0], [1 / np.sqrt(2), 1 / np.sqrt(2), 0]])
+    t = box_interior_distance([0.0, 0.0, 1.0], d, (-3, -2, 0), (3, 2, 3))
+    np.testing.assert_allclose(t, [3.0, 2.0, 2.0, 2 * np.sqrt(2)], atol=1e-12)
+
+
+def test_unknown_scene_and_preset():
+    with pytest.raises(SceneError, match="unknown scene 'nope'.*classroom"):
+        get_scene("nope")
+    with pytest.raises(SceneError, match="unknown preset 'huge'"):
+        get_scene("classroom:huge")
+    with pytest.raises(SceneError, match="unknown preset"):
+        ENTRIES["classroom"].spec("huge")
+
+
+def test_scene_that_raises_is_named():
+    def broken(params, seed):
+        raise RuntimeError("boom")
+
+    entry = SceneEntry(name="broken", build=broken, source="scenes/broken.py")
+    with pytest.raises(SceneError, match=r"scene 'broken' \(scenes/broken.py\) failed to build: RuntimeError: boom"):
+        entry.spec()
+
+
+def test_scene_with_bad_material_is_named():
+    def bad(params, seed):
+        spec = SceneSpec(name="bad")
+        spec.add_material(Material("m"))
+        spec.boxes.append(Box((0, 0, 1), (1, 1, 1), "missing"))
+        return spec
+
+    with pytest.raises(SceneError, match="unknown material 'missing'"):
+        SceneEntry(name="bad", build=bad).spec()
+
+
+def test_scene_file_that_fails_to_import_is_reported(monkeypatch, tmp_path):
+    (tmp_path / "zz_broken_scene.py").write_text("raise ImportError('no such thing')\n")
+    monkeypatch.setattr(scenes.families, "__path__", [*scenes.families.__path__, str(tmp_path)])
+    entries, errors = discover()
+    assert "classroom" in entries
+    assert any("zz_broken_scene" in k and "no such thing" in v for k, v in errors.items())
+    with pytest.raises(SceneError, match="zz_broken_scene"):
+        get_scene("nope")
