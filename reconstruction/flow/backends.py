@@ -6,18 +6,26 @@ columns copied from the opposite edge before calling the backend, so corresponde
 left/right seam are found, then crops the result back to ``W`` columns.
 
 ``oracle`` is not an image backend: it is the exact correspondence from ground-truth distance and lives in
-:mod:`reconstruction.flow.matching`.  Register more backends with :func:`register_flow`.
+:mod:`reconstruction.flow.matching`.  Outside packages add backends through the entry-point group
+``tri360.flows`` (an entry point loads to a :class:`FlowBackend` or a list of them); :func:`discover_flows`
+finds them.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
 
-__all__ = ["FlowBackend", "FLOWS", "register_flow", "get_flow", "available_flows", "equirect_flow"]
+from reconstruction.plugins import merge_registry
+
+__all__ = ["FlowBackend", "ORACLE", "builtin_flows", "discover_flows", "get_flow", "available_flows", "equirect_flow"]
+
+
+ENTRY_POINT_GROUP = "tri360.flows"
+ORACLE = "oracle"
 
 
 @dataclass(frozen=True)
@@ -26,13 +34,24 @@ class FlowBackend:
 
     Attributes:
         name: the ``--flow`` name.
-        compute: ``compute(img0, img1) -> (H, W, 2) float32`` on (H, W, 3) uint8 RGB images.
+        compute: ``compute(img0, img1, **params) -> (H, W, 2) float32`` on (H, W, 3) uint8 RGB images.
         description: one line for ``--help`` and reports.
+        params: keyword parameters passed to ``compute`` (recorded in ``config.json``).
+        min_width: the smallest equirect width, pixels, the backend was measured to work at.
     """
 
     name: str
-    compute: Callable[[np.ndarray, np.ndarray], np.ndarray]
+    compute: Callable[..., np.ndarray]
     description: str = ""
+    params: dict = field(default_factory=dict)
+    min_width: int = 16
+
+    def __call__(self, img0: np.ndarray, img1: np.ndarray) -> np.ndarray:
+        return self.compute(img0, img1, **self.params)
+
+    def config(self) -> dict:
+        """JSON-able description: name, description and parameters."""
+        return {"name": self.name, "description": self.description, "params": dict(self.params)}
 
 
 def _gray(img: np.ndarray) -> np.ndarray:
@@ -44,55 +63,89 @@ def _deepflow(img0, img1):
     return cv2.optflow.createOptFlow_DeepFlow().calc(_gray(img0), _gray(img1), None)
 
 
-def _dis(img0, img1):
-    """DIS flow (Kroeger et al. 2016), medium preset with a finer patch stride and variational refinement."""
-    dis = cv2.DISOpticalFlow_create(cv2.DISOPTICAL_FLOW_PRESET_MEDIUM)
-    dis.setFinestScale(0)
-    dis.setPatchSize(8)
-    dis.setPatchStride(3)
-    dis.setGradientDescentIterations(25)
-    dis.setVariationalRefinementIterations(10)
-    dis.setVariationalRefinementAlpha(10.0)
-    dis.setUseSpatialPropagation(True)
+_DIS_PRESETS = {"ultrafast": cv2.DISOPTICAL_FLOW_PRESET_ULTRAFAST, "fast": cv2.DISOPTICAL_FLOW_PRESET_FAST,
+                "medium": cv2.DISOPTICAL_FLOW_PRESET_MEDIUM}
+
+
+def _dis(img0, img1, preset="medium", finest_scale=0, patch_size=8, patch_stride=3, gd_iterations=25,
+         var_iterations=10, var_alpha=10.0, spatial_propagation=True):
+    """DIS flow (Kroeger et al. 2016): an OpenCV preset with a finer patch stride and variational refinement."""
+    dis = cv2.DISOpticalFlow_create(_DIS_PRESETS[preset])
+    dis.setFinestScale(finest_scale)
+    dis.setPatchSize(patch_size)
+    dis.setPatchStride(patch_stride)
+    dis.setGradientDescentIterations(gd_iterations)
+    dis.setVariationalRefinementIterations(var_iterations)
+    dis.setVariationalRefinementAlpha(var_alpha)
+    dis.setUseSpatialPropagation(spatial_propagation)
     return dis.calc(_gray(img0), _gray(img1), None)
 
 
-def _farneback(img0, img1):
-    """Farneback polynomial-expansion flow (5 levels, window 21)."""
-    return cv2.calcOpticalFlowFarneback(_gray(img0), _gray(img1), None, pyr_scale=0.5, levels=5, winsize=21,
-                                        iterations=5, poly_n=7, poly_sigma=1.5, flags=0)
+def _farneback(img0, img1, pyr_scale=0.5, levels=5, winsize=21, iterations=5, poly_n=7, poly_sigma=1.5):
+    """Farneback polynomial-expansion flow."""
+    return cv2.calcOpticalFlowFarneback(_gray(img0), _gray(img1), None, pyr_scale=pyr_scale, levels=levels,
+                                        winsize=winsize, iterations=iterations, poly_n=poly_n,
+                                        poly_sigma=poly_sigma, flags=0)
 
 
-def _rlof(img0, img1):
-    """Dense RLOF (Senst et al.), robust local flow interpolated densely (needs 3-channel 8-bit)."""
-    return cv2.optflow.calcOpticalFlowDenseRLOF(np.ascontiguousarray(img0), np.ascontiguousarray(img1), None)
+def _rlof(img0, img1, min_grid_step=6, max_matches=30000):
+    """Dense RLOF (Senst et al.), robust local flow interpolated densely (needs 3-channel 8-bit).
+
+    OpenCV's sparse-to-dense step takes at most 32767 matches (``match_num < SHRT_MAX``: measured to fail above
+    1452 px wide rectified, 1092 plain), so the seed grid step, pixels, grows with the image to keep the number
+    of seeds below ``max_matches``; up to about 1000 x 1000 padded pixels it is OpenCV's default 6.
+    """
+    h, w = img0.shape[:2]
+    step = max(int(min_grid_step), int(np.ceil(np.sqrt(h * w / float(max_matches)))))
+    return cv2.optflow.calcOpticalFlowDenseRLOF(np.ascontiguousarray(img0), np.ascontiguousarray(img1), None,
+                                                gridStep=(step, step))
 
 
-FLOWS: dict[str, FlowBackend] = {}
+def builtin_flows() -> list[FlowBackend]:
+    """The flow backends tri360 ships (``rlof`` only where this OpenCV build has it)."""
+    # min_width: the smallest equirect width at which matching (both pairs, forward and backward, rectified and
+    # plain) runs with finite output, measured on synthetic frames: DIS fails below 16 ("Incorrect size of input"),
+    # RLOF below 60 (it tries to allocate gigabytes)
+    out = [
+        FlowBackend("deepflow", _deepflow, "OpenCV DeepFlow (variational), the paper's flow", min_width=8),
+        FlowBackend("dis", _dis, "OpenCV DIS, medium preset, stride 3, variational refinement",
+                    params={"preset": "medium", "finest_scale": 0, "patch_size": 8, "patch_stride": 3,
+                            "gd_iterations": 25, "var_iterations": 10, "var_alpha": 10.0,
+                            "spatial_propagation": True}, min_width=16),
+        FlowBackend("farneback", _farneback, "OpenCV Farneback polynomial expansion",
+                    params={"pyr_scale": 0.5, "levels": 5, "winsize": 21, "iterations": 5, "poly_n": 7,
+                            "poly_sigma": 1.5}, min_width=8),
+    ]
+    if hasattr(cv2, "optflow") and hasattr(cv2.optflow, "calcOpticalFlowDenseRLOF"):
+        out.append(FlowBackend("rlof", _rlof, "OpenCV dense RLOF",
+                               params={"min_grid_step": 6, "max_matches": 30000}, min_width=60))
+    return out
 
 
-def register_flow(backend: FlowBackend) -> None:
-    """Add (or replace) a flow backend under ``backend.name``."""
-    FLOWS[backend.name] = backend
+def discover_flows() -> tuple[dict[str, FlowBackend], dict[str, str]]:
+    """Every image flow backend: the built-ins plus entry points of group ``tri360.flows``.
 
-
-register_flow(FlowBackend("deepflow", _deepflow, "OpenCV DeepFlow (variational), the paper's flow"))
-register_flow(FlowBackend("dis", _dis, "OpenCV DIS, medium preset, stride 3, variational refinement"))
-register_flow(FlowBackend("farneback", _farneback, "OpenCV Farneback polynomial expansion"))
-if hasattr(cv2, "optflow") and hasattr(cv2.optflow, "calcOpticalFlowDenseRLOF"):
-    register_flow(FlowBackend("rlof", _rlof, "OpenCV dense RLOF"))
+    Returns:
+        ``(backends by name, errors by plugin source)``.
+    """
+    return merge_registry(builtin_flows(), ENTRY_POINT_GROUP, lambda b: isinstance(b, FlowBackend), "FlowBackend",
+                          key=lambda b: b.name)
 
 
 def available_flows() -> list[str]:
     """Names accepted by ``--flow``: the image backends plus ``oracle``."""
-    return sorted([*FLOWS, "oracle"])
+    return sorted([*discover_flows()[0], ORACLE])
 
 
 def get_flow(name: str) -> FlowBackend:
     """Look up an image flow backend; raises ValueError listing the known names."""
-    if name not in FLOWS:
-        raise ValueError(f"unknown flow {name!r} (known: {', '.join(available_flows())})")
-    return FLOWS[name]
+    flows, errors = discover_flows()
+    if name not in flows:
+        msg = f"unknown flow {name!r} (known: {', '.join(sorted([*flows, ORACLE]))})"
+        if errors:
+            msg += "; flow plugins that failed to load: " + "; ".join(f"{k}: {v}" for k, v in errors.items())
+        raise ValueError(msg)
+    return flows[name]
 
 
 def equirect_flow(backend: FlowBackend, img0: np.ndarray, img1: np.ndarray, pad: int) -> np.ndarray:
@@ -112,7 +165,7 @@ def equirect_flow(backend: FlowBackend, img0: np.ndarray, img1: np.ndarray, pad:
     def wrap(img):
         return np.ascontiguousarray(np.concatenate([img[:, w - pad:], img, img[:, :pad]], axis=1)) if pad else img
 
-    flow = backend.compute(wrap(img0), wrap(img1))
+    flow = backend(wrap(img0), wrap(img1))
     flow = np.asarray(flow, dtype=np.float32)
     if not np.isfinite(flow).all():
         flow = np.nan_to_num(flow, nan=0.0, posinf=0.0, neginf=0.0)

@@ -17,7 +17,7 @@ import numpy as np
 
 from reconstruction.camera.equirect import bearing_grid, bearing_to_pixel, pixel_to_bearing, wrap_pixel
 from reconstruction.camera.resample import rectifying_rotation, sample_equirect, warp_equirect
-from reconstruction.flow.backends import equirect_flow, get_flow
+from reconstruction.flow.backends import ORACLE, FlowBackend, equirect_flow, get_flow
 
 __all__ = ["PairMatch", "match_pair", "default_pad"]
 
@@ -52,13 +52,14 @@ def default_pad(width: int, rectify: bool) -> int:
     return max(16, width // 16) if rectify else width // 2
 
 
-def match_pair(frame, name: str, flow: str, rectify: bool = True, pad: int | None = None) -> PairMatch:
+def match_pair(frame, name: str, flow: str | FlowBackend, rectify: bool = True, pad: int | None = None) -> PairMatch:
     """Match every pixel of camera C in camera ``name`` ("U" or "R").
 
     Args:
         frame: a :class:`harness.data.frame.Frame` (only cameras, images and, for the oracle, C's distance).
         name: the other camera.
-        flow: a flow backend name or "oracle".
+        flow: a :class:`FlowBackend`, a backend name (:func:`~reconstruction.flow.backends.discover_flows`) or
+            "oracle".
         rectify: compute flow on the rectified pair (True) or the plain equirect images (False).
         pad: wrap-around columns per side for flow (default :func:`default_pad`).
     Returns:
@@ -73,7 +74,7 @@ def match_pair(frame, name: str, flow: str, rectify: bool = True, pad: int | Non
     rot_fc, rot_fk = (rect, rect) if rectify else (cam_c.rotation, cam_k.rotation)
     a = bearing_grid(w, h, cam_c.rotation)  # (H, W, 3) world bearings of C's pixels
     start = time.perf_counter()
-    if flow == "oracle":
+    if isinstance(flow, str) and flow == ORACLE:
         if "C" not in frame.distance:
             raise ValueError(f"flow 'oracle' needs ground-truth distance, which frame {frame.path} lacks")
         d = frame.distance["C"].astype(np.float64)
@@ -85,7 +86,7 @@ def match_pair(frame, name: str, flow: str, rectify: bool = True, pad: int | Non
         flow_px = np.zeros((h, w))
         fb_err = np.zeros((h, w))
     else:
-        backend = get_flow(flow)
+        backend = flow if isinstance(flow, FlowBackend) else get_flow(flow)
         img_c = warp_equirect(frame.images["C"], rot_fc, cam_c.rotation)
         img_k = warp_equirect(frame.images[name], rot_fk, cam_k.rotation)
         npad = default_pad(w, rectify) if pad is None else pad

@@ -8,18 +8,20 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 
 import cv2
 import numpy as np
 
 from reconstruction.camera.equirect import bearing_grid
+from reconstruction.flow.backends import FlowBackend
 from reconstruction.flow.matching import PairMatch, match_pair
+from reconstruction.methods.base import MethodOutput
 from reconstruction.refine.lm import (
-    VARIANTS,
     ColorTerm,
     RefineConfig,
     RefineProblem,
+    discover_variants,
     get_variant,
     levenberg_marquardt,
 )
@@ -33,7 +35,8 @@ from reconstruction.refine.weights import (
 )
 
 __all__ = ["DEFAULT_FLOW", "PAIRS", "Reconstruction", "reconstruct", "available_variants", "fuse_average",
-           "fill_invalid", "fill_edge_aware", "Prepared", "prepare", "variant_problem", "refine_variant"]
+           "fill_invalid", "fill_edge_aware", "Prepared", "prepare", "variant_problem", "refine_variant", "FlowMethod",
+           "config_label"]
 
 DEFAULT_FLOW = "dis"  # chosen by measurement, see docs/refinement.md
 PAIRS = ("U", "R")
@@ -41,7 +44,7 @@ PAIRS = ("U", "R")
 
 def available_variants() -> list[str]:
     """``average`` (no refinement) followed by the registered LM variants."""
-    return ["average", *VARIANTS]
+    return ["average", *discover_variants()[0]]
 
 
 @dataclass
@@ -233,7 +236,7 @@ class Prepared:
     seconds: dict[str, float] = field(default_factory=dict)
 
 
-def prepare(frame, flow: str = DEFAULT_FLOW, rectify: bool = True,
+def prepare(frame, flow: str | FlowBackend = DEFAULT_FLOW, rectify: bool = True,
             limits: TriangulationLimits = TriangulationLimits(),
             on_stage: Callable[[str], None] | None = None) -> Prepared:
     """Flow for both pairs, triangulation and the ``average`` fusion, each timed."""
@@ -296,16 +299,18 @@ def refine_variant(frame, prep: Prepared, config: RefineConfig):
     return replace_outliers(d.reshape(h, w), checked_any, frame.images["C"], config), iters
 
 
-def reconstruct(frame, flow: str = DEFAULT_FLOW, rectify: bool = True, variants: Sequence[str] | None = None,
+def reconstruct(frame, flow: str | FlowBackend = DEFAULT_FLOW, rectify: bool = True,
+                variants: Sequence[str | RefineConfig] | None = None,
                 limits: TriangulationLimits = TriangulationLimits(),
                 on_stage: Callable[[str], None] | None = None) -> Reconstruction:
     """Reconstruct camera C's per-pixel distance from a frame's three images.
 
     Args:
         frame: a :class:`harness.data.frame.Frame`.
-        flow: flow backend name (:func:`reconstruction.flow.backends.available_flows`) or "oracle".
+        flow: a flow backend or its name (:func:`reconstruction.flow.backends.available_flows`), or "oracle".
         rectify: compute each pair's flow on rectified images (default) or plain equirect ones.
-        variants: which outputs to produce (default: all of :func:`available_variants`).
+        variants: which outputs to produce: "average" and refinement variants, by name or as
+            :class:`RefineConfig` (default: all of :func:`available_variants`).
         limits: when a pair's estimate counts as invalid, and the distance clamp.
         on_stage: optional callback called with each stage name before it runs (progress display).
     Returns:
@@ -314,7 +319,9 @@ def reconstruct(frame, flow: str = DEFAULT_FLOW, rectify: bool = True, variants:
         ValueError: unknown flow or variant, or the oracle without ground truth.
     """
     variants = list(available_variants() if variants is None else variants)
-    configs = {v: get_variant(v) for v in variants if v != "average"}  # validate names before any work
+    # resolve names before any work (an unknown one fails fast)
+    configs = {v.name: v for v in (v if isinstance(v, RefineConfig) else get_variant(v)
+                                   for v in variants if v != "average")}
     h, w = frame.height, frame.width
     note = on_stage or (lambda _s: None)
     prep = prepare(frame, flow, rectify, limits, note)
@@ -332,3 +339,70 @@ def reconstruct(frame, flow: str = DEFAULT_FLOW, rectify: bool = True, variants:
         out.iterations[name] = iters
         out.distance[name] = d.astype(np.float32)
     return out
+
+
+# ------------------------------------------------------------------------------------------ as a Method
+
+
+def config_label(flow: str, rectify: bool) -> str:
+    """Label of a flow configuration, e.g. ``dis-rect`` or ``deepflow-plain``."""
+    return f"{flow}-{'rect' if rectify else 'plain'}"
+
+
+@dataclass(frozen=True)
+class FlowMethod:
+    """One configuration of the paper's flow pipeline (flow, rectification, variant) as a :class:`Method`.
+
+    Attributes:
+        flow: the flow backend, or ``"oracle"`` (exact correspondences from ground truth).
+        rectify: flow on rectified pairs (True) or on the plain equirect images (False, the paper).
+        refine: the refinement variant, or None for ``average`` (the paper's "before optimisation").
+        limits: triangulation validity limits and distance clamp.
+    """
+
+    flow: FlowBackend | str
+    rectify: bool = True
+    refine: RefineConfig | None = None
+    limits: TriangulationLimits = TriangulationLimits()
+
+    @property
+    def flow_name(self) -> str:
+        return self.flow if isinstance(self.flow, str) else self.flow.name
+
+    @property
+    def variant(self) -> str:
+        return "average" if self.refine is None else self.refine.name
+
+    @property
+    def label(self) -> str:
+        return f"{config_label(self.flow_name, self.rectify)}:{self.variant}"
+
+    @property
+    def group_key(self) -> tuple:
+        """Methods with equal keys share the flow, triangulation and ``average`` stages."""
+        flow = self.flow if isinstance(self.flow, str) else (self.flow.name, repr(sorted(self.flow.params.items())))
+        return ("flow-pipeline", flow, self.rectify, self.limits)
+
+    def config(self) -> dict:
+        flow = {"name": self.flow} if isinstance(self.flow, str) else self.flow.config()
+        return {"kind": "flow-pipeline", "label": self.label, "flow": flow, "rectify": self.rectify,
+                "variant": self.variant, "refine": None if self.refine is None else self.refine.config(),
+                "triangulation": asdict(self.limits)}
+
+    def run(self, frame) -> MethodOutput:
+        return self.run_group(frame, [self])[self.label]
+
+    def run_group(self, frame, members: Sequence[FlowMethod],
+                  on_stage: Callable[[str], None] | None = None) -> dict[str, MethodOutput]:
+        """Run several variants of this flow configuration at once (flow and triangulation computed once)."""
+        wanted = [m.refine if m.refine is not None else "average" for m in members]
+        result = reconstruct(frame, self.flow, self.rectify, wanted, self.limits, on_stage)
+        shared = {k: result.seconds[k] for k in ("flow_U", "flow_R", "triangulate", "average")}
+        outs = {}
+        for m in members:
+            own = {m.variant: result.seconds[m.variant]} if m.refine is not None else {}
+            seconds = {**shared, **own}
+            seconds["total"] = sum(seconds.values())
+            info = {"lm_iterations": result.iterations[m.variant]} if m.refine is not None else {}
+            outs[m.label] = MethodOutput(distance=result.distance[m.variant], seconds=seconds, info=info)
+        return outs

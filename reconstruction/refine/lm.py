@@ -18,16 +18,17 @@ direction (paper eq. 1: the confidence of the flow).  A pair invalid at a pixel 
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
 from reconstruction.camera.equirect import project_rays_camera
 from reconstruction.camera.resample import bilinear_with_gradient
+from reconstruction.plugins import merge_registry
 from reconstruction.refine.triangulate import PairGeometry, beta_of_distance
 
-__all__ = ["RefineConfig", "VARIANTS", "register_variant", "get_variant", "RefineProblem", "levenberg_marquardt",
-           "ColorTerm"]
+__all__ = ["RefineConfig", "builtin_variants", "discover_variants", "get_variant", "RefineProblem",
+           "levenberg_marquardt", "ColorTerm"]
 
 
 @dataclass(frozen=True)
@@ -89,26 +90,44 @@ class RefineConfig:
     tol_m: float = 1e-7
     description: str = ""
 
-
-VARIANTS: dict[str, RefineConfig] = {}
-
-
-def register_variant(config: RefineConfig) -> None:
-    """Add (or replace) a refinement variant under ``config.name``."""
-    VARIANTS[config.name] = config
+    def config(self) -> dict:
+        """Every field, JSON-able (what ``config.json`` records)."""
+        return asdict(self)
 
 
-register_variant(RefineConfig("angle", description="LM on reprojection error, angle weights (Yin et al. 2019)"))
-register_variant(RefineConfig("gradient", gradient=True,
-                              description="LM, angle x epipolar-gradient weights (paper eq. 1)"))
-register_variant(RefineConfig("color", color_weight=30.0,
-                              description="LM, angle weights + grayscale intensity consistency (paper eq. 2)"))
+ENTRY_POINT_GROUP = "tri360.variants"
+
+
+def builtin_variants() -> list[RefineConfig]:
+    """The paper's refinement variants (section 3), defaults chosen in docs/refinement.md."""
+    return [
+        RefineConfig("angle", description="LM on reprojection error, angle weights (Yin et al. 2019)"),
+        RefineConfig("gradient", gradient=True, description="LM, angle x epipolar-gradient weights (paper eq. 1)"),
+        RefineConfig("color", color_weight=30.0,
+                     description="LM, angle weights + grayscale intensity consistency (paper eq. 2)"),
+    ]
+
+
+def discover_variants() -> tuple[dict[str, RefineConfig], dict[str, str]]:
+    """Every refinement variant: the built-ins plus entry points of group ``tri360.variants`` (each loads to
+    a :class:`RefineConfig` or a list of them).
+
+    Returns:
+        ``(variants by name, errors by plugin source)``.
+    """
+    return merge_registry(builtin_variants(), ENTRY_POINT_GROUP, lambda c: isinstance(c, RefineConfig),
+                          "RefineConfig", key=lambda c: c.name)
 
 
 def get_variant(name: str) -> RefineConfig:
-    if name not in VARIANTS:
-        raise ValueError(f"unknown variant {name!r} (known: average, {', '.join(sorted(VARIANTS))})")
-    return VARIANTS[name]
+    """Look up a refinement variant; raises ValueError listing the known names."""
+    variants, errors = discover_variants()
+    if name not in variants:
+        msg = f"unknown variant {name!r} (known: average, {', '.join(sorted(variants))})"
+        if errors:
+            msg += "; variant plugins that failed to load: " + "; ".join(f"{k}: {v}" for k, v in errors.items())
+        raise ValueError(msg)
+    return variants[name]
 
 
 @dataclass

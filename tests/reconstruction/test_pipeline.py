@@ -2,16 +2,15 @@
 
 import numpy as np
 import pytest
-from helpers import make_synthetic_frame
 
 from reconstruction.camera.equirect import bearing_grid, bearing_to_pixel
 from reconstruction.camera.resample import rectifying_rotation, sample_equirect, warp_equirect
-from reconstruction.flow import backends as flow_mod
-from reconstruction.flow.backends import FLOWS, FlowBackend, equirect_flow, get_flow
+from reconstruction.flow.backends import FlowBackend, discover_flows, equirect_flow, get_flow
 from reconstruction.flow.matching import match_pair
 from reconstruction.methods.flow_pipeline import available_variants, fill_invalid, reconstruct
 from reconstruction.refine.lm import get_variant
 from reconstruction.refine.triangulate import pair_geometry, triangulate_sines
+from tests.helpers import make_synthetic_frame
 
 
 def _mae(pred, gt):
@@ -118,11 +117,8 @@ def test_matching_maps_flow_back_to_bearings(synthetic_frame):
     du = np.mod(u - uu + frame.width / 2, frame.width) - frame.width / 2
     oracle_flow = np.stack([du, v - vv], axis=-1).astype(np.float32)
 
-    flow_mod.register_flow(FlowBackend("_test_oracle", lambda a, b: oracle_flow if a is not None else None))
-    try:
-        got = match_pair(frame, "R", "_test_oracle", rectify=False, pad=0)
-    finally:
-        del flow_mod.FLOWS["_test_oracle"]
+    backend = FlowBackend("_test_oracle", lambda a, b: oracle_flow if a is not None else None)
+    got = match_pair(frame, "R", backend, rectify=False, pad=0)
     ang = np.degrees(np.arccos(np.clip(np.einsum("...i,...i", got.bearing, exact.bearing), -1, 1)))
     assert np.percentile(ang, 99.9) < 1e-3  # degrees
 
@@ -145,7 +141,7 @@ def test_bearings_of_c_are_those_of_the_camera_model(synthetic_frame):
     np.testing.assert_allclose(np.linalg.norm(b, axis=-1), 1.0, atol=1e-12)
 
 
-@pytest.mark.parametrize("name", sorted(FLOWS))
+@pytest.mark.parametrize("name", sorted(discover_flows()[0]))
 @pytest.mark.parametrize("rectify", [True, False])
 def test_every_flow_backend_finds_usable_matches(synthetic_frame, name, rectify):
     """Registry smoke test: each backend runs through the full matching path and most C-U matches triangulate

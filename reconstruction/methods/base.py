@@ -1,0 +1,97 @@
+"""The ``Method`` interface: whatever turns a frame into camera C's per-pixel distance.
+
+Built-in methods (every configuration of the paper's flow pipeline, :mod:`reconstruction.methods.flow_pipeline`)
+and outside ones (entry-point group ``tri360.methods``) implement the same protocol and are scored the same
+way.  A method's ``label`` is stable and human-readable (``dis-rect:gradient``, ``deepflow-plain:average``),
+and ``config()`` returns its full configuration, which ``config.json`` records beside every results set.
+
+Methods that share work (the four variants of one flow configuration share the flow and the
+triangulation) say so with a common ``group_key``; :func:`run_methods` then runs each group once through
+the first member's ``run_group``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Hashable, Sequence
+from dataclasses import dataclass, field
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+
+__all__ = ["Method", "MethodOutput", "run_methods", "flow_fields"]
+
+
+@dataclass
+class MethodOutput:
+    """What a method hands back for one frame.
+
+    Attributes:
+        distance: (H, W) float32 distance of camera C, metres; NaN, inf or <= 0 = no prediction.
+        confidence: (H, W) float32, higher = more trustworthy, or None.
+        seconds: wall time per stage, seconds (``total`` at least).
+        info: free-form, JSON-able details (e.g. LM iterations).
+    """
+
+    distance: np.ndarray
+    confidence: np.ndarray | None = None
+    seconds: dict[str, float] = field(default_factory=dict)
+    info: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def total_seconds(self) -> float:
+        return float(self.seconds.get("total", sum(self.seconds.values())))
+
+
+@runtime_checkable
+class Method(Protocol):
+    """A reconstruction method.
+
+    Attributes:
+        label: stable, human-readable name; the results' ``method`` column.
+    """
+
+    label: str
+
+    def config(self) -> dict:
+        """The full configuration (every parameter, JSON-able)."""
+        ...
+
+    def run(self, frame) -> MethodOutput:
+        """Camera C's distance for ``frame`` (a :class:`harness.data.frame.Frame`-like object with ``width``,
+        ``height``, ``baseline_m``, ``cameras``, ``images`` and, possibly, ``distance``)."""
+        ...
+
+
+def flow_fields(method) -> dict[str, Any]:
+    """The results columns ``flow``, ``rectify`` and ``variant`` of a method (empty for methods that are not
+    the flow pipeline)."""
+    return {"flow": getattr(method, "flow_name", ""), "rectify": getattr(method, "rectify", ""),
+            "variant": getattr(method, "variant", "")}
+
+
+def run_methods(frame, methods: Sequence[Method],
+                on_stage: Callable[[str], None] | None = None) -> dict[str, MethodOutput]:
+    """Run every method on one frame, each group of methods that share work once.
+
+    Args:
+        frame: the frame.
+        methods: methods with distinct labels.
+        on_stage: called with a stage name before each stage (progress display).
+    Returns:
+        Outputs by method label, in the order of ``methods``.
+    """
+    groups: dict[Hashable, list] = {}
+    for i, m in enumerate(methods):
+        key = getattr(m, "group_key", None)
+        groups.setdefault(("group", key) if key is not None else ("single", i), []).append(m)
+    outs: dict[str, MethodOutput] = {}
+    for members in groups.values():
+        head = members[0]
+        if hasattr(head, "run_group"):
+            outs.update(head.run_group(frame, members, on_stage=on_stage))
+        else:
+            for m in members:
+                if on_stage is not None:
+                    on_stage(m.label)
+                outs[m.label] = m.run(frame)
+    return {m.label: outs[m.label] for m in methods}
