@@ -1,0 +1,108 @@
+"""The method registry: built-in methods plus outside ones (entry-point group ``tri360.methods``).
+
+Built in: every configuration of the paper's flow pipeline, labelled ``<flow>-<rect|plain>:<variant>``
+for each flow backend (:func:`reconstruction.flow.backends.discover_flows`, plus ``oracle``), rectified and
+plain, and each of ``average`` and the refinement variants (:func:`reconstruction.refine.lm.discover_variants`).
+An outside package declares methods with an entry point that loads to a :class:`Method`, a list of them,
+or a function returning them.  Nothing is registered at import time: :func:`discover_methods` builds the
+registry each time it is called.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+from reconstruction.flow.backends import ORACLE, discover_flows
+from reconstruction.methods.base import Method
+from reconstruction.methods.flow_pipeline import DEFAULT_FLOW, FlowMethod
+from reconstruction.methods.sweep import SweepMethod
+from reconstruction.plugins import merge_registry
+from reconstruction.refine.lm import discover_variants
+
+__all__ = ["ENTRY_POINT_GROUP", "DEFAULT_CONFIGS", "DEFAULT_METHOD", "PAPER_CONFIG", "builtin_methods",
+           "discover_methods", "get_methods", "flow_methods", "default_methods"]
+
+ENTRY_POINT_GROUP = "tri360.methods"
+#: the paper's set-up: DeepFlow on plain equirect pairs
+PAPER_CONFIG = ("deepflow", False)
+#: flow configurations evaluated by default: tri360's (rectified) and the paper's set-up
+DEFAULT_CONFIGS = [(DEFAULT_FLOW, True), PAPER_CONFIG]
+#: what ``tri360 reconstruct`` runs by default: the most accurate method (measured, docs/refinement.md)
+DEFAULT_METHOD = f"{DEFAULT_FLOW}-rect:gradient"
+
+
+def flow_methods(flows: Sequence[str], rectify: Sequence[bool],
+                 variants: Sequence[str] | None = None) -> list[FlowMethod]:
+    """Flow-pipeline methods for every (flow, rectification, variant) combination, in that order.
+
+    Args:
+        flows: flow backend names or ``"oracle"``.
+        rectify: rectification settings to combine with every flow.
+        variants: ``"average"`` and refinement variant names (default: all).
+    Raises:
+        ValueError: an unknown flow or variant name (the message lists the known ones).
+    """
+    known_flows, flow_errors = discover_flows()
+    known_variants, variant_errors = discover_variants()
+    variants = ["average", *known_variants] if variants is None else list(variants)
+    for name in flows:
+        if name != ORACLE and name not in known_flows:
+            raise ValueError(f"unknown flow {name!r} (known: {', '.join(sorted([*known_flows, ORACLE]))})"
+                             + _plugin_note(flow_errors))
+    for name in variants:
+        if name != "average" and name not in known_variants:
+            raise ValueError(f"unknown variant {name!r} (known: average, {', '.join(known_variants)})"
+                             + _plugin_note(variant_errors))
+    out = []
+    for name in dict.fromkeys(flows):
+        flow = name if name == ORACLE else known_flows[name]
+        for rect in dict.fromkeys(rectify):
+            for v in dict.fromkeys(variants):
+                out.append(FlowMethod(flow, rect, None if v == "average" else known_variants[v]))
+    return out
+
+
+def _plugin_note(errors: dict[str, str]) -> str:
+    return ("; plugins that failed to load: " + "; ".join(f"{k}: {v}" for k, v in errors.items())) if errors else ""
+
+
+def builtin_methods() -> list[Method]:
+    """The trinocular sweep and every configuration of the flow pipeline (all flows incl. the oracle,
+    rectified and plain, all variants)."""
+    return [SweepMethod(), *flow_methods([*discover_flows()[0], ORACLE], [True, False])]
+
+
+def discover_methods() -> tuple[dict[str, Method], dict[str, str]]:
+    """Every method: the built-ins plus entry points of group ``tri360.methods``.
+
+    Returns:
+        ``(methods by label, errors by plugin source)``.
+    """
+    return merge_registry(builtin_methods(), ENTRY_POINT_GROUP, lambda m: isinstance(m, Method), "Method",
+                          key=lambda m: m.label)
+
+
+def get_methods(labels: Sequence[str]) -> list[Method]:
+    """Methods by label.
+
+    Raises:
+        ValueError: naming the unknown labels, with the registered outside methods and the label pattern of
+            the built-in ones.
+    """
+    methods, errors = discover_methods()
+    bad = [x for x in labels if x not in methods]
+    if bad:
+        outside = sorted(k for k, m in methods.items() if not isinstance(m, FlowMethod))
+        raise ValueError(f"unknown method(s) {', '.join(bad)} (built-in labels are FLOW-rect:VARIANT or "
+                         f"FLOW-plain:VARIANT, e.g. dis-rect:gradient; outside methods: "
+                         f"{', '.join(outside) or 'none'})" + _plugin_note(errors))
+    return [methods[x] for x in dict.fromkeys(labels)]
+
+
+def default_methods() -> list[FlowMethod]:
+    """What ``tri360 evaluate`` reports by default: tri360's flow pipeline and the paper's set-up, each with
+    every variant."""
+    out = []
+    for flow, rect in DEFAULT_CONFIGS:
+        out.extend(flow_methods([flow], [rect]))
+    return out

@@ -1,0 +1,207 @@
+"""The trinocular sphere sweep with semi-global matching over sphere and horizontal-plane labels, as a Method.
+
+Stages (timed in ``MethodOutput.seconds``): ``cost`` (rectified features, sphere cost volume), ``planes``
+(plane-label costs from the same volume), ``sgm`` (8-path aggregation), ``wta`` (winner, sub-level
+refinement, confidence), ``post`` (fill of unreliable pixels, median).  See docs/matching.md.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import asdict, dataclass, field
+from types import SimpleNamespace
+
+import cv2
+import numpy as np
+
+from reconstruction.camera.equirect import bearing_grid
+from reconstruction.methods.base import MethodOutput
+from reconstruction.methods.flow_pipeline import fill_edge_aware
+from reconstruction.sweep.cost import CostParams, build_cost_volume, gray_float, inverse_distances
+from reconstruction.sweep.planes import PlaneParams, bound_costs, dominant_planes, fill_plane_costs, plane_heights
+from reconstruction.sweep.sgm import aggregate, winner_take_all
+
+__all__ = ["SgmParams", "PostParams", "SweepMethod", "labels_to_distance", "sweep_distance"]
+
+
+@dataclass(frozen=True)
+class SgmParams:
+    """Semi-global matching parameters (cost units are those of :class:`CostParams`: ``scale`` per gray level).
+
+    Attributes:
+        p1: penalty of a +-1 label step within a family, cost units.
+        p2: penalty of a larger jump within a family (before edge adaptation), cost units.
+        p3: extra penalty of switching family (sphere <-> plane), cost units.
+        edge: gray-level difference between neighbours that halves P2 and P3, gray levels.
+        paths: 8 or 4 aggregation paths.
+    """
+
+    p1: int = 40
+    p2: int = 400
+    p3: int = 200
+    edge: float = 8.0
+    paths: int = 8
+
+
+@dataclass(frozen=True)
+class PostParams:
+    """Post-processing.
+
+    Attributes:
+        min_confidence: pixels with confidence below this are refilled from confident neighbours (0 = none).
+        fill_lambda, fill_sigma_color: edge-aware fill smoothness and edge scale (8-bit gray levels).
+        median_px: median filter side, pixels (0, 3 or 5; wraps in longitude).
+    """
+
+    min_confidence: float = 0.0
+    fill_lambda: float = 200.0
+    fill_sigma_color: float = 8.0
+    median_px: int = 5
+
+
+def labels_to_distance(label: np.ndarray, inv_d: np.ndarray, heights: np.ndarray, a_z: np.ndarray,
+                       d_min_m: float, d_max_m: float) -> np.ndarray:
+    """Fractional labels -> distance, metres.
+
+    Args:
+        label: (H, W) fractional label (sphere labels ``0..D-1``, then plane labels).
+        inv_d: (D,) uniform inverse distances of the sphere labels, 1/m.
+        heights: (P,) plane heights relative to C, metres (below first, ascending |h|, then above).
+        a_z: (H, W) world Z of C's unit bearings.
+        d_min_m, d_max_m: clamp, metres.
+    Returns:
+        (H, W) float64 distance, metres.
+    """
+    n_d = inv_d.size
+    sphere = label < n_d - 0.5 + 1e-9
+    q = inv_d[0] + np.clip(label, 0, n_d - 1) * (inv_d[1] - inv_d[0])
+    d = 1.0 / np.maximum(q, 1e-9)
+    if heights.size:
+        per = heights.size // 2
+        p = np.clip(label - n_d, 0.0, heights.size - 1.0)
+        side = (p >= per - 0.5).astype(np.int64)  # 0: below, 1: above
+        local = np.clip(p - side * per, 0.0, per - 1.0)
+        log_mag = np.log(np.abs(heights[:per]))
+        idx = np.arange(per, dtype=np.float64)
+        h = np.exp(np.interp(local, idx, log_mag)) * np.where(side == 1, 1.0, -1.0)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            dp = h / a_z
+        dp = np.where(np.isfinite(dp) & (dp > 0), dp, d_max_m)
+        d = np.where(sphere, d, dp)
+    return np.clip(d, d_min_m, d_max_m)
+
+
+def _median_wrap(d: np.ndarray, k: int) -> np.ndarray:
+    """Median filter of side ``k`` (3 or 5) wrapping in longitude; (H, W) float -> float32."""
+    if k <= 1:
+        return d.astype(np.float32)
+    pad = k // 2
+    x = np.concatenate([d[:, -pad:], d, d[:, :pad]], axis=1).astype(np.float32)
+    return cv2.medianBlur(x, k)[:, pad:-pad]
+
+
+def _coarse_frame(frame, factor: int):
+    """A frame-like view of ``frame`` with images ``factor`` times smaller (same poses)."""
+    w, h = frame.width // factor, frame.height // factor
+    images = {k: cv2.resize(v, (w, h), interpolation=cv2.INTER_AREA) for k, v in frame.images.items()}
+    return SimpleNamespace(width=w, height=h, cameras=frame.cameras, images=images)
+
+
+def _labels(frame, cost_params: CostParams, plane_params: PlaneParams, sgm: SgmParams, pairs, seconds,
+            bounds=(-np.inf, np.inf), prefix=""):
+    """Cost volume, plane labels, (room bound), SGM and winner-take-all on one frame.
+
+    Returns:
+        ``(label, conf, a_z, heights, inv_d)``: (H, W) fractional labels and confidence, (H, W) world Z of C's
+        bearings, plane heights (metres) and sphere inverse distances (1/m).
+    """
+    t = time.perf_counter()
+    heights = plane_heights(plane_params)
+    n_d = cost_params.levels
+    cost, _ = build_cost_volume(frame, cost_params, extra_labels=heights.size, pairs=pairs)
+    inv_d = inverse_distances(cost_params)
+    seconds[prefix + "cost"] = time.perf_counter() - t
+    t = time.perf_counter()
+    a_z = bearing_grid(frame.width, frame.height, frame.cameras["C"].rotation)[..., 2]
+    bias = plane_params.bias if heights.size else 0
+    max_cost = cost_params.max_cost()
+    fill_plane_costs(cost, n_d, a_z, heights, inv_d, max_cost, bias)
+    max_cost += bias
+    if np.isfinite(bounds[0]) or np.isfinite(bounds[1]):
+        bound_costs(cost, n_d, a_z, inv_d, heights, bounds[0], bounds[1], max_cost)
+    family = np.concatenate([np.zeros(n_d, np.int64), np.ones(heights.size, np.int64)])
+    seconds[prefix + "planes"] = time.perf_counter() - t
+    t = time.perf_counter()
+    gray = gray_float(frame.images["C"], 0.0)
+    agg = aggregate(cost, family, gray, sgm.p1, sgm.p2, sgm.p3, sgm.edge, max_cost, sgm.paths)
+    del cost
+    seconds[prefix + "sgm"] = time.perf_counter() - t
+    t = time.perf_counter()
+    label, conf = winner_take_all(agg, family)
+    seconds[prefix + "wta"] = time.perf_counter() - t
+    return label, conf, a_z, heights, inv_d
+
+
+def room_bounds(frame, cost_params: CostParams, plane_params: PlaneParams, sgm: SgmParams, pairs, seconds):
+    """Floor and ceiling heights relative to C (metres, -inf / inf if not found) from a coarse pass, widened
+    by ``bound_margin``."""
+    coarse = _coarse_frame(frame, plane_params.coarse_factor)
+    label, _, _, heights, _ = _labels(coarse, cost_params, plane_params, sgm, pairs, seconds, prefix="coarse_")
+    z_floor, z_ceil = dominant_planes(label, cost_params.levels, heights, plane_params.bound_min_share)
+    m = 1.0 + plane_params.bound_margin
+    return z_floor * m, z_ceil * m
+
+
+def sweep_distance(frame, cost_params: CostParams, plane_params: PlaneParams, sgm: SgmParams,
+                   post: PostParams, pairs=("U", "R")):
+    """Run the sweep on a frame.
+
+    Returns:
+        ``(distance, confidence, seconds, info)``: (H, W) float32 metres, (H, W) float32 in [0, 1], wall time
+        per stage, details (plane share, room bounds).
+    """
+    seconds = {}
+    bounds = (-np.inf, np.inf)
+    if plane_params.room_bound and plane_params.per_side > 0:
+        bounds = room_bounds(frame, cost_params, plane_params, sgm, pairs, seconds)
+    label, conf, a_z, heights, inv_d = _labels(frame, cost_params, plane_params, sgm, pairs, seconds, bounds)
+    t = time.perf_counter()
+    d = labels_to_distance(label, inv_d, heights, a_z, cost_params.d_min_m, cost_params.d_max_m)
+    if post.min_confidence > 0:
+        ok = conf >= post.min_confidence
+        if ok.any() and not ok.all():
+            d = np.where(ok, d, fill_edge_aware(d, ok, frame.images["C"], post.fill_lambda, post.fill_sigma_color))
+    d = _median_wrap(d, post.median_px)
+    seconds["post"] = time.perf_counter() - t
+    seconds["total"] = sum(seconds.values())
+    info = {"plane_share": float((label >= cost_params.levels - 0.5).mean()),
+            "floor_m": float(bounds[0]), "ceiling_m": float(bounds[1])}
+    return d.astype(np.float32), np.clip(conf, 0.0, 1.0).astype(np.float32), seconds, info
+
+
+@dataclass(frozen=True)
+class SweepMethod:
+    """Trinocular sphere sweep + SGM over sphere and horizontal-plane labels (a :class:`Method`).
+
+    Attributes:
+        cost: matching cost and distance hypotheses (:class:`CostParams`: metres, gray levels, pixels).
+        planes: horizontal-plane family (:class:`PlaneParams`: metres, cost units).
+        sgm: aggregation penalties (:class:`SgmParams`: cost units, gray levels).
+        post: fill and median (:class:`PostParams`).
+        pairs: the pairs used ("U", "R"); one pair only is an ablation.
+    """
+
+    cost: CostParams = field(default_factory=CostParams)
+    planes: PlaneParams = field(default_factory=PlaneParams)
+    sgm: SgmParams = field(default_factory=SgmParams)
+    post: PostParams = field(default_factory=PostParams)
+    pairs: tuple[str, ...] = ("U", "R")
+    label: str = "sweep"
+
+    def config(self) -> dict:
+        return {"kind": "sweep", "label": self.label, "cost": asdict(self.cost), "planes": asdict(self.planes),
+                "sgm": asdict(self.sgm), "post": asdict(self.post), "pairs": list(self.pairs)}
+
+    def run(self, frame) -> MethodOutput:
+        d, conf, seconds, info = sweep_distance(frame, self.cost, self.planes, self.sgm, self.post, self.pairs)
+        return MethodOutput(distance=d, confidence=conf, seconds=seconds, info=info)

@@ -1,0 +1,209 @@
+"""The trinocular cost volume of camera C over distance hypotheses uniform in inverse distance.
+
+For a pair (C, K), K in {U, R}, both images are resampled into the pair's rectified frame (+Z along the
+world baseline ``K - C``; each image with its *own* camera rotation, so tilted rigs and cameras rotated
+against each other are handled).  In that frame a point at distance ``d`` along C's rectified bearing of
+colatitude ``theta`` (angle from the baseline) is seen by K on the same meridian (same column) at colatitude
+``theta' = atan2(sin(theta), cos(theta) - b/d)``: the warp for one hypothesis is one source row per target
+row, so a cost slice is a row gather and an absolute difference.  The slice is then resampled once into C's
+own equirect grid (fixed maps built once per frame), weighted by ``sin^2`` of the angle between the pixel's
+bearing and the pair's baseline, truncated, summed over both pairs and quantised to uint16.
+
+Features (computed in the rectified frame, so both images of a pair use the same axes): gray intensity
+(0-255) and its two derivatives along the rectified columns and rows (gray levels per pixel).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from reconstruction.camera.equirect import bearing_grid
+from reconstruction.camera.resample import WRAP_PAD, rectifying_rotation, rotation_maps, warp_equirect
+
+__all__ = ["CostParams", "PairWarp", "inverse_distances", "gray_float", "prepare_pair", "pair_slice",
+           "build_cost_volume", "source_rows", "rect_row"]
+
+
+@dataclass(frozen=True)
+class CostParams:
+    """Parameters of the matching cost.
+
+    Attributes:
+        d_min_m, d_max_m: nearest and farthest distance hypothesis, metres.
+        levels: number of sphere hypotheses, uniform in inverse distance between ``1/d_max_m`` and ``1/d_min_m``.
+        blur_px: Gaussian sigma applied to the gray images before matching, pixels (0 = none).
+        gradient_weight: weight of the summed absolute gradient differences against the intensity difference
+            (dimensionless; gradients are gray levels per pixel).
+        truncate: per-pair cost truncation, gray levels (robustness to reflections and occlusions).
+        box_px: side of the box filter applied to each cost slice in C's grid, pixels (1 = none).
+        scale: quantisation, uint16 cost units per gray level.
+        pair_power: exponent of ``sin(angle to baseline)`` in each pair's weight (2 = sin^2).
+    """
+
+    d_min_m: float = 0.3
+    d_max_m: float = 30.0
+    levels: int = 128
+    blur_px: float = 0.8
+    gradient_weight: float = 1.0
+    truncate: float = 20.0
+    box_px: int = 3
+    scale: float = 8.0
+    pair_power: float = 2.0
+
+    def max_cost(self) -> int:
+        """Largest possible summed cost, uint16 units (both pairs' weights sum to at most 2)."""
+        return int(np.ceil(2.0 * self.truncate * self.scale)) + 1
+
+
+def inverse_distances(params: CostParams) -> np.ndarray:
+    """(levels,) float64 inverse distances of the sphere hypotheses, 1/metres, ascending (far to near)."""
+    return np.linspace(1.0 / params.d_max_m, 1.0 / params.d_min_m, params.levels)
+
+
+def gray_float(image: np.ndarray, blur_px: float) -> np.ndarray:
+    """(H, W, 3) uint8 RGB -> (H, W) float32 gray, 0-255, optionally Gaussian-blurred (sigma ``blur_px``)."""
+    g = cv2.cvtColor(image, cv2.COLOR_RGB2GRAY).astype(np.float32)
+    if blur_px > 0:
+        pad = int(np.ceil(3 * blur_px))
+        g = np.concatenate([g[:, -pad:], g, g[:, :pad]], axis=1)  # wrap in longitude
+        g = cv2.GaussianBlur(g, (0, 0), blur_px, borderType=cv2.BORDER_REFLECT)[:, pad:-pad]
+    return np.ascontiguousarray(g)
+
+
+def _features(gray_rect: np.ndarray, gradient_weight: float) -> np.ndarray:
+    """(H, W) rectified gray -> (3, H, W) float32: intensity and weighted d/du (wrapping), d/dv."""
+    gu = 0.5 * (np.roll(gray_rect, -1, axis=1) - np.roll(gray_rect, 1, axis=1))
+    gv = np.zeros_like(gray_rect)
+    gv[1:-1] = 0.5 * (gray_rect[2:] - gray_rect[:-2])
+    return np.stack([gray_rect, gradient_weight * gu, gradient_weight * gv]).astype(np.float32)
+
+
+@dataclass
+class PairWarp:
+    """Everything one pair needs to produce cost slices (built once per frame; depends only on the rig).
+
+    Attributes:
+        name: the other camera's name ("U" or "R").
+        baseline_m: |K - C|, metres.
+        rect_rotation: (3, 3) world-from-rectified rotation (+Z along the baseline).
+        ref: (3, H, W) float32 features of C in the rectified frame.
+        other: (3, H, W) float32 features of K in the rectified frame.
+        cos_theta, sin_theta: (H,) cos / sin of each rectified row's colatitude.
+        map1, map2: fixed-point OpenCV maps from C's grid into the column-padded rectified frame.
+        weight: (H, W) float32 pair weight in C's grid, ``sin(angle to baseline) ** pair_power``.
+    """
+
+    name: str
+    baseline_m: float
+    rect_rotation: np.ndarray
+    ref: np.ndarray
+    other: np.ndarray
+    cos_theta: np.ndarray
+    sin_theta: np.ndarray
+    map1: np.ndarray
+    map2: np.ndarray
+    weight: np.ndarray
+
+
+def prepare_pair(frame, name: str, gray: dict, params: CostParams) -> PairWarp:
+    """Rectify one pair's features and build its fixed maps.
+
+    Args:
+        frame: a frame (``cameras`` with ``position``/``rotation``, ``width``, ``height``).
+        name: "U" or "R".
+        gray: (H, W) float32 gray image per camera name (:func:`gray_float`).
+    """
+    h, w = frame.height, frame.width
+    cam_c, cam_k = frame.cameras["C"], frame.cameras[name]
+    base = np.asarray(cam_k.position, np.float64) - np.asarray(cam_c.position, np.float64)
+    b = float(np.linalg.norm(base))
+    rect = rectifying_rotation(base, cam_c.rotation)
+    ref = _features(warp_equirect(gray["C"], rect, cam_c.rotation), params.gradient_weight)
+    other = _features(warp_equirect(gray[name], rect, cam_k.rotation), params.gradient_weight)
+    theta = np.pi * (np.arange(h) + 0.5) / h
+    mu, mv = rotation_maps(w, h, cam_c.rotation, rect)  # C pixel -> rectified pixel
+    mu = (np.mod(mu + 0.5, w) - 0.5 + WRAP_PAD).astype(np.float32)
+    map1, map2 = cv2.convertMaps(mu, mv.astype(np.float32), cv2.CV_16SC2)
+    bear = bearing_grid(w, h, cam_c.rotation)
+    cos_b = bear @ (base / b)
+    sin2 = np.clip(1.0 - cos_b * cos_b, 0.0, 1.0)
+    weight = (sin2 ** (0.5 * params.pair_power)).astype(np.float32)
+    return PairWarp(name, b, rect, ref, other, np.cos(theta), np.sin(theta), map1, map2, weight)
+
+
+def rect_row(v_rect, baseline_m: float, inv_d: float, height: int):
+    """Rectified row of K that sees the point at inverse distance ``inv_d`` (1/m) along C's rectified row
+    ``v_rect`` (continuous pixels; same column).  ``theta' = atan2(sin theta, cos theta - b / d)``.
+
+    Args:
+        v_rect: array of continuous rectified rows of C; baseline_m: |K - C|, metres; height: H, pixels.
+    Returns:
+        Continuous rectified rows of K, same shape.
+    """
+    theta = np.pi * (np.asarray(v_rect, np.float64) + 0.5) / height
+    theta2 = np.arctan2(np.sin(theta), np.cos(theta) - baseline_m * inv_d)
+    return theta2 * height / np.pi - 0.5
+
+
+def source_rows(pair: PairWarp, inv_d: float, height: int) -> np.ndarray:
+    """(H,) float64: the rectified row of K seen by each rectified row of C at inverse distance ``inv_d`` (1/m)."""
+    theta2 = np.arctan2(pair.sin_theta, pair.cos_theta - pair.baseline_m * inv_d)
+    return theta2 * height / np.pi - 0.5
+
+
+def pair_slice(pair: PairWarp, inv_d: float, truncate: float) -> np.ndarray:
+    """Truncated absolute feature difference of one pair at one hypothesis, in the rectified frame.
+
+    Returns:
+        (H, W + 2 * WRAP_PAD) float32, gray levels, columns padded by wrapping (ready for the back-remap).
+    """
+    _, h, w = pair.ref.shape
+    rows = np.clip(source_rows(pair, inv_d, h), 0.0, h - 1.0)
+    r0 = np.minimum(rows.astype(np.int64), h - 2)
+    f = (rows - r0).astype(np.float32)[None, :, None]
+    a = pair.other[:, r0]
+    warped = a + f * (pair.other[:, r0 + 1] - a)
+    diff = np.abs(warped - pair.ref).sum(axis=0)
+    np.minimum(diff, truncate, out=diff)
+    return np.concatenate([diff[:, w - WRAP_PAD:], diff, diff[:, :WRAP_PAD]], axis=1)
+
+
+def build_cost_volume(frame, params: CostParams, extra_labels: int = 0, pairs=("U", "R"),
+                      out: np.ndarray | None = None):
+    """The sphere-sweep cost volume of camera C.
+
+    Args:
+        frame: a frame with ``images`` (H, W, 3) uint8 and posed ``cameras`` C, U, R.
+        params: cost parameters.
+        extra_labels: further labels to allocate after the sphere hypotheses (filled by other families).
+        pairs: which pairs to use (ablation).
+        out: optional preallocated (H, W, levels + extra_labels) uint16 array.
+    Returns:
+        ``(cost, pairs)``: (H, W, levels + extra_labels) uint16 costs (sphere labels filled, ``scale`` units per
+        gray level, at most :meth:`CostParams.max_cost`) and the :class:`PairWarp` of each pair.
+    """
+    h, w = frame.height, frame.width
+    gray = {k: gray_float(frame.images[k], params.blur_px) for k in ("C", *pairs)}
+    warps = [prepare_pair(frame, k, gray, params) for k in pairs]
+    n = params.levels + extra_labels
+    cost = np.empty((h, w, n), np.uint16) if out is None else out
+    wsum = [(pw.weight * params.scale).astype(np.float32) for pw in warps]
+    acc = np.empty((h, w), np.float32)
+    box = int(params.box_px)
+    for i, q in enumerate(inverse_distances(params)):
+        acc[:] = 0.0
+        for pw, ws in zip(warps, wsum, strict=True):
+            sl = pair_slice(pw, q, params.truncate)
+            back = cv2.remap(sl, pw.map1, pw.map2, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+            acc += back * ws
+        if box > 1:
+            pad = box // 2
+            padded = np.concatenate([acc[:, -pad:], acc, acc[:, :pad]], axis=1)
+            acc_f = cv2.boxFilter(padded, -1, (box, box), borderType=cv2.BORDER_REFLECT)[:, pad:-pad]
+        else:
+            acc_f = acc
+        cost[:, :, i] = (acc_f + 0.5).astype(np.uint16)
+    return cost, warps

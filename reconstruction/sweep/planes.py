@@ -1,0 +1,176 @@
+"""The "horizontal plane at height h" label family (gravity = world -Z), indexing the sphere cost volume.
+
+A pixel of C with world bearing ``a`` lies on the horizontal plane ``h`` metres above C's centre (negative =
+below) at distance ``h / a_z`` when that is positive, i.e. at inverse distance ``a_z / h``.  The label's cost
+is the sphere cost volume linearly interpolated at that inverse distance; where the plane is not in front of
+the pixel or outside the hypothesis range, the cost is the maximum.  On a floor or ceiling the plane label is
+*constant* across pixels while the sphere label changes with every row: SGM's smoothness then favours it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+
+__all__ = ["PlaneParams", "plane_heights", "fill_plane_costs", "plane_inverse_distance", "bound_costs",
+           "dominant_planes"]
+
+
+@dataclass(frozen=True)
+class PlaneParams:
+    """Parameters of the horizontal-plane family.
+
+    Attributes:
+        per_side: number of plane heights below C and as many above (0 = no plane family).
+        h_min_m, h_max_m: smallest and largest |height| relative to C's centre, metres (heights are geometric
+            between them).
+        bias: cost added to every sphere label so that planes are slightly preferred, uint16 cost units.
+        room_bound: find the floor and ceiling in a coarse pass and forbid labels below / above them (removes
+            matches of mirror images in glossy floors).
+        bound_margin: tolerance of the room bound, as a fraction of the floor's / ceiling's |height|.
+        bound_min_share: share of pixels the floor (ceiling) plane must win in the coarse pass to be used.
+        coarse_factor: the coarse pass runs on images this many times smaller.
+    """
+
+    per_side: int = 32
+    h_min_m: float = 0.3
+    h_max_m: float = 5.0
+    bias: int = 4
+    room_bound: bool = True
+    bound_margin: float = 0.25
+    bound_min_share: float = 0.03
+    coarse_factor: int = 2
+
+
+def plane_heights(params: PlaneParams) -> np.ndarray:
+    """(2 * per_side,) float64 plane heights relative to C, metres: below C (ascending |h|), then above."""
+    if params.per_side <= 0:
+        return np.zeros(0)
+    mag = np.geomspace(params.h_min_m, params.h_max_m, params.per_side)
+    return np.concatenate([-mag, mag])
+
+
+def plane_inverse_distance(a_z: np.ndarray, heights: np.ndarray) -> np.ndarray:
+    """Inverse distance (1/m) of each plane along bearings with world up component ``a_z``: ``a_z / h``.
+
+    Args:
+        a_z: (...) world Z component of unit bearings; heights: (P,) metres.
+    Returns:
+        (..., P) float64 (<= 0 where the plane is behind the ray).
+    """
+    return np.asarray(a_z, np.float64)[..., None] / heights
+
+
+@numba.njit(parallel=True, cache=True)
+def _fill(cost, levels, a_z, heights, q0, dq, max_cost):
+    h, w, _ = cost.shape
+    n_p = heights.shape[0]
+    for y in numba.prange(h):
+        for x in range(w):
+            az = a_z[y, x]
+            for p in range(n_p):
+                f = (az / heights[p] - q0) / dq
+                if f < 0.0 or f > levels - 1:
+                    cost[y, x, levels + p] = max_cost
+                else:
+                    i0 = min(int(f), levels - 2)
+                    t = f - i0
+                    c = (1.0 - t) * cost[y, x, i0] + t * cost[y, x, i0 + 1]
+                    cost[y, x, levels + p] = np.uint16(c + 0.5)
+
+
+@numba.njit(parallel=True, cache=True)
+def _add_bias(cost, levels, bias, cap):
+    h, w, _ = cost.shape
+    for y in numba.prange(h):
+        for x in range(w):
+            for i in range(levels):
+                c = np.int64(cost[y, x, i]) + bias
+                cost[y, x, i] = np.uint16(cap if c > cap else c)
+
+
+def fill_plane_costs(cost: np.ndarray, levels: int, a_z: np.ndarray, heights: np.ndarray, inv_d: np.ndarray,
+                     max_cost: int, bias: int) -> None:
+    """Fill the plane labels ``cost[..., levels:]`` in place from the sphere labels, then add the plane bias.
+
+    Args:
+        cost: (H, W, levels + P) uint16 cost volume with the sphere labels filled.
+        levels: number of sphere labels; a_z: (H, W) world Z of C's bearings; heights: (P,) metres.
+        inv_d: (levels,) inverse distances of the sphere labels (uniform), 1/m.
+        max_cost: cost of a plane label that does not apply at a pixel, uint16 units.
+        bias: added to every sphere label (capped at 65535), uint16 units.
+    """
+    if heights.size:
+        q0 = float(inv_d[0])
+        dq = float(inv_d[1] - inv_d[0])
+        _fill(cost, levels, np.ascontiguousarray(a_z, np.float64), heights.astype(np.float64), q0, dq,
+              np.uint16(max_cost))
+        if bias > 0:
+            _add_bias(cost, levels, int(bias), 65535)
+
+
+@numba.njit(parallel=True, cache=True)
+def _bound(cost, levels, a_z, inv_d, heights, z_low, z_high, max_cost):
+    h, w, n = cost.shape
+    for y in numba.prange(h):
+        for x in range(w):
+            az = a_z[y, x]
+            for i in range(levels):
+                z = az / inv_d[i]
+                if z < z_low or z > z_high:
+                    cost[y, x, i] = max_cost
+            for p in range(n - levels):
+                if heights[p] < z_low or heights[p] > z_high:
+                    cost[y, x, levels + p] = max_cost
+
+
+def bound_costs(cost: np.ndarray, levels: int, a_z: np.ndarray, inv_d: np.ndarray, heights: np.ndarray,
+                z_low: float, z_high: float, max_cost: int) -> None:
+    """Forbid (set to ``max_cost``) every label whose point lies below ``z_low`` or above ``z_high``.
+
+    The room bound: nothing is seen below the floor or above the ceiling, but a glossy floor's mirror image of
+    the ceiling lights is (a virtual point at ``2 z_floor - z_light``); forbidding those labels removes the
+    reflection matches.
+
+    Args:
+        cost: (H, W, levels + P) uint16, modified in place.
+        a_z: (H, W) world Z of C's unit bearings; inv_d: (levels,) 1/m; heights: (P,) metres relative to C.
+        z_low, z_high: heights relative to C's centre, metres (use -inf / inf for no bound).
+    """
+    _bound(cost, levels, np.ascontiguousarray(a_z, np.float64), inv_d.astype(np.float64),
+           heights.astype(np.float64), float(z_low), float(z_high), np.uint16(max_cost))
+
+
+def dominant_planes(label: np.ndarray, levels: int, heights: np.ndarray, min_share: float):
+    """Floor and ceiling heights: the most frequent winning plane label below and above C.
+
+    Args:
+        label: (H, W) fractional winning labels (plane labels from ``levels`` on).
+        heights: (P,) plane heights, metres (below C first, then above, as :func:`plane_heights`).
+        min_share: a side's mode must win at least this share of all pixels to count.
+    Returns:
+        ``(z_floor, z_ceiling)`` metres relative to C (-inf / inf where none is dominant); each is the median
+        height of the pixels within one label of the mode (sub-level heights interpolated in log |h|).
+    """
+    per = heights.size // 2
+    out = []
+    if per == 0:
+        return -np.inf, np.inf
+    p = label.ravel() - levels
+    for side, sign in ((0, -1.0), (1, 1.0)):
+        lo = side * per
+        sel = p[(p >= lo - 0.5) & (p < lo + per - 0.5)] - lo
+        if sel.size == 0:
+            out.append(sign * np.inf)
+            continue
+        counts = np.bincount(np.clip(np.rint(sel).astype(np.int64), 0, per - 1), minlength=per)
+        mode = int(np.argmax(counts))
+        near = sel[np.abs(sel - mode) <= 1.0]
+        if counts[max(mode - 1, 0):mode + 2].sum() < min_share * label.size:
+            out.append(sign * np.inf)
+            continue
+        mag = np.exp(np.interp(np.median(near), np.arange(per), np.log(np.abs(heights[lo:lo + per]))))
+        out.append(sign * mag)
+    return out[0], out[1]
