@@ -8,30 +8,51 @@
       C.distance.exr  U.distance.exr  R.distance.exr   # float32 channel "distance", metres, +inf = no surface
 
 Distance files are optional (real captures have no ground truth).  Every reader validates and raises
-:class:`FrameError` with one message naming the file and what is wrong.  Writers are atomic: a frame is
-assembled in a hidden sibling directory and renamed into place, ``frame.json`` written last, so an
-interrupted write never leaves a directory that looks like a complete frame.
+:class:`FrameError` with one message naming the file and what is wrong; :func:`write_frame` runs the same
+checks *before* it writes anything, so it never produces a frame that :func:`read_frame` refuses.  Writes
+are atomic (:mod:`harness.data.atomic`): a frame is assembled in a hidden sibling directory and swapped into
+place, so an interrupted write never leaves a directory that looks like a complete frame, and concurrent
+writers of one frame each leave a complete frame (the last one wins).
+
+Besides shapes and types, the rig itself is checked: finite numbers, orthonormal proper rotations, no two
+cameras closer than :data:`MIN_CAMERA_SEPARATION_M`, and ``|U - C|`` and ``|R - C|`` within
+:func:`baseline_tolerance_m` of ``baseline_m``.
 """
 
 from __future__ import annotations
 
 import json
-import os
-import shutil
-import tempfile
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import cv2
 import numpy as np
-import OpenEXR
 
+from harness.data.atomic import atomic_directory, atomic_write_text
 from harness.data.errors import FrameError
+from harness.data.exr import read_distance_exr, write_distance_exr
+from harness.data.images import read_png, write_png
 from reconstruction.camera.rig import CAMERA_NAMES, CameraPose
 
+__all__ = [
+    "FORMAT",
+    "Frame",
+    "FrameError",
+    "MIN_CAMERA_SEPARATION_M",
+    "baseline_tolerance_m",
+    "validate_metadata",
+    "read_frame",
+    "write_frame",
+    "frame_dir",
+    "is_complete",
+    "find_frames",
+]
+
 FORMAT = "tri360-frame/1"
-DISTANCE_CHANNEL = "distance"
-NO_HIT_THRESHOLD_M = 1e9  # Cycles writes 1e10 for rays that hit nothing; anything above is stored as +inf
+MIN_CAMERA_SEPARATION_M = 1e-3  # two camera centres closer than this (metres) are "the same place"
+BASELINE_REL_TOL = 0.01  # |U - C| and |R - C| may differ from baseline_m by 1 % ...
+BASELINE_ABS_TOL_M = 1e-3  # ... or by 1 mm, whichever is larger
+ROTATION_TOL = 1e-5  # max |R^T R - I| entry and |det R - 1|
 
 
 @dataclass
@@ -78,121 +99,23 @@ class Frame:
         }
 
 
-# --------------------------------------------------------------------------------------------- atomic io
-
-
-def atomic_write_bytes(path: Path, data: bytes) -> None:
-    """Write ``data`` to ``path`` through a temporary file in the same directory, then rename."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".partial")
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
-def atomic_write_text(path: Path, text: str) -> None:
-    atomic_write_bytes(path, text.encode("utf-8"))
-
-
-def _atomic_via(path: Path, writer) -> None:
-    """Call ``writer(tmp_path)`` for a temporary path beside ``path`` (same suffix), then rename."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}.partial.", suffix=path.suffix)
-    os.close(fd)
-    try:
-        writer(tmp)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
-def write_distance_exr(path: Path, distance: np.ndarray) -> None:
-    """Write an (H, W) distance map (metres, +inf = no surface) as a float32 EXR, channel "distance"."""
-    d = np.ascontiguousarray(distance, dtype=np.float32)
-    if d.ndim != 2:
-        raise FrameError(f"{path}: distance map must be 2-D (H, W), got shape {d.shape}")
-    if np.isnan(d).any():
-        raise FrameError(f"{path}: distance map contains NaN")
-    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
-
-    def writer(tmp):
-        OpenEXR.File(header, {DISTANCE_CHANNEL: d}).write(tmp)
-
-    _atomic_via(path, writer)
-
-
-def read_distance_exr(path: Path, channel: str = DISTANCE_CHANNEL) -> np.ndarray:
-    """Read a distance EXR -> (H, W) float32 metres.  Values above 1e9 (Cycles' 'no hit') become +inf."""
-    path = Path(path)
-    if not path.is_file():
-        raise FrameError(f"{path}: file is missing")
-    try:
-        # separate_channels + every part: Blender 5.0 writes multilayer EXRs as multi-part files
-        # (Combined in part 0, Depth in part 1), and ``File.channels()`` only sees part 0.
-        channels = {}
-        for part in OpenEXR.File(str(path), separate_channels=True).parts:
-            channels.update(part.channels)
-    except Exception as exc:  # OpenEXR raises a bare Exception on corrupt input
-        raise FrameError(f"{path}: not a readable OpenEXR file ({exc})") from None
-    if channel not in channels:
-        raise FrameError(f"{path}: no channel named {channel!r} (found {sorted(channels)})")
-    d = np.asarray(channels[channel].pixels, dtype=np.float32)
-    if d.ndim != 2:
-        raise FrameError(f"{path}: channel {channel!r} must be single-valued, got shape {d.shape}")
-    if np.isnan(d).any():
-        raise FrameError(f"{path}: channel {channel!r} contains NaN")
-    d = np.where(d > NO_HIT_THRESHOLD_M, np.float32(np.inf), d)
-    if (d <= 0).any():
-        raise FrameError(f"{path}: distances must be positive (found min {float(d.min()):.4g} m)")
-    return d
-
-
-def write_png(path: Path, image: np.ndarray) -> None:
-    """Write an (H, W, 3) uint8 RGB image as an 8-bit PNG, atomically."""
-    img = np.asarray(image)
-    if img.dtype != np.uint8 or img.ndim != 3 or img.shape[2] != 3:
-        raise FrameError(f"{path}: image must be (H, W, 3) uint8, got {img.shape} {img.dtype}")
-    ok, buf = cv2.imencode(".png", cv2.cvtColor(img, cv2.COLOR_RGB2BGR))
-    if not ok:
-        raise FrameError(f"{path}: PNG encoding failed")
-    atomic_write_bytes(path, buf.tobytes())
-
-
-def read_png(path: Path) -> np.ndarray:
-    """Read an 8-bit PNG -> (H, W, 3) uint8 RGB."""
-    path = Path(path)
-    if not path.is_file():
-        raise FrameError(f"{path}: file is missing")
-    raw = np.fromfile(str(path), dtype=np.uint8)
-    img = cv2.imdecode(raw, cv2.IMREAD_UNCHANGED) if raw.size else None
-    if img is None:
-        raise FrameError(f"{path}: not a readable image")
-    if img.dtype != np.uint8:
-        raise FrameError(f"{path}: must be 8-bit, got {img.dtype}")
-    if img.ndim == 2:
-        img = np.repeat(img[:, :, None], 3, axis=2)
-    elif img.shape[2] == 4:
-        img = cv2.cvtColor(img, cv2.COLOR_BGRA2RGB)
-    elif img.shape[2] == 3:
-        img = cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
-    else:
-        raise FrameError(f"{path}: unsupported channel count {img.shape[2]}")
-    return img
-
-
 # --------------------------------------------------------------------------------------------- validation
+
+
+def baseline_tolerance_m(baseline_m: float) -> float:
+    """How far (metres) ``|U - C|`` or ``|R - C|`` may be from ``baseline_m``: 1 % of it or 1 mm, the larger."""
+    return max(BASELINE_REL_TOL * baseline_m, BASELINE_ABS_TOL_M)
 
 
 def _require(cond: bool, where, msg: str) -> None:
     if not cond:
         raise FrameError(f"{where}: {msg}")
+
+
+def _safe_name(name: str) -> bool:
+    """A scene or viewpoint name usable as one visible directory level."""
+    return (bool(name) and name == name.strip() and not name.startswith(".") and "/" not in name
+            and "\\" not in name and "\0" not in name)
 
 
 def _parse_pose(meta_path: Path, name: str, raw) -> CameraPose:
@@ -209,13 +132,36 @@ def _parse_pose(meta_path: Path, name: str, raw) -> CameraPose:
     _require(bool(np.isfinite(pos).all()), where, "position is not finite")
     _require(rot.shape == (3, 3), where, f"rotation must be 3x3, got shape {rot.shape}")
     _require(bool(np.isfinite(rot).all()), where, "rotation is not finite")
-    _require(bool(np.allclose(rot.T @ rot, np.eye(3), atol=1e-5)), where, "rotation is not orthonormal")
-    _require(abs(np.linalg.det(rot) - 1.0) < 1e-5, where, "rotation is not proper (det != +1)")
+    _require(bool(np.allclose(rot.T @ rot, np.eye(3), rtol=0.0, atol=ROTATION_TOL)), where,
+             "rotation is not orthonormal")
+    _require(abs(np.linalg.det(rot) - 1.0) < ROTATION_TOL, where, "rotation is not proper (det != +1)")
     return CameraPose(pos, rot)
 
 
-def validate_metadata(meta: dict, meta_path: Path) -> None:
-    """Check a parsed ``frame.json``; raise :class:`FrameError` naming the file on the first problem."""
+def _check_rig(meta_path: Path, cameras: dict[str, CameraPose], baseline_m: float) -> None:
+    """Refuse rigs that cannot be: coincident cameras, or positions that contradict ``baseline_m``."""
+    for i, a in enumerate(CAMERA_NAMES):
+        for b in CAMERA_NAMES[i + 1:]:
+            gap = float(np.linalg.norm(cameras[a].position - cameras[b].position))
+            _require(gap >= MIN_CAMERA_SEPARATION_M, meta_path,
+                     f"impossible rig: cameras {a} and {b} coincide ({gap * 1000:.3g} mm apart, "
+                     f"minimum {MIN_CAMERA_SEPARATION_M * 1000:g} mm)")
+    tol = baseline_tolerance_m(baseline_m)
+    for k in ("U", "R"):
+        gap = float(np.linalg.norm(cameras[k].position - cameras["C"].position))
+        _require(abs(gap - baseline_m) <= tol, meta_path,
+                 f"impossible rig: |{k} - C| = {gap:.6g} m contradicts baseline_m = {baseline_m:.6g} m "
+                 f"(tolerance {tol:.3g} m)")
+
+
+def validate_metadata(meta: dict, meta_path: Path) -> dict[str, CameraPose]:
+    """Check a parsed ``frame.json`` and return the camera poses.
+
+    Raises:
+        FrameError: naming ``meta_path``, on the first problem: wrong format tag, missing or mistyped key,
+            unusable scene/viewpoint name, size not W x W/2, baseline not positive and finite, a camera
+            missing or with a non-finite / non-orthonormal pose, or an impossible rig (:func:`_check_rig`).
+    """
     _require(isinstance(meta, dict), meta_path, "must be a JSON object")
     _require(meta.get("format") == FORMAT, meta_path, f"format must be {FORMAT!r}, got {meta.get('format')!r}")
     for key, typ in (("scene", str), ("viewpoint", str), ("width", int), ("height", int),
@@ -223,33 +169,82 @@ def validate_metadata(meta: dict, meta_path: Path) -> None:
         _require(key in meta, meta_path, f"missing key {key!r}")
         _require(isinstance(meta[key], typ) and not isinstance(meta[key], bool), meta_path,
                  f"{key!r} has the wrong type ({type(meta[key]).__name__})")
+    for key in ("scene", "viewpoint"):
+        _require(_safe_name(meta[key]), meta_path,
+                 f"{key} {meta[key]!r} cannot be a directory name (empty, hidden, or contains a path separator)")
     w, h = meta["width"], meta["height"]
     _require(w > 0 and h > 0, meta_path, f"width and height must be positive, got {w}x{h}")
     _require(w == 2 * h, meta_path, f"equirectangular frames need width == 2*height, got {w}x{h}")
     b = float(meta["baseline_m"])
-    _require(np.isfinite(b) and b > 0, meta_path, f"baseline_m must be positive and finite, got {b}")
+    _require(math.isfinite(b) and b > 0, meta_path, f"baseline_m must be positive and finite, got {b}")
     for name in CAMERA_NAMES:
         _require(name in meta["cameras"], meta_path, f"cameras.{name} is missing")
     if "renderer" in meta:
         _require(isinstance(meta["renderer"], dict), meta_path, "'renderer' must be an object")
+    cameras = {name: _parse_pose(meta_path, name, meta["cameras"][name]) for name in CAMERA_NAMES}
+    _check_rig(meta_path, cameras, b)
+    return cameras
+
+
+def _check_distance(where: Path, d: np.ndarray, w: int, h: int) -> None:
+    """Ground-truth distance as :func:`read_frame` will accept it: (h, w), > 0, +inf allowed, no NaN/-inf."""
+    d = np.asarray(d)
+    _require(d.shape == (h, w), where, f"distance map is {d.shape}, frame is (H, W) = ({h}, {w})")
+    _require(np.issubdtype(d.dtype, np.floating), where, f"distance map must be floating point, got {d.dtype}")
+    _require(not bool(np.isnan(d).any()), where, "distance map contains NaN")
+    _require(bool((d > 0).all()), where, f"distances must be positive (found min {float(np.min(d)):.4g} m)")
+
+
+def _check_frame(frame: Frame, target: Path) -> str:
+    """Everything :func:`write_frame` needs checked before it touches the disk -> the frame.json text."""
+    meta_path = target / "frame.json"
+    missing = [n for n in CAMERA_NAMES if n not in frame.cameras or n not in frame.images]
+    _require(not missing, meta_path, f"no pose or image for camera(s) {', '.join(missing)}")
+    try:
+        meta = frame.metadata()
+    except (TypeError, ValueError) as exc:
+        raise FrameError(f"{meta_path}: cannot be written ({exc})") from None
+    validate_metadata(meta, meta_path)
+    for name in CAMERA_NAMES:
+        img = np.asarray(frame.images[name])
+        _require(img.dtype == np.uint8 and img.shape == (frame.height, frame.width, 3), target / f"{name}.png",
+                 f"image must be ({frame.height}, {frame.width}, 3) uint8, got {img.shape} {img.dtype}")
+    present = [n for n in CAMERA_NAMES if n in frame.distance]
+    _require(len(present) in (0, len(CAMERA_NAMES)), target,
+             f"ground truth for {', '.join(present)} only: give a distance map for every camera or none")
+    for name in present:
+        _check_distance(target / f"{name}.distance.exr", frame.distance[name], frame.width, frame.height)
+    try:
+        return json.dumps(meta, indent=2, allow_nan=False) + "\n"
+    except (TypeError, ValueError) as exc:  # e.g. a NaN or a numpy object in the renderer provenance
+        raise FrameError(f"{meta_path}: metadata is not plain JSON ({exc})") from None
+
+
+# ----------------------------------------------------------------------------------------------- read/write
 
 
 def read_frame(directory: Path, load_distance: bool = True) -> Frame:
     """Read and validate one ``tri360-frame/1`` directory.
 
+    Args:
+        directory: the frame directory.
+        load_distance: also read (and validate) the distance maps, if present.
     Raises:
         FrameError: naming the offending file, for anything missing or malformed.
     """
     directory = Path(directory)
     meta_path = directory / "frame.json"
-    if not meta_path.is_file():
+    if not meta_path.exists():
         raise FrameError(f"{meta_path}: file is missing (not a tri360 frame directory)")
+    if not meta_path.is_file():
+        raise FrameError(f"{meta_path}: is not a regular file")
     try:
         meta = json.loads(meta_path.read_text(encoding="utf-8"))
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise FrameError(f"{meta_path}: not valid JSON ({exc})") from None
-    validate_metadata(meta, meta_path)
-    cameras = {name: _parse_pose(meta_path, name, meta["cameras"][name]) for name in CAMERA_NAMES}
+    except OSError as exc:
+        raise FrameError(f"{meta_path}: cannot be read ({exc.strerror or exc})") from None
+    cameras = validate_metadata(meta, meta_path)
     w, h = meta["width"], meta["height"]
     images, distance = {}, {}
     for name in CAMERA_NAMES:
@@ -270,6 +265,7 @@ def read_frame(directory: Path, load_distance: bool = True) -> Frame:
 
 
 def frame_dir(root: Path, scene: str, viewpoint: str) -> Path:
+    """``<root>/<scene>/<viewpoint>``."""
     return Path(root) / scene / viewpoint
 
 
@@ -285,34 +281,23 @@ def is_complete(directory: Path) -> bool:
 def write_frame(frame: Frame, root: Path) -> Path:
     """Write ``frame`` atomically to ``<root>/<scene>/<viewpoint>/`` and return that directory.
 
-    The frame is built in a hidden sibling directory and renamed into place; an existing frame at the
-    target is replaced only after the new one is complete.
+    Everything is validated first (the checks of :func:`read_frame`); nothing is written for a bad frame.
+    The frame is built in a hidden sibling ``.<viewpoint>.partial-<pid>-<token>`` and swapped into place
+    (:func:`harness.data.atomic.atomic_directory`), replacing a previous frame there; concurrent writers of
+    the same frame never fail because of each other and leave no hidden entries behind.
+
+    Raises:
+        FrameError: the frame is invalid (naming the file it would have written).
+        OSError: the location is unusable (naming the path), e.g. a file where a directory must go.
     """
     target = frame_dir(root, frame.scene, frame.viewpoint)
-    target.parent.mkdir(parents=True, exist_ok=True)
-    meta = frame.metadata()
-    validate_metadata(meta, target / "frame.json")
-    tmp = Path(tempfile.mkdtemp(dir=target.parent, prefix=f".{frame.viewpoint}.partial-"))
-    try:
+    meta_text = _check_frame(frame, target)
+    with atomic_directory(target) as tmp:
         for name in CAMERA_NAMES:
-            img = frame.images[name]
-            if img.shape[:2] != (frame.height, frame.width):
-                raise FrameError(f"{tmp / (name + '.png')}: image is {img.shape[1]}x{img.shape[0]}, "
-                                 f"frame is {frame.width}x{frame.height}")
-            write_png(tmp / f"{name}.png", img)
+            write_png(tmp / f"{name}.png", frame.images[name])
             if name in frame.distance:
                 write_distance_exr(tmp / f"{name}.distance.exr", frame.distance[name])
-        atomic_write_text(tmp / "frame.json", json.dumps(meta, indent=2) + "\n")
-        if target.exists():
-            old = target.with_name(f".{frame.viewpoint}.old-{os.getpid()}")
-            os.replace(target, old)
-            os.replace(tmp, target)
-            shutil.rmtree(old, ignore_errors=True)
-        else:
-            os.replace(tmp, target)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
+        atomic_write_text(tmp / "frame.json", meta_text)
     return target
 
 
