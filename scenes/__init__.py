@@ -1,8 +1,8 @@
 """tri360 scenes: renderer-agnostic scene descriptions and their registry (no Blender here).
 
 - :mod:`scenes.model`: the scene description data classes (``SceneSpec``, ``Box``, ``Material``, ``Light``,
-  ``ModelFile``) and ``choose_viewpoints``;
-- :mod:`scenes.registry`: ``SceneEntry``, ``discover()`` (files in ``scenes/families/`` and the entry point
+  ``ModelFile``), the registry entry ``SceneEntry`` (with ``SceneError``) and ``choose_viewpoints``;
+- :mod:`scenes.registry`: ``discover()`` (files in ``scenes/families/`` and the entry point
   group ``tri360.scenes``) and ``get_scene("family[:preset]")``;
 - ``scenes/families/``: one file per scene family.
 

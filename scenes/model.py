@@ -1,22 +1,31 @@
 """The scene kit: a renderer-agnostic description of a scene (plain dataclasses, no bpy).
 
-A scene family (a file in ``scenes/``) is a function ``build(params, seed) -> SceneSpec``.  A backend
-translates the spec: ``harness.render.cycles`` renders it with Cycles, ``harness.render.raycast`` ray-casts its boxes
-analytically in numpy.  The spec knows nothing of either (the kubric pattern).
+A scene family (a file in ``scenes/families/``) is a function ``build(params, seed) -> SceneSpec``.  A renderer
+translates the spec: ``cycles`` (``harness.render.cycles``) path-traces it with Blender, ``raycast``
+(``harness.render.raycast``) ray-casts its boxes analytically in numpy.  The spec knows nothing of either (the
+kubric pattern).
+
+A family registers itself with a :class:`SceneEntry` (its build function, presets, declared parameters and
+default renderer); ``scenes.registry`` finds the entries.
 
 Units: metres, radians, linear RGB in [0, 1], watts.  World is right-handed, Z up, floor at z = 0.
 """
 
 from __future__ import annotations
 
+import hashlib
+import inspect
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from reconstruction.camera.rig import Rig
+from reconstruction.camera.rig import Rig, yaw_rotation
 
 MATERIAL_KINDS = ("paint", "wood", "tiles", "board", "fabric", "metal", "plastic", "glass", "emission", "noise")
+LIGHT_KINDS = ("area", "point", "sun")
+MODEL_SUFFIXES = (".blend", ".glb", ".gltf", ".obj")
 
 
 @dataclass(frozen=True)
@@ -75,9 +84,8 @@ class Box:
     def contains(self, points: np.ndarray, margin=0.0) -> np.ndarray:
         """Boolean (N,) mask of points (N, 3) inside the box grown by ``margin`` metres on every side
         (a scalar, or (3,) per box axis)."""
-        c, s = np.cos(-self.yaw), np.sin(-self.yaw)
         rel = np.asarray(points, dtype=np.float64) - np.asarray(self.center)
-        local = np.stack([c * rel[:, 0] - s * rel[:, 1], s * rel[:, 0] + c * rel[:, 1], rel[:, 2]], axis=1)
+        local = rel @ yaw_rotation(self.yaw)  # row vectors: R^T rel, the box's own axes
         half = np.asarray(self.size) / 2.0 + margin
         return np.all(np.abs(local) <= half, axis=1)
 
@@ -103,7 +111,7 @@ class Light:
 
 @dataclass(frozen=True)
 class ModelFile:
-    """An external model (``.blend``, ``.glb``/``.gltf`` or ``.obj``) placed in the scene (Blender only)."""
+    """An external model (``.blend``, ``.glb``/``.gltf`` or ``.obj``) placed in the scene (Cycles only)."""
 
     path: Path
     location: tuple[float, float, float] = (0.0, 0.0, 0.0)
@@ -121,11 +129,13 @@ class SceneSpec:
         materials: by name.
         boxes: geometry; the room shell (``inward=True``) included.
         lights: light sources.
-        models: external model files (Blender backend only).
+        models: external model files (the Cycles renderer only; the ray-caster refuses them).
         bounds: ((xmin, ymin, zmin), (xmax, ymax, zmax)) of the free interior, metres; viewpoints are drawn here.
         rig_height: (low, high) range of camera C's height above the floor, metres.
         viewpoints: explicit rigs; if given, ``choose_viewpoints`` uses these instead of sampling.
         background: world colour seen by rays that leave the scene, linear RGB.
+        code_version: version of the code that built the spec (``SceneEntry.spec`` sets a hash of the scene
+            family's source file); recorded in frame provenance so a rerun notices an edited scene.
     """
 
     name: str
@@ -138,19 +148,32 @@ class SceneSpec:
     rig_height: tuple[float, float] = (1.1, 1.5)
     viewpoints: list[Rig] = field(default_factory=list)
     background: tuple[float, float, float] = (0.05, 0.05, 0.05)
+    code_version: str = ""
 
     def add_material(self, material: Material) -> str:
         self.materials[material.name] = material
         return material.name
 
     def validate(self) -> None:
-        """Raise ValueError if a box names an unknown material or sizes are not positive."""
+        """Raise ValueError naming the culprit if a box names an unknown material, a size is not positive, a
+        light is of an unknown kind, or a model file is missing or of an unsupported format."""
         for box in self.boxes:
             if box.material not in self.materials:
                 raise ValueError(f"scene {self.name!r}: box {box.name or box.center} uses unknown material "
                                  f"{box.material!r}")
             if min(box.size) <= 0:
                 raise ValueError(f"scene {self.name!r}: box {box.name or box.center} has size {box.size}")
+        for i, light in enumerate(self.lights):
+            if light.kind not in LIGHT_KINDS:
+                raise ValueError(f"scene {self.name!r}: light {i} has unknown kind {light.kind!r} "
+                                 f"(known: {', '.join(LIGHT_KINDS)})")
+        for model in self.models:
+            path = Path(model.path).expanduser()
+            if path.suffix.lower() not in MODEL_SUFFIXES:
+                raise ValueError(f"scene {self.name!r}: model file {path} has unsupported format "
+                                 f"{path.suffix!r} (known: {', '.join(MODEL_SUFFIXES)})")
+            if not path.is_file():
+                raise ValueError(f"scene {self.name!r}: model file {path} does not exist")
 
 
 def choose_viewpoints(spec: SceneSpec, n: int, seed: int, baseline_m: float = 0.4,
@@ -213,3 +236,113 @@ def choose_viewpoints(spec: SceneSpec, n: int, seed: int, baseline_m: float = 0.
     if len(rigs) < n:
         raise ValueError(f"scene {spec.name!r}: found only {len(rigs)} free rig placements of {n} requested")
     return rigs[:n]
+
+
+RENDERERS = ("cycles", "raycast")
+"""Renderer names a scene may name as its default (``harness.render.registry`` implements them)."""
+RESERVED_PARAMETERS = ("preset", "seed")
+"""Keys of ``SceneSpec.params`` set by the registry itself; not scene parameters."""
+
+
+class SceneError(ValueError):
+    """Unknown scene, unknown preset, or a scene file/build function that failed."""
+
+
+@dataclass(frozen=True)
+class SceneEntry:
+    """A registered scene family.
+
+    Attributes:
+        name: what users type after ``--scene``.
+        build: ``build(params: dict, seed: int) -> SceneSpec``.
+        description: one line for ``tri360 scenes``.
+        presets: named parameter sets; ``default_preset`` is used when none is given.
+        default_preset: key into ``presets``.
+        parameters: every parameter ``build`` reads, ``{key: "meaning, unit (default)"}``; ``--set`` accepts
+            only these, and every key a preset uses must be one of them.  An entry that declares none
+            accepts exactly the keys its presets use.
+        renderer: the default renderer, "cycles" (Blender) or "raycast" (the numpy ray-caster, boxes only,
+            no Blender needed); ``tri360 render --renderer`` picks another.
+        source: where it was found (file or entry point), for error messages.
+    """
+
+    name: str
+    build: Callable[[dict, int], SceneSpec]
+    description: str = ""
+    presets: dict[str, dict] = field(default_factory=lambda: {"default": {}})
+    default_preset: str = "default"
+    parameters: Mapping[str, str] = field(default_factory=dict)
+    renderer: str = "cycles"
+    source: str = ""
+
+    def __post_init__(self):
+        if self.renderer not in RENDERERS:
+            raise SceneError(f"scene {self.name!r}: renderer must be one of {RENDERERS}, got {self.renderer!r}")
+        if self.default_preset not in self.presets:
+            raise SceneError(f"scene {self.name!r}: default preset {self.default_preset!r} not in presets")
+        reserved = sorted(set(self.parameters) & set(RESERVED_PARAMETERS))
+        if reserved:
+            raise SceneError(f"scene {self.name!r}: parameter name(s) {reserved} are reserved")
+        if self.parameters:
+            for preset, params in self.presets.items():
+                undeclared = sorted(set(params) - set(self.parameters))
+                if undeclared:
+                    raise SceneError(f"scene {self.name!r}: preset {preset!r} uses undeclared parameter(s) "
+                                     f"{', '.join(undeclared)} (declared: {', '.join(sorted(self.parameters))})")
+
+    @property
+    def known_parameters(self) -> list[str]:
+        """Sorted keys ``--set`` accepts: the declared parameters, else the keys the presets use."""
+        if self.parameters:
+            return sorted(self.parameters)
+        return sorted({k for params in self.presets.values() for k in params})
+
+    @property
+    def code_version(self) -> str:
+        """``"sha256:<16 hex>"`` of the source file defining ``build`` (of its source code when the file
+        cannot be read; ``""`` if neither can): changes whenever the scene family's code is edited."""
+        try:
+            data = Path(inspect.getsourcefile(self.build) or "").read_bytes()
+        except (OSError, TypeError):
+            try:
+                data = inspect.getsource(self.build).encode("utf-8")
+            except (OSError, TypeError):
+                return ""
+        return "sha256:" + hashlib.sha256(data).hexdigest()[:16]
+
+    def spec(self, preset: str | None = None, seed: int = 0, **overrides) -> SceneSpec:
+        """Build the scene for a preset (default if None), with parameter ``overrides`` (see :meth:`build_spec`)."""
+        return self.build_spec(preset, seed, overrides)
+
+    def build_spec(self, preset: str | None = None, seed: int = 0, overrides: Mapping | None = None) -> SceneSpec:
+        """Build the scene for a preset (default if None), with parameter ``overrides`` (a dict, so that any key,
+        even ``seed``, is checked as a parameter name).
+
+        Raises:
+            SceneError: unknown preset, unknown parameter (naming it and listing the known ones), or a build
+                function or spec that fails.
+        """
+        preset = preset or self.default_preset
+        if preset not in self.presets:
+            raise SceneError(f"scene {self.name!r}: unknown preset {preset!r} (known: {sorted(self.presets)})")
+        overrides = dict(overrides or {})
+        known = self.known_parameters
+        for key in overrides:
+            if key in RESERVED_PARAMETERS:
+                hint = "--scene NAME:PRESET" if key == "preset" else "--seed"
+                raise SceneError(f"scene {self.name!r}: {key!r} is not a scene parameter (use {hint})")
+            if key not in known:
+                raise SceneError(f"scene {self.name!r}: unknown parameter {key!r} "
+                                 f"(known: {', '.join(known) or 'none'})")
+        params = {**self.presets[preset], **overrides}
+        try:
+            spec = self.build(dict(params), int(seed))
+            spec.validate()
+        except SceneError:
+            raise
+        except Exception as exc:
+            raise SceneError(f"scene {self.name!r} ({self.source}) failed to build: "
+                             f"{type(exc).__name__}: {exc}") from exc
+        spec.params = {"preset": preset, "seed": int(seed), **params}
+        spec.code_version = self.code_version
+        return spec

@@ -1,6 +1,7 @@
 """Scene registry.
 
-A scene family is one Python file in ``scenes/families/`` that defines ``SCENES``: a list of :class:`SceneEntry`.
+A scene family is one Python file in ``scenes/families/`` that defines ``SCENES``: a list of
+:class:`scenes.model.SceneEntry` (re-exported here).
 Files are found automatically; outside packages register through the entry-point group
 ``tri360.scenes`` (each entry point loads to a ``SceneEntry`` or a list of them).  See ``scenes/README.md``.
 
@@ -11,65 +12,15 @@ from __future__ import annotations
 
 import importlib
 import pkgutil
-from collections.abc import Callable
-from dataclasses import dataclass, field
 from importlib.metadata import entry_points
 
 import scenes.families
-from scenes.model import SceneSpec
+from scenes.model import RENDERERS, RESERVED_PARAMETERS, SceneEntry, SceneError
+
+__all__ = ["ENTRY_POINT_GROUP", "RENDERERS", "RESERVED_PARAMETERS", "SceneEntry", "SceneError", "discover",
+           "get_scene"]
 
 ENTRY_POINT_GROUP = "tri360.scenes"
-BACKENDS = ("blender", "numpy")
-
-
-class SceneError(ValueError):
-    """Unknown scene, unknown preset, or a scene file/build function that failed."""
-
-
-@dataclass(frozen=True)
-class SceneEntry:
-    """A registered scene family.
-
-    Attributes:
-        name: what users type after ``--scene``.
-        build: ``build(params: dict, seed: int) -> SceneSpec``.
-        description: one line for ``tri360 scenes``.
-        presets: named parameter sets; ``default_preset`` is used when none is given.
-        default_preset: key into ``presets``.
-        backend: "blender" (Cycles) or "numpy" (the analytic ray-caster, no Blender needed).
-        source: where it was found (file or entry point), for error messages.
-    """
-
-    name: str
-    build: Callable[[dict, int], SceneSpec]
-    description: str = ""
-    presets: dict[str, dict] = field(default_factory=lambda: {"default": {}})
-    default_preset: str = "default"
-    backend: str = "blender"
-    source: str = ""
-
-    def __post_init__(self):
-        if self.backend not in BACKENDS:
-            raise SceneError(f"scene {self.name!r}: backend must be one of {BACKENDS}, got {self.backend!r}")
-        if self.default_preset not in self.presets:
-            raise SceneError(f"scene {self.name!r}: default preset {self.default_preset!r} not in presets")
-
-    def spec(self, preset: str | None = None, seed: int = 0, **overrides) -> SceneSpec:
-        """Build the scene for a preset (default if None), with parameter ``overrides``."""
-        preset = preset or self.default_preset
-        if preset not in self.presets:
-            raise SceneError(f"scene {self.name!r}: unknown preset {preset!r} (known: {sorted(self.presets)})")
-        params = {**self.presets[preset], **overrides}
-        try:
-            spec = self.build(dict(params), int(seed))
-            spec.validate()
-        except SceneError:
-            raise
-        except Exception as exc:
-            raise SceneError(f"scene {self.name!r} ({self.source}) failed to build: "
-                             f"{type(exc).__name__}: {exc}") from exc
-        spec.params = {"preset": preset, "seed": int(seed), **params}
-        return spec
 
 
 def _collect(obj, source: str) -> list[SceneEntry]:

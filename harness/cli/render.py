@@ -2,16 +2,11 @@
 
 from __future__ import annotations
 
+import argparse
 import os
 
-from harness.jobs.render import (
-    DEFAULT_MAX_BOUNCES,
-    DEFAULT_SAMPLES,
-    DEFAULT_SCENE,
-    DEFAULT_WIDTH,
-    parse_overrides,
-    render_frames,
-)
+from harness.jobs.render import DEFAULT_SCENE, DEFAULTS, MIN_WIDTH, parse_overrides, render_frames
+from harness.render.registry import available_renderers
 from reconstruction.camera.rig import DEFAULT_BASELINE_M
 
 HELP = "render frames of a registered scene into a data root"
@@ -20,23 +15,33 @@ HELP = "render frames of a registered scene into a data root"
 def add_arguments(parser) -> None:
     parser.add_argument("--scene", default=DEFAULT_SCENE, metavar="NAME[:PRESET]",
                         help="scene family and optional preset (see `tri360 scenes`)")
+    parser.add_argument("--renderer", choices=available_renderers(), default=argparse.SUPPRESS,
+                        help="cycles: Blender path tracer; raycast: numpy ray-caster, boxes only, no Blender "
+                             "(default: the scene's own, shown by `tri360 scenes`)")
     parser.add_argument("--viewpoints", type=int, default=1, metavar="N", help="number of rig placements")
-    parser.add_argument("--width", type=int, default=DEFAULT_WIDTH, help="panorama width in pixels (height = width/2)")
-    parser.add_argument("--samples", type=int, default=DEFAULT_SAMPLES,
+    parser.add_argument("--width", type=int, default=DEFAULTS.width,
+                        help=f"panorama width in pixels (height = width/2); even, >= {MIN_WIDTH} (what the flow "
+                             "backends can process), at most what fits in this machine's memory")
+    parser.add_argument("--samples", type=int, default=DEFAULTS.samples,
                         help="Cycles samples per pixel (render time grows about linearly; see docs/rendering.md)")
-    parser.add_argument("--seed", type=int, default=0, help="seed for layout jitter, viewpoints and render noise")
-    parser.add_argument("--threads", type=int, default=0, help="CPU threads for Cycles (0 = all)")
+    parser.add_argument("--seed", type=int, default=DEFAULTS.seed,
+                        help="seed for layout jitter, viewpoints and render noise")
+    parser.add_argument("--threads", type=int, default=DEFAULTS.threads, help="CPU threads for Cycles (0 = all)")
     parser.add_argument("--baseline", type=float, default=DEFAULT_BASELINE_M, help="rig baseline, metres")
-    parser.add_argument("--max-bounces", type=int, default=DEFAULT_MAX_BOUNCES,
-                        help="Cycles total light bounces (diffuse capped at 3, glossy at 2)")
+    parser.add_argument("--max-bounces", type=int, default=DEFAULTS.max_bounces,
+                        help=f"Cycles total light bounces (diffuse capped at {DEFAULTS.diffuse_bounces}, "
+                             f"glossy at {DEFAULTS.glossy_bounces})")
     parser.add_argument("--no-denoise", action="store_true",
-                        help="disable OpenImageDenoise (much noisier colour, far worse reconstruction)")
+                        help="disable Cycles' OpenImageDenoise (much noisier colour, far worse reconstruction)")
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", dest="overrides",
-                        help="override a scene parameter (value parsed as JSON if possible); repeatable")
+                        help="override a scene parameter (value parsed as JSON if possible); repeatable; "
+                             "an unknown KEY is an error that lists the scene's parameters")
     parser.add_argument("--out", default="data", help="data root directory")
-    parser.add_argument("--force", action="store_true", help="re-render frames that are already complete")
+    parser.add_argument("--force", action="store_true",
+                        help="re-render frames that are already complete (otherwise they are kept when rendered "
+                             "with the same settings, and the run is refused when not)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
-    parser.add_argument("--verbose", action="store_true", help="show Blender's own log output")
+    parser.add_argument("--verbose", action="store_true", help="show Blender's own log output (on stderr)")
 
 
 def run(args) -> int:
@@ -44,7 +49,7 @@ def run(args) -> int:
                          samples=args.samples, seed=args.seed, threads=args.threads, baseline=args.baseline,
                          force=args.force, denoise=not args.no_denoise, max_bounces=args.max_bounces,
                          overrides=parse_overrides(args.overrides), progress=not args.quiet,
-                         verbose=args.verbose)
+                         verbose=args.verbose, renderer=getattr(args, "renderer", None))
     for d in dirs:
         print(os.fspath(d))
     return 0

@@ -1,4 +1,4 @@
-"""``tri360 scenes``: list the registered scenes, their presets, backend and description."""
+"""``tri360 scenes``: list the registered scenes, their presets, default renderer, parameters and description."""
 
 from __future__ import annotations
 
@@ -10,7 +10,8 @@ HELP = "list the registered scenes and their presets"
 
 
 def add_arguments(parser) -> None:
-    parser.add_argument("--params", action="store_true", help="also print every preset's parameters")
+    parser.add_argument("--params", action="store_true",
+                        help="also print every scene's parameters (what --set accepts) and every preset's values")
 
 
 def run(args) -> int:
@@ -18,15 +19,17 @@ def run(args) -> int:
     for name in sorted(entries):
         e = entries[name]
         presets = ", ".join(f"{p}*" if p == e.default_preset else p for p in e.presets)
-        print(f"{name:<16} [{e.backend}] presets: {presets}")
+        print(f"{name:<16} [{e.renderer}] presets: {presets}")
         if e.description:
             print(f"{'':<16} {e.description}")
-        if getattr(args, "params", False):
+        if args.params:
+            for key, meaning in sorted(e.parameters.items()):
+                print(f"{'':<16}   --set {key}=...: {meaning}")
             for p, params in e.presets.items():
                 print(f"{'':<16}   {p}: {params}")
     if not entries:
         print("no scenes registered")
-    print("(* = default preset; use --scene NAME:PRESET)")
+    print("(* = default preset; use --scene NAME:PRESET; [renderer] = the default of --renderer)")
     for source, msg in errors.items():
         print(f"warning: {source} failed to load: {msg}", file=sys.stderr)
     return 0

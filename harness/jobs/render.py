@@ -4,37 +4,80 @@ Library use::
 
     from harness.jobs.render import render_frames
     dirs = render_frames("classroom:small", viewpoints=2, out_root="data", width=256, samples=8)
+    dirs = render_frames("box_room", out_root="data", width=256, renderer="raycast")
 
 Frames land in ``<out>/<scene>/vp000``, ``vp001``, ... (``<scene>`` is the family name, or
-``family-preset`` for a non-default preset).  The run is resumable: a frame directory that already reads
-and validates is skipped (unless ``force``), and every frame is written atomically, so an interrupted run
-never leaves a complete-looking frame behind.  Blender (``bpy``) is imported only when a scene with the
-``"blender"`` backend is actually rendered.
+``family-preset`` for a non-default preset).  The renderer is the scene's default (``tri360 scenes``) unless
+one is named.  The run is resumable: a frame directory that already reads and validates is skipped when it was
+rendered with the same settings, refused (naming every difference) when it was not, and re-rendered with
+``force``.  Every frame is written atomically, so an interrupted run never leaves a complete-looking frame
+behind.  Blender (``bpy``) is loaded only by the Cycles worker process, never by this one.
 """
 
 from __future__ import annotations
 
-import importlib
 import json
+import math
+import os
 import tempfile
 from pathlib import Path
 
+import numpy as np
 from tqdm import tqdm
 
+from harness.data.atomic import clean_stale_partials
 from harness.data.errors import UserError
 from harness.data.frame import frame_dir, is_complete, write_frame
-from harness.render.raycast import render_frame
-from reconstruction.camera.rig import CAMERA_NAMES, DEFAULT_BASELINE_M
+from harness.render.base import RenderSettings, identity, recorded_identity
+from harness.render.registry import get_renderer
+from reconstruction.camera.rig import CAMERA_NAMES, DEFAULT_BASELINE_M, Rig
+from reconstruction.flow.backends import builtin_flows
 from scenes.model import choose_viewpoints
 from scenes.registry import get_scene
 
-# Defaults chosen by the study in docs/rendering.md (16 spp + OIDN 'accurate', light tree, max bounces 4:
-# every cheaper setting measured there costs reconstruction accuracy; the other Cycles settings live in
-# harness.render.cycles.RenderSettings and are recorded in each frame's renderer provenance).
-DEFAULT_WIDTH = 1000
-DEFAULT_SAMPLES = 12
-DEFAULT_MAX_BOUNCES = 4
+DEFAULTS = RenderSettings()
+"""The render defaults (``harness.render.base.RenderSettings``), the single source for the CLI and this job."""
 DEFAULT_SCENE = "classroom"
+
+MIN_WIDTH_BY_FLOW = {b.name: b.min_width for b in builtin_flows()}
+"""Smallest even width, pixels, at which each built-in flow backend runs and gives finite output (each backend's
+``min_width``, measured with ``reconstruction.flow.matching.match_pair`` (pairs C-U and C-R, forward and backward
+flow) on ``tests/helpers.make_synthetic_frame(width)`` for every even width from 8 to 64, then every 4th to 160
+(rlof: every even width from 60 to 400), rectified and plain alike).  At 60 and 62 px the whole ``reconstruct``
+(every flow, rectified and plain, every variant) gives finite output."""
+MIN_WIDTH = max(MIN_WIDTH_BY_FLOW.values())
+"""Smallest width ``render`` accepts, pixels: every flow backend can process it."""
+
+# Peak resident memory grows linearly with the pixel count W * W / 2.  Measured as the peak RSS (getrusage
+# ru_maxrss) of child processes at 500, 1000 and 2000 px wide (125 k, 500 k, 2 M pixels):
+# - reconstruction (``reconstruct`` of a synthetic_box frame, every variant; dis / deepflow / farneback / rlof,
+#   rectified and plain): 170-176 MiB, 370-395 MiB, 1290-1304 MiB (dis, deepflow) -> 612 B/px from 500 to 1000 px
+#   and 632 B/px from 500 to 2000 px (the widest flow); intercept about 100 MiB;
+# - Cycles rendering (classroom, 1 sample, OIDN on): the worker 550, 861, 2120 MiB -> 878 B/px, intercept 445 MiB;
+#   this process 91, 100, 137 MiB -> 26 B/px (the frame's arrays); the ray-caster renders in bounded chunks
+#   (137 and 169 MiB at 500 and 1000 px: 90 B/px).
+RECONSTRUCT_BYTES_PER_PIXEL = 640
+"""Peak memory of reconstructing one frame, bytes per pixel of W x W/2 (measured 632, rounded up)."""
+RENDER_BYTES_PER_PIXEL = 910
+"""Peak memory of rendering one frame with Cycles (worker + this process), bytes per pixel (measured 878 + 26)."""
+BASE_BYTES = 1 << 30
+"""Memory that does not grow with the width (Python, NumPy, OpenCV, Blender: measured about 0.55 GiB), bytes."""
+MEMORY_SHARE = 0.8
+"""Share of the physical memory a render or reconstruction may plan to use (the rest: the OS, other programs)."""
+
+
+def physical_memory_bytes() -> int:
+    """Physical memory of this machine, bytes (``SC_PHYS_PAGES * SC_PAGE_SIZE``)."""
+    return os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+
+
+def max_width(memory_bytes: int | None = None) -> int:
+    """The largest even width whose rendering and (separately) reconstruction fit in ``MEMORY_SHARE`` of
+    ``memory_bytes`` (default: the physical memory), from the measured bytes per pixel."""
+    memory = physical_memory_bytes() if memory_bytes is None else memory_bytes
+    per_pixel = max(RECONSTRUCT_BYTES_PER_PIXEL, RENDER_BYTES_PER_PIXEL)
+    pixels = max(0.0, MEMORY_SHARE * memory - BASE_BYTES) / per_pixel  # W * W / 2
+    return int(math.sqrt(2 * pixels)) // 2 * 2
 
 
 def scene_dir_name(family: str, preset: str, default_preset: str) -> str:
@@ -56,12 +99,29 @@ def parse_overrides(items: list[str] | None) -> dict:
     return out
 
 
+def check_width(width: int, memory_bytes: int | None = None) -> None:
+    """Raise UserError unless ``width`` is even and within [``MIN_WIDTH``, :func:`max_width`], with the reason."""
+    if width % 2:
+        raise UserError(f"--width must be an even number (height = width / 2), got {width}")
+    if width < MIN_WIDTH:
+        needs = ", ".join(f"{k} {v}" for k, v in sorted(MIN_WIDTH_BY_FLOW.items(), key=lambda kv: -kv[1]) if v > width)
+        raise UserError(f"--width must be >= {MIN_WIDTH}, got {width}: the reconstruction's flow backends fail "
+                        f"on smaller images (minimum widths: {needs})")
+    top = max_width(memory_bytes)
+    if width > top:
+        memory = physical_memory_bytes() if memory_bytes is None else memory_bytes
+        per_pixel = max(RECONSTRUCT_BYTES_PER_PIXEL, RENDER_BYTES_PER_PIXEL)
+        need = BASE_BYTES + per_pixel * width * (width // 2)
+        raise UserError(f"--width {width} needs about {need / 2**30:.1f} GiB to render and reconstruct "
+                        f"({per_pixel} bytes per pixel), more than {MEMORY_SHARE:.0%} of this machine's "
+                        f"{memory / 2**30:.1f} GiB; use --width {top} or less")
+
+
 def _check_options(viewpoints: int, width: int, samples: int, threads: int, baseline: float,
                    max_bounces: int) -> None:
     if viewpoints < 1:
         raise UserError(f"--viewpoints must be >= 1, got {viewpoints}")
-    if width < 8 or width % 2:
-        raise UserError(f"--width must be an even number >= 8 (height = width / 2), got {width}")
+    check_width(width)
     if samples < 1:
         raise UserError(f"--samples must be >= 1, got {samples}")
     if threads < 0:
@@ -81,88 +141,137 @@ def _check_writable(directory: Path) -> None:
         raise UserError(f"output directory {directory} is not writable ({exc.strerror or exc})") from None
 
 
-def _existing_matches(directory: Path, width: int, params: dict) -> bool:
-    """True if the complete frame at ``directory`` was rendered at ``width`` from the same scene params."""
-    meta = json.loads((directory / "frame.json").read_text(encoding="utf-8"))
-    params = json.loads(json.dumps(params))  # tuples -> lists, as stored
-    return meta.get("width") == width and meta.get("renderer", {}).get("scene_params", params) == params
+def _short(value) -> str:
+    text = json.dumps(value) if not isinstance(value, str) else value
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def differences(meta: dict, planned: dict, rig: Rig) -> list[str]:
+    """What differs between a stored frame (parsed ``frame.json``) and the render planned now.
+
+    Args:
+        meta: the stored frame's metadata.
+        planned: :func:`harness.render.base.identity` of the planned render.
+        rig: the planned rig placement (its camera poses must equal the stored ones).
+    Returns:
+        One short phrase per difference, e.g. ``"samples 16 (now 12)"``; empty if it is the same render.
+    """
+    stored = recorded_identity(meta)
+    out = []
+    for key, want in planned.items():
+        have = stored.get(key)
+        if key == "scene params" and isinstance(have, dict) and isinstance(want, dict):
+            keys = sorted(set(have) | set(want))
+            out += [f"scene parameter {k} {_short(have.get(k, 'unset'))} (now {_short(want.get(k, 'unset'))})"
+                    for k in keys if have.get(k, "unset") != want.get(k, "unset")]
+        elif have != want:
+            out.append(f"{key} {_short(have) if have is not None else 'not recorded'} (now {_short(want)})")
+    if not out:
+        for name, pose in rig.poses().items():
+            try:
+                cam = meta["cameras"][name]
+                same = (np.allclose(cam["position"], pose.position, atol=1e-9)
+                        and np.allclose(cam["rotation"], pose.rotation, atol=1e-9))
+            except (KeyError, TypeError, ValueError):
+                same = False
+            if not same:
+                out.append("camera poses (the viewpoint placement changed)")
+                break
+    return out
 
 
 def render_frames(scene_name: str = DEFAULT_SCENE, viewpoints: int = 1, out_root: Path | str = "data",
-                  width: int = DEFAULT_WIDTH, samples: int = DEFAULT_SAMPLES, seed: int = 0, threads: int = 0,
-                  baseline: float = DEFAULT_BASELINE_M, force: bool = False, denoise: bool = True,
-                  max_bounces: int = DEFAULT_MAX_BOUNCES, overrides: dict | None = None,
-                  progress: bool = True, verbose: bool = False) -> list[Path]:
+                  width: int = DEFAULTS.width, samples: int = DEFAULTS.samples, seed: int = DEFAULTS.seed,
+                  threads: int = DEFAULTS.threads, baseline: float = DEFAULT_BASELINE_M, force: bool = False,
+                  denoise: bool = DEFAULTS.denoise, max_bounces: int = DEFAULTS.max_bounces,
+                  overrides: dict | None = None, progress: bool = True, verbose: bool = False,
+                  renderer: str | None = None) -> list[Path]:
     """Render ``viewpoints`` rig placements of a scene into ``out_root`` and return the frame directories.
 
     Args:
         scene_name: ``family`` or ``family:preset`` (see ``tri360 scenes``).
         viewpoints: number of rig placements, named ``vp000``, ``vp001``, ... (``choose_viewpoints``).
         out_root: data root; frames go to ``<out_root>/<scene>/<viewpoint>/``.
-        width: panorama width, pixels (height = width / 2); even, >= 8.
-        samples: Cycles samples per pixel (Blender scenes only).
+        width: panorama width, pixels (height = width / 2); even, within [``MIN_WIDTH``, :func:`max_width`].
+        samples: Cycles samples per pixel.
         seed: one seed for the scene layout jitter, the viewpoint draw and Cycles' noise pattern.
         threads: CPU threads for Cycles, 0 = all.
         baseline: rig baseline C-U and C-R, metres.
-        force: re-render frames that are already complete.
-        denoise: OpenImageDenoise on the colour images (Blender only; distance is never denoised).
+        force: re-render frames that are already complete (whatever they were rendered with).
+        denoise: OpenImageDenoise on Cycles' colour images (distance is never denoised).
         max_bounces: Cycles light bounces.
-        overrides: scene parameters overriding the preset's (e.g. ``{"model_path": "chair.glb"}``).
-        progress: show a tqdm bar advancing per rendered camera view.
-        verbose: let Blender print its own log lines.
+        overrides: scene parameters overriding the preset's (e.g. ``{"model_path": "chair.glb"}``); each key
+            must be one of the scene's parameters.
+        progress: show a tqdm bar (on stderr) advancing per rendered camera view.
+        verbose: let Blender print its own log lines (to stderr).
+        renderer: ``"cycles"`` or ``"raycast"``; None = the scene's default.
 
     Raises:
-        UserError: bad option, unwritable output, no free viewpoints, or an existing frame rendered with
-            other settings (use ``force``).
-        SceneError: unknown scene or preset, or a scene file that fails.
+        UserError: bad option, unwritable output, no free viewpoints, a scene the renderer cannot draw, an
+            existing frame rendered with other settings (naming them; use ``force``), or a renderer failure.
+        SceneError: unknown scene, preset or scene parameter, or a scene file that fails.
     """
 
     _check_options(viewpoints, width, samples, threads, baseline, max_bounces)
     entry, preset = get_scene(scene_name)
-    spec = entry.spec(preset, seed, **(overrides or {}))
+    spec = entry.build_spec(preset, seed, overrides)
+    renderer = renderer or entry.renderer
+    backend = get_renderer(renderer)
+    reason = backend.unsupported(spec)
+    if reason:
+        raise UserError(f"renderer {renderer!r} cannot draw scene {scene_name!r}: {reason}")
+    settings = RenderSettings(width=width, samples=samples, seed=seed, threads=threads, denoise=denoise,
+                              max_bounces=max_bounces)
     scene_dir = scene_dir_name(entry.name, preset, entry.default_preset)
     try:
         rigs = choose_viewpoints(spec, viewpoints, seed, baseline_m=baseline)
     except ValueError as exc:
         raise UserError(str(exc)) from None
     out_root = Path(out_root)
-    _check_writable(out_root / scene_dir)
+    planned = identity(renderer, backend.pixel_settings, settings, spec, baseline)
 
     todo = []
     for i, rig in enumerate(rigs):
         vp = f"vp{i:03d}"
         d = frame_dir(out_root, scene_dir, vp)
         if not force and is_complete(d):
-            if not _existing_matches(d, width, spec.params):
-                raise UserError(f"{d} holds a frame rendered with other settings (width or scene params); "
-                                f"use --force to replace it or choose another --out")
+            diff = differences(json.loads((d / "frame.json").read_text(encoding="utf-8")), planned, rig)
+            if diff:
+                raise UserError(f"{d} holds a frame rendered with other settings: {'; '.join(diff)}; "
+                                f"use --force to re-render it or choose another --out")
             continue
         todo.append((vp, rig))
+    dirs = [frame_dir(out_root, scene_dir, f"vp{i:03d}") for i in range(len(rigs))]
+    created = [p for p in (out_root / scene_dir, *(out_root / scene_dir).parents) if not p.exists()]
+    _check_writable(out_root / scene_dir)
+    clean_stale_partials(out_root / scene_dir)  # hidden half-written frames of killed runs
+    if not todo:
+        return dirs
 
-    bar = tqdm(total=len(todo) * len(CAMERA_NAMES), unit="view", disable=not progress or not todo,
-               desc=scene_dir, dynamic_ncols=True)
-    renderer = None
+    bar = tqdm(total=len(todo) * len(CAMERA_NAMES), unit="view", disable=not progress,
+               desc=f"{scene_dir} ({renderer})", dynamic_ncols=True)
     try:
-        for vp, rig in todo:
-            bar.set_postfix_str(vp)
-            if entry.backend == "blender":
-                if renderer is None:
-                    blender = importlib.import_module("harness.render.cycles")  # lazy: only here is bpy loaded
-                    settings = blender.RenderSettings(width=width, samples=samples, seed=seed, threads=threads,
-                                                      denoise=denoise, max_bounces=max_bounces)
-                    renderer = blender.SceneRenderer(spec, settings, verbose=verbose)
+        with backend(spec, settings, verbose=verbose) as drawer:
+            for vp, rig in todo:
+                bar.set_postfix_str(vp)
 
                 def on_camera(name, seconds, vp=vp):
                     bar.set_postfix_str(f"{vp}/{name} {seconds:.1f}s")
                     bar.update(1)
 
-                frame = renderer.render(rig, scene=scene_dir, viewpoint=vp, on_camera=on_camera)
-            else:
-                frame = render_frame(spec, rig, width, scene_dir, vp)
-                bar.update(len(CAMERA_NAMES))
-            frame.renderer.setdefault("seed", seed)
-            frame.renderer.setdefault("scene_params", spec.params)
-            write_frame(frame, out_root)
+                write_frame(drawer.render(rig, scene=scene_dir, viewpoint=vp, on_camera=on_camera), out_root)
+    except BaseException:
+        _remove_if_empty(created)  # an interrupted first render leaves no empty directories behind
+        raise
     finally:
         bar.close()
-    return [frame_dir(out_root, scene_dir, f"vp{i:03d}") for i in range(len(rigs))]
+    return dirs
+
+
+def _remove_if_empty(directories: list[Path]) -> None:
+    """rmdir each directory (innermost first) that is still empty; stop at the first that is not."""
+    for d in directories:
+        try:
+            d.rmdir()
+        except OSError:
+            return

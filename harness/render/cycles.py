@@ -1,12 +1,13 @@
-"""The Blender (Cycles) backend: translate a :class:`scenes.model.SceneSpec` into a bpy scene and render it.
+"""The Blender (Cycles) translation: build a :class:`scenes.model.SceneSpec` as a bpy scene and render cameras.
 
-This is the ONLY module of tri360 that imports ``bpy``.  ``harness.jobs.render`` imports it lazily, only when a
-scene whose backend is ``"blender"`` is rendered, so ``import harness.cli`` never loads Blender.
+This is the ONLY module of tri360 that imports ``bpy``, and only the Cycles worker process
+(:mod:`harness.render.cycles_worker`, started by :class:`harness.render.cycles_renderer.CyclesRenderer`) loads it,
+with ``importlib``, so neither ``import harness.cli`` nor a render job's own process ever loads Blender.
 
-Usage::
+Usage (inside the worker)::
 
-    renderer = SceneRenderer(spec, RenderSettings(width=1000, samples=16))   # builds the scene once
-    frame = renderer.render(rig, scene="classroom", viewpoint="vp000")       # -> harness.data.frame.Frame
+    scene = SceneRenderer(spec, RenderSettings(width=1000, samples=12))   # builds the bpy scene once
+    image, distance = scene.render_camera("C", pose, workdir)             # (H, W, 3) uint8, (H, W) float32 m
 
 What a render is (the choices a reader of the data needs to know):
 
@@ -15,10 +16,10 @@ What a render is (the choices a reader of the data needs to know):
 - Each camera is written by Cycles straight to a multi-layer EXR (Combined + Depth).  The Depth pass of a
   panoramic camera is the Euclidean distance to the surface seen through the pixel centre (sample 0), so
   it is exact ground truth whatever the sample count or denoiser; Cycles' 1e10 "no hit" becomes +inf.
-- Colour: Combined is scene-linear Rec.709.  We apply the **Standard** view transform ourselves (exposure 0,
-  gamma 1, no look): clip to [0, 1], sRGB transfer function, round to 8 bits.  This equals what Blender's
-  own 'Standard' PNG output gives, and avoids AgX's tone curve (which would make colour depend on the
-  view transform rather than on the surface).
+- Colour: Combined is scene-linear Rec.709.  We apply the **Standard** view transform ourselves with
+  :func:`harness.render.base.srgb_encode` (exposure 0, gamma 1, no look): clip to [0, 1], sRGB transfer
+  function, round to 8 bits.  This equals what Blender's own 'Standard' PNG output gives, and avoids AgX's
+  tone curve (which would make colour depend on the view transform rather than on the surface).
 - Camera pose: tri360 camera axes are X right, Y forward, Z up.  A Blender camera looks along its local
   -Z with local +Y up, so its world matrix has columns ``[X, Z, -Y]`` of our pose (equivalently: a camera
   object with ``rotation_euler = (90 deg, 0, 0)`` relative to the rig).
@@ -26,70 +27,22 @@ What a render is (the choices a reader of the data needs to know):
 
 from __future__ import annotations
 
-import contextlib
 import os
-import tempfile
-import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import bpy
 import mathutils
 import numpy as np
-import OpenEXR
 
-from harness import __version__
-from harness.data.frame import Frame, read_distance_exr
-from reconstruction.camera.rig import CAMERA_NAMES, CameraPose, Rig
+from harness.data.exr import distance_map, float_channel, read_exr_channels
+from harness.render.base import RenderSettings, srgb_encode
+from reconstruction.camera.rig import CAMERA_NAMES, CameraPose
 from scenes.model import Box, Light, Material, ModelFile, SceneSpec
 
 DEPTH_CHANNEL = "ViewLayer.Depth.Z"
 COMBINED_LAYER = "ViewLayer.Combined"
 VIEW_TRANSFORM = "Standard"
-
-
-@dataclass(frozen=True)
-class RenderSettings:
-    """Cycles settings for one render job.
-
-    Attributes:
-        width: panorama width, pixels (height = width / 2).
-        samples: path-traced samples per pixel (adaptive sampling is off).
-        seed: Cycles sampling seed (noise pattern); same seed + samples + threads -> identical pixels.
-        threads: CPU threads, 0 = all cores.
-        denoise: run OpenImageDenoise (CPU) on Combined; Depth is never denoised.
-        max_bounces: total light bounces; diffuse/glossy are capped at this, transmission/transparent
-            may go a little higher so glass stays clear.
-        diffuse_bounces, glossy_bounces: per-type bounce limits (each also capped at ``max_bounces``).
-        filter_width: pixel filter (Blackman-Harris) width, pixels.
-        clamp_indirect: clamp on indirect sample values (0 = off); suppresses fireflies at low samples.
-        light_tree: Cycles' light tree for picking which light to sample.
-        denoise_prefilter: OIDN guide-pass prefilter, ``"ACCURATE"``, ``"FAST"`` or ``"NONE"``.
-        denoise_quality: OIDN quality, ``"HIGH"``, ``"BALANCED"`` or ``"FAST"``.
-
-    The defaults are the result of the study in ``docs/rendering.md`` (1000 x 500 classroom): the cheaper
-    settings tried there (light tree off, FAST prefilter, diffuse 1 / glossy 1 bounces, fewer samples,
-    fast GI) each cost reconstruction accuracy, so none of them is the default.
-    """
-
-    width: int = 1000
-    samples: int = 12
-    seed: int = 0
-    threads: int = 0
-    denoise: bool = True
-    max_bounces: int = 4
-    diffuse_bounces: int = 3
-    glossy_bounces: int = 2
-    filter_width: float = 1.5
-    clamp_indirect: float = 10.0
-    light_tree: bool = True
-    denoise_prefilter: str = "ACCURATE"
-    denoise_quality: str = "HIGH"
-
-    @property
-    def height(self) -> int:
-        return self.width // 2
 
 
 # ------------------------------------------------------------------------------------------- materials
@@ -310,62 +263,31 @@ def blender_camera_matrix(pose: CameraPose) -> np.ndarray:
     return m
 
 
-def linear_to_srgb8(rgb: np.ndarray) -> np.ndarray:
-    """Scene-linear RGB (H, W, 3) float -> 8-bit sRGB (Blender's 'Standard' view transform, exposure 0)."""
-    x = np.clip(np.nan_to_num(np.asarray(rgb, dtype=np.float64), nan=0.0), 0.0, 1.0)
-    s = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1.0 / 2.4) - 0.055)
-    return np.floor(s * 255.0 + 0.5).astype(np.uint8)
-
-
-def _read_combined(path: Path) -> np.ndarray:
-    """(H, W, 3) float32 linear RGB from the Combined layer of a (multi-part) Blender EXR."""
-    channels = {}
-    for part in OpenEXR.File(str(path), separate_channels=True).parts:
-        channels.update(part.channels)
-    try:
-        return np.stack([channels[f"{COMBINED_LAYER}.{c}"].pixels for c in "RGB"], axis=-1).astype(np.float32)
-    except KeyError:
-        raise RuntimeError(f"{path}: no {COMBINED_LAYER} RGB channels (found {sorted(channels)})") from None
-
-
-@contextlib.contextmanager
-def _stdout_to(log_path: Path):
-    """Send C-level stdout (Cycles' progress lines) to ``log_path`` while rendering."""
-    import sys
-
-    sys.stdout.flush()
-    saved = os.dup(1)
-    with open(log_path, "ab") as log:
-        os.dup2(log.fileno(), 1)
-        try:
-            yield
-        finally:
-            sys.stdout.flush()
-            os.dup2(saved, 1)
-            os.close(saved)
+def _read_render(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """A Cycles multi-layer (multi-part) EXR -> ((H, W, 3) float32 linear RGB of the Combined layer,
+    (H, W) float32 distance in metres from the Depth pass, +inf = no surface)."""
+    channels = read_exr_channels(path)
+    rgb = np.stack([float_channel(channels, path, f"{COMBINED_LAYER}.{c}") for c in "RGB"], axis=-1)
+    return rgb, distance_map(float_channel(channels, path, DEPTH_CHANNEL), path, DEPTH_CHANNEL)
 
 
 # -------------------------------------------------------------------------------------------- renderer
 
 
 class SceneRenderer:
-    """A built Blender scene for one :class:`SceneSpec`; renders rig placements into :class:`Frame` objects.
+    """A built Blender scene for one :class:`SceneSpec`; renders single cameras.
 
     The constructor resets Blender to an empty factory scene and builds materials, boxes, lights and models
-    once; :meth:`render` only moves the three cameras, so consecutive viewpoints reuse the synced scene
-    (``render.use_persistent_data``).  Only one SceneRenderer is meaningful at a time (bpy is global state).
+    once; :meth:`render_camera` only moves the camera, so consecutive cameras and viewpoints reuse the synced
+    scene (``render.use_persistent_data``).  Only one SceneRenderer is meaningful at a time (bpy is global
+    state), which is one reason it lives in its own worker process.
     """
 
-    def __init__(self, spec: SceneSpec, settings: RenderSettings, verbose: bool = False):
-        if settings.width < 8 or settings.width % 2:
-            raise ValueError(f"width must be even and >= 8, got {settings.width}")
-        if settings.samples < 1:
-            raise ValueError(f"samples must be >= 1, got {settings.samples}")
+    def __init__(self, spec: SceneSpec, settings: RenderSettings):
+        settings.check()
         spec.validate()
         self.spec = spec
         self.settings = settings
-        self.verbose = verbose
-        t0 = time.perf_counter()
         bpy.ops.wm.read_factory_settings(use_empty=True)
         self.scene = bpy.context.scene
         self._configure()
@@ -387,7 +309,6 @@ class SceneRenderer:
             ob = bpy.data.objects.new(name, cam)
             coll.objects.link(ob)
             self.cameras[name] = ob
-        self.build_seconds = time.perf_counter() - t0
 
     def _configure(self) -> None:
         s, sc = self.settings, self.scene
@@ -445,15 +366,15 @@ class SceneRenderer:
         bg.inputs["Strength"].default_value = 1.0
         sc.world = world
 
-    def provenance(self) -> dict:
+    def engine_info(self) -> dict:
+        """What Cycles actually ran with (read back from the bpy scene), for frame provenance."""
         s, cy = self.settings, self.scene.cycles
         return {
-            "engine": "CYCLES", "device": "CPU", "blender_version": bpy.app.version_string,
-            "samples": s.samples, "adaptive_sampling": False,
+            "engine": "CYCLES", "versions": {"blender": bpy.app.version_string}, "device": "CPU",
+            "threads": s.threads or os.cpu_count(), "adaptive_sampling": False,
             "denoiser": "OPENIMAGEDENOISE" if s.denoise else "none",
             "denoiser_settings": ({"input_passes": "RGB_ALBEDO_NORMAL", "prefilter": s.denoise_prefilter,
                                    "quality": s.denoise_quality} if s.denoise else None),
-            "seed": s.seed, "threads": s.threads or os.cpu_count(), "max_bounces": s.max_bounces,
             "bounces": {k: getattr(cy, f"{k}_bounces") for k in ("max", "diffuse", "glossy", "transmission",
                                                                    "volume")}
                        | {"transparent": cy.transparent_max_bounces},
@@ -462,60 +383,26 @@ class SceneRenderer:
             "pixel_filter": {"type": "BLACKMAN_HARRIS", "width_px": s.filter_width},
             "clamp_indirect": s.clamp_indirect, "view_transform": VIEW_TRANSFORM,
             "distance": "Cycles Depth pass (panoramic camera: Euclidean, pixel centre, sample 0)",
-            "scene": self.spec.name, "scene_params": self.spec.params,
-            "tri360_version": __version__, "build_seconds": round(self.build_seconds, 3),
-            "settings": asdict(s),
         }
 
-    def render_camera(self, name: str, pose: CameraPose, workdir: Path) -> tuple[np.ndarray, np.ndarray, float]:
-        """Render one camera -> ((H, W, 3) uint8 sRGB, (H, W) float32 distance metres, seconds)."""
+    def render_camera(self, name: str, pose: CameraPose, workdir: Path) -> tuple[np.ndarray, np.ndarray]:
+        """Render one camera -> ((H, W, 3) uint8 sRGB, (H, W) float32 distance in metres, +inf = no surface).
+
+        Cycles writes ``<workdir>/<name>.exr``, which is read and removed.
+        """
         ob = self.cameras[name]
         ob.matrix_world = mathutils.Matrix(blender_camera_matrix(pose).tolist())
         self.scene.camera = ob
-        path = workdir / f"{name}.exr"
+        path = Path(workdir) / f"{name}.exr"
         self.scene.render.filepath = str(path)
-        t0 = time.perf_counter()
-        ctx = contextlib.nullcontext() if self.verbose else _stdout_to(workdir / "blender.log")
-        with ctx:
-            bpy.ops.render.render(write_still=True, scene=self.scene.name)
-        seconds = time.perf_counter() - t0
+        bpy.ops.render.render(write_still=True, scene=self.scene.name)
         if not path.is_file():
-            raise RuntimeError(f"Cycles wrote no image for camera {name} (see {workdir / 'blender.log'})")
-        image = linear_to_srgb8(_read_combined(path))
-        distance = read_distance_exr(path, channel=DEPTH_CHANNEL)
-        path.unlink()
-        return image, distance, seconds
-
-    def render(self, rig: Rig, scene: str, viewpoint: str,
-               on_camera: Callable[[str, float], None] | None = None) -> Frame:
-        """Render the rig's three cameras (C, U, R) -> a :class:`Frame` (not yet written to disk).
-
-        Args:
-            rig: the rig placement.
-            scene, viewpoint: names recorded in the frame (its directory levels).
-            on_camera: called as ``on_camera(camera_name, seconds)`` after each camera (progress bars).
-        """
-        poses = rig.poses()
-        images, distance, seconds = {}, {}, {}
-        with tempfile.TemporaryDirectory(prefix="tri360-blender-") as tmp:
-            for name in CAMERA_NAMES:
-                images[name], distance[name], seconds[name] = self.render_camera(name, poses[name], Path(tmp))
-                if on_camera is not None:
-                    on_camera(name, seconds[name])
-        renderer = self.provenance()
-        renderer["render_seconds"] = {k: round(v, 3) for k, v in seconds.items()}
-        renderer["rig"] = {"position": [float(x) for x in rig.position], "yaw_rad": float(rig.yaw_rad),
-                           "baseline_m": float(rig.baseline_m)}
-        s = self.settings
-        return Frame(scene=scene, viewpoint=viewpoint, width=s.width, height=s.height,
-                     baseline_m=float(rig.baseline_m), cameras=poses, images=images, distance=distance,
-                     renderer=renderer)
+            raise RuntimeError(f"Cycles wrote no image for camera {name}")
+        try:
+            rgb, distance = _read_render(path)
+        finally:
+            path.unlink(missing_ok=True)
+        return srgb_encode(rgb), distance
 
 
-def render_frame(spec: SceneSpec, rig: Rig, settings: RenderSettings, scene: str, viewpoint: str) -> Frame:
-    """Convenience: build ``spec`` and render one rig placement (use :class:`SceneRenderer` for several)."""
-    return SceneRenderer(spec, settings).render(rig, scene, viewpoint)
-
-
-__all__ = ["RenderSettings", "SceneRenderer", "render_frame", "blender_camera_matrix", "linear_to_srgb8",
-           "DEPTH_CHANNEL"]
+__all__ = ["RenderSettings", "SceneRenderer", "blender_camera_matrix", "DEPTH_CHANNEL"]

@@ -22,21 +22,20 @@ of power P has intensity P / (4 pi) W/sr, an area light P cos(theta) / pi W/sr t
 
 from __future__ import annotations
 
-import time
 import zlib
 from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
-import harness
 from harness.data.frame import Frame
+from harness.render.base import BaseRenderer, RenderSettings, srgb_encode
 from reconstruction.camera.equirect import bearing_grid, pixel_to_bearing
-from reconstruction.camera.rig import CAMERA_NAMES, Rig
+from reconstruction.camera.rig import CameraPose, Rig, yaw_rotation
 from scenes.model import Box, Material, SceneSpec
 
-__all__ = ["ENGINE", "AMBIENT", "raycast", "shade", "render_camera", "render_frame", "value_noise", "fbm",
-           "srgb_encode", "TEXTURES"]
+__all__ = ["ENGINE", "AMBIENT", "RaycastRenderer", "raycast", "shade", "render_camera", "render_frame",
+           "value_noise", "fbm", "TEXTURES"]
 
 ENGINE = "tri360-raycast"
 AMBIENT = 0.15
@@ -54,28 +53,33 @@ _T_EPS = 1e-12  # metres; hits closer than this to the ray origin are ignored
 
 @dataclass(frozen=True)
 class _BoxGeom:
-    """A box prepared for intersection: centre (3,), half extents (3,), yaw cos/sin, normal sign."""
+    """A box prepared for intersection: centre (3,), half extents (3,), world-from-box rotation, normal sign."""
 
     center: np.ndarray
     half: np.ndarray
-    cos: float
-    sin: float
+    rot: np.ndarray  # (3, 3) world-from-box: yaw_rotation(box.yaw)
     normal_sign: float  # +1: normals point out of the box (solid); -1: into it (room shell)
 
     @classmethod
     def of(cls, box: Box) -> _BoxGeom:
         return cls(np.asarray(box.center, dtype=np.float64), np.asarray(box.size, dtype=np.float64) / 2.0,
-                   float(np.cos(box.yaw)), float(np.sin(box.yaw)), -1.0 if box.inward else 1.0)
+                   yaw_rotation(box.yaw), -1.0 if box.inward else 1.0)
+
+    @property
+    def cos(self) -> float:
+        return float(self.rot[0, 0])
+
+    @property
+    def sin(self) -> float:
+        return float(self.rot[1, 0])
 
     def to_local(self, v: np.ndarray) -> np.ndarray:
         """World vectors (N, 3) -> box-local axes (N, 3) (rotate by -yaw; no translation)."""
-        c, s = self.cos, self.sin
-        return np.stack([c * v[:, 0] + s * v[:, 1], -s * v[:, 0] + c * v[:, 1], v[:, 2]], axis=1)
+        return v @ self.rot
 
     def to_world(self, v: np.ndarray) -> np.ndarray:
         """Box-local vectors (N, 3) -> world (rotate by +yaw; no translation)."""
-        c, s = self.cos, self.sin
-        return np.stack([c * v[:, 0] - s * v[:, 1], s * v[:, 0] + c * v[:, 1], v[:, 2]], axis=1)
+        return v @ self.rot.T
 
 
 def _face_of(g: _BoxGeom, points: np.ndarray) -> np.ndarray:
@@ -436,13 +440,6 @@ def shade(spec: SceneSpec, points: np.ndarray, box_index: np.ndarray, face_index
     return out
 
 
-def srgb_encode(linear: np.ndarray) -> np.ndarray:
-    """Linear RGB (..., 3) (clipped to [0, 1]) -> 8-bit sRGB (..., 3) uint8 (IEC 61966-2-1 curve)."""
-    x = np.clip(np.asarray(linear, dtype=np.float32), 0.0, 1.0)
-    s = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1.0 / 2.4) - 0.055)
-    return np.round(s * 255.0).astype(np.uint8)
-
-
 # --------------------------------------------------------------------------------------------- rendering
 
 
@@ -498,9 +495,44 @@ def _bearings(w: int, h: int, rot: np.ndarray, r0: int, r1: int, sub: np.ndarray
     return pixel_to_bearing(uu, vv, w, h) @ rot.T
 
 
+class RaycastRenderer(BaseRenderer):
+    """The numpy ray-caster as a :class:`harness.render.base.BaseRenderer` (boxes only, exact distance).
+
+    Uses ``settings.width`` and ``settings.supersample``; the Cycles settings do not apply.
+    """
+
+    name = "raycast"
+    description = "numpy ray-caster: boxes only, exact distance, simple view-independent shading, no Blender"
+    pixel_settings = ("width", "supersample")
+
+    @classmethod
+    def unsupported(cls, spec: SceneSpec) -> str | None:
+        if spec.models:
+            names = ", ".join(str(m.path) for m in spec.models)
+            return (f"it places {len(spec.models)} external model file(s) ({names}) and the ray-caster draws "
+                    "boxes only (use --renderer cycles)")
+        used = {b.material for b in spec.boxes}
+        glass = sorted(n for n, m in spec.materials.items() if m.kind == "glass" and n in used)
+        if glass:
+            return (f"material(s) {', '.join(glass)} are transparent glass, which the ray-caster cannot draw "
+                    "(use --renderer cycles)")
+        return None
+
+    def render_camera(self, name: str, pose: CameraPose) -> tuple[np.ndarray, np.ndarray]:
+        return render_camera(self.spec, pose.position, pose.rotation, self.settings.width,
+                             self.settings.supersample)
+
+    def engine(self) -> dict:
+        return {"engine": ENGINE, "ambient": AMBIENT,
+                "shading": "Lambertian irradiance from every light (no shadows) + ambient; emission self-lit",
+                "distance": "analytic ray-box intersection through the pixel centre (float64, stored float32)"}
+
+
 def render_frame(spec: SceneSpec, rig: Rig, width: int, scene_name: str, viewpoint: str,
                  supersample: int = 2) -> Frame:
     """Ray-cast the three cameras C, U, R of ``rig`` in ``spec`` into a complete :class:`Frame`.
+
+    A convenience over :class:`RaycastRenderer` (which builds once and renders several rigs).
 
     Args:
         spec: the scene (boxes, materials, lights).
@@ -510,46 +542,10 @@ def render_frame(spec: SceneSpec, rig: Rig, width: int, scene_name: str, viewpoi
         supersample: ss x ss colour rays per pixel.
     Returns:
         A frame with images (H, W, 3) uint8 sRGB, distance (H, W) float32 metres (+inf: no hit), poses,
-        and ``renderer`` provenance (engine, supersample, seconds, tri360 version, ...).
+        and ``renderer`` provenance (:func:`harness.render.base.provenance`).
     Raises:
-        ValueError: the spec is invalid, or places model files (boxes only here).
+        UserError: the spec places model files or glass (boxes only here).
+        ValueError: the spec or the settings are invalid.
     """
-    spec.validate()
-    if spec.models:
-        raise ValueError(f"scene {spec.name!r} places {len(spec.models)} model file(s); the numpy ray-caster "
-                         "renders boxes only (use the Blender backend)")
-    t0 = time.perf_counter()
-    poses = rig.poses()
-    images, distance, per_camera = {}, {}, {}
-    for name in CAMERA_NAMES:
-        tc = time.perf_counter()
-        images[name], distance[name] = render_camera(spec, poses[name].position, poses[name].rotation,
-                                                     width, supersample)
-        per_camera[name] = round(time.perf_counter() - tc, 3)
-    renderer = {
-        "engine": ENGINE,
-        "tri360_version": harness.__version__,
-        "supersample": int(supersample),
-        "seconds": round(time.perf_counter() - t0, 3),
-        "seconds_per_camera": per_camera,
-        "ambient": AMBIENT,
-        "scene_params": _jsonable(spec.params),
-    }
-    return Frame(scene=scene_name, viewpoint=viewpoint, width=int(width), height=int(width) // 2,
-                 baseline_m=float(rig.baseline_m), cameras=poses, images=images, distance=distance,
-                 renderer=renderer)
-
-
-def _jsonable(obj):
-    """Best-effort conversion of scene params to JSON-friendly values (tuples -> lists, numpy -> python)."""
-    if isinstance(obj, dict):
-        return {str(k): _jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, list | tuple):
-        return [_jsonable(v) for v in obj]
-    if isinstance(obj, np.generic):
-        return obj.item()
-    if isinstance(obj, np.ndarray):
-        return obj.tolist()
-    if obj is None or isinstance(obj, bool | int | float | str):
-        return obj
-    return str(obj)
+    with RaycastRenderer(spec, RenderSettings(width=int(width), supersample=int(supersample))) as renderer:
+        return renderer.render(rig, scene_name, viewpoint)

@@ -9,19 +9,19 @@ from __future__ import annotations
 
 import numpy as np
 
-from scenes.model import Box, Light, Material, SceneSpec
-from scenes.registry import SceneEntry
+from scenes.model import Box, Light, Material, SceneEntry, SceneSpec
+
+PARAMETERS = {
+    "size": "(sx, sy, sz) interior extents, metres (default [6, 5, 3])",
+    "contrast": "wall texture amplitude in [0, 1] (default 0.9)",
+    "texture_scale": "wall texture feature size, metres (default 0.25)",
+    "light_power": "power of the ceiling area light, watts (default 5 W per m^2 of floor)",
+    "fill_power": "power of the point light near the floor, watts (default 8)",
+}
 
 
 def build(params: dict, seed: int) -> SceneSpec:
-    """Room of ``size`` (x, y, z) metres, floor at z = 0, centred on x = y = 0.
-
-    Params:
-        size: (sx, sy, sz) interior extents, metres.
-        contrast: wall texture amplitude in [0, 1].
-        texture_scale: texture feature size, metres.
-        light_power: power of the single ceiling area light, watts.
-    """
+    """Room of ``size`` (x, y, z) metres, floor at z = 0, centred on x = y = 0 (parameters: ``PARAMETERS``)."""
     sx, sy, sz = (float(v) for v in params.get("size", (6.0, 5.0, 3.0)))
     spec = SceneSpec(name="box_room", bounds=((-sx / 2, -sy / 2, 0.0), (sx / 2, sy / 2, sz)),
                      rig_height=(1.0, min(1.5, sz - 0.8)))
@@ -52,4 +52,4 @@ SCENES = [SceneEntry(
     name="box_room", build=build,
     description="empty textured box room; ground truth distance has a closed form",
     presets={"default": {}, "small": {"size": (3.0, 2.5, 2.4)}, "hall": {"size": (12.0, 9.0, 4.0)}},
-    default_preset="default", backend="blender")]
+    default_preset="default", parameters=PARAMETERS, renderer="cycles")]

@@ -15,8 +15,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from scenes.model import Box, Light, Material, ModelFile, SceneSpec
-from scenes.registry import SceneEntry
+from reconstruction.camera.rig import yaw_rotation
+from scenes.model import Box, Light, Material, ModelFile, SceneEntry, SceneSpec
 
 MATERIALS = [
     Material("floor", kind="tiles", color=(0.55, 0.52, 0.46), color2=(0.32, 0.30, 0.27), scale=0.3,
@@ -57,15 +57,11 @@ MATERIALS = [
 BOOKS = ("book_a", "book_b", "book_c", "book_d")
 
 
-def _rot(yaw: float, dx: float, dy: float) -> tuple[float, float]:
-    c, s = np.cos(yaw), np.sin(yaw)
-    return c * dx - s * dy, s * dx + c * dy
-
-
 def _place(boxes: list, name: str, x: float, y: float, yaw: float, parts) -> None:
     """Add boxes given in a local frame (dx, dy, z centre, size, material) rotated by ``yaw`` about (x, y)."""
+    rot = yaw_rotation(yaw)[:2, :2]
     for k, (dx, dy, z, size, mat) in enumerate(parts):
-        ox, oy = _rot(yaw, dx, dy)
+        ox, oy = rot @ (dx, dy)
         boxes.append(Box(center=(x + ox, y + oy, z), size=size, material=mat, yaw=yaw, name=f"{name}.{k}"))
 
 
@@ -92,21 +88,26 @@ def _chair_parts(seat_h=0.45, w=0.40, d=0.40, back_h=0.38):
     return parts
 
 
-def build(params: dict, seed: int) -> SceneSpec:
-    """Build a classroom.
+PARAMETERS = {
+    "size": "(width x, depth y, height z) of the room interior, metres (default [8, 7, 3])",
+    "rows": "student desk rows, along y (default 5)",
+    "cols": "student desk columns, along x (default 6)",
+    "windows": "number of windows on the -x wall (default 3)",
+    "lockers": "a row of lockers on the back wall, true/false (default true)",
+    "shelf": "a bookshelf in the back corner of the +x wall, true/false (default true)",
+    "lights": "(nx, ny) grid of ceiling light panels (default [2, 3])",
+    "light_power": "power per ceiling area light, watts (default 35)",
+    "jitter": "layout jitter amplitude, metres; angles get jitter / 1 m radians (default 0.05)",
+    "empty_seat_rate": "share of desks without a chair, in [0, 1] (default 0.15)",
+    "model_path": "an external model file (.blend, .glb, .gltf, .obj) to place; Cycles only (default none)",
+    "model_location": "(x, y, z) of the model, metres (default [0, 0, 0])",
+    "model_rotation": "(rx, ry, rz) Euler XYZ rotation of the model, radians (default [0, 0, 0])",
+    "model_scale": "uniform scale of the model (default 1)",
+}
 
-    Params (all lengths in metres):
-        size: (width x, depth y, height z) of the room interior.
-        rows, cols: student desk grid (rows along y, columns along x).
-        windows: number of windows on the -x wall.
-        lockers: put a row of lockers on the back wall.
-        shelf: put a bookshelf in the back corner of the +x wall.
-        lights: (nx, ny) grid of ceiling light panels.
-        light_power: power per ceiling area light, watts.
-        jitter: layout jitter amplitude, metres (angles get jitter/1 m radians).
-        empty_seat_rate: share of desks without a chair.
-        model_path, model_location, model_rotation, model_scale: optional external model (Blender only).
-    """
+
+def build(params: dict, seed: int) -> SceneSpec:
+    """Build a classroom (parameters: ``PARAMETERS``, all optional)."""
     rng = np.random.default_rng(seed)
     W, D, H = (float(v) for v in params.get("size", (8.0, 7.0, 3.0)))
     rows, cols = int(params.get("rows", 5)), int(params.get("cols", 6))
@@ -242,4 +243,4 @@ PRESETS = {
 
 SCENES = [SceneEntry(name="classroom", build=build, presets=PRESETS, default_preset="standard",
                      description="classroom (8 x 7 x 3 m standard): desks, chairs, boards, windows, lockers",
-                     backend="blender")]
+                     parameters=PARAMETERS, renderer="cycles")]

@@ -13,8 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from scenes.model import Box, Light, Material, SceneSpec
-from scenes.registry import SceneEntry
+from reconstruction.camera.rig import yaw_rotation
+from scenes.model import Box, Light, Material, SceneEntry, SceneSpec
 
 # name -> (fractional centre (fx, fy) of the room half extents, size (sx, sy, sz) m, material, yaw rad)
 FURNITURE = {
@@ -45,17 +45,18 @@ def _materials(weak_contrast: float) -> list[Material]:
     ]
 
 
-def build(params: dict, seed: int) -> SceneSpec:
-    """Build the room.
+PARAMETERS = {
+    "room": "(sx, sy, sz) interior size, metres; floor at z = 0, centred on x = y = 0 (default [6, 5, 3])",
+    "furniture": f"names from {sorted(FURNITURE)}, in order (default table, cabinet, cube, bench)",
+    "jitter_m": "max position jitter of each furniture box, metres (default 0.2)",
+    "size_jitter": "max relative size jitter of each furniture box, 0.15 = +-15 % (default 0.15)",
+    "weak_contrast": "texture contrast of the board on the +X wall, 0 = texture-less (default 0)",
+    "light_power": "power of the ceiling area light, watts; the point light gets half (default 80)",
+}
 
-    Params (all optional):
-        room: (sx, sy, sz) interior size, metres (floor at z = 0, centred on the origin in x and y).
-        furniture: names from ``FURNITURE``, in order.
-        jitter_m: max position jitter of each box, metres.
-        size_jitter: max relative size jitter of each box (0.15 = +-15%).
-        weak_contrast: texture contrast of the board on the +X wall (0 = genuinely texture-less).
-        light_power: power of the ceiling area light, watts; a point light gets half of it.
-    """
+
+def build(params: dict, seed: int) -> SceneSpec:
+    """Build the room (parameters: ``PARAMETERS``, all optional)."""
     sx, sy, sz = (float(v) for v in params.get("room", (6.0, 5.0, 3.0)))
     names = list(params.get("furniture", ("table", "cabinet", "cube", "bench")))
     jitter = float(params.get("jitter_m", 0.2))
@@ -83,8 +84,7 @@ def build(params: dict, seed: int) -> SceneSpec:
         size = np.asarray(size) * rng.uniform(1 - size_jitter, 1 + size_jitter, 3)
         size[2] = min(size[2], sz - 0.3)
         yaw = yaw + rng.uniform(-0.15, 0.15)
-        c, s = abs(np.cos(yaw)), abs(np.sin(yaw))
-        foot = np.array([c * size[0] + s * size[1], s * size[0] + c * size[1]]) / 2.0  # footprint half extents
+        foot = np.abs(yaw_rotation(yaw)[:2, :2]) @ size[:2] / 2.0  # footprint half extents (x, y)
         xy = np.array([fx * hx, fy * hy]) + rng.uniform(-jitter, jitter, 2)
         lim = np.array([hx, hy]) - foot - 0.02
         xy = np.clip(xy, -lim, lim)
@@ -99,8 +99,9 @@ def build(params: dict, seed: int) -> SceneSpec:
 SCENES = [
     SceneEntry(
         name="synthetic_box",
-        backend="numpy",
+        renderer="raycast",
         build=build,
+        parameters=PARAMETERS,
         presets={
             "default": {"room": (6.0, 5.0, 3.0), "furniture": ("table", "cabinet", "cube", "bench")},
             "small": {"room": (4.0, 3.5, 2.6), "furniture": ("table", "cabinet", "cube"), "light_power": 50.0},

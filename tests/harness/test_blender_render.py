@@ -1,10 +1,12 @@
-"""Real Cycles renders (tiny) of every Blender scene, checked against independent geometry.
+"""Real Cycles renders (tiny) of every Cycles scene, checked against independent geometry.
 
-Tests marked ``blender`` import bpy (through harness.render.cycles); the CLI-error and import tests do not.
+Tests marked ``blender`` render through the Cycles worker process (which alone imports bpy); the CLI-error and
+import tests do not.
 """
 
 from __future__ import annotations
 
+import shutil
 import subprocess
 import sys
 
@@ -12,17 +14,23 @@ import cv2
 import numpy as np
 import pytest
 
+import harness.render.cycles_renderer
+from harness.cli import main
 from harness.data.errors import UserError
-from harness.data.frame import find_frames, is_complete, read_frame
+from harness.data.frame import find_frames, read_frame
 from harness.jobs.render import render_frames
+from harness.render.base import RenderSettings
+from harness.render.registry import open_renderer
 from reconstruction.camera.equirect import bearing_grid, project
 from reconstruction.camera.rig import Rig
+from scenes.families.box_room import box_interior_distance
 from scenes.model import Box, Material, ModelFile, SceneSpec, choose_viewpoints
 from scenes.registry import SceneEntry, discover
 
 ENTRIES, _ = discover()
-BLENDER_SCENES = sorted(n for n, e in ENTRIES.items() if e.backend == "blender")
+CYCLES_SCENES = sorted(n for n, e in ENTRIES.items() if e.renderer == "cycles")
 FAST = {"samples": 2, "threads": 2, "progress": False}
+TINY = RenderSettings(width=64, samples=1, threads=2, denoise=False)
 
 
 def _marker_scene(marker_center, yaw=0.0) -> tuple[SceneSpec, Rig]:
@@ -35,8 +43,8 @@ def _marker_scene(marker_center, yaw=0.0) -> tuple[SceneSpec, Rig]:
 
 
 @pytest.mark.blender
-@pytest.mark.parametrize("name", BLENDER_SCENES)
-def test_every_blender_scene_renders_a_valid_frame(name, tmp_path):
+@pytest.mark.parametrize("name", CYCLES_SCENES)
+def test_every_cycles_scene_renders_a_valid_frame(name, tmp_path):
     (d,) = render_frames(name, viewpoints=1, out_root=tmp_path, width=64, **FAST)
     frame = read_frame(d)
     assert frame.width == 64 and frame.height == 32 and frame.has_ground_truth
@@ -45,22 +53,21 @@ def test_every_blender_scene_renders_a_valid_frame(name, tmp_path):
         assert img.dtype == np.uint8 and 10 < img.mean() < 250, f"{cam} image is black or blown out"
         assert np.isfinite(dist).all() and dist.min() > 0.05, "closed rooms: every ray hits something"
     r = frame.renderer
-    assert r["engine"] == "CYCLES" and r["samples"] == 2 and r["threads"] == 2 and r["seed"] == 0
-    assert set(r["render_seconds"]) == {"C", "U", "R"} and r["blender_version"].startswith("5.")
-    assert r["scene"] == name and "tri360_version" in r
+    assert r["renderer"] == "cycles" and r["engine"] == "CYCLES"
+    assert r["settings"]["samples"] == 2 and r["settings"]["threads"] == 2 and r["settings"]["seed"] == 0
+    assert r["details"]["threads"] == 2 and r["details"]["denoiser"] == "OPENIMAGEDENOISE"
+    assert {"C", "U", "R", "build", "total"} <= set(r["seconds"]) and r["versions"]["blender"].startswith("5.")
+    assert r["scene"]["family"] == name and r["scene"]["code_version"] == ENTRIES[name].code_version
+    assert "tri360" in r["versions"] and "samples" in r["pixel_settings"]
 
 
 @pytest.mark.blender
 def test_box_room_distance_matches_closed_form(tmp_path):
-    from scenes.families.box_room import box_interior_distance
-
     spec = ENTRIES["box_room"].spec(seed=0)
     rig = choose_viewpoints(spec, 2, seed=3)[1]  # off-centre, rotated rig
     assert abs(rig.yaw_rad) > 0.1
-    from harness.render.cycles import RenderSettings, SceneRenderer
-
-    frame = SceneRenderer(spec, RenderSettings(width=200, samples=1, threads=2, denoise=False)).render(
-        rig, "box_room", "vp001")
+    with open_renderer("cycles", spec, RenderSettings(width=200, samples=1, threads=2, denoise=False)) as r:
+        frame = r.render(rig, "box_room", "vp001")
     lo, hi = spec.bounds
     for cam, pose in frame.cameras.items():
         gt = box_interior_distance(pose.position, bearing_grid(200, 100, pose.rotation), lo, hi)
@@ -77,11 +84,9 @@ def test_box_room_distance_matches_closed_form(tmp_path):
     (np.pi / 2, (0.0, 2.0, 1.5), "right"),  # rig turned 90 deg left: its right is world +Y
 ])
 def test_camera_convention(yaw, marker, where):
-    from harness.render.cycles import RenderSettings, SceneRenderer
-
     spec, rig = _marker_scene(marker, yaw)
-    frame = SceneRenderer(spec, RenderSettings(width=64, samples=1, threads=2, denoise=False)).render(
-        rig, "marker", "vp000")
+    with open_renderer("cycles", spec, TINY) as r:
+        frame = r.render(rig, "marker", "vp000")
     img = frame.images["C"].astype(int)
     red = (img[..., 0] > 150) & (img[..., 1] < 60)
     assert red.sum() >= 2
@@ -151,41 +156,41 @@ def test_same_seed_same_pixels(tmp_path):
 
 
 @pytest.mark.blender
-def test_resume_skips_complete_frames_and_interrupted_write_leaves_nothing(tmp_path, monkeypatch):
-    import harness.data.frame
-    import harness.render.cycles
-
-    opts = dict(viewpoints=2, out_root=tmp_path, width=16, **FAST)
+def test_resume_compares_settings_and_interrupted_render_leaves_nothing(tmp_path, monkeypatch):
+    opts = dict(viewpoints=2, out_root=tmp_path, width=64, **FAST)
     first = render_frames("box_room", **opts)
     stamps = [(p / "frame.json").stat().st_mtime_ns for p in first]
 
     def boom(*a, **k):
         raise AssertionError("a complete frame was rendered again")
 
-    monkeypatch.setattr(harness.render.cycles.SceneRenderer, "render", boom)
+    monkeypatch.setattr(harness.render.cycles_renderer.CyclesRenderer, "render_camera", boom)
     assert render_frames("box_room", **opts) == first
     assert [(p / "frame.json").stat().st_mtime_ns for p in first] == stamps
-    with pytest.raises(UserError, match="other settings"):
-        render_frames("box_room", **{**opts, "width": 32})
+    # every setting that changes Cycles' pixels is compared (and named), none is silently kept
+    for change, named in [({"width": 66}, "width 64 (now 66)"), ({"samples": 3}, "samples 2 (now 3)"),
+                          ({"denoise": False}, "denoise true (now false)"),
+                          ({"max_bounces": 2}, "max_bounces 4 (now 2)"),
+                          ({"baseline": 0.3}, "baseline_m 0.4 (now 0.3)"),
+                          ({"renderer": "raycast"}, "renderer cycles (now raycast)")]:
+        with pytest.raises(UserError, match="other settings") as info:
+            render_frames("box_room", **{**opts, **change})
+        assert named in str(info.value) and str(first[0]) in str(info.value)
     monkeypatch.undo()
 
-    # interrupt the write of vp001's second distance file
-    real, calls = harness.data.frame.write_distance_exr, []
+    # interrupt vp001 at its last camera: vp000 stays, vp001 and its hidden partial directory are gone
+    real, calls = harness.render.cycles_renderer.CyclesRenderer.render_camera, []
 
-    def interrupted(path, d):
-        calls.append(path)
-        if len(calls) == 2:
+    def interrupted(self, name, pose):
+        calls.append(name)
+        if len(calls) == 3:
             raise KeyboardInterrupt
-        real(path, d)
+        return real(self, name, pose)
 
-    monkeypatch.setattr(harness.data.frame, "write_distance_exr", interrupted)
-    target = first[1]
-    import shutil
-
-    shutil.rmtree(target)
+    monkeypatch.setattr(harness.render.cycles_renderer.CyclesRenderer, "render_camera", interrupted)
+    shutil.rmtree(first[1])
     with pytest.raises(KeyboardInterrupt):
         render_frames("box_room", **opts)
-    assert not target.exists() and not is_complete(target)
     assert [p.name for p in (tmp_path / "box_room").iterdir()] == ["vp000"], "partial files left behind"
     monkeypatch.undo()
     render_frames("box_room", **opts)
@@ -194,8 +199,6 @@ def test_resume_skips_complete_frames_and_interrupted_write_leaves_nothing(tmp_p
 
 @pytest.mark.blender
 def test_model_file_obj_is_imported(tmp_path):
-    from harness.render.cycles import RenderSettings, SceneRenderer
-
     obj = tmp_path / "cube.obj"
     v = [(x, y, z) for x in (-0.5, 0.5) for y in (-0.5, 0.5) for z in (-0.5, 0.5)]
     faces = [(1, 2, 4, 3), (5, 7, 8, 6), (1, 5, 6, 2), (3, 4, 8, 7), (1, 3, 7, 5), (2, 6, 8, 4)]
@@ -203,8 +206,8 @@ def test_model_file_obj_is_imported(tmp_path):
                    + "".join(f"f {a} {b} {c} {d}\n" for a, b, c, d in faces))
     spec, rig = _marker_scene((0.0, -2.5, 0.3))
     spec.models.append(ModelFile(path=obj, location=(2.0, 0.0, 1.5), scale=0.5))  # 0.5 m cube at +X, 2 m away
-    frame = SceneRenderer(spec, RenderSettings(width=64, samples=1, threads=2, denoise=False)).render(
-        rig, "marker", "vp000")
+    with open_renderer("cycles", spec, TINY) as r:
+        frame = r.render(rig, "marker", "vp000")
     assert abs(frame.distance["C"][16, 48] - 1.75) < 0.01  # front face at x = 2 - 0.25
     assert abs(frame.distance["C"][16, 16] - 3.0) < 0.01  # -X wall
 
@@ -219,7 +222,9 @@ def test_importing_the_cli_does_not_load_bpy():
     (["--scene", "nope"], "unknown scene 'nope'"),
     (["--scene", "classroom:huge"], "unknown preset 'huge'"),
     (["--width", "63"], "--width must be an even number"),
-    (["--width", "4"], "--width must be an even number"),
+    (["--width", "4"], "--width must be >= 60"),
+    (["--width", "1000000"], "--width 1000000 needs about"),
+    (["--set", "rowz=2"], "scene 'classroom': unknown parameter 'rowz' (known: cols, empty_seat_rate, jitter"),
     (["--samples", "0"], "--samples must be >= 1"),
     (["--viewpoints", "0"], "--viewpoints must be >= 1"),
     (["--threads", "-1"], "--threads must be >= 0"),
@@ -227,16 +232,12 @@ def test_importing_the_cli_does_not_load_bpy():
     (["--set", "novalue"], "--set expects KEY=VALUE"),
 ])
 def test_cli_errors_are_one_line(argv, message, tmp_path, capsys):
-    from harness.cli import main
-
     assert main(["render", "--out", str(tmp_path), "--quiet", *argv]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and message in err and err.startswith("tri360 render: error:")
 
 
 def test_cli_unwritable_output_and_failing_scene(tmp_path, capsys, monkeypatch):
-    from harness.cli import main
-
     blocker = tmp_path / "file"
     blocker.write_text("x")
     assert main(["render", "--scene", "box_room", "--out", str(blocker / "sub"), "--quiet"]) == 2
@@ -254,10 +255,8 @@ def test_cli_unwritable_output_and_failing_scene(tmp_path, capsys, monkeypatch):
 
 
 def test_cli_scenes_lists_every_scene(capsys):
-    from harness.cli import main
-
     assert main(["scenes"]) == 0
     out = capsys.readouterr().out
     for name, e in ENTRIES.items():
-        assert name in out and e.backend in out
+        assert name in out and f"[{e.renderer}]" in out
 

@@ -19,6 +19,7 @@ import pytest
 import harness
 from harness.data.frame import read_frame, write_frame
 from harness.render.raycast import (
+    AMBIENT,
     ENGINE,
     TEXTURES,
     SurfacePoints,
@@ -286,8 +287,9 @@ def test_render_frame_shapes_provenance_and_determinism(box_frame):
         assert np.all(np.isfinite(frame.distance[name]))  # a closed room: every ray hits
         assert frame.images[name].std() > 10  # textured, not a flat image
     r = frame.renderer
-    assert r["engine"] == ENGINE and r["supersample"] == 2 and r["tri360_version"] == harness.__version__
-    assert r["seconds"] > 0
+    assert r["renderer"] == "raycast" and r["engine"] == ENGINE and r["settings"]["supersample"] == 2
+    assert r["versions"]["tri360"] == harness.__version__ and r["details"]["ambient"] == AMBIENT
+    assert r["seconds"]["total"] > 0 and r["settings"]["width"] == 160
     again = render_frame(spec, rig, 160, "synthetic_box", "vp1", supersample=2)
     for name in CAMERA_NAMES:
         np.testing.assert_array_equal(again.images[name], frame.images[name])
@@ -330,7 +332,7 @@ def test_write_read_round_trip(box_frame, tmp_path):
 @pytest.mark.parametrize("preset", ["default", "small", "cluttered"])
 def test_synthetic_box_presets_build_and_have_free_viewpoints(preset):
     entry, _ = get_scene(f"synthetic_box:{preset}")
-    assert entry.backend == "numpy"
+    assert entry.renderer == "raycast"
     spec = entry.spec(preset, seed=0)
     solids = [b for b in spec.boxes if not b.inward]
     furniture = [b for b in solids if b.name not in ("floor", "board")]

@@ -2,12 +2,18 @@
 
 from __future__ import annotations
 
+import hashlib
+import importlib
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 
 import scenes.families
+from scenes.families import classroom
 from scenes.families.box_room import box_interior_distance
-from scenes.model import Box, Material, SceneSpec, choose_viewpoints
+from scenes.model import Box, Light, Material, ModelFile, SceneSpec, choose_viewpoints
 from scenes.registry import SceneEntry, SceneError, discover, get_scene
 
 ENTRIES, LOAD_ERRORS = discover()
@@ -105,3 +111,61 @@ def test_scene_file_that_fails_to_import_is_reported(monkeypatch, tmp_path):
     assert any("zz_broken_scene" in k and "no such thing" in v for k, v in errors.items())
     with pytest.raises(SceneError, match="zz_broken_scene"):
         get_scene("nope")
+
+
+def test_code_version_hashes_the_family_source_file(tmp_path, monkeypatch):
+    data = Path(classroom.__file__).read_bytes()
+    assert ENTRIES["classroom"].code_version == "sha256:" + hashlib.sha256(data).hexdigest()[:16]
+    assert ENTRIES["classroom"].spec("small", 0).code_version == ENTRIES["classroom"].code_version
+    # an edited family file gets another version
+    mod = tmp_path / "tri360_tmp_family.py"
+    mod.write_text("def build(params, seed):\n    return None\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    entry = SceneEntry(name="tmp", build=importlib.import_module("tri360_tmp_family").build)
+    before = entry.code_version
+    mod.write_text("def build(params, seed):\n    return None  # edited\n")
+    assert before.startswith("sha256:") and entry.code_version != before
+    sys.modules.pop("tri360_tmp_family", None)
+
+
+def test_undeclared_and_reserved_parameters_are_refused():
+    def build(params, seed):
+        spec = SceneSpec(name="p")
+        spec.add_material(Material("m"))
+        spec.boxes.append(Box((0, 0, 1), (1, 1, 1), "m"))
+        return spec
+
+    entry = SceneEntry(name="p", build=build, presets={"default": {"n": 1}}, parameters={"n": "count", "k": "x"})
+    assert entry.known_parameters == ["k", "n"]
+    assert entry.spec(n=2).params == {"preset": "default", "seed": 0, "n": 2}
+    with pytest.raises(SceneError, match="unknown parameter 'm' \\(known: k, n\\)"):
+        entry.spec(m=2)
+    with pytest.raises(SceneError, match="'preset' is not a scene parameter \\(use --scene NAME:PRESET\\)"):
+        entry.build_spec(overrides={"preset": "x"})
+    with pytest.raises(SceneError, match="reserved"):
+        SceneEntry(name="p", build=build, parameters={"seed": "no"})
+    # undeclared: the preset keys are the known ones
+    assert SceneEntry(name="q", build=build, presets={"default": {"n": 1}}).known_parameters == ["n"]
+
+
+def test_box_contains_follows_the_yaw():
+    box = Box((1.0, 2.0, 0.5), (2.0, 0.4, 1.0), "m", yaw=np.pi / 2)  # long side now along world y
+    inside = np.array([[1.0, 2.9, 0.5], [1.15, 2.0, 0.9]])
+    outside = np.array([[1.9, 2.0, 0.5], [1.0, 3.1, 0.5], [1.0, 2.0, 1.1]])
+    assert box.contains(inside).all() and not box.contains(outside).any()
+    assert box.contains(np.array([[1.0, 3.15, 0.5]]), margin=0.2).all()
+
+
+def test_validate_names_bad_lights_and_model_files(tmp_path):
+    spec = SceneSpec(name="v")
+    spec.add_material(Material("m"))
+    spec.lights.append(Light("spot", position=(0, 0, 2)))
+    with pytest.raises(ValueError, match="light 0 has unknown kind 'spot'"):
+        spec.validate()
+    spec.lights.clear()
+    spec.models.append(ModelFile(path=tmp_path / "missing.glb"))
+    with pytest.raises(ValueError, match="missing.glb does not exist"):
+        spec.validate()
+    spec.models[0] = ModelFile(path=tmp_path / "model.fbx")
+    with pytest.raises(ValueError, match="unsupported format '.fbx'"):
+        spec.validate()

@@ -1,0 +1,167 @@
+"""The Cycles worker process seen from outside: Ctrl-C, stdout hygiene, worker crashes and failures.
+
+Every test here starts Blender (in the worker process), so all are marked ``blender``.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import harness.cli
+import harness.render.cycles_renderer
+from harness.cli import main
+from harness.data.errors import UserError
+from harness.jobs.render import render_frames
+from harness.render.base import RenderError, RenderSettings
+from harness.render.registry import open_renderer
+from reconstruction.camera.rig import Rig
+from scenes.model import Box, Material, ModelFile, SceneSpec
+
+pytestmark = pytest.mark.blender
+
+_MAIN = "import sys; from harness.cli import main; sys.exit(main())"
+CLI = ([sys.executable, "-m", "harness.cli"] if (Path(harness.cli.__file__).parent / "__main__.py").exists()
+       else [sys.executable, "-c", _MAIN])
+"""The real command line, in a fresh interpreter."""
+
+
+def _children(pid: int) -> list[int]:
+    try:
+        return [int(p) for p in Path(f"/proc/{pid}/task/{pid}/children").read_text().split()]
+    except FileNotFoundError:
+        return []
+
+
+def _alive(pid: int) -> bool:
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().split(")")[-1].split()[0] != "Z"
+    except (FileNotFoundError, ProcessLookupError):
+        return False
+
+
+def _workdirs() -> set[str]:
+    return {p.name for p in Path(tempfile.gettempdir()).glob("tri360-cycles-*")}
+
+
+@pytest.mark.parametrize("target", ["process", "group"])
+def test_ctrl_c_stops_a_cycles_render_within_seconds(tmp_path, target):
+    """SIGINT to the CLI (``process``), or to its whole process group as a terminal's Ctrl-C does (``group``):
+    exit 130 within seconds, one line on stderr, the worker gone, nothing left in the output root."""
+    out = tmp_path / "data"
+    before = _workdirs()
+    # classroom 400 x 200 at 16 samples renders for ~20 s per frame on 2 cores; we interrupt it after ~3 s
+    proc = subprocess.Popen([*CLI, "render", "--scene", "classroom", "--width", "400", "--samples", "16",
+                             "--out", str(out), "--quiet"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True, start_new_session=True)
+    try:
+        deadline = time.monotonic() + 60
+        while not _children(proc.pid) and proc.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.05)
+        (worker,) = _children(proc.pid)
+        time.sleep(3.0)  # the worker builds the scene (~1 s) and is rendering camera C
+        assert proc.poll() is None, "the render finished before it could be interrupted"
+        start = time.monotonic()
+        if target == "group":
+            os.killpg(proc.pid, signal.SIGINT)
+        else:
+            proc.send_signal(signal.SIGINT)
+        stdout, stderr = proc.communicate(timeout=30)
+        seconds = time.monotonic() - start
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+    assert proc.returncode == 130, (proc.returncode, stderr)
+    assert seconds < 10, f"Ctrl-C took {seconds:.1f} s"
+    assert stdout == ""
+    lines = stderr.splitlines()
+    assert len(lines) == 1 and lines[0].startswith("tri360 render: interrupted"), stderr
+    assert not _alive(worker), "the Cycles worker outlived the command"
+    assert not out.exists() or not any(out.rglob("*")), f"left behind: {sorted(out.rglob('*'))}"
+    assert _workdirs() <= before, "the worker's temporary directory was left behind"
+
+
+@pytest.mark.parametrize("flags", [["--quiet"], [], ["--verbose"]], ids=["quiet", "progress", "verbose"])
+def test_stdout_of_a_cycles_render_holds_only_the_frame_dirs(tmp_path, flags):
+    """Blender's and its libraries' chatter (e.g. "CUEW initialization failed") never reaches stdout."""
+    out = tmp_path / "data"
+    res = subprocess.run([*CLI, "render", "--scene", "box_room", "--width", "64", "--samples", "1",
+                          "--viewpoints", "2", "--out", str(out), *flags], capture_output=True, text=True,
+                         timeout=300)
+    assert res.returncode == 0, res.stderr
+    assert res.stdout.splitlines() == [str(out / "box_room" / "vp000"), str(out / "box_room" / "vp001")]
+    if "--verbose" in flags:
+        assert "Blender" in res.stderr or "Cycles" in res.stderr or "cycles" in res.stderr, "log not shown"
+    if "--quiet" in flags:
+        assert res.stderr == ""
+
+
+def _room() -> SceneSpec:
+    spec = SceneSpec(name="room", bounds=((-2, -2, 0), (2, 2, 3)))
+    spec.add_material(Material("walls", kind="noise", contrast=0.5))
+    spec.boxes.append(Box((0, 0, 1.5), (4, 4, 3), "walls", inward=True))
+    return spec
+
+
+def test_a_crashed_worker_is_one_line_naming_its_log(tmp_path, monkeypatch, capsys):
+    real = harness.render.cycles_renderer.CyclesRenderer.render_camera
+    logs = []
+
+    def crash(self, name, pose):
+        logs.append(self.log_path)
+        os.kill(self._proc.pid, signal.SIGKILL)
+        return real(self, name, pose)
+
+    monkeypatch.setattr(harness.render.cycles_renderer.CyclesRenderer, "render_camera", crash)
+    out = tmp_path / "data"
+    assert main(["render", "--scene", "box_room", "--width", "64", "--samples", "1", "--out", str(out),
+                 "--quiet"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1
+    assert ("tri360 render: error: the Cycles worker process was killed by SIGKILL while rendering camera C; "
+            f"its log: {logs[0]}") == err
+    assert logs[0].is_file() and not any(p for p in logs[0].parent.iterdir() if p != logs[0])
+    assert not out.exists() or not any(out.rglob("*"))
+    logs[0].unlink()
+    logs[0].parent.rmdir()
+
+
+def test_a_failing_scene_build_is_reported_with_the_reason(tmp_path):
+    bad = tmp_path / "broken.blend"
+    bad.write_bytes(b"not a blend file")
+    spec = _room()
+    spec.models.append(ModelFile(path=bad))
+    with pytest.raises(RenderError, match="Cycles failed while building scene 'room' in Blender: .*; its log: ") as e:
+        open_renderer("cycles", spec, RenderSettings(width=64, samples=1, threads=2, denoise=False))
+    assert isinstance(e.value, UserError) and len(str(e.value).splitlines()) == 1
+    log = Path(str(e.value).rsplit("its log: ", 1)[1])
+    assert "Traceback" in log.read_text()
+    log.unlink()
+    log.parent.rmdir()
+
+
+def test_worker_survives_sigint_and_renders_several_viewpoints(tmp_path):
+    """One worker per scene: built once, it renders every viewpoint; a stray SIGINT does not stop it."""
+    with open_renderer("cycles", _room(), RenderSettings(width=64, samples=1, threads=2, denoise=False)) as r:
+        pid = r._proc.pid
+        a = r.render(Rig(position=np.array([0.0, 0.0, 1.5])), "room", "vp000")
+        os.kill(pid, signal.SIGINT)
+        time.sleep(0.5)
+        b = r.render(Rig(position=np.array([0.5, 0.0, 1.5])), "room", "vp001")
+        assert r._proc.pid == pid
+    assert not _alive(pid), "close() ends the worker"
+    assert abs(a.distance["C"][16, 48] - 2.0) < 0.01 and abs(b.distance["C"][16, 48] - 1.5) < 0.01  # +X wall
+
+
+def test_render_frames_runs_the_renderer_in_a_worker_not_here(tmp_path):
+    render_frames("box_room", out_root=tmp_path, width=64, samples=1, threads=2, progress=False)
+    assert "bpy" not in sys.modules
