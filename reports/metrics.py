@@ -1,20 +1,27 @@
 """Error metrics of a predicted distance map against ground truth (pure numpy + OpenCV, no Blender).
 
-Scoring rules (used by :func:`summary` and :func:`breakdown` alike):
+Scoring rules (used by every function here; formulas and thresholds in ``docs/metrics.md``):
 
 * Only pixels whose **ground truth** is finite and positive are scored ("scored pixels"); pixels whose
   ray hits nothing (ground truth ``+inf``) are ignored.
 * A **prediction** that is NaN, +/-inf or ``<= 0`` at a scored pixel is *invalid*.  It is **not dropped**:
   it is scored as if the prediction were 0, i.e. with absolute error ``|err| = gt``, relative error 1, and
-  it fails ``delta1`` and counts as an outlier.  Every variant is therefore scored on exactly the same
-  pixel set, and a method cannot improve its numbers by refusing to answer on hard pixels.
+  it fails every ratio threshold (``delta*``) and counts as bad at every bad-pixel threshold.  Every variant
+  is therefore scored on exactly the same pixel set, and a method cannot improve its numbers by refusing to
+  answer on hard pixels; ``coverage`` reports how often it refused.
 * ``valid_px`` is the number of scored pixels (finite ground truth), i.e. the denominator of every
   share and mean below; it is the same for every variant of one frame.
 
-Distances are metres, angles degrees (bin edges only), images ``(H, W, 3)`` uint8 RGB.
+Distances are metres, angles degrees (bin edges only), images ``(H, W, 3)`` uint8 RGB.  Maps are (H, W)
+equirectangular images whose left and right edges are the same meridian: neighbourhoods wrap around in
+longitude (columns) and not in latitude (rows).
 """
 
 from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
 
 import cv2
 import numpy as np
@@ -27,8 +34,20 @@ __all__ = [
     "TEXTURE_EDGES",
     "DELTA1_RATIO",
     "OUTLIER_FRACTION",
+    "PERCENTILES",
+    "BAD_FRACTIONS",
+    "DELTA_RATIOS",
+    "EDGE_LOG_JUMP",
+    "BOUNDARY_TOLERANCE_PX",
+    "AUSE_STEPS",
+    "SUMMARY_KEYS",
     "score_pixels",
     "summary",
+    "pooled_summary",
+    "ScoredMaps",
+    "sparsification_curves",
+    "depth_edges",
+    "dilate_wrapped",
     "breakdown",
     "angle_to_baseline_deg",
     "texture_magnitude",
@@ -46,6 +65,24 @@ TEXTURE_EDGES = np.array([0.0, 1.0, 2.0, 4.0, 8.0, 16.0, 32.0, np.inf])
 DELTA1_RATIO = 1.25
 #: a pixel is an outlier if ``|pred - gt| > OUTLIER_FRACTION * gt``.
 OUTLIER_FRACTION = 0.10
+#: percentiles of the absolute error reported as ``p<q>_m`` (numpy's default linear interpolation).
+PERCENTILES = (50, 90, 95, 99)
+#: bad-pixel rates: key -> fraction f; a pixel is bad if ``|pred - gt| > f * gt`` (``outlier_rate`` is f = 0.10).
+BAD_FRACTIONS = {"bad_1pct": 0.01, "bad_2pct": 0.02, "bad_5pct": 0.05}
+#: tight ratio accuracies: key -> r; share of pixels with ``max(pred/gt, gt/pred) < r`` (``delta1`` is 1.25).
+DELTA_RATIOS = {"delta105": 1.05, "delta110": 1.10}
+#: a depth edge separates two 4-neighbours whose distances differ by more than this in natural log
+#: (ln 1.1: the farther one is more than 10 % farther), see :func:`depth_edges`.
+EDGE_LOG_JUMP = math.log(1.10)
+#: boundary precision/recall: an edge pixel matches if the other map has an edge within this many pixels
+#: (Chebyshev distance, columns wrapping around).
+BOUNDARY_TOLERANCE_PX = 1
+#: removal fractions of the sparsification curves: ``k / AUSE_STEPS`` for ``k = 0 .. AUSE_STEPS``.
+AUSE_STEPS = 20
+#: every key of :func:`summary` and :func:`pooled_summary`, in order; ``ause`` follows when a confidence is given.
+SUMMARY_KEYS = ("mae_m", "rmse_m", "median_m", "absrel", "delta1", "outlier_rate", "valid_px",
+                *(f"p{q}_m" for q in PERCENTILES), *BAD_FRACTIONS, *DELTA_RATIOS, "coverage",
+                "boundary_precision", "boundary_recall", "seam_m")
 
 
 def score_pixels(pred, gt):
@@ -72,14 +109,248 @@ def score_pixels(pred, gt):
     return mask, abs_err, valid
 
 
-def summary(pred, gt) -> dict:
-    """Summary metrics of one predicted distance map.
+def _check_maps(pred, gt, confidence=None, mask=None):
+    """float64 copies of the maps after checking their shapes (ValueError naming both shapes otherwise)."""
+    pred = np.asarray(pred, dtype=np.float64)
+    gt = np.asarray(gt, dtype=np.float64)
+    if pred.ndim != 2 or pred.shape != gt.shape:
+        raise ValueError(f"pred and gt must be 2-D arrays of the same shape, got {pred.shape} and {gt.shape}")
+    if confidence is not None:
+        confidence = np.asarray(confidence, dtype=np.float64)
+        if confidence.shape != gt.shape:
+            raise ValueError(f"confidence and gt must have the same shape, got {confidence.shape} and {gt.shape}")
+    if mask is not None:
+        mask = np.asarray(mask)
+        if mask.shape != gt.shape or mask.dtype != bool:
+            raise ValueError(f"mask must be a bool array of the shape of gt, got {mask.dtype} {mask.shape} "
+                             f"and {gt.shape}")
+    return pred, gt, confidence, mask
+
+
+def depth_edges(distance, log_jump: float = EDGE_LOG_JUMP) -> np.ndarray:
+    """Depth-edge pixels of a distance map: both pixels of every 4-neighbour pair with a large log jump.
+
+    A pair ``(p, q)`` of horizontal (column ``u`` and ``(u + 1) mod W``: the seam is an ordinary neighbour) or
+    vertical (rows ``v`` and ``v + 1``, no wrap) neighbours jumps when ``|ln d_p - ln d_q| > log_jump``.
+    Values that are NaN, ``-inf`` or ``<= 0`` are unknown and never jump; ``+inf`` (no surface) is
+    infinitely far, so it jumps against every finite neighbour but not against another ``+inf``.
 
     Args:
-        pred: (H, W) predicted distance of camera C, metres.
-        gt: (H, W) ground-truth distance, metres, +inf where nothing is hit.
+        distance: (H, W) distance map, metres.
+        log_jump: threshold on the natural-log difference (unitless; ln 1.1 by default).
     Returns:
-        dict with (all over the scored pixels, invalid predictions scored as described in the module doc):
+        (H, W) bool, True on both pixels of every jumping pair.
+    """
+    d = np.asarray(distance, dtype=np.float64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        logd = np.log(np.where(d > 0, d, np.nan))
+        horiz = np.abs(logd - np.roll(logd, -1, axis=1)) > log_jump  # pair (u, u + 1 mod W) stored at u
+        vert = np.abs(logd[:-1] - logd[1:]) > log_jump  # pair (v, v + 1) stored at v
+    edges = horiz | np.roll(horiz, 1, axis=1)
+    edges[:-1] |= vert
+    edges[1:] |= vert
+    return edges
+
+
+def dilate_wrapped(mask, radius_px: int) -> np.ndarray:
+    """Dilate a bool map by a (2r+1) x (2r+1) square, wrapping around in longitude (columns), not in rows.
+
+    Args:
+        mask: (H, W) bool.
+        radius_px: r >= 0, pixels (Chebyshev radius).
+    Returns:
+        (H, W) bool: True wherever a True pixel of ``mask`` lies within ``r`` rows and ``r`` columns
+        (columns counted modulo W).
+    """
+    mask = np.asarray(mask, dtype=bool)
+    r = int(radius_px)
+    if r < 0:
+        raise ValueError(f"radius_px must be >= 0, got {radius_px}")
+    if r == 0 or not mask.any():
+        return mask.copy()
+    padded = np.pad(mask.astype(np.uint8), ((r, r), (0, 0)), mode="constant")
+    padded = np.pad(padded, ((0, 0), (r, r)), mode="wrap")
+    grown = cv2.dilate(padded, np.ones((2 * r + 1, 2 * r + 1), np.uint8), borderType=cv2.BORDER_CONSTANT,
+                       borderValue=0)
+    return grown[r:-r, r:-r].astype(bool)
+
+
+@dataclass
+class _Pixels:
+    """The per-pixel and per-row ingredients of the summary metrics for one frame (and region).
+
+    Arrays over the N selected scored pixels, row-major: ``err`` absolute error (metres, = gt where invalid),
+    ``gt`` true distance (metres), ``pred`` prediction with invalid values replaced by 1.0 (metres),
+    ``valid`` prediction valid, ``conf`` confidence or None.  Counts of edge pixels: ``pred_edges`` /
+    ``pred_hits`` (predicted edge pixels, and those with a true edge within the tolerance), ``gt_edges`` /
+    ``gt_hits`` likewise; ``seam`` (M,) per-row seam disagreement, metres.
+    """
+
+    err: np.ndarray
+    gt: np.ndarray
+    pred: np.ndarray
+    valid: np.ndarray
+    conf: np.ndarray | None
+    pred_edges: int
+    pred_hits: int
+    gt_edges: int
+    gt_hits: int
+    seam: np.ndarray
+
+
+class ScoredMaps:
+    """One prediction scored against its ground truth once, to be summarised over any number of masks.
+
+    ``ScoredMaps(pred, gt, confidence).summary(mask)`` equals ``summary(pred, gt, confidence, mask)``; use it to
+    summarise many regions of one frame without recomputing the edge maps.
+
+    Args:
+        pred: (H, W) predicted distance, metres (NaN / inf / <= 0 = invalid).
+        gt: (H, W) true distance, metres (+inf = no surface, not scored).
+        confidence: optional (H, W), higher = more trustworthy (any unit; NaN = least trustworthy).
+    Attributes (all (H, W) unless noted): ``scored`` bool, finite positive gt; ``err`` float64 absolute error,
+    metres (NaN off the scored pixels); ``valid`` bool, prediction valid; ``pred`` / ``gt`` float64 metres
+    (invalid predictions NaN); ``pred_edges`` / ``gt_edges`` bool (:func:`depth_edges`); ``near_pred_edge`` /
+    ``near_gt_edge`` bool, within :data:`BOUNDARY_TOLERANCE_PX` of those; ``seam_rows`` (H,) bool and ``seam``
+    (H,) float64 metres, the seam disagreement per row (used where ``seam_rows``); ``confidence`` or None.
+    Raises:
+        ValueError: shapes differ (the message names both) or are not 2-D.
+    """
+
+    def __init__(self, pred, gt, confidence=None):
+        pred, gt, confidence, _ = _check_maps(pred, gt, confidence)
+        self.shape = gt.shape
+        self.confidence = confidence
+        self.scored, err, valid = score_pixels(pred, gt)
+        self.err = np.full(gt.shape, np.nan)
+        self.err[self.scored] = err
+        self.valid = np.isfinite(pred) & (pred > 0)
+        self.gt = gt
+        self.pred = np.where(self.valid, pred, np.nan)
+        # depth boundaries: edges of the prediction (invalid values are unknown) vs edges of the truth
+        self.pred_edges = depth_edges(self.pred)
+        self.gt_edges = depth_edges(gt)
+        self.near_pred_edge = dilate_wrapped(self.pred_edges, BOUNDARY_TOLERANCE_PX)
+        self.near_gt_edge = dilate_wrapped(self.gt_edges, BOUNDARY_TOLERANCE_PX)
+        # seam: the prediction's jump across the left/right image edge minus the truth's own jump there
+        self.seam_rows = self.scored[:, 0] & self.scored[:, -1] & self.valid[:, 0] & self.valid[:, -1]
+        with np.errstate(invalid="ignore"):
+            self.seam = np.abs((self.pred[:, 0] - self.pred[:, -1]) - (gt[:, 0] - gt[:, -1]))
+
+    def pixels(self, mask=None) -> _Pixels:
+        """The ingredients of the metrics over the scored pixels inside ``mask`` ((H, W) bool, None = all)."""
+        if mask is not None:
+            mask = np.asarray(mask)
+            if mask.shape != self.shape or mask.dtype != bool:
+                raise ValueError(f"mask must be a bool array of the shape of gt, got {mask.dtype} {mask.shape} "
+                                 f"and {self.shape}")
+        sel = self.scored if mask is None else self.scored & mask
+        valid = self.valid[sel]
+        pe, ge = self.pred_edges & sel, self.gt_edges & sel
+        rows = self.seam_rows & sel[:, 0] & sel[:, -1]
+        return _Pixels(err=self.err[sel], gt=self.gt[sel], pred=np.where(valid, self.pred[sel], 1.0), valid=valid,
+                       conf=None if self.confidence is None else self.confidence[sel],
+                       pred_edges=int(pe.sum()), pred_hits=int((pe & self.near_gt_edge).sum()),
+                       gt_edges=int(ge.sum()), gt_hits=int((ge & self.near_pred_edge).sum()),
+                       seam=self.seam[rows])
+
+    def summary(self, mask=None) -> dict:
+        """:func:`summary` over the scored pixels inside ``mask`` ((H, W) bool, None = all scored pixels)."""
+        return _summarise([self.pixels(mask)])
+
+
+def _ratio(num: int, den: int) -> float:
+    return num / den if den > 0 else float("nan")
+
+
+def _sparsification(err: np.ndarray, conf: np.ndarray, steps: int):
+    """Sparsification curve of ``err`` ordered by ``conf`` and its oracle; see :func:`sparsification_curves`."""
+    steps = int(steps)
+    if steps < 1:
+        raise ValueError(f"steps must be >= 1, got {steps}")
+    n = err.size
+    fractions = np.arange(steps + 1) / steps
+    if n == 0:
+        nan = np.full(steps + 1, np.nan)
+        return fractions, nan, nan.copy()
+    kept = np.maximum(n - (np.arange(steps + 1) * n) // steps, 1)  # pixels kept after removing floor(f N)
+    # oracle: keep the `kept` smallest errors
+    oracle_sum = np.concatenate([[0.0], np.cumsum(np.sort(err))])
+    oracle = oracle_sum[kept] / kept
+    # method: keep the most confident pixels (NaN confidence = least confident); within a run of equal
+    # confidences the pixels kept are a random subset, so such a run contributes its mean error (expectation)
+    c = np.where(np.isnan(conf), -np.inf, conf)
+    order = np.argsort(-c, kind="stable")
+    c, e = c[order], err[order]
+    csum = np.concatenate([[0.0], np.cumsum(e)])
+    starts_here = np.concatenate([[True], c[1:] != c[:-1]])
+    starts = np.flatnonzero(starts_here)
+    ends = np.append(starts[1:], n)
+    group = (np.cumsum(starts_here) - 1)[kept - 1]  # tie run holding the last kept pixel
+    s0, s1 = starts[group], ends[group]
+    partial = csum[s0] + (kept - s0) * (csum[s1] - csum[s0]) / (s1 - s0)
+    curve = np.where(kept == s1, csum[kept], partial) / kept
+    return fractions, curve, oracle
+
+
+def _trapezoid(y: np.ndarray, x: np.ndarray) -> float:
+    return float(np.sum(0.5 * (y[1:] + y[:-1]) * np.diff(x)))
+
+
+def _summarise(parts: Sequence[_Pixels]) -> dict:
+    """Summary metrics over the union of the pixels (and seam rows) of ``parts``; see :func:`summary`."""
+    err = np.concatenate([p.err for p in parts])
+    n = int(err.size)
+    nan = float("nan")
+    confs = [p.conf for p in parts]
+    if any(c is None for c in confs) and not all(c is None for c in confs):
+        raise ValueError("either every frame has a confidence map or none has")
+    if n == 0:
+        out = {k: nan for k in SUMMARY_KEYS}
+        out["valid_px"] = 0
+        if confs[0] is not None:
+            out["ause"] = nan
+        return out
+    g = np.concatenate([p.gt for p in parts])
+    pred = np.concatenate([p.pred for p in parts])
+    valid = np.concatenate([p.valid for p in parts])
+    ratio = np.maximum(pred / g, g / pred)
+    out = {
+        "mae_m": float(err.mean()),
+        "rmse_m": float(np.sqrt(np.mean(err * err))),
+        "median_m": float(np.median(err)),
+        "absrel": float(np.mean(err / g)),
+        "delta1": float(np.mean(valid & (ratio < DELTA1_RATIO))),
+        "outlier_rate": float(np.mean(err > OUTLIER_FRACTION * g)),
+        "valid_px": n,
+    }
+    out.update({f"p{q}_m": float(v) for q, v in zip(PERCENTILES, np.percentile(err, PERCENTILES), strict=True)})
+    out.update({k: float(np.mean(err > f * g)) for k, f in BAD_FRACTIONS.items()})
+    out.update({k: float(np.mean(valid & (ratio < r))) for k, r in DELTA_RATIOS.items()})
+    out["coverage"] = float(valid.mean())
+    out["boundary_precision"] = _ratio(sum(p.pred_hits for p in parts), sum(p.pred_edges for p in parts))
+    out["boundary_recall"] = _ratio(sum(p.gt_hits for p in parts), sum(p.gt_edges for p in parts))
+    seam = np.concatenate([p.seam for p in parts])
+    out["seam_m"] = float(seam.mean()) if seam.size else nan
+    if confs[0] is not None:
+        fractions, curve, oracle = _sparsification(err, np.concatenate(confs), AUSE_STEPS)
+        out["ause"] = _trapezoid(curve - oracle, fractions)
+    return out
+
+
+def summary(pred, gt, confidence=None, mask=None) -> dict:
+    """Summary metrics of one predicted distance map (definitions and formulas: ``docs/metrics.md``).
+
+    Args:
+        pred: (H, W) predicted distance of camera C, metres (NaN / inf / <= 0 = invalid).
+        gt: (H, W) ground-truth distance, metres, +inf where nothing is hit.
+        confidence: optional (H, W) confidence of ``pred``, higher = more trustworthy (NaN = least); only
+            ``ause`` uses it.
+        mask: optional (H, W) bool region; the metrics are then over the scored pixels inside it (edge pixels
+            and seam rows inside it for the boundary and seam metrics).  None = every scored pixel.
+    Returns:
+        dict with the keys :data:`SUMMARY_KEYS` in that order, plus ``ause`` when ``confidence`` is given, all
+        over the scored pixels (invalid predictions scored as described in the module doc):
 
         * ``mae_m``: mean ``|pred - gt|``, metres;
         * ``rmse_m``: root mean squared error, metres;
@@ -87,29 +358,79 @@ def summary(pred, gt) -> dict:
         * ``absrel``: mean ``|pred - gt| / gt`` (unitless);
         * ``delta1``: share of pixels with ``max(pred/gt, gt/pred) < 1.25`` (0..1);
         * ``outlier_rate``: share of pixels with ``|pred - gt| > 0.1 * gt`` (0..1);
-        * ``valid_px``: number of scored pixels (int).
+        * ``valid_px``: number of scored pixels (int);
+        * ``p50_m p90_m p95_m p99_m``: percentiles of ``|pred - gt|`` (numpy's linear interpolation), metres;
+        * ``bad_1pct bad_2pct bad_5pct``: share with ``|pred - gt| > f * gt``, f = 0.01, 0.02, 0.05;
+        * ``delta105 delta110``: share with ``max(pred/gt, gt/pred) < 1.05`` / ``< 1.10``;
+        * ``coverage``: share of scored pixels whose prediction is valid;
+        * ``boundary_precision``: share of the prediction's depth-edge pixels (:func:`depth_edges`) that have a
+          true depth edge within :data:`BOUNDARY_TOLERANCE_PX`; ``boundary_recall``: share of the true
+          depth-edge pixels with a predicted edge that near (both over scored pixels; NaN with no edge pixel);
+        * ``seam_m``: mean over the rows where both seam pixels are scored and validly predicted of
+          ``|(pred[v, 0] - pred[v, W-1]) - (gt[v, 0] - gt[v, W-1])|``, metres (NaN with no such row);
+        * ``ause``: area under the sparsification error curve (MAE, :data:`AUSE_STEPS` steps) minus the
+          oracle's, metres (:func:`sparsification_curves`); only when ``confidence`` is given.
 
         With no scored pixel at all every metric is NaN and ``valid_px`` is 0.
+    Raises:
+        ValueError: the shapes of ``pred``, ``gt`` (and ``confidence``, ``mask``) differ; the message names them.
     """
-    mask, err, valid = score_pixels(pred, gt)
-    n = int(err.size)
-    if n == 0:
-        nan = float("nan")
-        return {"mae_m": nan, "rmse_m": nan, "median_m": nan, "absrel": nan, "delta1": nan,
-                "outlier_rate": nan, "valid_px": 0}
-    g = np.asarray(gt, dtype=np.float64)[mask]
-    p = np.where(valid, np.asarray(pred, dtype=np.float64)[mask], 1.0)
-    ratio = np.maximum(p / g, g / p)
-    good = valid & (ratio < DELTA1_RATIO)
-    return {
-        "mae_m": float(err.mean()),
-        "rmse_m": float(np.sqrt(np.mean(err * err))),
-        "median_m": float(np.median(err)),
-        "absrel": float(np.mean(err / g)),
-        "delta1": float(good.mean()),
-        "outlier_rate": float(np.mean(err > OUTLIER_FRACTION * g)),
-        "valid_px": n,
-    }
+    pred, gt, confidence, mask = _check_maps(pred, gt, confidence, mask)
+    return ScoredMaps(pred, gt, confidence).summary(mask)
+
+
+def pooled_summary(items: Iterable[Sequence]) -> dict:
+    """Summary metrics over the union of the scored pixels of several frames.
+
+    Every pixel of every frame counts once: the pooled MAE is the pixel-weighted mean of the frames' MAEs,
+    percentiles and shares are over all pixels together, boundary precision/recall pool the edge-pixel counts,
+    ``seam_m`` pools the seam rows, and ``ause`` sorts all pixels of all frames by their confidence together.
+
+    Args:
+        items: sequence of ``(pred, gt)``, ``(pred, gt, confidence)`` or ``(pred, gt, confidence, mask)``
+            tuples, one per frame (frames may differ in size); ``confidence`` and ``mask`` may be None.
+    Returns:
+        dict with the keys :data:`SUMMARY_KEYS` (definitions as :func:`summary`), plus ``ause`` when every item has
+        a confidence; ``valid_px`` is the total.
+    Raises:
+        ValueError: shapes differ within an item, an item has not 2 to 4 entries, or some items have a
+            confidence and others not.
+    """
+    parts = []
+    for i, item in enumerate(items):
+        if not 2 <= len(item) <= 4:
+            raise ValueError(f"item {i} must be (pred, gt[, confidence[, mask]]), got {len(item)} entries")
+        pred, gt, conf, mask = (*item, None, None)[:4]
+        pred, gt, conf, mask = _check_maps(pred, gt, conf, mask)
+        parts.append(ScoredMaps(pred, gt, conf).pixels(mask))
+    if not parts:
+        raise ValueError("pooled_summary needs at least one frame")
+    return _summarise(parts)
+
+
+def sparsification_curves(pred, gt, confidence, mask=None, steps: int = AUSE_STEPS):
+    """Sparsification curve of the MAE (pixels removed least confident first) and its oracle, for plotting.
+
+    For removal fractions ``f_k = k / steps`` (k = 0 .. steps) the ``n_k = max(N - floor(f_k N), 1)`` pixels
+    kept are the most confident ones (method curve) or the ones with the smallest absolute error (oracle); the
+    curve value is their MAE.  Pixels of equal confidence are removed in random order, in expectation: a run of
+    ties that is only partly kept contributes its mean error per kept pixel.  NaN confidence counts as the
+    lowest.  ``ause = trapezoid(curve - oracle, fractions)``.
+
+    Args:
+        pred, gt: (H, W) metres, scored as in :func:`summary` (invalid predictions have error = gt).
+        confidence: (H, W), higher = more trustworthy.
+        mask: optional (H, W) bool region.
+        steps: number of removal steps (>= 1).
+    Returns:
+        ``(fractions, curve, oracle)``, each (steps + 1,): removal fraction (0..1), MAE of the kept pixels
+        (metres), oracle MAE (metres); NaN curves when no pixel is scored.
+    """
+    if confidence is None:
+        raise ValueError("sparsification_curves needs a confidence map")
+    pred, gt, confidence, mask = _check_maps(pred, gt, confidence, mask)
+    px = ScoredMaps(pred, gt, confidence).pixels(mask)
+    return _sparsification(px.err, px.conf, steps)
 
 
 # --------------------------------------------------------------------------------------------- breakdown

@@ -1,9 +1,11 @@
 """Figures of the report, each returned as PNG bytes (matplotlib's object API on Agg; no pyplot state).
 
 * :func:`fig4_mae`: paper Fig. 4 style bars, MAE per variant grouped by configuration, min-max error bars.
-* :func:`error_maps`: ground-truth distance and ``|pred - gt|`` per variant on one shared colour scale.
+* :func:`error_maps`: ground-truth distance and ``|pred - gt|`` per method on one shared colour scale.
 * :func:`breakdown_lines`: error against a breakdown quantity (angle to a baseline, distance, texture).
 * :func:`cloud_views`: paper Fig. 3 style top-down and side sections of point clouds.
+* :func:`sparsification_plot`: MAE against the fraction of least-confident pixels removed, with the oracle.
+* :func:`region_masks`: the evaluation regions (``reports.regions``) over camera C's image.
 """
 
 from __future__ import annotations
@@ -13,15 +15,17 @@ import math
 
 import numpy as np
 import pandas as pd
+from matplotlib import colormaps
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from matplotlib.patches import Patch
 from matplotlib.ticker import FormatStrFormatter
 
 from reports.metrics import score_pixels
 from reports.tables import PAPER_MAE_M, config_label, config_order, variant_order
 
-__all__ = ["variant_colors", "png_bytes", "fig4_mae", "error_maps", "breakdown_lines", "cloud_views",
-           "CLOUD_VIEWS"]
+__all__ = ["variant_colors", "png_bytes", "fig4_mae", "error_maps", "breakdown_lines", "breakdown_groups",
+           "cloud_views", "CLOUD_VIEWS", "sparsification_plot", "region_masks", "REGION_PANELS"]
 
 DPI = 90
 NO_SURFACE_RGBA = (0.78, 0.78, 0.78, 1.0)  # light grey: pixel with no surface (not scored)
@@ -30,8 +34,6 @@ NO_PREDICTION_RGBA = (1.0, 0.0, 1.0, 1.0)  # magenta: invalid prediction (scored
 
 def variant_colors(variants) -> dict[str, tuple]:
     """A stable colour per variant (tab10 in :func:`variant_order`)."""
-    from matplotlib import colormaps
-
     cmap = colormaps["tab10"]
     return {v: cmap(i % 10) for i, v in enumerate(variant_order(variants))}
 
@@ -60,7 +62,10 @@ def fig4_mae(results: pd.DataFrame) -> bytes:
     configs = config_order(zip(results["flow"], results["rectify"], strict=True))
     variants = variant_order([*results["variant"], *PAPER_MAE_M])
     colors = variant_colors(variants)
-    stats = results.groupby(["flow", "rectify", "variant"])["mae_m"].agg(["mean", "min", "max", "count"])
+    g = results.groupby(["flow", "rectify", "variant"])["mae_m"]
+    # a NaN MAE of any frame makes the mean NaN: a missing metric never silently shrinks the set of frames
+    stats = pd.DataFrame({"mean": g.apply(lambda s: s.mean(skipna=False)), "min": g.min(), "max": g.max(),
+                          "count": g.size()})
     n_groups = len(configs) + 1
     fig = Figure(figsize=(max(7.0, 1.1 * n_groups * max(1, len(variants)) * 0.45 + 2), 5.2),
                  layout="constrained")
@@ -93,7 +98,8 @@ def fig4_mae(results: pd.DataFrame) -> bytes:
                  " hatched: the paper's own figures (quoted)", fontsize=9)
     ax.set_ylim(0, ax.get_ylim()[1] * 1.12)
     ax.grid(axis="y", alpha=0.3)
-    ax.legend(fontsize=8, ncols=min(len(variants), 6), loc="upper left")
+    if ax.get_legend_handles_labels()[0]:
+        ax.legend(fontsize=8, ncols=min(len(variants), 6), loc="upper left")
     return png_bytes(fig)
 
 
@@ -106,22 +112,20 @@ def _overlay(mask: np.ndarray, rgba) -> np.ndarray:
     return img
 
 
-def error_maps(gt: np.ndarray, preds: dict[str, np.ndarray], title: str) -> bytes:
-    """Ground truth and per-variant absolute error maps of one frame and configuration.
+def error_maps(gt: np.ndarray, preds: dict[str, np.ndarray], title: str, ncols: int | None = None) -> bytes:
+    """Ground truth and the absolute error maps of several predictions (methods or variants) of one frame.
 
     Args:
         gt: (H, W) true distance, metres (+inf = no surface).
-        preds: variant -> (H, W) predicted distance, metres (NaN / inf / <= 0 = invalid).
+        preds: label -> (H, W) predicted distance, metres (NaN / inf / <= 0 = invalid), in panel order.
         title: figure title.
+        ncols: panels per row (default: 2 up to 3 predictions, else 3).
     Returns:
         PNG: first panel the ground-truth distance (viridis, own colour bar, metres); then one panel of
-        ``|pred - gt|`` per variant (magma), all on one shared colour scale from 0 to the 99th percentile of
-        the pooled errors (one colour bar, metres; larger errors saturate).  Light grey: no surface (not
-        scored); magenta: invalid prediction (scored with error = gt).  Each panel title gives its MAE.
+        ``|pred - gt|`` per prediction (magma), all on one shared colour scale from 0 to the 99th percentile of
+        the pooled errors of all panels (one colour bar, metres; larger errors saturate).  Light grey: no surface
+        (not scored); magenta: invalid prediction (scored with error = gt).  Each panel title gives its MAE.
     """
-    from matplotlib import colormaps
-
-
     gt = np.asarray(gt, dtype=np.float64)
     scored = np.isfinite(gt) & (gt > 0)
     errs, invalid, maes = {}, {}, {}
@@ -138,9 +142,11 @@ def error_maps(gt: np.ndarray, preds: dict[str, np.ndarray], title: str) -> byte
     vmax = float(np.percentile(pooled, 99)) if pooled.size else 1.0
     vmax = max(vmax, 1e-3)
     n = 1 + len(preds)
-    ncols = 1 if n == 1 else 2
+    if ncols is None:
+        ncols = 1 if n == 1 else (2 if n <= 4 else 3)
     nrows = math.ceil(n / ncols)
-    fig = Figure(figsize=(6.2 * ncols + 1.2, 3.2 * nrows + 0.6), layout="constrained")
+    panel_w = 6.2 if ncols <= 2 else 4.8
+    fig = Figure(figsize=(panel_w * ncols + 1.2, panel_w / 2 * nrows + 0.4 * nrows + 0.6), layout="constrained")
     fig.suptitle(f"{title}\nlight grey: no surface (not scored); magenta: no valid prediction "
                  "(scored with error = true distance)", fontsize=9)
     axes = fig.subplots(nrows, ncols, squeeze=False).ravel()
@@ -172,12 +178,29 @@ def error_maps(gt: np.ndarray, preds: dict[str, np.ndarray], title: str) -> byte
 # -------------------------------------------------------------------------------------------- breakdown
 
 
+OTHER_GROUP = "other methods"
+
+
+def breakdown_groups(bd: pd.DataFrame) -> pd.DataFrame:
+    """Add ``group`` and ``line`` columns to a breakdown table: flow-pipeline rows are grouped by configuration
+    (:func:`reports.tables.config_label`) with one line per variant; every other method is a line of its own
+    (its label) in the group :data:`OTHER_GROUP`."""
+    flow = bd["flow"] != ""
+    group = [config_label(f, r) if f else OTHER_GROUP for f, r in zip(bd["flow"], bd["rectify"], strict=True)]
+    return bd.assign(group=group, line=np.where(flow, bd["variant"], bd["method"]))
+
+
+def _group_order(bd: pd.DataFrame) -> list[str]:
+    flow_rows = bd[bd["flow"] != ""]
+    out = [config_label(f, r) for f, r in config_order(zip(flow_rows["flow"], flow_rows["rectify"], strict=True))]
+    return out + ([OTHER_GROUP] if (bd["flow"] == "").any() else [])
+
+
 def _aggregate_breakdown(bd: pd.DataFrame) -> pd.DataFrame:
-    """Pool frames: pixel-weighted MAE per (flow, rectify, variant, kind, bin)."""
-    b = bd[bd["n_px"] > 0].copy()
+    """Pool frames: pixel-weighted MAE per (group, line, kind, bin)."""
+    b = breakdown_groups(bd[bd["n_px"] > 0])
     b["err_sum"] = b["mae_m"] * b["n_px"]
-    g = b.groupby(["flow", "rectify", "variant", "kind", "bin_lo", "bin_hi"], as_index=False)[
-        ["err_sum", "n_px"]].sum()
+    g = b.groupby(["group", "line", "kind", "bin_lo", "bin_hi"], as_index=False)[["err_sum", "n_px"]].sum()
     g["mae_m"] = g["err_sum"] / g["n_px"]
     return g
 
@@ -197,7 +220,8 @@ KIND_AXIS = {
 
 
 def breakdown_lines(bd: pd.DataFrame, kinds: list[str], title: str) -> bytes:
-    """Error against breakdown bins, one row of panels per configuration, one line per variant.
+    """Error against breakdown bins, one row of panels per flow configuration (one line per variant) and one
+    for the other methods (one line per method), see :func:`breakdown_groups`.
 
     Args:
         bd: validated ``breakdown.csv`` table.
@@ -207,9 +231,10 @@ def breakdown_lines(bd: pd.DataFrame, kinds: list[str], title: str) -> bytes:
         PNG.  y: MAE (m, log scale) pooled over frames, weighting each frame's bin by its pixel count;
         x: bin centre in degrees for ``angle_*`` kinds, bin labels otherwise.
     """
-    agg = _aggregate_breakdown(bd[bd["kind"].isin(kinds)])
-    configs = config_order(zip(agg["flow"], agg["rectify"], strict=True)) if len(agg) else []
-    colors = variant_colors(bd["variant"])
+    part_bd = bd[bd["kind"].isin(kinds)]
+    agg = _aggregate_breakdown(part_bd)
+    configs = [g for g in _group_order(part_bd[part_bd["n_px"] > 0]) if g in set(agg["group"])]
+    colors = variant_colors(agg["line"])
     nrows = max(1, len(configs))
     fig = Figure(figsize=(5.2 * len(kinds) + 1.5, 2.6 * nrows + 0.8), layout="constrained")
     fig.suptitle(f"{title}\nMAE per bin pooled over frames (pixel-weighted), log scale", fontsize=10)
@@ -219,15 +244,15 @@ def breakdown_lines(bd: pd.DataFrame, kinds: list[str], title: str) -> bytes:
             ax.text(0.5, 0.5, "no data", ha="center", va="center", transform=ax.transAxes)
             ax.set_axis_off()
         return png_bytes(fig)
-    for r, (flow, rect) in enumerate(configs):
-        conf = agg[(agg["flow"] == flow) & (agg["rectify"] == rect)]
+    for r, group in enumerate(configs):
+        conf = agg[agg["group"] == group]
         for c, kind in enumerate(kinds):
             ax = axes[r, c]
             part = conf[conf["kind"] == kind]
             bins = part[["bin_lo", "bin_hi"]].drop_duplicates().sort_values("bin_lo")
             angle = kind.startswith("angle")
-            for variant in variant_order(part["variant"]):
-                pv = part[part["variant"] == variant].sort_values("bin_lo")
+            for variant in variant_order(part["line"]):
+                pv = part[part["line"] == variant].sort_values("bin_lo")
                 if angle:
                     x = 0.5 * (pv["bin_lo"] + pv["bin_hi"])
                 else:
@@ -246,10 +271,10 @@ def breakdown_lines(bd: pd.DataFrame, kinds: list[str], title: str) -> bytes:
                 ax.yaxis.set_minor_formatter(FormatStrFormatter("%.3g"))
                 ax.tick_params(axis="y", which="both", labelsize=7)
             ax.grid(alpha=0.3, which="both")
-            ax.set_title(f"{config_label(flow, rect)}", fontsize=9)
+            ax.set_title(group, fontsize=9)
             ax.set_xlabel(KIND_AXIS.get(kind, kind), fontsize=8)
             ax.set_ylabel("MAE (m)", fontsize=8)
-            if r == 0 and c == 0:
+            if c == 0 and (r == 0 or group == OTHER_GROUP):
                 ax.legend(fontsize=7)
     return png_bytes(fig)
 
@@ -311,4 +336,114 @@ def cloud_views(clouds: dict[str, tuple[np.ndarray, np.ndarray]], centre, title:
             ax.tick_params(labelsize=7)
             ax.set_title(f"{name}: {lab}", fontsize=8)
             ax.set_facecolor("0.93")
+    return png_bytes(fig)
+
+
+# ------------------------------------------------------------------------------------------ sparsification
+
+
+def sparsification_plot(curves: dict[str, dict], title: str) -> bytes:
+    """Sparsification curves, one panel per method: MAE of the kept pixels against the fraction removed.
+
+    Args:
+        curves: method label -> ``{"fractions": (K,), "curve": (K,), "oracle": (K,), "ause": float,
+            "frames": int}``: removal fractions 0..1, the method's MAE (metres) after removing its least confident
+            pixels, the oracle's (largest errors removed first), the area between them (metres) and the number
+            of frames pooled.
+        title: figure title.
+    Returns:
+        PNG: per panel the method's curve (solid) and the oracle (dashed); the legend gives the AUSE.
+    """
+    names = list(curves)
+    ncols = max(1, min(3, len(names)))
+    nrows = max(1, math.ceil(len(names) / ncols))
+    fig = Figure(figsize=(max(6.0, 4.6 * ncols + 0.4), 3.4 * nrows + 0.9), layout="constrained")
+    fig.suptitle(f"{title}\nMAE of the pixels kept after removing a fraction of them:\nthe least confident "
+                 "(method, solid) or the largest errors (oracle, dashed)", fontsize=9)
+    axes = fig.subplots(nrows, ncols, squeeze=False).ravel()
+    for ax in axes[len(names):]:
+        ax.set_axis_off()
+    colors = variant_colors(names)
+    for ax, name in zip(axes, names, strict=False):
+        c = curves[name]
+        f = np.asarray(c["fractions"], dtype=np.float64)
+        ax.plot(f, c["curve"], color=colors[name], lw=1.6, marker="o", ms=2.5,
+                label=f"{name} (AUSE {c['ause']:.4f} m)")
+        ax.plot(f, c["oracle"], color="0.2", lw=1.2, ls="--", label="oracle")
+        ax.fill_between(f, c["oracle"], c["curve"], color=colors[name], alpha=0.15, lw=0)
+        ax.set_xlim(0, 1)
+        ax.set_ylim(bottom=0)
+        ax.set_xlabel("fraction of pixels removed", fontsize=8)
+        ax.set_ylabel("MAE of kept pixels (m)", fontsize=8)
+        frames = int(c.get("frames", 1))
+        ax.set_title(f"{name} ({frames} frame{'s' if frames != 1 else ''})", fontsize=9)
+        ax.tick_params(labelsize=7)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7, loc="upper right")
+    return png_bytes(fig)
+
+
+# ------------------------------------------------------------------------------------------- region masks
+
+
+#: panels of :func:`region_masks`: (title, [(region name, RGB colour), ...]); overlapping regions of one panel
+#: are drawn in order (the later on top)
+REGION_PANELS = (
+    ("textureless", [("textureless", (1.0, 0.85, 0.0))]),
+    ("discontinuity", [("discontinuity", (1.0, 0.1, 0.1))]),
+    ("occluded", [("occluded_U", (1.0, 0.5, 0.0)), ("occluded_R", (0.0, 0.8, 1.0))]),
+    ("epipole", [("epipole_U", (1.0, 0.5, 0.0)), ("epipole_R", (0.0, 0.8, 1.0))]),
+    ("pole", [("pole", (0.3, 0.4, 1.0))]),
+    ("distance bands", [("d<2m", (0.1, 0.8, 0.2)), ("d2-5m", (1.0, 0.85, 0.0)), ("d>=5m", (0.8, 0.2, 0.9))]),
+)
+REGION_ALPHA = 0.65
+
+
+def region_masks(image: np.ndarray, masks: dict[str, np.ndarray], title: str) -> bytes:
+    """The evaluation regions of one frame drawn over camera C's image, one panel per :data:`REGION_PANELS`.
+
+    Args:
+        image: (H, W, 3) uint8 RGB, camera C.
+        masks: region name -> (H, W) bool (:func:`reports.regions.regions`; ``all`` = scored pixels).  Regions
+            missing from ``masks`` are left out of their panel.
+        title: figure title.
+    Returns:
+        PNG: C's image darkened and desaturated, the regions as coloured overlays (alpha 0.65); pixels that are
+        not scored (no surface) hatched grey.  Panel legends give each region's share of the scored pixels.
+    """
+    img = np.asarray(image, dtype=np.float64) / 255.0
+    grey = img.mean(axis=2, keepdims=True)
+    base = np.clip(0.25 + 0.55 * (0.7 * grey + 0.3 * img), 0, 1)  # dimmed, mostly grey: overlays stand out
+    scored = masks.get("all")
+    n_scored = int(scored.sum()) if scored is not None else 0
+    h, w = img.shape[:2]
+    ncols = 3
+    nrows = math.ceil(len(REGION_PANELS) / ncols)
+    panel_w = 4.8
+    fig = Figure(figsize=(panel_w * ncols, (panel_w / 2 + 0.75) * nrows + 0.5), layout="constrained")
+    fig.suptitle(f"{title}\nregions over camera C's image (overlays; hatched grey: no surface, not scored)",
+                 fontsize=9)
+    axes = fig.subplots(nrows, ncols, squeeze=False).ravel()
+    for ax in axes[len(REGION_PANELS):]:
+        ax.set_axis_off()
+    for ax, (panel, parts) in zip(axes, REGION_PANELS, strict=False):
+        ax.imshow(base, interpolation="nearest")
+        if scored is not None and not scored.all():
+            ax.imshow(_overlay(~scored, (0.78, 0.78, 0.78, 0.85)), interpolation="nearest")
+        handles = []
+        for name, rgb in parts:
+            if name not in masks:
+                continue
+            m = np.asarray(masks[name], dtype=bool)
+            ax.imshow(_overlay(m, (*rgb, REGION_ALPHA)), interpolation="nearest")
+            share = 100.0 * m.sum() / n_scored if n_scored else float("nan")
+            handles.append(Patch(color=rgb, label=f"{name}: {share:.1f} %"))
+        ax.set_title(panel, fontsize=9)
+        ax.set_xticks([])
+        ax.set_yticks([])
+        ax.set_xlim(-0.5, w - 0.5)
+        ax.set_ylim(h - 0.5, -0.5)
+        if handles:
+            ax.legend(handles=handles, fontsize=7.5, loc="upper center", bbox_to_anchor=(0.5, -0.01),
+                      ncols=len(handles), frameon=False, handlelength=1.0, columnspacing=0.8)
     return png_bytes(fig)

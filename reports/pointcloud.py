@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from harness.data.frame import atomic_write_bytes
+from harness.data.atomic import atomic_write_bytes
 from reconstruction.camera.equirect import bearing_grid
 
 __all__ = ["VERTEX_DTYPE", "point_grid", "ply_bytes", "write_ply", "read_ply"]

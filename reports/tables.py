@@ -1,8 +1,10 @@
-"""Read and validate a results directory; the MAE table (variant x scene, % reduction against ``average``).
+"""Read and validate a results directory; the MAE table (variant x scene, % reduction against ``average``); the
+leaderboard (every method x overall metrics and MAE per region).
 
-A results directory (written by ``tri360 evaluate``) holds ``results.csv`` (one row per scene, viewpoint,
-flow, rectify, variant), ``breakdown.csv`` (long format), ``frames.json`` and ``maps/``.  Readers here raise
-:class:`harness.data.errors.UserError` with one line naming the file and what is wrong.
+A results directory (written by ``tri360 evaluate`` / ``tri360 score``) holds ``results.csv`` (one row per scene,
+viewpoint, method), ``regions.csv`` (the same per region), ``breakdown.csv`` (long format), ``frames.json``,
+``config.json`` and ``maps/``.  Readers here raise :class:`harness.data.errors.UserError` with one line naming the
+file and what is wrong.
 """
 
 from __future__ import annotations
@@ -15,6 +17,18 @@ import numpy as np
 import pandas as pd
 
 from harness.data.errors import UserError
+from reconstruction.methods.flow_pipeline import config_label as flow_config_label
+from reports.regions import REGION_NAMES
+from reports.schema import (
+    BREAKDOWN_COLUMNS,
+    CORE_METRIC_COLUMNS,
+    FLOW_COLUMNS,
+    INT_COLUMNS,
+    KEY_COLUMNS,
+    REGION_COLUMNS,
+    RESULT_COLUMNS,
+    RESULT_REQUIRED,
+)
 
 __all__ = [
     "RESULT_COLUMNS",
@@ -28,17 +42,20 @@ __all__ = [
     "load_results",
     "load_breakdown",
     "load_frames",
+    "load_regions",
+    "load_method_kinds",
+    "method_order",
     "mae_table",
     "mae_markdown",
     "mae_display",
+    "LEADERBOARD_OVERALL",
+    "LEADERBOARD_REGIONS",
+    "pixel_weighted",
+    "leaderboard_table",
+    "leaderboard_display",
+    "leaderboard_markdown",
 ]
 
-KEY_COLUMNS = ["scene", "viewpoint", "flow", "rectify", "variant"]
-RESULT_COLUMNS = ["scene", "viewpoint", "width", "height", "flow", "rectify", "variant", "mae_m", "rmse_m",
-                  "median_m", "absrel", "delta1", "outlier_rate", "valid_px", "seconds"]
-BREAKDOWN_COLUMNS = ["scene", "viewpoint", "flow", "rectify", "variant", "kind", "bin_lo", "bin_hi", "mae_m",
-                     "median_m", "n_px"]
-_INT_COLUMNS = {"width", "height", "valid_px", "n_px"}
 
 #: The paper's own Fig. 4 figures (mean absolute error, metres; one 1000x500 Blender classroom frame,
 #: DeepFlow on plain equirect pairs).  Quoted for reference, never computed by tri360.
@@ -51,7 +68,7 @@ VARIANT_ORDER = ["average", "angle", "gradient", "color"]
 
 def config_key(flow: str, rectify: bool) -> str:
     """Directory name of a configuration under ``maps/``: ``"<flow>-rect"`` or ``"<flow>-plain"``."""
-    return f"{flow}-{'rect' if rectify else 'plain'}"
+    return flow_config_label(flow, bool(rectify))
 
 
 def config_label(flow: str, rectify: bool) -> str:
@@ -109,7 +126,7 @@ def _parse_numeric(series: pd.Series, path: Path, column: str) -> pd.Series:
         raise UserError(f"{path}: column {column!r} must be numeric, "
                         f"got {series.iloc[i]!r} in data row {i + 1}")
     num = num.astype(np.float64)
-    if column in _INT_COLUMNS:
+    if column in INT_COLUMNS:
         if missing.any():
             i = int(np.flatnonzero(missing.to_numpy())[0])
             raise UserError(f"{path}: column {column!r} is empty in data row {i + 1}")
@@ -119,7 +136,9 @@ def _parse_numeric(series: pd.Series, path: Path, column: str) -> pd.Series:
     return num
 
 
-def _read_csv(path: Path, columns: list[str], what: str) -> pd.DataFrame:
+def _read_csv(path: Path, columns: list[str], what: str, required: list[str] | None = None) -> pd.DataFrame:
+    if path.exists() and not path.is_file():
+        raise UserError(f"{path}: not a regular file ({what})")
     if not path.is_file():
         raise UserError(f"{path}: file is missing ({what})")
     try:
@@ -130,18 +149,29 @@ def _read_csv(path: Path, columns: list[str], what: str) -> pd.DataFrame:
     except (pd.errors.ParserError, UnicodeDecodeError) as exc:
         raise UserError(f"{path}: not a readable CSV file ({str(exc).strip()})") from None
     df.columns = [str(c).strip() for c in df.columns]
-    missing = [c for c in columns if c not in df.columns]
+    missing = [c for c in (required or columns) if c not in df.columns]
     if missing:
         raise UserError(f"{path}: missing column(s) {', '.join(missing)} (found: {', '.join(df.columns)})")
     if df.empty:
         raise UserError(f"{path}: has a header but no data rows")
+    for c in columns:  # optional columns of older files: empty
+        if c not in df.columns:
+            df[c] = ""
     df = df[columns].copy()
+    # flow, rectify and variant describe flow-pipeline methods and are empty for the others
+    flow_row = df["flow"].astype(str).str.strip() != "" if "flow" in df.columns else None
     for c in columns:
         if c == "rectify":
-            df[c] = _parse_bool(df[c], path, c)
-        elif c in ("scene", "viewpoint", "flow", "variant", "kind"):
+            parsed = _parse_bool(df.loc[flow_row, c], path, c) if flow_row.any() else None
+            df[c] = ""
+            if parsed is not None:
+                df[c] = df[c].astype(object)
+                df.loc[flow_row, c] = parsed
+        elif c in ("scene", "viewpoint", "method", "flow", "variant", "kind", "region"):
             df[c] = df[c].astype(str).str.strip()
             empty = df[c] == ""
+            if c in ("flow", "variant"):
+                empty &= flow_row
             if empty.any():
                 i = int(np.flatnonzero(empty.to_numpy())[0])
                 raise UserError(f"{path}: column {c!r} is empty in data row {i + 1}")
@@ -158,18 +188,17 @@ def load_results(results_dir) -> pd.DataFrame:
         ``valid_px``, float metrics (NaN allowed, e.g. for a frame with no scored pixel).
     Raises:
         UserError: missing/empty directory or file, unreadable CSV, missing columns, no rows, non-numeric
-            metrics, non-boolean ``rectify``, or duplicate (scene, viewpoint, flow, rectify, variant) rows.
+            metrics, non-boolean ``rectify`` in a flow-pipeline row, or duplicate (scene, viewpoint, method) rows.
     """
     d = _require_dir(results_dir)
     path = d / "results.csv"
     if not path.is_file() and not any(d.iterdir()):
         raise UserError(f"{d}: results directory is empty (no results.csv; run `tri360 evaluate` first)")
-    df = _read_csv(path, RESULT_COLUMNS, "the per-frame results written by `tri360 evaluate`")
+    df = _read_csv(path, RESULT_COLUMNS, "the per-frame results written by `tri360 evaluate`", RESULT_REQUIRED)
     dup = df.duplicated(KEY_COLUMNS, keep=False)
     if dup.any():
         r = df[dup].iloc[0]
-        raise UserError(f"{path}: duplicate rows for scene={r.scene} viewpoint={r.viewpoint} flow={r.flow} "
-                        f"rectify={r.rectify} variant={r.variant}")
+        raise UserError(f"{path}: duplicate rows for scene={r.scene} viewpoint={r.viewpoint} method={r.method}")
     return df.reset_index(drop=True)
 
 
@@ -209,6 +238,63 @@ def load_frames(results_dir) -> list[dict] | None:
     return out
 
 
+#: the columns a regions.csv must have
+REGION_REQUIRED = [*KEY_COLUMNS, *FLOW_COLUMNS, "region", *(c for c in CORE_METRIC_COLUMNS if c != "seconds")]
+
+
+def load_regions(results_dir) -> pd.DataFrame | None:
+    """Read and validate ``RESULTS/regions.csv``; ``None`` if the file does not exist (older results sets).
+
+    Returns:
+        DataFrame with exactly :data:`reports.schema.REGION_COLUMNS` (types as :func:`load_results`).
+    Raises:
+        UserError: unreadable or malformed file, or duplicate (scene, viewpoint, method, region) rows.
+    """
+    path = Path(results_dir) / "regions.csv"
+    if not path.exists():
+        return None
+    df = _read_csv(path, REGION_COLUMNS, "the per-region metrics written by `tri360 evaluate`", REGION_REQUIRED)
+    dup = df.duplicated([*KEY_COLUMNS, "region"], keep=False)
+    if dup.any():
+        r = df[dup].iloc[0]
+        raise UserError(f"{path}: duplicate rows for scene={r.scene} viewpoint={r.viewpoint} method={r.method} "
+                        f"region={r.region}")
+    return df.reset_index(drop=True)
+
+
+def load_method_kinds(results_dir) -> dict[str, str] | None:
+    """``RESULTS/config.json`` -> ``{method label: kind}`` (``flow-pipeline``, ``sweep``, ``predictions``...);
+    ``None`` if the file does not exist.  A method whose configuration names no kind is left out.
+
+    Raises:
+        UserError: the file is not valid JSON or its ``methods`` entry is not an object.
+    """
+    path = Path(results_dir) / "config.json"
+    if not path.exists():
+        return None
+    try:
+        raw = json.loads(path.read_text(encoding="utf-8"))
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise UserError(f"{path}: not valid JSON ({exc})") from None
+    methods = raw.get("methods", {}) if isinstance(raw, dict) else None
+    if not isinstance(methods, dict):
+        raise UserError(f"{path}: 'methods' must be an object {{label: configuration}}")
+    return {str(k): str(v["kind"]) for k, v in methods.items() if isinstance(v, dict) and v.get("kind")}
+
+
+def method_order(results: pd.DataFrame) -> list[str]:
+    """Method labels in display order: flow-pipeline methods by :func:`config_order` then :func:`variant_order`,
+    then every other method alphabetically."""
+    flow_rows = results[results["flow"] != ""]
+    out = []
+    for flow, rect in config_order(zip(flow_rows["flow"], flow_rows["rectify"], strict=True)):
+        conf = flow_rows[(flow_rows["flow"] == flow) & (flow_rows["rectify"] == rect)]
+        for variant in variant_order(conf["variant"]):
+            out.extend(sorted(set(conf.loc[conf["variant"] == variant, "method"])))
+    out.extend(sorted(set(results.loc[results["flow"] == "", "method"]) - set(out)))
+    return out
+
+
 # ---------------------------------------------------------------------------------------------- MAE table
 
 
@@ -242,7 +328,7 @@ def mae_table(results: pd.DataFrame) -> pd.DataFrame:
             row = {"source": "tri360", "configuration": config_label(flow, rect), "flow": flow,
                    "rectify": rect, "variant": variant}
             for scene, part in [*((s, sub[sub["scene"] == s]) for s in scenes), ("all", sub)]:
-                mae = float(part["mae_m"].mean()) if len(part) else float("nan")
+                mae = float(part["mae_m"].mean(skipna=False)) if len(part) else float("nan")
                 keys = list(zip(part["scene"], part["viewpoint"], strict=True))
                 paired = avg.reindex(keys)
                 red = float("nan")
@@ -304,4 +390,159 @@ def mae_markdown(table: pd.DataFrame) -> str:
     ]
     for _, r in disp.iterrows():
         lines.append("| " + " | ".join(_md_cell(v) for v in r) + " |")
+    return "\n".join(lines) + "\n"
+
+
+# ---------------------------------------------------------------------------------------------- leaderboard
+
+
+#: overall columns of the leaderboard: (results.csv column, which way is better: "low" or "high")
+LEADERBOARD_OVERALL = (("mae_m", "low"), ("median_m", "low"), ("p90_m", "low"), ("bad_5pct", "low"),
+                       ("delta110", "high"), ("coverage", "high"), ("ause", "low"))
+#: regions with an MAE column of their own (``all`` is ``mae_m``)
+LEADERBOARD_REGIONS = tuple(r for r in REGION_NAMES if r != "all")
+#: leaderboard columns shown as percentages (shares 0..1 in leaderboard.csv)
+SHARE_COLUMNS = {"bad_5pct", "delta110", "coverage"}
+LEADERBOARD_HEADERS = {"method": "method", "kind": "kind", "frames": "frames", "mae_m": "MAE (m)",
+                       "median_m": "median (m)", "p90_m": "p90 (m)", "bad_5pct": "bad 5 % (%)",
+                       "delta110": "δ < 1.10 (%)", "coverage": "coverage (%)", "ause": "AUSE (m)"}
+PAPER_KIND = "quoted from the paper"
+
+
+def pixel_weighted(values, weights) -> float:
+    """``sum(v * w) / sum(w)`` over the entries with ``w > 0`` (frames with no scored pixel carry no weight).
+
+    NaN if a weighted entry is NaN (a missing metric is never silently dropped) or if no entry has weight.
+    """
+    v = np.asarray(values, dtype=np.float64)
+    w = np.asarray(weights, dtype=np.float64)
+    keep = w > 0
+    if not keep.any() or np.isnan(v[keep]).any():
+        return float("nan")
+    return float(np.sum(v[keep] * w[keep]) / np.sum(w[keep]))
+
+
+def leaderboard_table(results: pd.DataFrame, regions: pd.DataFrame | None = None,
+                      kinds: dict[str, str] | None = None) -> pd.DataFrame:
+    """Every method of a results set against the overall metrics and the MAE per region, plus the paper's rows.
+
+    Every number is pooled over the method's frames with each frame weighted by its number of scored pixels
+    (``valid_px``; per region: the region's scored pixels in that frame): ``sum_f value_f N_f / sum_f N_f``.  For
+    the means and shares (``mae_m``, the region MAEs, ``bad_5pct``, ``delta110``, ``coverage``) this *is* the value
+    over all scored pixels of all frames together; for ``median_m``, ``p90_m`` and ``ause`` it is the
+    pixel-weighted mean of the per-frame values (a percentile of the pooled pixels would need the maps).  With
+    one frame per method every number is that frame's.  A NaN of any frame gives NaN (e.g. ``ause`` of a method
+    without confidence).
+
+    Args:
+        results: validated ``results.csv`` (:func:`load_results`).
+        regions: validated ``regions.csv`` (:func:`load_regions`) or None (region columns all NaN).
+        kinds: method label -> kind from ``config.json`` (:func:`load_method_kinds`).
+    Returns:
+        DataFrame, columns ``source`` ("tri360" / "paper"), ``method``, ``kind``, ``flow``, ``rectify``,
+        ``variant``, ``frames``, the :data:`LEADERBOARD_OVERALL` columns (metres / shares 0..1) and
+        ``mae_<region>`` for each of :data:`LEADERBOARD_REGIONS` (metres).  tri360 rows sorted by ``mae_m``
+        (NaN last), then one row per :data:`PAPER_MAE_M` entry, labelled ``paper: deepflow-plain:<variant>`` (MAE
+        only; every other number NaN).
+    """
+    kinds = kinds or {}
+    rows = []
+    for label in method_order(results):
+        sub = results[results["method"] == label]
+        first = sub.iloc[0]
+        row = {"source": "tri360", "method": label,
+               "kind": kinds.get(label) or ("flow-pipeline" if first["flow"] else ""),
+               "flow": first["flow"], "rectify": first["rectify"], "variant": first["variant"], "frames": len(sub)}
+        for col, _ in LEADERBOARD_OVERALL:
+            row[col] = pixel_weighted(sub[col], sub["valid_px"])
+        for region in LEADERBOARD_REGIONS:
+            part = None if regions is None else regions[(regions["method"] == label) & (regions["region"] == region)]
+            row[f"mae_{region}"] = (float("nan") if part is None or part.empty
+                                    else pixel_weighted(part["mae_m"], part["valid_px"]))
+        rows.append(row)
+    table = pd.DataFrame(rows)
+    if len(table):
+        table = table.sort_values("mae_m", kind="stable", na_position="last")
+    paper = []
+    for variant, mae in PAPER_MAE_M.items():
+        row = {"source": "paper", "method": f"paper: {flow_config_label('deepflow', False)}:{variant}",
+               "kind": PAPER_KIND, "flow": "deepflow", "rectify": False, "variant": variant, "frames": 1}
+        row.update({col: float("nan") for col, _ in LEADERBOARD_OVERALL})
+        row.update({f"mae_{r}": float("nan") for r in LEADERBOARD_REGIONS})
+        row["mae_m"] = mae
+        paper.append(row)
+    return pd.concat([table, pd.DataFrame(paper)], ignore_index=True)
+
+
+def _metric_columns() -> list[tuple[str, str]]:
+    return [*LEADERBOARD_OVERALL, *((f"mae_{r}", "low") for r in LEADERBOARD_REGIONS)]
+
+
+def _fmt(col: str, v: float) -> str:
+    if not math.isfinite(v):
+        return "—"
+    return f"{100 * v:.2f}" if col in SHARE_COLUMNS else f"{v:.5f}"
+
+
+def leaderboard_display(table: pd.DataFrame) -> dict:
+    """What the HTML leaderboard shows, from :func:`leaderboard_table`.
+
+    Returns:
+        dict with ``display`` (DataFrame of strings: method, kind, frames, the overall columns (metres to 5
+        decimals, shares in %) and one MAE column per region), ``columns`` (the leaderboard column behind each
+        displayed one), ``keys`` (per row, per column: the sort key, float or str; None for a missing number),
+        ``better`` (per column "low", "high" or "" for text), ``best`` ((rows, cols) bool: the best value of the
+        column among tri360's rows, ties included within 1e-9 relative) and ``row_classes`` ("paper" for the
+        quoted rows).
+    """
+    metric_cols = _metric_columns()
+    columns = ["method", "kind", "frames", *(c for c, _ in metric_cols)]
+    better = ["", "", "", *(b for _, b in metric_cols)]
+    disp = pd.DataFrame({"method": table["method"].astype(str),
+                         "kind": [k if k else "—" for k in table["kind"].astype(str)],
+                         "frames": table["frames"].astype(int).astype(str)})
+    for col, _ in metric_cols:
+        disp[LEADERBOARD_HEADERS.get(col, col.removeprefix("mae_"))] = [_fmt(col, float(v)) for v in table[col]]
+    keys = []
+    for _, r in table.iterrows():
+        keys.append([r["method"], r["kind"], int(r["frames"]),
+                     *((float(r[c]) if math.isfinite(float(r[c])) else None) for c, _ in metric_cols)])
+    best = np.zeros((len(table), len(columns)), dtype=bool)
+    ours = (table["source"] == "tri360").to_numpy()
+    for j, (col, way) in enumerate(metric_cols, start=3):
+        v = table[col].to_numpy(dtype=np.float64)
+        ok = ours & np.isfinite(v)
+        if ok.any():
+            b = v[ok].min() if way == "low" else v[ok].max()
+            best[:, j] = ok & (np.abs(v - b) <= 1e-12 + 1e-9 * abs(b))
+    return {"display": disp, "columns": columns, "keys": keys, "better": better, "best": best,
+            "row_classes": ["paper" if s == "paper" else "" for s in table["source"]]}
+
+
+def leaderboard_markdown(table: pd.DataFrame) -> str:
+    """Markdown document with the leaderboard (from :func:`leaderboard_table`): overall metrics, then MAE per
+    region; the paper's quoted rows are marked."""
+    overall = [c for c, _ in LEADERBOARD_OVERALL]
+    lines = [
+        "# Leaderboard: camera C's distance, every method",
+        "",
+        "Pooled over each method's frames, each frame weighted by its scored pixels: exact over all pixels for",
+        "MAE and the shares; the pixel-weighted mean of the per-frame values for median, p90 and AUSE.",
+        "Shares in %; lower is better except for δ < 1.10 and coverage.  A missing or invalid prediction",
+        "counts with error = true distance.  Rows of kind \"quoted from the paper\" are the paper's own Fig. 4 MAEs",
+        "(one 1000x500 classroom frame of theirs, DeepFlow on plain equirect pairs), not computed by tri360.",
+        "",
+        "| method | kind | frames | " + " | ".join(LEADERBOARD_HEADERS[c] for c in overall) + " |",
+        "|---|---|---:|" + "---:|" * len(overall),
+    ]
+    for _, r in table.iterrows():
+        cells = [r["method"], r["kind"] or "—", str(int(r["frames"])), *(_fmt(c, float(r[c])) for c in overall)]
+        lines.append("| " + " | ".join(_md_cell(x) for x in cells) + " |")
+    lines += ["", "## MAE per region (m)", "",
+              "Regions: docs/metrics.md (`reports.regions`).", "",
+              "| method | " + " | ".join(LEADERBOARD_REGIONS) + " |",
+              "|---|" + "---:|" * len(LEADERBOARD_REGIONS)]
+    for _, r in table[table["source"] == "tri360"].iterrows():
+        cells = [r["method"], *(_fmt("mae_m", float(r[f"mae_{g}"])) for g in LEADERBOARD_REGIONS)]
+        lines.append("| " + " | ".join(_md_cell(x) for x in cells) + " |")
     return "\n".join(lines) + "\n"

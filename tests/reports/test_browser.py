@@ -1,24 +1,26 @@
 """report.html in real headless Chromium: it loads without errors and every <img> decodes (naturalWidth > 0).
 
-Chromium (Debian package ``chromium``) is installed by a session fixture when missing and running as root;
-otherwise the tests fail with instructions (they never skip).  The page is checked through ``--dump-dom``:
+Chromium (Debian package ``chromium``) is installed by ``make browser`` (which ``make test`` and ``.ci/run``
+run first); when it is missing the tests fail with instructions (they never skip).  The page is checked
+through ``--dump-dom``:
 a small script, injected into a copy of the report next to it, records on ``<body>`` (as data attributes)
-the number of images, the broken ones and any error event once the page has loaded.
+the number of images, the broken ones and any error event once the page has loaded; then it clicks headers of
+the leaderboard (``table#leaderboard``) and records the row order after each click.
 """
 
 from __future__ import annotations
 
 import json
-import os
 import shutil
 import subprocess
 from html.parser import HTMLParser
 from pathlib import Path
 
+import pandas as pd
 import pytest
-from test_reports import make_results
 
 from reports.build import write_report
+from tests.reports.test_reports import CONFIGS, OTHERS, VARIANTS, make_results
 
 pytestmark = pytest.mark.browser
 
@@ -40,6 +42,18 @@ window.addEventListener('load', function () {
   var b = document.body;
   b.dataset.imgCount = String(imgs.length);
   b.dataset.broken = JSON.stringify(broken);
+  var table = document.getElementById('leaderboard');
+  if (table) {
+    var order = function () {
+      return Array.prototype.map.call(table.tBodies[0].rows, function (r) { return r.cells[0].textContent; });
+    };
+    var click = function (key) {
+      table.querySelector('th[data-key="' + key + '"]').dispatchEvent(new MouseEvent('click', {bubbles: true}));
+      return order();
+    };
+    b.dataset.sorts = JSON.stringify({initial: order(), mae_first: click('mae_m'), mae_second: click('mae_m'),
+                                      ause_first: click('ause')});
+  }
   b.dataset.errors = JSON.stringify(window.__errors);
   b.dataset.checked = 'yes';
 });
@@ -48,18 +62,10 @@ window.addEventListener('load', function () {
 
 @pytest.fixture(scope="session")
 def chromium() -> Path:
-    """Path of the Chromium binary, installing the Debian package first if needed (root only)."""
+    """Path of the Chromium binary; installing it is `make browser`'s job (`.ci/run` calls it), never a test's."""
     if not CHROMIUM.exists():
-        if os.geteuid() != 0:
-            pytest.fail(f"{CHROMIUM} is missing and these tests are not running as root: "
-                        "install it with `sudo apt-get update && sudo apt-get install -y chromium`")
-        for cmd in (["apt-get", "update"], ["apt-get", "install", "-y", "chromium"]):
-            proc = subprocess.run(cmd, capture_output=True, text=True, timeout=1200,
-                                  env={**os.environ, "DEBIAN_FRONTEND": "noninteractive"})
-            if proc.returncode != 0:
-                pytest.fail(f"`{' '.join(cmd)}` failed ({proc.returncode}): {proc.stderr.strip()[-800:]}")
-        if not CHROMIUM.exists():
-            pytest.fail(f"apt-get installed chromium but {CHROMIUM} still does not exist")
+        pytest.fail(f"{CHROMIUM} is missing: run `make browser` (as root: apt-get install chromium) before the "
+                    "browser tests")
     return CHROMIUM
 
 
@@ -101,16 +107,32 @@ def _console_lines(stderr: str) -> list[str]:
 
 
 def test_report_loads_and_every_image_is_shown(chromium, tmp_path):
-    res = make_results(tmp_path)
+    res = make_results(tmp_path, others=True)
     html_file = write_report(res, ply="paper", cloud_points=300)
     expected_imgs = html_file.read_text(encoding="utf-8").count("<img ")
-    assert expected_imgs == 7  # 3 summary figures + (error maps, clouds) for 2 configurations
+    # fig4, 2 breakdown plots, sparsification; per frame: error maps, region masks, clouds per configuration + others
+    assert expected_imgs == 4 + 2 + len(CONFIGS) + 1
     attrs, dom_imgs, stderr = load_in_chromium(chromium, html_file, tmp_path)
     assert attrs.get("data-checked") == "yes", f"the load handler did not run; body attributes: {attrs}"
     assert int(attrs["data-img-count"]) == expected_imgs == dom_imgs
     assert json.loads(attrs["data-broken"]) == [], f"images not shown: {attrs['data-broken']}"
     assert json.loads(attrs["data-errors"]) == [], f"errors while loading: {attrs['data-errors']}"
     assert _console_lines(stderr) == []
+
+    # the leaderboard: one row per method plus the paper's quoted rows, re-sorted by clicking headers
+    board = pd.read_csv(res / "leaderboard.csv")
+    sorts = json.loads(attrs["data-sorts"])
+    n_methods = len(CONFIGS) * len(VARIANTS) + len(OTHERS)
+    assert len(sorts["initial"]) == n_methods + 3 == len(board)
+    assert sorts["initial"] == list(board["method"])  # tri360's rows by MAE, then the paper's
+    assert (board["source"] == "paper").sum() == 3 and list(board["source"][-3:]) == ["paper"] * 3
+    by_mae = list(board.sort_values("mae_m", kind="stable")["method"])  # every MAE differs: no ties
+    assert board["mae_m"].nunique() == len(board)
+    assert sorts["mae_first"] == by_mae  # first click on MAE: lower is better, ascending (paper rows mixed in)
+    assert sorts["mae_first"] != sorts["initial"]  # a paper row beats some of ours: the order really changed
+    assert sorts["mae_second"] == by_mae[::-1]  # second click reverses
+    # AUSE: only `matcher` gave a confidence; rows without a value go last, keeping their previous order
+    assert sorts["ause_first"] == ["matcher"] + [m for m in by_mae[::-1] if m != "matcher"]
 
 
 def test_checker_detects_a_broken_image(chromium, tmp_path):

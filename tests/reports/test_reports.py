@@ -15,17 +15,22 @@ import pytest
 
 from harness.cli import main
 from harness.data.errors import UserError
-from harness.data.frame import Frame, write_distance_exr, write_frame
+from harness.data.exr import CONFIDENCE_CHANNEL, DISTANCE_CHANNEL, write_float_map
+from harness.data.frame import Frame, write_frame
 from reconstruction.camera.equirect import bearing_grid
 from reconstruction.camera.rig import Rig
 from reports.build import SECTION_HALF_ANGLE_DEG, _section_sample, build_report, write_report
 from reports.metrics import breakdown, summary
 from reports.pointcloud import point_grid, read_ply, write_ply
-from reports.tables import RESULT_COLUMNS, load_results, mae_table
+from reports.regions import region_summaries, regions
+from reports.schema import RESULT_COLUMNS, regions_table, results_table
+from reports.tables import load_results, mae_table
 
 W, H = 64, 32
 VARIANTS = {"average": 0.08, "gradient": 0.05, "color": 0.04}  # relative noise per variant
 CONFIGS = [("deepflow", False), ("dis", True)]
+#: methods that are not the flow pipeline (make_results(others=True)): label -> (relative noise, with confidence?)
+OTHERS = {"matcher": (0.03, True), "outside": (0.06, False)}
 
 
 def box_room_distance(width, height, half=(3.0, 4.0), floor=-1.2, ceiling=1.8) -> np.ndarray:
@@ -38,45 +43,65 @@ def box_room_distance(width, height, half=(3.0, 4.0), floor=-1.2, ceiling=1.8) -
     return np.min(np.abs(np.stack([tx, ty, tz])), axis=0)
 
 
-def make_frame(root: Path, scene: str = "room", viewpoint: str = "v0") -> Frame:
+def make_frame(root: Path, scene: str = "room", viewpoint: str = "v0", sky_px: int = 5) -> Frame:
+    """A 64x32 box-room frame written under ``root``; its first ``sky_px`` pixels (row-major) see no surface."""
     v, u = np.mgrid[0:H, 0:W]
     checker = (((u // 4) + (v // 4)) % 2).astype(np.uint8)
     img = np.stack([60 + 150 * checker, 90 + 0 * checker, 200 - 120 * checker], axis=2).astype(np.uint8)
     gt = box_room_distance(W, H).astype(np.float32)
-    gt[0, :5] = np.inf  # a little "sky": no surface, not scored
+    gt.flat[:sky_px] = np.inf  # a little "sky": no surface, not scored
     frame = Frame(scene=scene, viewpoint=viewpoint, width=W, height=H, baseline_m=0.4, cameras=Rig().poses(),
                   images={"C": img, "U": img, "R": img}, distance={"C": gt, "U": gt, "R": gt})
     frame.path = write_frame(frame, root)
     return frame
 
 
-def make_results(tmp_path: Path, scenes=("room",)) -> Path:
-    """A results directory like `tri360 evaluate` writes, for one frame per scene and two configurations."""
+def make_results(tmp_path: Path, scenes=("room",), flow: bool = True, others: bool = False) -> Path:
+    """A results directory like `tri360 evaluate` writes (results, regions, breakdown, frames.json, config.json,
+    maps), one frame per scene: the flow pipeline's CONFIGS x VARIANTS (``flow``) and/or the OTHERS methods
+    (``others``; ``matcher`` writes a confidence that ranks its errors, ``outside`` none and a few NaN)."""
     res = tmp_path / "results"
-    rows, bd_rows, frames = [], [], []
+    rows, bd_rows, region_rows, frames, kinds = [], [], [], [], {}
     rng = np.random.default_rng(1)
-    for scene in scenes:
-        frame = make_frame(tmp_path / "data", scene)
+    for i, scene in enumerate(scenes):
+        frame = make_frame(tmp_path / "data", scene, sky_px=5 + 300 * i)  # frames differ in scored pixels
         frames.append({"scene": scene, "viewpoint": "v0", "path": str(frame.path.resolve())})
         gt = frame.distance["C"]
-        for flow, rect in CONFIGS:
+        masks = regions(frame)
+        methods = []  # (label, key fields, map path, prediction, confidence)
+        for flow_name, rect in CONFIGS if flow else []:
             for variant, noise in VARIANTS.items():
-                pred = gt * (1 + noise * rng.standard_normal(gt.shape)).astype(np.float32)
-                pred = np.abs(pred)
+                pred = np.abs(gt * (1 + noise * rng.standard_normal(gt.shape)).astype(np.float32))
                 if variant == "average":
                     pred[5, 10:14] = np.inf  # a few pixels without prediction
-                key = f"{flow}-{'rect' if rect else 'plain'}"
-                write_distance_exr(res / "maps" / scene / "v0" / key / f"{variant}.distance.exr", pred)
-                row = {"scene": scene, "viewpoint": "v0", "width": W, "height": H, "flow": flow,
-                       "rectify": rect, "variant": variant, **summary(pred, gt), "seconds": 0.5}
-                rows.append(row)
-                for b in breakdown(frame, pred):
-                    bd_rows.append({"scene": scene, "viewpoint": "v0", "flow": flow, "rectify": rect,
-                                    "variant": variant, **b})
-    pd.DataFrame(rows)[RESULT_COLUMNS].to_csv(res / "results.csv", index=False)
+                key = f"{flow_name}-{'rect' if rect else 'plain'}"
+                methods.append((f"{key}:{variant}", {"flow": flow_name, "rectify": rect, "variant": variant},
+                                f"{key}/{variant}.distance.exr", pred, None))
+        for label, (noise, with_conf) in OTHERS.items() if others else []:
+            z = rng.standard_normal(gt.shape)
+            pred = np.abs(gt * (1 + noise * z)).astype(np.float32)
+            conf = None
+            if with_conf:
+                conf = (-np.abs(z) + 0.3 * rng.standard_normal(gt.shape)).astype(np.float32)  # ranks the errors
+            else:
+                pred[6, 0:3] = np.nan  # no prediction
+            methods.append((label, {"flow": "", "rectify": "", "variant": ""}, f"{label}/distance.exr", pred, conf))
+        for label, fields, rel, pred, conf in methods:
+            kinds[label] = "flow-pipeline" if fields["flow"] else ("sweep" if label == "matcher" else "predictions")
+            path = res / "maps" / scene / "v0" / rel
+            write_float_map(path, pred, DISTANCE_CHANNEL)
+            if conf is not None:
+                write_float_map(path.with_name(path.name.replace("distance", "confidence")), conf, CONFIDENCE_CHANNEL)
+            key = {"scene": scene, "viewpoint": "v0", "method": label, **fields}
+            rows.append({**key, "width": W, "height": H, **summary(pred, gt, conf), "seconds": 0.5})
+            bd_rows.extend({**key, **b} for b in breakdown(frame, pred))
+            region_rows.extend({**key, **r} for r in region_summaries(frame, pred, conf, masks=masks))
+    results_table(rows).to_csv(res / "results.csv", index=False)
     (res / "results.json").write_text(json.dumps(rows))
     pd.DataFrame(bd_rows).to_csv(res / "breakdown.csv", index=False)
+    regions_table(region_rows).to_csv(res / "regions.csv", index=False)
     (res / "frames.json").write_text(json.dumps(frames))
+    (res / "config.json").write_text(json.dumps({"methods": {k: {"kind": v} for k, v in kinds.items()}}))
     return res
 
 
@@ -107,11 +132,12 @@ class _Collect(HTMLParser):
 
 def test_every_output_exists(report):
     res, outcome, _ = report
-    expected = ["mae.md", "mae.csv", "fig4_mae.png", "error_vs_angle.png", "error_by_distance_texture.png",
-                "report.html", "clouds/room/v0/ground_truth.ply"]
+    expected = ["leaderboard.csv", "leaderboard.md", "mae.md", "mae.csv", "fig4_mae.png", "error_vs_angle.png",
+                "error_by_distance_texture.png", "report.html", "clouds/room/v0/ground_truth.ply",
+                "figures/room/v0/errors.png", "figures/room/v0/regions.png"]
     for flow, rect in CONFIGS:
         key = f"{flow}-{'rect' if rect else 'plain'}"
-        expected += [f"figures/room/v0/{key}.errors.png", f"figures/room/v0/{key}.clouds.png"]
+        expected += [f"figures/room/v0/{key}.clouds.png"]
         expected += [f"clouds/room/v0/{key}/{v}.ply" for v in VARIANTS]
     for rel in expected:
         p = res / rel
@@ -120,6 +146,7 @@ def test_every_output_exists(report):
             assert p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n", rel
     assert outcome.html_path == res / "report.html"
     assert outcome.problems == []
+    assert not (res / "sparsification.png").exists()  # no method gave a confidence
     assert not list(res.rglob("*.partial*"))  # atomic writes leave no temporaries
 
 
@@ -174,7 +201,8 @@ def test_mae_table_reduction_against_average(report):
                           if ln.startswith(f"| {mine.loc[v, 'configuration']} | {v} |"))
             assert f"{expect:+.2f} %" in md_row and f"{sel[v]:.5f}" in md_row
         assert np.isnan(mine.loc["average", "room reduction_pct"])
-    assert (res / "mae.md").read_text() == outcome.markdown
+    # the CLI prints the leaderboard, then the MAE table
+    assert outcome.markdown == (res / "leaderboard.md").read_text() + "\n" + (res / "mae.md").read_text()
     assert "deepflow-plain (paper set-up)" in outcome.markdown
     assert "dis-rect |" in outcome.markdown
 
@@ -209,14 +237,15 @@ def test_html_is_self_contained(report):
     text = (res / "report.html").read_text()
     p = _Collect()
     p.feed(text)
-    # 3 summary figures + (errors, clouds) per configuration
-    assert len(p.imgs) == 3 + 2 * len(CONFIGS)
+    # 3 summary figures + error maps (all methods), region masks and clouds per configuration
+    assert len(p.imgs) == 3 + 2 + len(CONFIGS)
     assert all(src.startswith("data:image/png;base64,") for src in p.imgs)
     plys = [h for h in p.links if h.endswith(".ply")]
     assert len(plys) == 1 + len(CONFIGS) * len(VARIANTS)
     assert all((res / h).is_file() for h in plys)
     assert not re.search(r'(src|href)="(https?:)?//', text)  # nothing fetched from the network
     assert "0.14337" in text and "paper" in text
+    assert text.count("<script>") == 1 and 'table class="sortable" id="leaderboard"' in text
 
 
 def test_ply_paper_only_and_none(tmp_path):
@@ -234,10 +263,13 @@ def test_ply_paper_only_and_none(tmp_path):
 def test_missing_map_and_frame_are_reported_not_fatal(tmp_path):
     res = make_results(tmp_path)
     (res / "maps/room/v0/dis-rect/color.distance.exr").unlink()
+    (res / "regions.csv").unlink()
     (res / "breakdown.csv").unlink()
     out = build_report(res, ply="none", cloud_points=100)
     assert any("color.distance.exr" in p and "missing" in p for p in out.problems)
     assert any("breakdown.csv" in p for p in out.problems)
+    assert any("regions.csv" in p and "per-region" in p for p in out.problems)
+    assert out.leaderboard["mae_textureless"].isna().all()  # no regions.csv: empty region columns
     assert "color.distance.exr" in (res / "report.html").read_text()
     frames = json.loads((res / "frames.json").read_text())
     frames[0]["path"] = str(tmp_path / "moved")
@@ -269,16 +301,18 @@ def _write_csv(path: Path, header, rows):
         w.writerows(rows)
 
 
-GOOD = ["room", "v0", 64, 32, "dis", "False", "average", 0.1, 0.2, 0.05, 0.03, 0.9, 0.1, 2000, 1.0]
+GOOD = ["room", "v0", 64, 32, "dis-plain:average", "dis", "False", "average", 0.1, 0.2, 0.05, 0.03, 0.9, 0.1, 2000,
+        1.0]
 
 
 @pytest.mark.parametrize(("header", "rows", "message"), [
     (RESULT_COLUMNS, [], "no data rows"),
-    ([c for c in RESULT_COLUMNS if c != "mae_m"], [GOOD[:7] + GOOD[8:]], "missing column.*mae_m"),
-    (RESULT_COLUMNS, [GOOD[:7] + ["abc"] + GOOD[8:]], "'mae_m' must be numeric.*'abc'.*row 1"),
-    (RESULT_COLUMNS, [GOOD[:5] + ["maybe"] + GOOD[6:]], "'rectify' must be true/false"),
+    ([c for c in RESULT_COLUMNS if c != "mae_m"], [GOOD[:8] + GOOD[9:]], "missing column.*mae_m"),
+    (RESULT_COLUMNS, [GOOD[:8] + ["abc"] + GOOD[9:]], "'mae_m' must be numeric.*'abc'.*row 1"),
+    (RESULT_COLUMNS, [GOOD[:6] + ["maybe"] + GOOD[7:]], "'rectify' must be true/false"),
     (RESULT_COLUMNS, [GOOD, GOOD], "duplicate rows"),
-    (RESULT_COLUMNS, [GOOD[:13] + ["12.5"] + GOOD[14:]], "'valid_px' must hold whole numbers"),
+    (RESULT_COLUMNS, [GOOD[:14] + ["12.5"] + GOOD[15:]], "'valid_px' must hold whole numbers"),
+    (RESULT_COLUMNS, [GOOD[:4] + [""] + GOOD[5:]], "'method' is empty"),
 ])
 def test_malformed_results_csv(tmp_path, header, rows, message):
     _write_csv(tmp_path / "r" / "results.csv", header, rows)
