@@ -12,15 +12,25 @@ import argparse
 import sys
 
 from harness import __version__
-from harness.cli import evaluate, reconstruct, render, report
+from harness.cli import evaluate, reconstruct, render, report, score
 from harness.cli import scenes as scenes_cmd
 from harness.data.errors import UserError
 from scenes.registry import SceneError
 
 COMMANDS = {"render": render, "scenes": scenes_cmd, "reconstruct": reconstruct, "evaluate": evaluate,
-            "report": report}
+            "score": score, "report": report}
 EXIT_USAGE = 2
 EXIT_INTERRUPTED = 130
+
+
+class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
+    """Shows ``(default: X)`` where a default says something; options whose default is None (meaning "see
+    the text") or False (plain switches) get none."""
+
+    def _get_help_string(self, action):
+        if action.default is None or action.default is False:
+            return action.help
+        return super()._get_help_string(action)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -29,7 +39,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for name, mod in COMMANDS.items():
         p = sub.add_parser(name, help=mod.HELP, description=mod.HELP,
-                           formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+                           formatter_class=HelpFormatter)
         mod.add_arguments(p)
         p.set_defaults(_module=mod)
     return parser

@@ -43,7 +43,7 @@ from reconstruction.methods.flow_pipeline import (
     refine_variant,
     variant_problem,
 )
-from reconstruction.refine.lm import VARIANTS, RefineConfig, RefineProblem, levenberg_marquardt
+from reconstruction.refine.lm import RefineConfig, RefineProblem, discover_variants, levenberg_marquardt
 from reconstruction.refine.triangulate import TriangulationLimits
 from scenes.model import choose_viewpoints
 from scenes.registry import get_scene
@@ -256,9 +256,10 @@ def main(argv: list[str] | None = None) -> int:
     def out(line: str = "") -> None:
         print(line, flush=True)
 
+    variants = discover_variants()[0]
     frame, how = load_or_render_frame(args.frame, args.width)
     out(f"tri360 bench: {frame.scene}/{frame.viewpoint} {frame.width}x{frame.height} ({how}); flow "
-        f"{DEFAULT_FLOW}, rectified; variants {', '.join(VARIANTS)}")
+        f"{DEFAULT_FLOW}, rectified; variants {', '.join(variants)}")
     limits = TriangulationLimits()
 
     # the whole pipeline first (its peak memory is read right after it)
@@ -279,18 +280,18 @@ def main(argv: list[str] | None = None) -> int:
     out(f"  triangulate            {prep.seconds['triangulate']:8.3f} | {result.seconds['triangulate']:8.3f}")
     out(f"  average                {prep.seconds['average']:8.3f} | {result.seconds['average']:8.3f}")
     stage_s = {}
-    for name, config in VARIANTS.items():
+    for name, config in variants.items():
         start = time.perf_counter()
         d, iters = refine_variant(frame, prep, config)
         stage_s[name] = time.perf_counter() - start
         same = float(np.abs(d.astype(np.float32) - result.distance[name]).max())
         out(f"  {name:<22s} {stage_s[name]:8.3f} | {result.seconds[name]:8.3f}   ({iters} LM iterations; "
             f"max |replay - reconstruct| {same:.2g} m)")
-    out(f"  reconstruct() total    {total_s:8.3f}   (all of: average, {', '.join(VARIANTS)})")
+    out(f"  reconstruct() total    {total_s:8.3f}   (all of: average, {', '.join(variants)})")
 
     rng = np.random.default_rng(args.seed)
     rows, diag_lines = {}, []
-    for name, config in VARIANTS.items():
+    for name, config in variants.items():
         res = compare_variant(frame, prep, config, args.subset, rng, progress=not args.no_progress)
         diag_lines.extend(res["diag"])
         for label, r in res["stages"].items():
@@ -318,7 +319,7 @@ def main(argv: list[str] | None = None) -> int:
     slowest = max(stage_s, key=stage_s.get)
     out(_goal(stage_s[slowest] <= GOAL_VARIANT_S,
               f"each refinement variant <= {GOAL_VARIANT_S:g} s: slowest {slowest} {stage_s[slowest]:.3f} s "
-              f"(inside reconstruct(): {max(result.seconds[k] for k in VARIANTS):.3f} s)"))
+              f"(inside reconstruct(): {max(result.seconds[k] for k in variants):.3f} s)"))
     slow = min(rows, key=lambda k: rows[k]["speedup"])
     out(_goal(rows[slow]["speedup"] >= GOAL_SPEEDUP,
               f">= {GOAL_SPEEDUP:g}x faster than per-pixel scipy: smallest {rows[slow]['speedup']:.0f}x ({slow})"))

@@ -1,106 +1,215 @@
-"""The evaluate job: reconstruct and score every frame under a data root.
+"""The evaluate job: run methods on every frame under a data root, score them against ground truth, report.
 
-Writes into RESULTS (each file atomically)::
+Writes a results set into ``out``::
 
-    results.csv, results.json   one row per (scene, viewpoint, flow, rectify, variant), DESIGN.md's schema
+    results.csv, results.json   one row per (scene, viewpoint, method): reports.schema.RESULT_COLUMNS
+    regions.csv                 the same metrics per region of each frame (reports.regions)
     breakdown.csv               errors by angle to each baseline, true distance and texture
     frames.json                 where each evaluated frame lives
-    maps/<scene>/<viewpoint>/<flow>-<rect|plain>/<variant>.distance.exr   the predicted distances of C
+    config.json                 tri360 version and commit, every method's full configuration, the frames'
+                                renderer settings: everything needed to reproduce the numbers
+    maps/<scene>/<viewpoint>/<flow>-<rect|plain>/<variant>.distance.exr   predicted distance of C
+    maps/<scene>/<viewpoint>/<method>/distance.exr                        (methods other than the flow pipeline)
+    ... confidence.exr beside each distance map of a method that gives a confidence
 
-then the report (``tri360 report``) unless ``--no-report``.
+and the report (``reports.build``) unless ``report=False``.  The whole set is built in a hidden staging
+directory beside ``out`` and swapped in at the end, so an interrupted run leaves the previous results set
+(results and report together) untouched and never an old report beside new results.
 """
 
 from __future__ import annotations
 
-import json
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 from tqdm import tqdm
 
+from harness.data import jsonio
+from harness.data.atomic import atomic_write_text
 from harness.data.errors import UserError
-from harness.data.frame import FrameError, atomic_write_text, find_frames, read_frame, write_distance_exr
-from harness.jobs.reconstruct import run_with_progress
-from reconstruction.methods.flow_pipeline import DEFAULT_FLOW
-from reports.metrics import breakdown, summary
+from harness.data.exr import CONFIDENCE_CHANNEL, DISTANCE_CHANNEL, write_float_map
+from harness.data.frame import find_frames, read_frame
+from harness.data.outputs import staged_directory
+from harness.data.provenance import software
+from reconstruction.methods.base import Method, MethodOutput, flow_fields, run_methods
+from reconstruction.methods.flow_pipeline import config_label
+from reports.build import build_report
+from reports.metrics import breakdown
+from reports.regions import region_summaries, regions
+from reports.schema import breakdown_table, regions_table, results_table, write_results
 
-RESULT_COLUMNS = ["scene", "viewpoint", "width", "height", "flow", "rectify", "variant", "mae_m", "rmse_m",
-                  "median_m", "absrel", "delta1", "outlier_rate", "valid_px", "seconds"]
-BREAKDOWN_COLUMNS = ["scene", "viewpoint", "flow", "rectify", "variant", "kind", "bin_lo", "bin_hi", "mae_m",
-                     "median_m", "n_px"]
-#: configurations evaluated by default: tri360's (rectified) and the paper's set-up (plain equirect DeepFlow)
-DEFAULT_CONFIGS = [(DEFAULT_FLOW, True), ("deepflow", False)]
-
-
-def config_label(flow: str, rectify: bool) -> str:
-    """Directory/label of a configuration, e.g. ``dis-rect`` or ``deepflow-plain``."""
-    return f"{flow}-{'rect' if rectify else 'plain'}"
+__all__ = ["FrameRef", "select_frames", "evaluate", "map_path", "mae_table", "results_config"]
 
 
-def configurations(flows: list[str] | None, rectify: bool) -> list[tuple[str, bool]]:
-    if flows is None:
-        return list(DEFAULT_CONFIGS) if rectify else [(DEFAULT_FLOW, False)]
-    return [(f, rectify) for f in dict.fromkeys(flows)]
+@dataclass(frozen=True)
+class FrameRef:
+    """A frame found under a data root: its directory and the scene/viewpoint its frame.json names."""
+
+    path: Path
+    scene: str
+    viewpoint: str
 
 
-def evaluate(data_root: Path, out: Path, configs: list[tuple[str, bool]], variants: list[str],
-             scenes: list[str] | None = None) -> pd.DataFrame:
-    """Reconstruct and score every frame with ground truth under ``data_root``.
+def select_frames(data_root: Path, scenes: Sequence[str] | None = None) -> list[FrameRef]:
+    """Every frame under ``data_root`` (which may itself be a frame directory), optionally only ``scenes``.
+
+    A frame's scene is the one its ``frame.json`` names; a scene also matches by the name of the directory
+    level the frame sits in (``<root>/<scene>/<viewpoint>``).
+
+    Raises:
+        UserError: missing root, no frames (for the scenes), a malformed frame.json, or two frame
+            directories that name the same scene and viewpoint (their outputs would collide).
+    """
+    data_root = Path(data_root)
+    if not data_root.is_dir():
+        raise UserError(f"{data_root}: data root does not exist" if not data_root.exists()
+                        else f"{data_root}: data root is not a directory")
+    refs = []
+    for d in find_frames(data_root):
+        meta = read_frame(d, load_distance=False)
+        refs.append(FrameRef(d, meta.scene, meta.viewpoint))
+    if scenes:
+        wanted = set(scenes)
+        found = sorted({r.scene for r in refs})
+        refs = [r for r in refs if r.scene in wanted or r.path.parent.name in wanted]
+        if not refs:
+            raise UserError(f"{data_root}: no frames of scene(s) {', '.join(scenes)} "
+                            f"(scenes found: {', '.join(found) or 'none'})")
+    if not refs:
+        raise UserError(f"{data_root}: no tri360 frames found (expected <scene>/<viewpoint>/frame.json)")
+    seen: dict[tuple[str, str], Path] = {}
+    for r in refs:
+        key = (r.scene, r.viewpoint)
+        if key in seen:
+            raise UserError(f"{r.path / 'frame.json'}: names scene {r.scene!r} viewpoint {r.viewpoint!r}, as "
+                            f"{seen[key] / 'frame.json'} does; their results would overwrite each other "
+                            "(give each frame a unique scene/viewpoint, or evaluate them separately)")
+        seen[key] = r.path
+    return refs
+
+
+def confidence_path(distance_path: Path) -> Path:
+    """``.../gradient.distance.exr`` -> ``.../gradient.confidence.exr``; ``.../distance.exr`` -> ``confidence.exr``."""
+    name = distance_path.name
+    return distance_path.with_name(name[: -len("distance.exr")] + "confidence.exr")
+
+
+def map_path(scene: str, viewpoint: str, method: Method) -> Path:
+    """Where a method's predicted distance map goes, relative to the results directory."""
+    base = Path("maps") / scene / viewpoint
+    fields = flow_fields(method)
+    if fields["flow"]:
+        return base / config_label(fields["flow"], fields["rectify"]) / f"{fields['variant']}.distance.exr"
+    return base / method.label / "distance.exr"
+
+
+def results_config(methods: Sequence[Method], frames: list, data_root: Path, started: float) -> dict:
+    """The contents of ``config.json``."""
+    return {
+        "format": "tri360-results/1",
+        "software": software(),
+        "created_unix_s": round(started, 3),
+        "data_root": str(Path(data_root).resolve()),
+        "methods": {m.label: m.config() for m in methods},
+        "frames": frames,
+    }
+
+
+def _score_rows(frame, method: Method, output: MethodOutput, masks: dict) -> tuple[dict, list[dict], list[dict]]:
+    """The results row, the breakdown rows and the region rows of one method on one frame."""
+    gt = frame.distance["C"]
+    pred = np.asarray(output.distance)
+    conf = None if output.confidence is None else np.asarray(output.confidence)
+    for what, arr in (("distance", pred), ("confidence", conf)):
+        if arr is not None and arr.shape != gt.shape:
+            raise UserError(f"method {method.label}: returned a {arr.shape} {what} map for the "
+                            f"{gt.shape[1]}x{gt.shape[0]} frame {frame.path}")
+    key = {"scene": frame.scene, "viewpoint": frame.viewpoint, "method": method.label, **flow_fields(method)}
+    region_rows = [{**key, **r} for r in region_summaries(frame, pred, conf, masks=masks)]
+    overall = next(r for r in region_rows if r["region"] == "all")
+    row = {**key, "width": frame.width, "height": frame.height,
+           **{k: v for k, v in overall.items() if k not in key and k != "region"},
+           "seconds": round(output.total_seconds, 4)}
+    return row, [{**key, **b} for b in breakdown(frame, pred)], region_rows
+
+
+def evaluate(data_root: Path, out: Path, methods: Sequence[Method], scenes: Sequence[str] | None = None,
+             report: bool = True, progress: bool = True) -> pd.DataFrame:
+    """Run ``methods`` on every frame with ground truth under ``data_root`` and write a results set to ``out``.
 
     Returns:
         The results table (also written to ``out``).
     Raises:
-        UserError: missing or empty root, no frame with ground truth, or a malformed frame (named).
+        UserError: bad data root, a malformed frame or one without ground truth (named), an unusable
+            output location (checked before any long work), or a method that fails on a frame.
     """
-    data_root = Path(data_root)
-    if not data_root.is_dir():
-        raise UserError(f"{data_root}: data root does not exist")
-    frame_dirs = find_frames(data_root)
-    if scenes:
-        frame_dirs = [d for d in frame_dirs if d.relative_to(data_root).parts[0] in scenes]
-    if not frame_dirs:
-        raise UserError(f"{data_root}: no tri360 frames found (expected <scene>/<viewpoint>/frame.json"
-                        + (f" for scenes {', '.join(scenes)}" if scenes else "") + ")")
-    rows, brows, frames_index = [], [], []
-    out.mkdir(parents=True, exist_ok=True)
-    jobs = [(d, c) for d in frame_dirs for c in configs]
-    current_dir, frame = None, None
-    for frame_path, (flow, rectify) in tqdm(jobs, desc="evaluate", unit="frame-config"):
-        if frame_path != current_dir:
-            try:
-                frame = read_frame(frame_path)
-            except FrameError as exc:
-                raise UserError(str(exc)) from None
-            current_dir = frame_path
+    started = time.time()
+    refs = select_frames(data_root, scenes)
+    labels = [m.label for m in methods]
+    if not methods:
+        raise UserError("no methods to evaluate")
+    if len(set(labels)) != len(labels):
+        raise UserError(f"duplicate method labels: {', '.join(sorted({x for x in labels if labels.count(x) > 1}))}")
+    rows, brows, rrows, frames_index, frames_config = [], [], [], [], []
+    with staged_directory(out) as stage:
+        bar = tqdm(refs, desc="evaluate", unit="frame", disable=not progress, dynamic_ncols=True)
+        for ref in bar:
+            frame = read_frame(ref.path)
             if not frame.has_ground_truth:
-                raise UserError(f"{frame_path}: frame has no ground-truth distance, nothing to score "
+                raise UserError(f"{ref.path}: frame has no ground-truth distance, nothing to score "
                                 "(use 'tri360 reconstruct' for captures without ground truth)")
-            frames_index.append({"scene": frame.scene, "viewpoint": frame.viewpoint,
-                                 "path": str(frame_path.resolve())})
-        label = config_label(flow, rectify)
-        result = run_with_progress(frame, flow, rectify, variants, f"{frame.scene}/{frame.viewpoint} {label}")
-        shared = sum(result.seconds[k] for k in ("flow_U", "flow_R", "triangulate", "average"))
-        map_dir = out / "maps" / frame.scene / frame.viewpoint / label
-        gt = frame.distance["C"]
-        for name in variants:
-            pred = result.distance[name]
-            write_distance_exr(map_dir / f"{name}.distance.exr", pred)
-            seconds = shared + (result.seconds[name] if name != "average" else 0.0)
-            key = {"scene": frame.scene, "viewpoint": frame.viewpoint, "flow": flow, "rectify": rectify,
-                   "variant": name}
-            rows.append({**key, "width": frame.width, "height": frame.height, **summary(pred, gt),
-                         "seconds": round(seconds, 4)})
-            brows.extend({**key, **b} for b in breakdown(frame, pred))
-    table = pd.DataFrame(rows)[RESULT_COLUMNS]
-    atomic_write_text(out / "results.csv", table.to_csv(index=False))
-    atomic_write_text(out / "results.json", json.dumps(table.to_dict(orient="records"), indent=1) + "\n")
-    atomic_write_text(out / "breakdown.csv", pd.DataFrame(brows)[BREAKDOWN_COLUMNS].to_csv(index=False))
-    atomic_write_text(out / "frames.json", json.dumps(frames_index, indent=1) + "\n")
+            if not np.isfinite(frame.distance["C"]).any():
+                raise UserError(f"{ref.path / 'C.distance.exr'}: no pixel has a finite distance, nothing to score")
+            bar.set_postfix_str(f"{frame.scene}/{frame.viewpoint}")
+
+            def on_stage(name, bar=bar, frame=frame):
+                bar.set_postfix_str(f"{frame.scene}/{frame.viewpoint} {name}")
+
+            try:
+                outputs = run_methods(frame, methods, on_stage=on_stage)
+            except ValueError as exc:
+                raise UserError(f"{ref.path}: {exc}") from None
+            masks = regions(frame)
+            for method in methods:
+                output = outputs[method.label]
+                row, brs, rrs = _score_rows(frame, method, output, masks)
+                dist_path = stage / map_path(frame.scene, frame.viewpoint, method)
+                # a prediction may hold NaN/inf/<= 0 (= no prediction): written as is, like tri360-pred/1
+                write_float_map(dist_path, np.asarray(output.distance, np.float32), DISTANCE_CHANNEL)
+                if output.confidence is not None:
+                    write_float_map(confidence_path(dist_path), np.asarray(output.confidence, np.float32),
+                                    CONFIDENCE_CHANNEL)
+                rows.append(row)
+                brows.extend(brs)
+                rrows.extend(rrs)
+            frames_index.append({"scene": frame.scene, "viewpoint": frame.viewpoint, "path": str(ref.path.resolve())})
+            frames_config.append({"path": str(ref.path.resolve()), "scene": frame.scene, "viewpoint": frame.viewpoint,
+                                  "width": frame.width, "height": frame.height, "baseline_m": frame.baseline_m,
+                                  "renderer": frame.renderer})
+        bar.close()
+        table = results_table(rows)
+        write_results(stage, table, breakdown_table(brows), regions_table(rrows))
+        atomic_write_text(stage / "frames.json", jsonio.dumps(frames_index))
+        config = results_config(methods, frames_config, data_root, started)
+        atomic_write_text(stage / "config.json", jsonio.dumps(config))
+        if report:
+            build_report(stage)
     return table
 
 
 def mae_table(table: pd.DataFrame) -> str:
-    """Plain-text MAE table (mean over frames): rows configuration, columns variant, metres."""
-    t = table.assign(config=[config_label(f, r) for f, r in zip(table.flow, table.rectify, strict=True)])
-    pivot = t.pivot_table(index=["scene", "config"], columns="variant", values="mae_m", aggfunc="mean", sort=False)
+    """Plain-text MAE table (mean over frames): rows scene x configuration, columns variant, metres.
+
+    Methods that are not the flow pipeline appear as their own configuration with variant ``-``.  A NaN
+    metric of any frame makes its mean NaN (it is never silently dropped from the mean).
+    """
+    t = table.assign(config=[config_label(f, r) if f else m
+                             for f, r, m in zip(table.flow, table.rectify, table.method, strict=True)],
+                     column=[v if v else "-" for v in table.variant])
+    pivot = t.pivot_table(index=["scene", "config"], columns="column", values="mae_m", sort=False,
+                          aggfunc=lambda s: s.mean(skipna=False), dropna=False)
     return pivot.to_string(float_format=lambda x: f"{x:.4f}")

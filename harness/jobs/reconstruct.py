@@ -1,54 +1,74 @@
-"""The reconstruct job: per-pixel distance of camera C for one frame, one EXR per variant."""
+"""The reconstruct job: camera C's per-pixel distance for one frame by one method, written as ``tri360-pred/1``.
+
+Writes under ``out`` (each file atomically)::
+
+    <out>/<scene>/<viewpoint>/distance.exr     camera C's distance, metres
+    <out>/<scene>/<viewpoint>/confidence.exr   if the method gives a confidence
+    <out>/<scene>/<viewpoint>/reconstruction.json   seconds, method details, metrics when the frame has GT
+    <out>/method.json                          the method's name and full configuration
+
+so ``out`` can be handed to ``tri360 score`` like any outside method's predictions.
+"""
 
 from __future__ import annotations
 
-import json
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from tqdm import tqdm
 
+from harness.data import jsonio
+from harness.data.atomic import atomic_write_text
 from harness.data.errors import UserError
-from harness.data.frame import atomic_write_text, read_frame, write_distance_exr
-from reconstruction.methods.flow_pipeline import Reconstruction, available_variants, reconstruct
+from harness.data.frame import read_frame
+from harness.data.outputs import check_output_dir
+from harness.data.predictions import prediction_dir, write_method_info, write_prediction
+from harness.data.provenance import software
+from reconstruction.methods.base import Method, MethodOutput, run_methods
 from reports.metrics import summary
 
-
-def check_variants(names: list[str] | None) -> list[str]:
-    known = available_variants()
-    names = known if names is None else names
-    bad = [n for n in names if n not in known]
-    if bad:
-        raise UserError(f"unknown variant(s) {', '.join(bad)} (known: {', '.join(known)})")
-    return names
+__all__ = ["run_with_progress", "reconstruct_to"]
 
 
-def run_with_progress(frame, flow: str, rectify: bool, variants: list[str], desc: str) -> Reconstruction:
-    """:func:`reconstruct` with a stage progress bar; ValueError (e.g. oracle without GT) -> UserError."""
-    stages = 3 + len([v for v in variants if v != "average"])
-    with tqdm(total=stages, desc=desc, unit="stage", leave=False) as bar:
-        def on_stage(name):
+def run_with_progress(frame, methods: Sequence[Method], desc: str, progress: bool = True,
+                      on_stage: Callable[[str], None] | None = None) -> dict[str, MethodOutput]:
+    """:func:`run_methods` with a stage progress bar; a method's ValueError (e.g. the oracle without ground
+    truth) becomes a :class:`UserError` naming the frame."""
+    with tqdm(desc=desc, unit="stage", leave=False, disable=not progress) as bar:
+        def note(name):
             bar.set_postfix_str(name)
             bar.update(1)
+            if on_stage is not None:
+                on_stage(name)
         try:
-            return reconstruct(frame, flow=flow, rectify=rectify, variants=variants, on_stage=on_stage)
+            return run_methods(frame, methods, on_stage=note)
         except ValueError as exc:
-            raise UserError(str(exc)) from None
+            raise UserError(f"{frame.path or frame.scene + '/' + frame.viewpoint}: {exc}") from None
 
 
-def reconstruct_to(frame_dir: Path, out: Path, flow: str, rectify: bool, variants: list[str]) -> dict:
-    """Reconstruct one frame and write ``<variant>.distance.exr`` and ``reconstruction.json`` into ``out``.
+def reconstruct_to(frame_dir: Path, out: Path, method: Method, progress: bool = True) -> dict:
+    """Reconstruct one frame with ``method`` and write its prediction in ``tri360-pred/1`` under ``out``.
+
+    The output location is checked (usable, writable) before any computation; nothing is written unless the
+    method succeeds.
 
     Returns:
-        The ``reconstruction.json`` contents (frame, flow, seconds, LM iterations, metrics if GT exists).
+        The ``reconstruction.json`` contents (frame, method, seconds, metrics if the frame has ground truth).
+    Raises:
+        UserError: a malformed frame, an unusable output directory, or the method failing on the frame.
     """
     frame = read_frame(frame_dir)
-    result = run_with_progress(frame, flow, rectify, variants, f"{frame.scene}/{frame.viewpoint}")
-    out.mkdir(parents=True, exist_ok=True)
-    for name in variants:
-        write_distance_exr(out / f"{name}.distance.exr", result.distance[name])
-    info = {"frame": str(frame_dir), "scene": frame.scene, "viewpoint": frame.viewpoint, "flow": flow,
-            "rectify": rectify, "seconds": result.seconds, "lm_iterations": result.iterations}
+    check_output_dir(out)
+    desc = f"{frame.scene}/{frame.viewpoint} {method.label}"
+    output = run_with_progress(frame, [method], desc, progress)[method.label]
+    info = {"frame": str(Path(frame_dir).resolve()), "scene": frame.scene, "viewpoint": frame.viewpoint,
+            "method": method.label, "config": method.config(), "seconds": output.seconds, "info": output.info,
+            "software": software()}
     if frame.has_ground_truth:
-        info["metrics"] = {name: summary(result.distance[name], frame.distance["C"]) for name in variants}
-    atomic_write_text(out / "reconstruction.json", json.dumps(info, indent=2) + "\n")
+        info["metrics"] = summary(output.distance, frame.distance["C"], output.confidence)
+    write_prediction(out, frame.scene, frame.viewpoint, output.distance, output.confidence)
+    atomic_write_text(prediction_dir(out, frame.scene, frame.viewpoint) / "reconstruction.json",
+                      jsonio.dumps(info, indent=2))
+    write_method_info(out, {"name": method.label, "description": method.config().get("description", ""),
+                            "parameters": method.config()})
     return info

@@ -31,10 +31,11 @@ from pathlib import Path
 
 import pandas as pd
 
-from harness.data.frame import atomic_write_text
-from harness.jobs.evaluate import config_label, evaluate, mae_table
+from harness.data.atomic import atomic_write_text
+from harness.jobs.evaluate import evaluate, mae_table
 from harness.jobs.render import render_frames
-from reconstruction.methods.flow_pipeline import DEFAULT_FLOW, available_variants
+from reconstruction.methods.flow_pipeline import config_label
+from reconstruction.methods.registry import DEFAULT_CONFIGS, flow_methods
 
 #: panorama width of every regression frame, pixels (height = width / 2)
 REGRESSION_WIDTH = 400
@@ -52,7 +53,7 @@ BOUNDS_PATH = Path(__file__).resolve().parents[2] / "tests" / "regression_bounds
 def regression_configs() -> list[tuple[str, bool]]:
     """tri360's configuration and the paper's set-up: ``[(DEFAULT_FLOW, True), ("deepflow", False)]``."""
 
-    return [(DEFAULT_FLOW, True), ("deepflow", False)]
+    return list(DEFAULT_CONFIGS)
 
 
 def build_dataset(root: Path | str, width: int = REGRESSION_WIDTH, samples: int = BLENDER_SAMPLES,
@@ -84,16 +85,17 @@ def run_regression(workdir: Path | str, data: Path | str | None = None, width: i
 
     workdir = Path(workdir)
     root = build_dataset(Path(data) if data is not None else workdir / "data", width, samples, threads, progress)
-    return evaluate(root, workdir / "results", regression_configs(), available_variants(),
-                    scenes=[s for s, _ in SCENES])
+    methods = [m for flow, rect in regression_configs() for m in flow_methods([flow], [rect])]
+    return evaluate(root, workdir / "results", methods, scenes=[s for s, _ in SCENES], report=False,
+                    progress=progress)
 
 
 def measured_mae(table: pd.DataFrame) -> dict[str, dict[str, dict[str, float]]]:
     """``{scene: {config label: {variant: MAE}}}``, metres, mean over the scene's frames."""
 
     out: dict[str, dict[str, dict[str, float]]] = {}
-    for (scene, flow, rectify, variant), mae in table.groupby(["scene", "flow", "rectify", "variant"],
-                                                              sort=True)["mae_m"].mean().items():
+    groups = table.groupby(["scene", "flow", "rectify", "variant"], sort=True)["mae_m"]
+    for (scene, flow, rectify, variant), mae in groups.apply(lambda s: s.mean(skipna=False)).items():
         out.setdefault(scene, {}).setdefault(config_label(flow, bool(rectify)), {})[variant] = float(mae)
     return out
 

@@ -12,17 +12,20 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from helpers import make_synthetic_frame
 
 from harness.jobs import bench
 from reconstruction.methods.flow_pipeline import prepare, variant_problem
-from reconstruction.refine.lm import VARIANTS
+from reconstruction.refine.lm import discover_variants
+from tests.helpers import make_synthetic_frame
 
 
 @pytest.fixture(scope="module")
 def tiny():
     frame = make_synthetic_frame(64)
     return frame, prepare(frame)
+
+
+VARIANTS = discover_variants()[0]
 
 
 @pytest.mark.parametrize("name", sorted(VARIANTS))

@@ -6,24 +6,33 @@ import pandas as pd
 import pytest
 
 from harness.cli import main
-from harness.data.frame import read_distance_exr
-from harness.jobs.evaluate import RESULT_COLUMNS
+from harness.data.exr import read_float_map
+from reconstruction.methods.registry import DEFAULT_METHOD
+from reports.schema import RESULT_COLUMNS
 
 
-def test_reconstruct_writes_every_variant(synthetic_root, tmp_path, capsys):
+@pytest.mark.parametrize("variant", ["average", "angle", "gradient", "color"])
+def test_reconstruct_writes_predictions(synthetic_root, tmp_path, capsys, variant):
     out = tmp_path / "rec"
-    assert main(["reconstruct", str(synthetic_root / "synthetic_box" / "vp000"), "--flow", "oracle",
-                 "--out", str(out)]) == 0
+    assert main(["reconstruct", str(synthetic_root / "synthetic_box" / "vp000"), "--flow", "oracle", "--variant",
+                 variant, "--out", str(out), "--quiet"]) == 0
     text = capsys.readouterr().out
-    for v in ("average", "angle", "gradient", "color"):
-        d = read_distance_exr(out / f"{v}.distance.exr")
-        assert d.shape == (100, 200)
-        assert f"{v}" in text
-    info = json.loads((out / "reconstruction.json").read_text())
+    d = read_float_map(out / "synthetic_box" / "vp000" / "distance.exr", "distance")
+    assert d.shape == (100, 200) and f"oracle-rect:{variant}" in text and "MAE" in text
+    info = json.loads((out / "synthetic_box" / "vp000" / "reconstruction.json").read_text())
+    assert json.loads((out / "method.json").read_text())["name"] == f"oracle-rect:{variant}"
     # oracle: exact geometry (metres); the colour term moves distances by the views' sub-pixel intensity
     # differences, which at this 200 x 100 size (a pixel spans ~3 cm at 1 m) is a few millimetres
-    assert all(m["mae_m"] < 1e-3 for v, m in info["metrics"].items() if v != "color")
-    assert info["metrics"]["color"]["mae_m"] < 5e-3
+    assert info["metrics"]["mae_m"] < (5e-3 if variant == "color" else 1e-3)
+
+
+def test_reconstruct_default_method_and_one_method_only(synthetic_root, tmp_path, capsys):
+    frame = str(synthetic_root / "synthetic_box" / "vp000")
+    assert main(["reconstruct", frame, "--out", str(tmp_path / "a"), "--quiet"]) == 0
+    assert DEFAULT_METHOD in capsys.readouterr().out
+    assert main(["reconstruct", frame, "--out", str(tmp_path / "b"), "--method", "dis-rect:angle", "--flow",
+                 "dis"]) == 2
+    assert "do not combine" in capsys.readouterr().err and not (tmp_path / "b").exists()
 
 
 def test_evaluate_writes_results_schema(synthetic_root, tmp_path, capsys):
@@ -33,6 +42,8 @@ def test_evaluate_writes_results_schema(synthetic_root, tmp_path, capsys):
     table = pd.read_csv(out / "results.csv")
     assert list(table.columns) == RESULT_COLUMNS
     assert len(table) == 2 * 2 * 2  # frames x flows x variants
+    assert set(table.method) == {"oracle-rect:average", "oracle-rect:gradient", "dis-rect:average",
+                                 "dis-rect:gradient"}
     assert (table[table.flow == "oracle"].mae_m < 1e-3).all()
     assert json.loads((out / "results.json").read_text())[0].keys() == set(RESULT_COLUMNS)
     assert (out / "breakdown.csv").exists() and (out / "frames.json").exists()
@@ -57,7 +68,8 @@ def test_empty_root_is_an_error(tmp_path, capsys):
     assert "no tri360 frames" in capsys.readouterr().err
 
 
-def test_unknown_flow_is_rejected_by_the_parser(synthetic_root):
-    with pytest.raises(SystemExit) as exc:
-        main(["evaluate", str(synthetic_root), "--flow", "nope"])
-    assert exc.value.code == 2
+def test_unknown_flow_is_one_line(synthetic_root, tmp_path, capsys):
+    assert main(["evaluate", str(synthetic_root), "--out", str(tmp_path / "r"), "--flow", "nope"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "unknown flow 'nope'" in err[0] and "dis" in err[0]
+    assert not (tmp_path / "r").exists()

@@ -1,0 +1,33 @@
+"""``tri360 score``: argument parsing for :func:`harness.jobs.score.score`."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from harness.jobs.evaluate import mae_table
+from harness.jobs.score import score
+
+HELP = "score predictions of any method (tri360-pred/1) against the ground truth of a data root"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("pred_roots", type=Path, nargs="+", metavar="PRED_ROOT",
+                        help="predictions roots: PRED_ROOT/<scene>/<viewpoint>/distance.exr (+ confidence.exr)")
+    parser.add_argument("--data", type=Path, required=True, metavar="DATA_ROOT",
+                        help="the frames with ground truth (<scene>/<viewpoint>/, or one frame directory)")
+    parser.add_argument("--method", nargs="+", default=None, metavar="NAME",
+                        help="one name per PRED_ROOT, in order (default: method.json's name, else the folder name)")
+    parser.add_argument("--out", type=Path, default=Path("results"), help="results directory")
+    parser.add_argument("--scene", nargs="+", default=None, metavar="NAME", help="score only these scenes")
+    parser.add_argument("--report", action=argparse.BooleanOptionalAction, default=True,
+                        help="write the report with the results (--no-report: results only)")
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+def run(args) -> int:
+    table = score(args.pred_roots, args.data, args.out, args.method, args.scene, report=args.report,
+                  progress=not args.quiet)
+    print(f"\nMAE (m), mean over frames — {len(table)} rows in {args.out / 'results.csv'}")
+    print(mae_table(table))
+    return 0

@@ -1,0 +1,97 @@
+"""The score job: score predictions on disk (``tri360-pred/1``), from any method, against the ground truth.
+
+Each predictions root becomes a :class:`PredictionMethod`, a :class:`reconstruction.methods.base.Method` that
+reads its maps instead of computing them, and goes through exactly the same path as built-in methods
+(:func:`harness.jobs.evaluate.evaluate`): the same metrics, regions, results files, config.json and report.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import pandas as pd
+
+from harness.data.errors import UserError
+from harness.data.predictions import FORMAT, prediction_dir, read_method_info, read_prediction
+from harness.jobs.evaluate import evaluate, select_frames
+from reconstruction.methods.base import MethodOutput
+
+__all__ = ["PredictionMethod", "prediction_methods", "score"]
+
+
+@dataclass(frozen=True)
+class PredictionMethod:
+    """A method whose outputs are predictions on disk.
+
+    Attributes:
+        label: the name the results use (``--method``, else method.json's ``name``, else the folder's name).
+        root: the predictions root.
+        info: the contents of ``method.json`` (may be empty).
+    """
+
+    label: str
+    root: Path
+    info: dict = field(default_factory=dict)
+
+    def config(self) -> dict:
+        return {"kind": "predictions", "format": FORMAT, "label": self.label, "root": str(self.root.resolve()),
+                "method.json": self.info}
+
+    def run(self, frame) -> MethodOutput:
+        pred = read_prediction(self.root, frame.scene, frame.viewpoint, frame.width, frame.height)
+        return MethodOutput(distance=pred.distance, confidence=pred.confidence, seconds={"total": float("nan")})
+
+
+def prediction_methods(pred_roots: Sequence[Path], names: Sequence[str] | None = None) -> list[PredictionMethod]:
+    """One :class:`PredictionMethod` per predictions root.
+
+    Raises:
+        UserError: a missing root, a count of names different from the count of roots, duplicate labels, or a
+            malformed method.json.
+    """
+    roots = [Path(r) for r in pred_roots]
+    if names is not None and len(names) != len(roots):
+        raise UserError(f"--method gives {len(names)} name(s) for {len(roots)} predictions root(s); give one name "
+                        "per root, in the same order")
+    out = []
+    for i, root in enumerate(roots):
+        if not root.is_dir():
+            raise UserError(f"{root}: predictions root does not exist" if not root.exists()
+                            else f"{root}: predictions root is not a directory")
+        info = read_method_info(root)
+        label = names[i] if names is not None else (info.get("name") or root.resolve().name)
+        out.append(PredictionMethod(label, root, info))
+    labels = [m.label for m in out]
+    dup = sorted({x for x in labels if labels.count(x) > 1})
+    if dup:
+        raise UserError(f"two predictions roots are both named {', '.join(dup)}; name them with --method")
+    return out
+
+
+def _check_complete(methods: Sequence[PredictionMethod], data_root: Path, scenes: Sequence[str] | None) -> None:
+    """Every frame under the data root has a prediction in every root (checked before any scoring)."""
+    refs = select_frames(data_root, scenes)
+    for m in methods:
+        missing = [prediction_dir(m.root, r.scene, r.viewpoint) / "distance.exr" for r in refs
+                   if not (prediction_dir(m.root, r.scene, r.viewpoint) / "distance.exr").is_file()]
+        if missing:
+            more = f" (and {len(missing) - 1} more frames)" if len(missing) > 1 else ""
+            raise UserError(f"{missing[0]}: file is missing: method {m.label} has no prediction for this frame of "
+                            f"{data_root}{more}")
+
+
+def score(pred_roots: Sequence[Path], data_root: Path, out: Path, names: Sequence[str] | None = None,
+          scenes: Sequence[str] | None = None, report: bool = True, progress: bool = True) -> pd.DataFrame:
+    """Score every predictions root against the frames under ``data_root``; write a results set to ``out``.
+
+    Returns:
+        The results table.
+    Raises:
+        UserError: see :func:`prediction_methods`, a frame without a prediction, a malformed prediction (named),
+            or anything :func:`harness.jobs.evaluate.evaluate` refuses.
+    """
+    methods = prediction_methods(pred_roots, names)
+    _check_complete(methods, data_root, scenes)
+    return evaluate(data_root, out, methods, scenes, report=report, progress=progress)

@@ -1,0 +1,98 @@
+"""The evaluate job: methods + scoring, results keyed by frame, config.json, atomic result sets."""
+
+from __future__ import annotations
+
+import json
+import shutil
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from harness.cli import main
+from harness.data.errors import UserError
+from harness.jobs.evaluate import evaluate, mae_table, select_frames
+from reconstruction.methods.base import MethodOutput
+from reconstruction.methods.registry import flow_methods
+from reports.schema import RESULT_COLUMNS
+
+
+class Constant:
+    """An outside method predicting a constant distance, metres."""
+
+    def __init__(self, value: float, label: str = "const"):
+        self.label, self.value = label, value
+
+    def config(self) -> dict:
+        return {"kind": "constant", "value": self.value}
+
+    def run(self, frame) -> MethodOutput:
+        return MethodOutput(np.full((frame.height, frame.width), self.value, np.float32), seconds={"total": 0.5})
+
+
+class Interrupting(Constant):
+    def run(self, frame):
+        raise KeyboardInterrupt
+
+
+def test_config_json_records_every_method_and_frame(synthetic_root, tmp_path):
+    out = tmp_path / "res"
+    methods = [*flow_methods(["oracle"], [True], ["average", "gradient"]), Constant(2.0)]
+    table = evaluate(synthetic_root, out, methods, report=False, progress=False)
+    assert list(table.columns) == RESULT_COLUMNS and len(table) == 2 * 3
+    const = table[table.method == "const"]
+    assert (const.flow.fillna("") == "").all() and (const.seconds == 0.5).all()
+    cfg = json.loads((out / "config.json").read_text())
+    assert set(cfg["methods"]) == {"oracle-rect:average", "oracle-rect:gradient", "const"}
+    assert cfg["methods"]["oracle-rect:gradient"]["refine"]["gradient"] is True
+    assert cfg["methods"]["oracle-rect:gradient"]["triangulation"]["d_min_m"] > 0
+    assert cfg["software"]["tri360_version"] and "commit" in cfg["software"]
+    assert [f["viewpoint"] for f in cfg["frames"]] == ["vp000", "vp001"]
+    assert cfg["frames"][0]["renderer"]["engine"]
+    assert (out / "maps/synthetic_box/vp000/const/distance.exr").is_file()
+    assert (out / "maps/synthetic_box/vp000/oracle-rect/gradient.distance.exr").is_file()
+
+
+def test_evaluate_a_single_frame_directory_and_scene_filter(synthetic_root, tmp_path):
+    frame_dir = synthetic_root / "synthetic_box" / "vp001"
+    refs = select_frames(frame_dir)
+    assert [r.viewpoint for r in refs] == ["vp001"]
+    assert main(["evaluate", str(frame_dir), "--scene", "synthetic_box", "--flow", "oracle", "--variants",
+                 "average", "--out", str(tmp_path / "one"), "--no-report", "--quiet"]) == 0
+    assert len(pd.read_csv(tmp_path / "one" / "results.csv")) == 1
+    with pytest.raises(UserError, match="no frames of scene.*classroom.*scenes found: synthetic_box"):
+        select_frames(synthetic_root, ["classroom"])
+
+
+def test_two_frames_with_the_same_identity_are_refused(synthetic_root, tmp_path):
+    root = tmp_path / "data"
+    shutil.copytree(synthetic_root / "synthetic_box" / "vp000", root / "a" / "vp000")
+    shutil.copytree(synthetic_root / "synthetic_box" / "vp000", root / "b" / "vp000")
+    with pytest.raises(UserError, match="would overwrite each other"):
+        select_frames(root)
+
+
+def test_interrupted_evaluate_keeps_the_previous_results_set(synthetic_root, tmp_path):
+    out = tmp_path / "res"
+    evaluate(synthetic_root, out, [Constant(2.0)], report=False, progress=False)
+    before = (out / "results.csv").read_bytes()
+    with pytest.raises(KeyboardInterrupt):
+        evaluate(synthetic_root, out, [Constant(3.0), Interrupting(1.0, "stop")], report=False, progress=False)
+    assert (out / "results.csv").read_bytes() == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["res"]  # no staging or old copies left
+
+
+def test_rerun_replaces_the_whole_results_set(synthetic_root, tmp_path):
+    out = tmp_path / "res"
+    evaluate(synthetic_root, out, [Constant(2.0, "a")], report=False, progress=False)
+    (out / "stale.txt").write_text("from an earlier run")
+    evaluate(synthetic_root, out, [Constant(3.0, "b")], report=False, progress=False)
+    assert set(pd.read_csv(out / "results.csv").method) == {"b"}
+    assert not (out / "stale.txt").exists() and not (out / "maps/synthetic_box/vp000/a").exists()
+
+
+def test_mae_table_never_drops_a_missing_metric():
+    rows = [{"scene": "s", "viewpoint": v, "method": "m", "flow": "", "rectify": "", "variant": "", "mae_m": x}
+            for v, x in (("vp0", 1.0), ("vp1", float("nan")))]
+    text = mae_table(pd.DataFrame(rows))
+    assert "NaN" in text and "1.0000" not in text
