@@ -7,7 +7,7 @@ STAMP  := $(VENV)/.installed
 DATA   ?= data
 RESULTS ?= results
 
-.PHONY: setup render evaluate report test bench regress-update clean
+.PHONY: setup browser render evaluate report test test-fast bench regress-update clean
 
 $(STAMP): pyproject.toml
 	@command -v $(PYTHON) >/dev/null 2>&1 || { echo "error: $(PYTHON) not found (tri360 needs Python 3.11; set PYTHON=...)" >&2; exit 1; }
@@ -28,8 +28,17 @@ evaluate: $(STAMP) ## render the default scene if missing, evaluate every flow x
 report: $(STAMP) ## rebuild the report (tables, plots, point clouds, report.html) from $(RESULTS)/
 	$(TRI) report $(RESULTS)
 
-test: $(STAMP) ## run the whole test suite (fast tests, then Blender and browser tests)
+browser: ## install Chromium for the browser test of report.html (Debian package; needs root), if missing
+	@test -x /usr/bin/chromium || { \
+	  if [ "$$(id -u)" = 0 ]; then \
+	    DEBIAN_FRONTEND=noninteractive apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null; \
+	  else echo "error: /usr/bin/chromium is missing; install it: sudo apt-get install -y chromium" >&2; exit 1; fi; }
+
+test: $(STAMP) browser ## run the whole test suite (fast tests, Blender renders, the browser check)
 	$(PY) -m pytest -q
+
+test-fast: $(STAMP) ## the tests that need neither Blender renders nor a browser (about a minute)
+	$(PY) -m pytest -q -m "not blender and not browser"
 
 bench: $(STAMP) ## time every stage at 1000x500, peak memory, vectorised LM vs per-pixel scipy
 	$(PY) -m harness.jobs.bench

@@ -3,9 +3,9 @@
 from __future__ import annotations
 
 import pytest
-from helpers import make_synthetic_frame
 
 from harness.data.frame import write_frame
+from tests.helpers import make_synthetic_frame
 
 
 @pytest.fixture(scope="session")
