@@ -16,7 +16,7 @@ from collections.abc import Callable, Iterable
 from importlib.metadata import entry_points
 from typing import Any
 
-__all__ = ["load_entry_points", "merge_registry"]
+__all__ = ["load_entry_points", "merge_registry", "unknown_name_message"]
 
 
 def _items(obj: Any) -> list:
@@ -63,3 +63,12 @@ def merge_registry(builtins: Iterable[Any], group: str, accept: Callable[[Any], 
     for _source, item in found:
         out[key(item)] = item
     return out, errors
+
+
+def unknown_name_message(what: str, name: str, known, errors: dict[str, str], failed: str = "plugins") -> str:
+    """One line for an unknown registry name: ``unknown <what> '<name>' (known: ...)``, plus the plugins that
+    failed to load (one of them may have been meant)."""
+    msg = f"unknown {what} {name!r} (known: {', '.join(known) or 'none'})"
+    if errors:
+        msg += f"; {failed} that failed to load: " + "; ".join(f"{k}: {v}" for k, v in errors.items())
+    return msg

@@ -180,6 +180,16 @@ def _read_csv(path: Path, columns: list[str], what: str, required: list[str] | N
     return df
 
 
+def _read_json(path: Path):
+    """The parsed JSON of ``path``, or None if it does not exist; UserError naming it if it is not JSON."""
+    if not path.exists():
+        return None
+    try:
+        return json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise UserError(f"{path}: not valid JSON ({exc})") from None
+
+
 def load_results(results_dir) -> pd.DataFrame:
     """Read and validate ``RESULTS/results.csv``.
 
@@ -221,12 +231,9 @@ def load_frames(results_dir) -> list[dict] | None:
         UserError: if the file is not valid JSON or not a list of objects with those three string keys.
     """
     path = Path(results_dir) / "frames.json"
-    if not path.exists():
+    raw = _read_json(path)
+    if raw is None:
         return None
-    try:
-        raw = json.loads(path.read_text(encoding="utf-8"))
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise UserError(f"{path}: not valid JSON ({exc})") from None
     if not isinstance(raw, list):
         raise UserError(f"{path}: must be a JSON list of {{scene, viewpoint, path}} objects")
     out = []
@@ -270,12 +277,9 @@ def load_method_kinds(results_dir) -> dict[str, str] | None:
         UserError: the file is not valid JSON or its ``methods`` entry is not an object.
     """
     path = Path(results_dir) / "config.json"
-    if not path.exists():
+    raw = _read_json(path)
+    if raw is None:
         return None
-    try:
-        raw = json.loads(path.read_text(encoding="utf-8"))
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise UserError(f"{path}: not valid JSON ({exc})") from None
     methods = raw.get("methods", {}) if isinstance(raw, dict) else None
     if not isinstance(methods, dict):
         raise UserError(f"{path}: 'methods' must be an object {{label: configuration}}")

@@ -12,9 +12,9 @@ from __future__ import annotations
 
 import importlib
 import pkgutil
-from importlib.metadata import entry_points
 
 import scenes.families
+from reconstruction.plugins import load_entry_points, unknown_name_message
 from scenes.model import RENDERERS, RESERVED_PARAMETERS, SceneEntry, SceneError
 
 __all__ = ["ENTRY_POINT_GROUP", "RENDERERS", "RESERVED_PARAMETERS", "SceneEntry", "SceneError", "discover",
@@ -55,15 +55,11 @@ def discover() -> tuple[dict[str, SceneEntry], dict[str, str]]:
             continue
         for entry in found:
             entries[entry.name] = entry
-    for ep in entry_points(group=ENTRY_POINT_GROUP):
-        source = f"entry point {ep.name} ({ep.value})"
-        try:
-            found = _collect(ep.load(), source)
-        except Exception as exc:
-            errors[source] = f"{type(exc).__name__}: {exc}"
-            continue
-        for entry in found:
-            entries[entry.name] = entry
+    found, ep_errors = load_entry_points(ENTRY_POINT_GROUP, lambda e: isinstance(e, SceneEntry), "SceneEntry")
+    errors.update(ep_errors)
+    for source, entry in found:
+        entry = _collect(entry, source)[0]
+        entries[entry.name] = entry
     return entries, errors
 
 
@@ -76,10 +72,7 @@ def get_scene(name: str) -> tuple[SceneEntry, str]:
     family, _, preset = name.partition(":")
     entries, errors = discover()
     if family not in entries:
-        msg = f"unknown scene {family!r} (known: {', '.join(sorted(entries)) or 'none'})"
-        if errors:
-            msg += "; scene files that failed to load: " + "; ".join(f"{k}: {v}" for k, v in errors.items())
-        raise SceneError(msg)
+        raise SceneError(unknown_name_message("scene", family, sorted(entries), errors, "scene files"))
     entry = entries[family]
     preset = preset or entry.default_preset
     if preset not in entry.presets:

@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from reconstruction.plugins import merge_registry
+from reconstruction.plugins import merge_registry, unknown_name_message
 
 __all__ = ["FlowBackend", "ORACLE", "builtin_flows", "discover_flows", "get_flow", "available_flows", "equirect_flow"]
 
@@ -141,10 +141,7 @@ def get_flow(name: str) -> FlowBackend:
     """Look up an image flow backend; raises ValueError listing the known names."""
     flows, errors = discover_flows()
     if name not in flows:
-        msg = f"unknown flow {name!r} (known: {', '.join(sorted([*flows, ORACLE]))})"
-        if errors:
-            msg += "; flow plugins that failed to load: " + "; ".join(f"{k}: {v}" for k, v in errors.items())
-        raise ValueError(msg)
+        raise ValueError(unknown_name_message("flow", name, sorted([*flows, ORACLE]), errors, "flow plugins"))
     return flows[name]
 
 

@@ -24,7 +24,7 @@ import numpy as np
 
 from reconstruction.camera.equirect import project_rays_camera
 from reconstruction.camera.resample import bilinear_with_gradient
-from reconstruction.plugins import merge_registry
+from reconstruction.plugins import merge_registry, unknown_name_message
 from reconstruction.refine.triangulate import PairGeometry, beta_of_distance
 
 __all__ = ["RefineConfig", "builtin_variants", "discover_variants", "get_variant", "RefineProblem",
@@ -123,10 +123,8 @@ def get_variant(name: str) -> RefineConfig:
     """Look up a refinement variant; raises ValueError listing the known names."""
     variants, errors = discover_variants()
     if name not in variants:
-        msg = f"unknown variant {name!r} (known: average, {', '.join(sorted(variants))})"
-        if errors:
-            msg += "; variant plugins that failed to load: " + "; ".join(f"{k}: {v}" for k, v in errors.items())
-        raise ValueError(msg)
+        raise ValueError(unknown_name_message("variant", name, ["average", *sorted(variants)], errors,
+                                              "variant plugins"))
     return variants[name]
 
 
