@@ -6,6 +6,7 @@ import argparse
 from pathlib import Path
 
 from harness.cli.methods import add_method_options, selected_methods
+from harness.cli.cluster import add_cluster_arguments, cluster_options
 from harness.jobs.evaluate import evaluate, mae_table
 
 HELP = "run methods on every frame under a data root and score them against ground truth"
@@ -20,11 +21,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--report", action=argparse.BooleanOptionalAction, default=True,
                         help="write the report with the results (--no-report: results only)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_cluster_arguments(parser)
 
 
 def run(args) -> int:
     methods = selected_methods(args, multiple=True)
-    table = evaluate(args.data_root, args.out, methods, args.scene, report=args.report, progress=not args.quiet)
+    table = evaluate(args.data_root, args.out, methods, args.scene, report=args.report, progress=not args.quiet,
+                     cluster=cluster_options(args))
     print(f"\nMAE (m), mean over frames — {len(table)} rows in {args.out / 'results.csv'}")
     print(mae_table(table))
     return 0

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import os
 
+from harness.cli.cluster import add_cluster_arguments, cluster_options
 from harness.jobs.render import DEFAULT_SCENE, DEFAULTS, MIN_WIDTH, parse_overrides, render_frames
 from harness.render.registry import available_renderers
 from reconstruction.camera.rig import DEFAULT_BASELINE_M
@@ -42,6 +43,7 @@ def add_arguments(parser) -> None:
                              "with the same settings, and the run is refused when not)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     parser.add_argument("--verbose", action="store_true", help="show Blender's own log output (on stderr)")
+    add_cluster_arguments(parser)
 
 
 def run(args) -> int:
@@ -49,7 +51,8 @@ def run(args) -> int:
                          samples=args.samples, seed=args.seed, threads=args.threads, baseline=args.baseline,
                          force=args.force, denoise=not args.no_denoise, max_bounces=args.max_bounces,
                          overrides=parse_overrides(args.overrides), progress=not args.quiet,
-                         verbose=args.verbose, renderer=getattr(args, "renderer", None))
+                         verbose=args.verbose, renderer=getattr(args, "renderer", None),
+                         cluster=cluster_options(args))
     for d in dirs:
         print(os.fspath(d))
     return 0

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from harness.cli.cluster import add_cluster_arguments, cluster_options
 from harness.jobs.evaluate import mae_table
 from harness.jobs.score import score
 
@@ -23,11 +24,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--report", action=argparse.BooleanOptionalAction, default=True,
                         help="write the report with the results (--no-report: results only)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_cluster_arguments(parser)
 
 
 def run(args) -> int:
     table = score(args.pred_roots, args.data, args.out, args.method, args.scene, report=args.report,
-                  progress=not args.quiet)
+                  progress=not args.quiet, cluster=cluster_options(args))
     print(f"\nMAE (m), mean over frames — {len(table)} rows in {args.out / 'results.csv'}")
     print(mae_table(table))
     return 0

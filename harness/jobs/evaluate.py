@@ -26,7 +26,6 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from tqdm import tqdm
 
 from harness.data import jsonio
 from harness.data.atomic import atomic_write_text
@@ -35,6 +34,7 @@ from harness.data.exr import CONFIDENCE_CHANNEL, DISTANCE_CHANNEL, write_float_m
 from harness.data.frame import find_frames, read_frame
 from harness.data.outputs import staged_directory
 from harness.data.provenance import software
+from harness.jobs.cluster import ClusterOptions, open_executor
 from reconstruction.methods.base import Method, MethodOutput, flow_fields, run_methods
 from reconstruction.methods.flow_pipeline import config_label
 from reports.build import build_report
@@ -42,7 +42,8 @@ from reports.metrics import breakdown
 from reports.regions import region_summaries, regions
 from reports.schema import breakdown_table, regions_table, results_table, write_results
 
-__all__ = ["FrameRef", "select_frames", "evaluate", "map_path", "mae_table", "results_config"]
+__all__ = ["FrameRef", "select_frames", "evaluate", "evaluate_task", "method_groups", "map_path", "mae_table",
+           "results_config"]
 
 
 @dataclass(frozen=True)
@@ -137,9 +138,67 @@ def _score_rows(frame, method: Method, output: MethodOutput, masks: dict) -> tup
     return row, [{**key, **b} for b in breakdown(frame, pred)], region_rows
 
 
+def method_groups(methods: Sequence[Method]) -> list[list[Method]]:
+    """``methods`` split into the groups that share work (same ``group_key``, as ``run_methods`` runs them),
+    in order of first appearance; a method without a ``group_key`` is a group of its own."""
+    groups: dict = {}
+    for i, m in enumerate(methods):
+        key = getattr(m, "group_key", None)
+        groups.setdefault(("group", key) if key is not None else ("single", i), []).append(m)
+    return list(groups.values())
+
+
+def evaluate_task(frame_path: str, methods: Sequence[Method], stage: str) -> dict:
+    """One task of :func:`evaluate`: run ``methods`` on one frame, write their maps under ``stage``, score them.
+
+    Runs in this process or on a Dask worker (then ``frame_path`` and ``stage`` must be on a file system the
+    worker sees at the same path).  Writing the maps is atomic and idempotent, so a task re-run after a lost
+    worker changes nothing.
+
+    Returns:
+        ``{"rows": {label: (row, breakdown rows, region rows)}, "frame": the frame's config.json entry}``.
+    Raises:
+        UserError: the frame has no usable ground truth, or a method fails on it (named).
+    """
+    path = Path(frame_path)
+    frame = read_frame(path)
+    if not frame.has_ground_truth:
+        raise UserError(f"{path}: frame has no ground-truth distance, nothing to score "
+                        "(use 'tri360 reconstruct' for captures without ground truth)")
+    if not np.isfinite(frame.distance["C"]).any():
+        raise UserError(f"{path / 'C.distance.exr'}: no pixel has a finite distance, nothing to score")
+    try:
+        outputs = run_methods(frame, methods)
+    except ValueError as exc:
+        raise UserError(f"{path}: {exc}") from None
+    masks = regions(frame)
+    scored = {}
+    for method in methods:
+        output = outputs[method.label]
+        row, brs, rrs = _score_rows(frame, method, output, masks)
+        dist_path = Path(stage) / map_path(frame.scene, frame.viewpoint, method)
+        # a prediction may hold NaN/inf/<= 0 (= no prediction): written as is, like tri360-pred/1
+        write_float_map(dist_path, np.asarray(output.distance, np.float32), DISTANCE_CHANNEL)
+        if output.confidence is not None:
+            write_float_map(confidence_path(dist_path), np.asarray(output.confidence, np.float32),
+                            CONFIDENCE_CHANNEL)
+        scored[method.label] = (row, brs, rrs)
+    info = {"path": str(path.resolve()), "scene": frame.scene, "viewpoint": frame.viewpoint,
+            "width": frame.width, "height": frame.height, "baseline_m": frame.baseline_m,
+            "renderer": frame.renderer}
+    return {"rows": scored, "frame": info}
+
+
 def evaluate(data_root: Path, out: Path, methods: Sequence[Method], scenes: Sequence[str] | None = None,
-             report: bool = True, progress: bool = True) -> pd.DataFrame:
+             report: bool = True, progress: bool = True, cluster: ClusterOptions | None = None) -> pd.DataFrame:
     """Run ``methods`` on every frame with ground truth under ``data_root`` and write a results set to ``out``.
+
+    Args:
+        cluster: run on Dask (``--scheduler`` / ``--workers``), one task per frame x group of methods that share
+            work (the variants of one flow configuration); workers write the maps into the staged results
+            directory, this process gathers the rows and writes the results files.  None = in this process, one
+            task per frame.  The rows and maps are the same either way (only ``seconds``, each method's wall
+            time, differs from run to run).
 
     Returns:
         The results table (also written to ``out``).
@@ -148,49 +207,36 @@ def evaluate(data_root: Path, out: Path, methods: Sequence[Method], scenes: Sequ
             output location (checked before any long work), or a method that fails on a frame.
     """
     started = time.time()
+    if isinstance(cluster, ClusterOptions):
+        cluster.check()
     refs = select_frames(data_root, scenes)
     labels = [m.label for m in methods]
     if not methods:
         raise UserError("no methods to evaluate")
     if len(set(labels)) != len(labels):
         raise UserError(f"duplicate method labels: {', '.join(sorted({x for x in labels if labels.count(x) > 1}))}")
+    distributed = cluster is not None and getattr(cluster, "distributed", False)
+    groups = method_groups(methods) if distributed else [list(methods)]
     rows, brows, rrows, frames_index, frames_config = [], [], [], [], []
     with staged_directory(out) as stage:
-        bar = tqdm(refs, desc="evaluate", unit="frame", disable=not progress, dynamic_ncols=True)
-        for ref in bar:
-            frame = read_frame(ref.path)
-            if not frame.has_ground_truth:
-                raise UserError(f"{ref.path}: frame has no ground-truth distance, nothing to score "
-                                "(use 'tri360 reconstruct' for captures without ground truth)")
-            if not np.isfinite(frame.distance["C"]).any():
-                raise UserError(f"{ref.path / 'C.distance.exr'}: no pixel has a finite distance, nothing to score")
-            bar.set_postfix_str(f"{frame.scene}/{frame.viewpoint}")
-
-            def on_stage(name, bar=bar, frame=frame):
-                bar.set_postfix_str(f"{frame.scene}/{frame.viewpoint} {name}")
-
-            try:
-                outputs = run_methods(frame, methods, on_stage=on_stage)
-            except ValueError as exc:
-                raise UserError(f"{ref.path}: {exc}") from None
-            masks = regions(frame)
+        stage_abs = str(Path(stage).resolve())
+        tasks = {(i, g): (str(ref.path.resolve()), group, stage_abs)
+                 for i, ref in enumerate(refs) for g, group in enumerate(groups)}
+        done: dict[tuple[int, int], dict] = {}
+        with open_executor(cluster) as ex:
+            for key, result in ex.run(evaluate_task, tasks, desc="evaluate",
+                                      unit="frame" if len(groups) == 1 else "task", progress=progress):
+                done[key] = result
+        for i, _ref in enumerate(refs):
+            scored = {label: v for g in range(len(groups)) for label, v in done[(i, g)]["rows"].items()}
+            info = done[(i, 0)]["frame"]
             for method in methods:
-                output = outputs[method.label]
-                row, brs, rrs = _score_rows(frame, method, output, masks)
-                dist_path = stage / map_path(frame.scene, frame.viewpoint, method)
-                # a prediction may hold NaN/inf/<= 0 (= no prediction): written as is, like tri360-pred/1
-                write_float_map(dist_path, np.asarray(output.distance, np.float32), DISTANCE_CHANNEL)
-                if output.confidence is not None:
-                    write_float_map(confidence_path(dist_path), np.asarray(output.confidence, np.float32),
-                                    CONFIDENCE_CHANNEL)
+                row, brs, rrs = scored[method.label]
                 rows.append(row)
                 brows.extend(brs)
                 rrows.extend(rrs)
-            frames_index.append({"scene": frame.scene, "viewpoint": frame.viewpoint, "path": str(ref.path.resolve())})
-            frames_config.append({"path": str(ref.path.resolve()), "scene": frame.scene, "viewpoint": frame.viewpoint,
-                                  "width": frame.width, "height": frame.height, "baseline_m": frame.baseline_m,
-                                  "renderer": frame.renderer})
-        bar.close()
+            frames_index.append({"scene": info["scene"], "viewpoint": info["viewpoint"], "path": info["path"]})
+            frames_config.append(info)
         table = results_table(rows)
         write_results(stage, table, breakdown_table(brows), regions_table(rrows))
         atomic_write_text(stage / "frames.json", jsonio.dumps(frames_index))

@@ -12,22 +12,35 @@ one is named.  The run is resumable: a frame directory that already reads and va
 rendered with the same settings, refused (naming every difference) when it was not, and re-rendered with
 ``force``.  Every frame is written atomically, so an interrupted run never leaves a complete-looking frame
 behind.  Blender (``bpy``) is loaded only by the Cycles worker process, never by this one.
+
+``frame.json`` holds only what decides the frame (so two renders of the same frame are byte-identical, wherever
+they ran); how long it took goes to ``render_log.json`` beside it (:data:`RENDER_LOG`: the renderer's per-stage
+wall times and the host), written after the frame and ignored by every reader.
+
+With ``cluster`` (:class:`harness.jobs.cluster.ClusterOptions`: ``--scheduler`` / ``--workers``) each frame is
+one Dask task: the worker builds the scene, renders the frame and writes it into the data root itself (which must
+be on a file system that every worker sees at the same path); a frame whose worker died is simply rendered again.
+Without it, everything runs in this process with one renderer for all frames, as before.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import os
+import platform
 import tempfile
 from pathlib import Path
 
 import numpy as np
 from tqdm import tqdm
 
-from harness.data.atomic import clean_stale_partials
+from harness.data import jsonio
+from harness.data.atomic import atomic_write_text, clean_stale_partials
 from harness.data.errors import UserError
-from harness.data.frame import frame_dir, is_complete, write_frame
+from harness.data.frame import Frame, frame_dir, is_complete, write_frame
+from harness.jobs.cluster import ClusterOptions, open_executor
 from harness.render.base import RenderSettings, identity, recorded_identity
 from harness.render.registry import get_renderer
 from reconstruction.camera.rig import CAMERA_NAMES, DEFAULT_BASELINE_M, Rig
@@ -35,6 +48,8 @@ from reconstruction.flow.backends import builtin_flows
 from scenes.model import choose_viewpoints
 from scenes.registry import get_scene
 
+RENDER_LOG = "render_log.json"
+"""Sidecar of a rendered frame: wall times per stage (``seconds``: build, C, U, R, total) and the host."""
 DEFAULTS = RenderSettings()
 """The render defaults (``harness.render.base.RenderSettings``), the single source for the CLI and this job."""
 DEFAULT_SCENE = "classroom"
@@ -185,7 +200,7 @@ def render_frames(scene_name: str = DEFAULT_SCENE, viewpoints: int = 1, out_root
                   threads: int = DEFAULTS.threads, baseline: float = DEFAULT_BASELINE_M, force: bool = False,
                   denoise: bool = DEFAULTS.denoise, max_bounces: int = DEFAULTS.max_bounces,
                   overrides: dict | None = None, progress: bool = True, verbose: bool = False,
-                  renderer: str | None = None) -> list[Path]:
+                  renderer: str | None = None, cluster: ClusterOptions | None = None) -> list[Path]:
     """Render ``viewpoints`` rig placements of a scene into ``out_root`` and return the frame directories.
 
     Args:
@@ -205,6 +220,7 @@ def render_frames(scene_name: str = DEFAULT_SCENE, viewpoints: int = 1, out_root
         progress: show a tqdm bar (on stderr) advancing per rendered camera view.
         verbose: let Blender print its own log lines (to stderr).
         renderer: ``"cycles"`` or ``"raycast"``; None = the scene's default.
+        cluster: run each frame as a Dask task (``--scheduler`` / ``--workers``); None = in this process.
 
     Raises:
         UserError: bad option, unwritable output, no free viewpoints, a scene the renderer cannot draw, an
@@ -213,6 +229,8 @@ def render_frames(scene_name: str = DEFAULT_SCENE, viewpoints: int = 1, out_root
     """
 
     _check_options(viewpoints, width, samples, threads, baseline, max_bounces)
+    if isinstance(cluster, ClusterOptions):
+        cluster.check()
     entry, preset = get_scene(scene_name)
     spec = entry.build_spec(preset, seed, overrides)
     renderer = renderer or entry.renderer
@@ -247,6 +265,9 @@ def render_frames(scene_name: str = DEFAULT_SCENE, viewpoints: int = 1, out_root
     clean_stale_partials(out_root / scene_dir)  # hidden half-written frames of killed runs
     if not todo:
         return dirs
+    if cluster is not None and getattr(cluster, "distributed", False):
+        _render_distributed(todo, renderer, spec, settings, scene_dir, out_root, cluster, progress, verbose, created)
+        return dirs
 
     bar = tqdm(total=len(todo) * len(CAMERA_NAMES), unit="view", disable=not progress,
                desc=f"{scene_dir} ({renderer})", dynamic_ncols=True)
@@ -259,13 +280,57 @@ def render_frames(scene_name: str = DEFAULT_SCENE, viewpoints: int = 1, out_root
                     bar.set_postfix_str(f"{vp}/{name} {seconds:.1f}s")
                     bar.update(1)
 
-                write_frame(drawer.render(rig, scene=scene_dir, viewpoint=vp, on_camera=on_camera), out_root)
+                write_rendered_frame(drawer.render(rig, scene=scene_dir, viewpoint=vp, on_camera=on_camera),
+                                     out_root)
     except BaseException:
         _remove_if_empty(created)  # an interrupted first render leaves no empty directories behind
         raise
     finally:
         bar.close()
     return dirs
+
+
+def write_rendered_frame(frame: Frame, out_root: Path) -> Path:
+    """Write a freshly rendered frame atomically, its wall times moved from ``frame.json`` to :data:`RENDER_LOG`.
+
+    ``frame.json`` then depends only on the render's inputs: the same frame rendered twice (here, on another
+    worker, after a lost worker) is byte-identical.  The sidecar is written after the frame (atomically too);
+    a frame without one is still complete.
+    """
+    renderer = dict(frame.renderer)
+    seconds = renderer.pop("seconds", None)
+    d = write_frame(dataclasses.replace(frame, renderer=renderer), out_root)
+    atomic_write_text(d / RENDER_LOG, jsonio.dumps({"seconds": seconds, "host": platform.node(), "pid": os.getpid()}))
+    return d
+
+
+def render_one(renderer: str, spec, settings: RenderSettings, rig, scene_dir: str, viewpoint: str, out_root: str,
+               verbose: bool = False) -> dict:
+    """One frame, start to finish (a Dask task): build the scene, render, write the frame into ``out_root``.
+
+    Returns:
+        ``{"path": frame directory, "seconds": total render seconds}``.
+    """
+    backend = get_renderer(renderer)
+    with backend(spec, settings, verbose=verbose) as drawer:
+        frame = drawer.render(rig, scene=scene_dir, viewpoint=viewpoint)
+    seconds = frame.renderer.get("seconds", {}).get("total")
+    d = write_rendered_frame(frame, Path(out_root))
+    return {"path": os.fspath(d), "seconds": seconds}
+
+
+def _render_distributed(todo, renderer, spec, settings, scene_dir, out_root: Path, cluster: ClusterOptions,
+                        progress: bool, verbose: bool, created: list[Path]) -> None:
+    root = os.fspath(out_root.resolve())  # workers may run elsewhere: give them the absolute path
+    tasks = {vp: (renderer, spec, settings, rig, scene_dir, vp, root, verbose) for vp, rig in todo}
+    try:
+        with open_executor(cluster) as ex:
+            for _ in ex.run(render_one, tasks, desc="render", unit="frame", progress=progress):
+                pass
+    except BaseException:
+        _remove_if_empty(created)
+        raise
+    clean_stale_partials(out_root / scene_dir)  # hidden half-frames of workers lost mid-write
 
 
 def _remove_if_empty(directories: list[Path]) -> None:

@@ -15,6 +15,7 @@ import pandas as pd
 
 from harness.data.errors import UserError
 from harness.data.predictions import FORMAT, prediction_dir, read_method_info, read_prediction
+from harness.jobs.cluster import ClusterOptions
 from harness.jobs.evaluate import evaluate, select_frames
 from reconstruction.methods.base import MethodOutput
 
@@ -62,7 +63,7 @@ def prediction_methods(pred_roots: Sequence[Path], names: Sequence[str] | None =
                             else f"{root}: predictions root is not a directory")
         info = read_method_info(root)
         label = names[i] if names is not None else (info.get("name") or root.resolve().name)
-        out.append(PredictionMethod(label, root, info))
+        out.append(PredictionMethod(label, root.resolve(), info))  # absolute: Dask workers may run elsewhere
     labels = [m.label for m in out]
     dup = sorted({x for x in labels if labels.count(x) > 1})
     if dup:
@@ -83,8 +84,11 @@ def _check_complete(methods: Sequence[PredictionMethod], data_root: Path, scenes
 
 
 def score(pred_roots: Sequence[Path], data_root: Path, out: Path, names: Sequence[str] | None = None,
-          scenes: Sequence[str] | None = None, report: bool = True, progress: bool = True) -> pd.DataFrame:
+          scenes: Sequence[str] | None = None, report: bool = True, progress: bool = True,
+          cluster: ClusterOptions | None = None) -> pd.DataFrame:
     """Score every predictions root against the frames under ``data_root``; write a results set to ``out``.
+
+    ``cluster`` runs the scoring on Dask (one task per frame x predictions root), as in ``evaluate``.
 
     Returns:
         The results table.
@@ -94,4 +98,4 @@ def score(pred_roots: Sequence[Path], data_root: Path, out: Path, names: Sequenc
     """
     methods = prediction_methods(pred_roots, names)
     _check_complete(methods, data_root, scenes)
-    return evaluate(data_root, out, methods, scenes, report=report, progress=progress)
+    return evaluate(data_root, out, methods, scenes, report=report, progress=progress, cluster=cluster)

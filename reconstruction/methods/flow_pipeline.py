@@ -274,13 +274,16 @@ def variant_problem(frame, prep: Prepared, config: RefineConfig):
     return problem, checked
 
 
-def refine_variant(frame, prep: Prepared, config: RefineConfig):
-    """Run one refinement variant from ``prep.d0``.
+def refine_variant(frame, prep: Prepared, config: RefineConfig, start: np.ndarray | None = None):
+    """Run one refinement variant from ``prep.d0`` (or from ``start``: any method's distance).
 
     Two stages: LM on the geometric residuals to convergence, then (colour variants) ``color_iters`` LM
     iterations with the colour residuals added, on textured pixels only; finally outliers among pixels
     without a checked pair are replaced (:func:`replace_outliers`).
 
+    Args:
+        start: optional (H, W) start distances, metres (e.g. another method's output; non-finite or
+            non-positive pixels start from ``prep.d0``); None = the ``average`` fusion ``prep.d0``.
     Returns:
         ``(d, iterations)``: (H, W) float64 refined distances, metres, and the LM iterations run.
     """
@@ -288,7 +291,11 @@ def refine_variant(frame, prep: Prepared, config: RefineConfig):
     lim = prep.limits
     problem, checked = variant_problem(frame, prep, config)
     color, problem.color = problem.color, []  # geometric stage first
-    d, iters = levenberg_marquardt(problem, prep.d0, lim.d_min_m, lim.d_max_m, config.max_iters, config.tol_m)
+    d0 = prep.d0
+    if start is not None:
+        s = np.asarray(start, np.float64).reshape(-1)
+        d0 = np.where(np.isfinite(s) & (s > 0), s, prep.d0)
+    d, iters = levenberg_marquardt(problem, d0, lim.d_min_m, lim.d_max_m, config.max_iters, config.tol_m)
     if color:
         problem.color = color
         textured = color_texture_mask(frame.images["C"], config).reshape(-1)

@@ -59,6 +59,18 @@ class PostParams:
     median_px: int = 5
 
 
+def _clock() -> tuple[float, float]:
+    """(wall, process CPU) seconds now."""
+    return time.perf_counter(), time.process_time()
+
+
+def _lap(seconds: dict, key: str, start: tuple[float, float]) -> None:
+    """Record a stage's wall time as ``seconds[key]`` and its process CPU time (all threads) as
+    ``seconds[key + "_cpu"]``, seconds."""
+    seconds[key] = time.perf_counter() - start[0]
+    seconds[key + "_cpu"] = time.process_time() - start[1]
+
+
 def labels_to_distance(label: np.ndarray, inv_d: np.ndarray, heights: np.ndarray, a_z: np.ndarray,
                        d_min_m: float, d_max_m: float) -> np.ndarray:
     """Fractional labels -> distance, metres.
@@ -115,13 +127,13 @@ def _labels(frame, cost_params: CostParams, plane_params: PlaneParams, sgm: SgmP
         ``(label, conf, a_z, heights, inv_d)``: (H, W) fractional labels and confidence, (H, W) world Z of C's
         bearings, plane heights (metres) and sphere inverse distances (1/m).
     """
-    t = time.perf_counter()
+    t = _clock()
     heights = plane_heights(plane_params)
     n_d = cost_params.levels
     cost, _ = build_cost_volume(frame, cost_params, extra_labels=heights.size, pairs=pairs)
     inv_d = inverse_distances(cost_params)
-    seconds[prefix + "cost"] = time.perf_counter() - t
-    t = time.perf_counter()
+    _lap(seconds, prefix + "cost", t)
+    t = _clock()
     a_z = bearing_grid(frame.width, frame.height, frame.cameras["C"].rotation)[..., 2]
     bias = plane_params.bias if heights.size else 0
     max_cost = cost_params.max_cost()
@@ -130,15 +142,15 @@ def _labels(frame, cost_params: CostParams, plane_params: PlaneParams, sgm: SgmP
     if np.isfinite(bounds[0]) or np.isfinite(bounds[1]):
         bound_costs(cost, n_d, a_z, inv_d, heights, bounds[0], bounds[1], max_cost)
     family = np.concatenate([np.zeros(n_d, np.int64), np.ones(heights.size, np.int64)])
-    seconds[prefix + "planes"] = time.perf_counter() - t
-    t = time.perf_counter()
+    _lap(seconds, prefix + "planes", t)
+    t = _clock()
     gray = gray_float(frame.images["C"], 0.0)
     agg = aggregate(cost, family, gray, sgm.p1, sgm.p2, sgm.p3, sgm.edge, max_cost, sgm.paths)
     del cost
-    seconds[prefix + "sgm"] = time.perf_counter() - t
-    t = time.perf_counter()
+    _lap(seconds, prefix + "sgm", t)
+    t = _clock()
     label, conf = winner_take_all(agg, family)
-    seconds[prefix + "wta"] = time.perf_counter() - t
+    _lap(seconds, prefix + "wta", t)
     return label, conf, a_z, heights, inv_d
 
 
@@ -165,17 +177,19 @@ def sweep_distance(frame, cost_params: CostParams, plane_params: PlaneParams, sg
     if plane_params.room_bound and plane_params.per_side > 0:
         bounds = room_bounds(frame, cost_params, plane_params, sgm, pairs, seconds)
     label, conf, a_z, heights, inv_d = _labels(frame, cost_params, plane_params, sgm, pairs, seconds, bounds)
-    t = time.perf_counter()
+    t = _clock()
     d = labels_to_distance(label, inv_d, heights, a_z, cost_params.d_min_m, cost_params.d_max_m)
     if post.min_confidence > 0:
         ok = conf >= post.min_confidence
         if ok.any() and not ok.all():
             d = np.where(ok, d, fill_edge_aware(d, ok, frame.images["C"], post.fill_lambda, post.fill_sigma_color))
     d = _median_wrap(d, post.median_px)
-    seconds["post"] = time.perf_counter() - t
+    _lap(seconds, "post", t)
+    cpu = {k[:-4]: seconds.pop(k) for k in [k for k in seconds if k.endswith("_cpu")]}
     seconds["total"] = sum(seconds.values())
+    cpu["total"] = sum(cpu.values())
     info = {"plane_share": float((label >= cost_params.levels - 0.5).mean()),
-            "floor_m": float(bounds[0]), "ceiling_m": float(bounds[1])}
+            "floor_m": float(bounds[0]), "ceiling_m": float(bounds[1]), "cpu_seconds": cpu}
     return d.astype(np.float32), np.clip(conf, 0.0, 1.0).astype(np.float32), seconds, info
 
 

@@ -18,6 +18,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import cv2
+import numba
 import numpy as np
 
 from reconstruction.camera.equirect import bearing_grid
@@ -171,9 +172,33 @@ def pair_slice(pair: PairWarp, inv_d: float, truncate: float) -> np.ndarray:
     return np.concatenate([diff[:, w - WRAP_PAD:], diff, diff[:, :WRAP_PAD]], axis=1)
 
 
+def _pair_arrays(pw: PairWarp, frame):
+    """Per-pixel arrays of one pair in C's grid for :func:`_sweep_costs`.
+
+    Returns:
+        ``(other_t, ref, ur, vr)``: (W, H, 3) K's rectified features transposed (columns contiguous),
+        (H, W, 3) C's rectified features at each C pixel, (H, W) rectified column and row of each C pixel
+        (float32, pixels).
+    """
+    h, w = frame.height, frame.width
+    mu, mv = rotation_maps(w, h, frame.cameras["C"].rotation, pw.rect_rotation)
+    mu = np.mod(mu + 0.5, w) - 0.5
+    feats = np.ascontiguousarray(pw.ref.transpose(1, 2, 0))
+    padded = np.concatenate([feats[:, w - WRAP_PAD:], feats, feats[:, :WRAP_PAD]], axis=1)
+    ref = cv2.remap(padded, (mu + WRAP_PAD).astype(np.float32), mv.astype(np.float32), cv2.INTER_LINEAR,
+                    borderMode=cv2.BORDER_REPLICATE)
+    other_t = np.ascontiguousarray(pw.other.transpose(2, 1, 0))
+    return other_t, ref, mu.astype(np.float32), mv.astype(np.float32)
+
+
 def build_cost_volume(frame, params: CostParams, extra_labels: int = 0, pairs=("U", "R"),
                       out: np.ndarray | None = None):
     """The sphere-sweep cost volume of camera C.
+
+    For every pixel of C and pair, C's rectified features at the pixel are compared with K's rectified features
+    (bilinear) at the same rectified column and the row of each hypothesis (:func:`rect_row`); the truncated
+    feature difference is weighted by the pair weight, summed over the pairs, quantised and box-filtered.  One
+    fused numba pass over all hypotheses (no per-label Python loop).
 
     Args:
         frame: a frame with ``images`` (H, W, 3) uint8 and posed ``cameras`` C, U, R.
@@ -190,20 +215,96 @@ def build_cost_volume(frame, params: CostParams, extra_labels: int = 0, pairs=("
     warps = [prepare_pair(frame, k, gray, params) for k in pairs]
     n = params.levels + extra_labels
     cost = np.empty((h, w, n), np.uint16) if out is None else out
-    wsum = [(pw.weight * params.scale).astype(np.float32) for pw in warps]
-    acc = np.empty((h, w), np.float32)
+    arrays = [_pair_arrays(pw, frame) for pw in warps]
+    other_t = np.stack([a[0] for a in arrays])
+    ref = np.stack([a[1] for a in arrays])
+    ur = np.stack([a[2] for a in arrays])
+    vr = np.stack([a[3] for a in arrays])
+    inv_d = inverse_distances(params)
+    rows = np.stack([np.clip(np.stack([source_rows(pw, q, h) for q in inv_d], axis=1), 0.0, h - 1.0)
+                     for pw in warps]).astype(np.float32)
+    weight = np.stack([pw.weight * np.float32(params.scale) for pw in warps]).astype(np.float32)
+    del arrays
+    _sweep_costs(cost, params.levels, other_t, ref, ur, vr, rows, weight, np.float32(params.truncate))
     box = int(params.box_px)
-    for i, q in enumerate(inverse_distances(params)):
-        acc[:] = 0.0
-        for pw, ws in zip(warps, wsum, strict=True):
-            sl = pair_slice(pw, q, params.truncate)
-            back = cv2.remap(sl, pw.map1, pw.map2, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-            acc += back * ws
-        if box > 1:
-            pad = box // 2
-            padded = np.concatenate([acc[:, -pad:], acc, acc[:, :pad]], axis=1)
-            acc_f = cv2.boxFilter(padded, -1, (box, box), borderType=cv2.BORDER_REFLECT)[:, pad:-pad]
-        else:
-            acc_f = acc
-        cost[:, :, i] = (acc_f + 0.5).astype(np.uint16)
+    if box > 1:
+        _box_rows(cost, params.levels, box // 2)
+        _box_cols(cost, params.levels, box // 2, np.float32(1.0 / (box * box)))
     return cost, warps
+
+@numba.njit(parallel=True, cache=True, fastmath=True)
+def _sweep_costs(cost, n_levels, other_t, ref, ur, vr, rows, weight, truncate):
+    # cost: (H, W, >= n_levels) uint16 out; other_t: (P, W, H, 3) K's rectified features, columns contiguous;
+    # ref: (P, H, W, 3) C's rectified features at C's pixels; ur, vr: (P, H, W) rectified column / row of C's
+    # pixels; rows: (P, H, n_levels) K's rectified row seen by each integer rectified row of C per hypothesis;
+    # weight: (P, H, W) pair weight times the cost scale.
+    h, w, _ = cost.shape
+    n_pairs, wr, hr, _ = other_t.shape
+    for y in numba.prange(h):
+        acc = np.empty(n_levels, np.float32)
+        for x in range(w):
+            acc[:] = 0.0
+            for p in range(n_pairs):
+                wt = weight[p, y, x]
+                if wt <= 0.0:
+                    continue
+                r0 = ref[p, y, x, 0]
+                r1 = ref[p, y, x, 1]
+                r2 = ref[p, y, x, 2]
+                u = ur[p, y, x]
+                fu = np.floor(u)
+                tu = np.float32(u - fu)
+                c0 = int(fu) % wr
+                c1 = (c0 + 1) % wr
+                v = min(max(vr[p, y, x], 0.0), hr - 1.0)
+                v0 = min(int(v), hr - 2)
+                t = np.float32(v - v0)
+                ra = rows[p, v0]
+                rb = rows[p, v0 + 1]
+                for i in range(n_levels):
+                    row = ra[i] + t * (rb[i] - ra[i])
+                    j0 = min(int(row), hr - 2)
+                    tv = np.float32(row - j0)
+                    a0 = other_t[p, c0, j0, 0] + tv * (other_t[p, c0, j0 + 1, 0] - other_t[p, c0, j0, 0])
+                    b0 = other_t[p, c1, j0, 0] + tv * (other_t[p, c1, j0 + 1, 0] - other_t[p, c1, j0, 0])
+                    a1 = other_t[p, c0, j0, 1] + tv * (other_t[p, c0, j0 + 1, 1] - other_t[p, c0, j0, 1])
+                    b1 = other_t[p, c1, j0, 1] + tv * (other_t[p, c1, j0 + 1, 1] - other_t[p, c1, j0, 1])
+                    a2 = other_t[p, c0, j0, 2] + tv * (other_t[p, c0, j0 + 1, 2] - other_t[p, c0, j0, 2])
+                    b2 = other_t[p, c1, j0, 2] + tv * (other_t[p, c1, j0 + 1, 2] - other_t[p, c1, j0, 2])
+                    s = (abs(a0 + tu * (b0 - a0) - r0) + abs(a1 + tu * (b1 - a1) - r1)
+                         + abs(a2 + tu * (b2 - a2) - r2))
+                    acc[i] += wt * min(s, truncate)
+            for i in range(n_levels):
+                cost[y, x, i] = np.uint16(acc[i] + 0.5)
+
+
+@numba.njit(parallel=True, cache=True)
+def _box_rows(cost, n_levels, r):
+    h, w, _ = cost.shape
+    for y in numba.prange(h):
+        tmp = np.empty((w, n_levels), np.int32)
+        for x in range(w):
+            for i in range(n_levels):
+                tmp[x, i] = cost[y, x, i]
+        for x in range(w):
+            for i in range(n_levels):
+                s = np.int32(0)
+                for dx in range(-r, r + 1):
+                    s += tmp[(x + dx) % w, i]
+                cost[y, x, i] = np.uint16(s)
+
+
+@numba.njit(parallel=True, cache=True)
+def _box_cols(cost, n_levels, r, norm):
+    h, w, _ = cost.shape
+    for x in numba.prange(w):
+        tmp = np.empty((h, n_levels), np.int32)
+        for y in range(h):
+            for i in range(n_levels):
+                tmp[y, i] = cost[y, x, i]
+        for y in range(h):
+            for i in range(n_levels):
+                s = np.int32(0)
+                for dy in range(-r, r + 1):
+                    s += tmp[min(max(y + dy, 0), h - 1), i]
+                cost[y, x, i] = np.uint16(s * norm + 0.5)

@@ -9,7 +9,6 @@ import os
 import signal
 import subprocess
 import sys
-import tempfile
 import time
 from pathlib import Path
 
@@ -48,8 +47,8 @@ def _alive(pid: int) -> bool:
         return False
 
 
-def _workdirs() -> set[str]:
-    return {p.name for p in Path(tempfile.gettempdir()).glob("tri360-cycles-*")}
+def _workdirs(tmp: Path) -> set[str]:
+    return {p.name for p in tmp.glob("tri360-cycles-*")}
 
 
 @pytest.mark.parametrize("target", ["process", "group"])
@@ -57,11 +56,12 @@ def test_ctrl_c_stops_a_cycles_render_within_seconds(tmp_path, target):
     """SIGINT to the CLI (``process``), or to its whole process group as a terminal's Ctrl-C does (``group``):
     exit 130 within seconds, one line on stderr, the worker gone, nothing left in the output root."""
     out = tmp_path / "data"
-    before = _workdirs()
+    tmp = tmp_path / "tmp"  # the command's own temporary directory: other processes' renders do not show here
+    tmp.mkdir()
     # classroom 400 x 200 at 16 samples renders for ~20 s per frame on 2 cores; we interrupt it after ~3 s
     proc = subprocess.Popen([*CLI, "render", "--scene", "classroom", "--width", "400", "--samples", "16",
                              "--out", str(out), "--quiet"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True, start_new_session=True)
+                            text=True, start_new_session=True, env={**os.environ, "TMPDIR": str(tmp)})
     try:
         deadline = time.monotonic() + 60
         while not _children(proc.pid) and proc.poll() is None and time.monotonic() < deadline:
@@ -87,7 +87,7 @@ def test_ctrl_c_stops_a_cycles_render_within_seconds(tmp_path, target):
     assert len(lines) == 1 and lines[0].startswith("tri360 render: interrupted"), stderr
     assert not _alive(worker), "the Cycles worker outlived the command"
     assert not out.exists() or not any(out.rglob("*")), f"left behind: {sorted(out.rglob('*'))}"
-    assert _workdirs() <= before, "the worker's temporary directory was left behind"
+    assert not _workdirs(tmp), "the worker's temporary directory was left behind"
 
 
 @pytest.mark.parametrize("flags", [["--quiet"], [], ["--verbose"]], ids=["quiet", "progress", "verbose"])
