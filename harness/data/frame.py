@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -302,12 +303,20 @@ def write_frame(frame: Frame, root: Path) -> Path:
 
 
 def find_frames(root: Path) -> list[Path]:
-    """All frame directories (those holding ``frame.json``) under ``root``, sorted; hidden dirs skipped."""
+    """All frame directories (those holding ``frame.json``) under ``root``, sorted; hidden dirs skipped.
+
+    Symbolic links to directories are followed (data roots are often assembled from links), each real
+    directory at most once, so a link cycle cannot loop.
+    """
     root = Path(root)
-    out = []
-    for meta in sorted(root.rglob("frame.json")):
-        rel = meta.parent.relative_to(root)
-        if any(part.startswith(".") for part in rel.parts):
+    out, seen = [], set()
+    for dirpath, dirnames, filenames in os.walk(root, followlinks=True):
+        real = os.path.realpath(dirpath)
+        if real in seen:
+            dirnames[:] = []
             continue
-        out.append(meta.parent)
-    return out
+        seen.add(real)
+        dirnames[:] = sorted(d for d in dirnames if not d.startswith("."))
+        if "frame.json" in filenames:
+            out.append(Path(dirpath))
+    return sorted(out)

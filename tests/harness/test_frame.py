@@ -637,3 +637,14 @@ def test_clean_stale_siblings_looks_only_beside_the_target(tmp_path):
         p.mkdir(parents=True)
     assert clean_stale_siblings(tmp_path / "res") == sorted(mine)
     assert all(p.exists() for p in others) and not any(p.exists() for p in mine)
+
+
+def test_find_frames_follows_directory_links_once(tmp_path, synthetic_frame):
+    """Data roots assembled from symbolic links are found; a link cycle does not loop."""
+    real = tmp_path / "real"
+    write_frame(synthetic_frame, real)
+    root = tmp_path / "root"
+    (root / "synthetic_box").mkdir(parents=True)
+    (root / "synthetic_box" / "vp000").symlink_to(real / "synthetic_box" / "vp000")
+    (root / "loop").symlink_to(root)
+    assert find_frames(root) == [root / "synthetic_box" / "vp000"]
