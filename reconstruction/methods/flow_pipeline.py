@@ -36,7 +36,7 @@ from reconstruction.refine.weights import (
 
 __all__ = ["DEFAULT_FLOW", "PAIRS", "Reconstruction", "reconstruct", "available_variants", "fuse_average",
            "fill_invalid", "fill_edge_aware", "Prepared", "prepare", "variant_problem", "refine_variant", "FlowMethod",
-           "config_label"]
+           "config_label", "flow_confidence"]
 
 DEFAULT_FLOW = "dis"  # chosen by measurement, see docs/refinement.md
 PAIRS = ("U", "R")
@@ -57,6 +57,7 @@ class Reconstruction:
         pair_valid: (H, W) bool per pair: False at the pair's epipoles or where its flow is unusable.
         seconds: wall time per stage (``flow_U``, ``flow_R``, ``triangulate``, ``average``, each variant).
         iterations: LM iterations per variant.
+        confidence: (H, W) float32 per variant, in [0, 1] (:func:`flow_confidence`).
     """
 
     distance: dict[str, np.ndarray] = field(default_factory=dict)
@@ -64,6 +65,7 @@ class Reconstruction:
     pair_valid: dict[str, np.ndarray] = field(default_factory=dict)
     seconds: dict[str, float] = field(default_factory=dict)
     iterations: dict[str, int] = field(default_factory=dict)
+    confidence: dict[str, np.ndarray] = field(default_factory=dict)
 
 
 def fill_invalid(d: np.ndarray, valid: np.ndarray, max_sigma_px: float = 64.0) -> np.ndarray:
@@ -262,6 +264,27 @@ def prepare(frame, flow: str | FlowBackend = DEFAULT_FLOW, rectify: bool = True,
     return Prepared(bearings, matches, geoms, d_pair, valid, d0, limits, seconds)
 
 
+def flow_confidence(d: np.ndarray, prep: Prepared, tolerance: float = 0.05) -> np.ndarray:
+    """Per-pixel confidence of a flow-pipeline distance, in [0, 1]: the best pair's support.
+
+    For each pair k, ``valid_k * sin(alpha_k)^2 * exp(-|ln(d_k / d)| / tolerance)``: high where a pair far from
+    its epipole triangulates (alone) to the final distance; the maximum over the pairs.
+
+    Args:
+        d: (H, W) or (N,) final distances, metres; prep: the shared stages (per-pair distances and geometry).
+        tolerance: relative disagreement that lowers the support by a factor e (dimensionless).
+    Returns:
+        float32 array of ``d``'s shape.
+    """
+    dd = np.maximum(np.asarray(d, np.float64).reshape(-1), 1e-9)
+    conf = np.zeros(dd.shape)
+    for k in PAIRS:
+        ratio = np.abs(np.log(np.maximum(prep.d_pair[k], 1e-9) / dd))
+        c = np.where(prep.valid[k], prep.geoms[k].sin_alpha ** 2 * np.exp(-ratio / tolerance), 0.0)
+        conf = np.maximum(conf, c)
+    return np.clip(conf, 0.0, 1.0).astype(np.float32).reshape(np.shape(d))
+
+
 def variant_problem(frame, prep: Prepared, config: RefineConfig):
     """The least-squares problem of one variant over all of C's pixels.
 
@@ -338,6 +361,7 @@ def reconstruct(frame, flow: str | FlowBackend = DEFAULT_FLOW, rectify: bool = T
         out.pair_valid[k] = prep.valid[k].reshape(h, w)
     if "average" in variants:
         out.distance["average"] = prep.d0.reshape(h, w).astype(np.float32)
+        out.confidence["average"] = flow_confidence(out.distance["average"], prep)
     for name, config in configs.items():
         note(name)
         start = time.perf_counter()
@@ -345,6 +369,7 @@ def reconstruct(frame, flow: str | FlowBackend = DEFAULT_FLOW, rectify: bool = T
         out.seconds[name] = time.perf_counter() - start
         out.iterations[name] = iters
         out.distance[name] = d.astype(np.float32)
+        out.confidence[name] = flow_confidence(out.distance[name], prep)
     return out
 
 
@@ -411,5 +436,6 @@ class FlowMethod:
             seconds = {**shared, **own}
             seconds["total"] = sum(seconds.values())
             info = {"lm_iterations": result.iterations[m.variant]} if m.refine is not None else {}
-            outs[m.label] = MethodOutput(distance=result.distance[m.variant], seconds=seconds, info=info)
+            outs[m.label] = MethodOutput(distance=result.distance[m.variant], confidence=result.confidence[m.variant],
+                                         seconds=seconds, info=info)
         return outs

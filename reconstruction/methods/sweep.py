@@ -18,7 +18,14 @@ from reconstruction.camera.equirect import bearing_grid
 from reconstruction.methods.base import MethodOutput
 from reconstruction.methods.flow_pipeline import fill_edge_aware
 from reconstruction.sweep.cost import CostParams, build_cost_volume, gray_float, inverse_distances
-from reconstruction.sweep.planes import PlaneParams, bound_costs, dominant_planes, fill_plane_costs, plane_heights
+from reconstruction.sweep.planes import (
+    PlaneParams,
+    add_prior,
+    bound_costs,
+    dominant_planes,
+    fill_plane_costs,
+    plane_heights,
+)
 from reconstruction.sweep.sgm import aggregate, winner_take_all
 
 __all__ = ["SgmParams", "PostParams", "SweepMethod", "labels_to_distance", "sweep_distance"]
@@ -36,8 +43,8 @@ class SgmParams:
         paths: 8 or 4 aggregation paths.
     """
 
-    p1: int = 40
-    p2: int = 400
+    p1: int = 120
+    p2: int = 800
     p3: int = 200
     edge: float = 8.0
     paths: int = 8
@@ -120,7 +127,7 @@ def _coarse_frame(frame, factor: int):
 
 
 def _labels(frame, cost_params: CostParams, plane_params: PlaneParams, sgm: SgmParams, pairs, seconds,
-            bounds=(-np.inf, np.inf), prefix=""):
+            bounds=(-np.inf, np.inf), prefix="", prior=None):
     """Cost volume, plane labels, (room bound), SGM and winner-take-all on one frame.
 
     Returns:
@@ -132,6 +139,8 @@ def _labels(frame, cost_params: CostParams, plane_params: PlaneParams, sgm: SgmP
     n_d = cost_params.levels
     cost, _ = build_cost_volume(frame, cost_params, extra_labels=heights.size, pairs=pairs)
     inv_d = inverse_distances(cost_params)
+    if prior is not None:
+        add_prior(cost, n_d, inv_d, prior[0], prior[1], prior[2], cost_params.max_cost())
     _lap(seconds, prefix + "cost", t)
     t = _clock()
     a_z = bearing_grid(frame.width, frame.height, frame.cameras["C"].rotation)[..., 2]
@@ -165,9 +174,14 @@ def room_bounds(frame, cost_params: CostParams, plane_params: PlaneParams, sgm: 
 
 
 def sweep_distance(frame, cost_params: CostParams, plane_params: PlaneParams, sgm: SgmParams,
-                   post: PostParams, pairs=("U", "R")):
+                   post: PostParams, pairs=("U", "R"), prior=None):
     """Run the sweep on a frame.
 
+    Args:
+        prior: optional ``(distance, weight, truncate_levels)``: (H, W) prior distances of C (metres; e.g. the
+            flow pipeline's), (H, W) float32 weight in cost units per label and the truncation in labels, added
+            to the sphere labels before aggregation (:func:`reconstruction.sweep.planes.add_prior`; not used in
+            the coarse room-bound pass).  None = the plain sweep.
     Returns:
         ``(distance, confidence, seconds, info)``: (H, W) float32 metres, (H, W) float32 in [0, 1], wall time
         per stage, details (plane share, room bounds).
@@ -176,7 +190,8 @@ def sweep_distance(frame, cost_params: CostParams, plane_params: PlaneParams, sg
     bounds = (-np.inf, np.inf)
     if plane_params.room_bound and plane_params.per_side > 0:
         bounds = room_bounds(frame, cost_params, plane_params, sgm, pairs, seconds)
-    label, conf, a_z, heights, inv_d = _labels(frame, cost_params, plane_params, sgm, pairs, seconds, bounds)
+    label, conf, a_z, heights, inv_d = _labels(frame, cost_params, plane_params, sgm, pairs, seconds, bounds,
+                                               prior=prior)
     t = _clock()
     d = labels_to_distance(label, inv_d, heights, a_z, cost_params.d_min_m, cost_params.d_max_m)
     if post.min_confidence > 0:

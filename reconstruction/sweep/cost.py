@@ -46,11 +46,11 @@ class CostParams:
 
     d_min_m: float = 0.3
     d_max_m: float = 30.0
-    levels: int = 128
-    blur_px: float = 0.8
-    gradient_weight: float = 1.0
-    truncate: float = 20.0
-    box_px: int = 3
+    levels: int = 160
+    blur_px: float = 0.0
+    gradient_weight: float = 2.0
+    truncate: float = 30.0
+    box_px: int = 1
     scale: float = 8.0
     pair_power: float = 2.0
 

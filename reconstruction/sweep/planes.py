@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-__all__ = ["PlaneParams", "plane_heights", "fill_plane_costs", "plane_inverse_distance", "bound_costs",
+__all__ = ["add_prior", "PlaneParams", "plane_heights", "fill_plane_costs", "plane_inverse_distance", "bound_costs",
            "dominant_planes"]
 
 
@@ -174,3 +174,38 @@ def dominant_planes(label: np.ndarray, levels: int, heights: np.ndarray, min_sha
         mag = np.exp(np.interp(np.median(near), np.arange(per), np.log(np.abs(heights[lo:lo + per]))))
         out.append(sign * mag)
     return out[0], out[1]
+
+
+@numba.njit(parallel=True, cache=True)
+def _prior(cost, levels, label_prior, weight, trunc, cap):
+    h, w, _ = cost.shape
+    for y in numba.prange(h):
+        for x in range(w):
+            lp = label_prior[y, x]
+            wt = weight[y, x]
+            if wt <= 0.0 or not np.isfinite(lp):
+                continue
+            for i in range(levels):
+                c = np.float32(cost[y, x, i]) + wt * min(abs(i - lp), trunc)
+                cost[y, x, i] = np.uint16(min(c + 0.5, cap))
+
+
+def add_prior(cost: np.ndarray, levels: int, inv_d: np.ndarray, prior_m: np.ndarray, weight: np.ndarray,
+              truncate_levels: float, cap: int) -> None:
+    """Add a prior distance map's evidence to the sphere labels, in place (before the plane labels are filled).
+
+    Label ``i`` of pixel p gets ``weight(p) * min(|i - l(p)|, truncate_levels)``, ``l(p)`` the fractional sphere
+    label of the prior's inverse distance.
+
+    Args:
+        cost: (H, W, levels + P) uint16 cost volume; inv_d: (levels,) uniform inverse distances, 1/m.
+        prior_m: (H, W) prior distances, metres (non-finite / non-positive = no prior).
+        weight: (H, W) float32 cost units per label of distance to the prior (0 = no prior).
+        truncate_levels: largest penalised label distance, labels.
+        cap: largest stored cost, uint16 units.
+    """
+    with np.errstate(divide="ignore", invalid="ignore"):
+        q = 1.0 / np.asarray(prior_m, np.float64)
+    lab = (q - inv_d[0]) / (inv_d[1] - inv_d[0])
+    lab = np.where(np.isfinite(lab) & (q > 0), np.clip(lab, 0.0, levels - 1.0), np.nan).astype(np.float32)
+    _prior(cost, levels, lab, np.ascontiguousarray(weight, np.float32), np.float32(truncate_levels), np.float32(cap))

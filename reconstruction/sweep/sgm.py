@@ -82,30 +82,29 @@ def _horizontal(cost, gray, bounds, nfam, p1, p2, p3, edge, out):
 
 
 @numba.njit(parallel=True, cache=True)
-def _vertical(cost, gray, bounds, nfam, p1, p2, p3, edge, out, down):
+def _lines(cost, gray, bounds, nfam, p1, p2, p3, edge, out, dx, down):
+    # One path direction (dy = +1 if down else -1, column step dx in {-1, 0, 1}): the predecessor of (y, x) is
+    # (y - dy, (x + dx) % w), so every path is one independent line (a column, or a diagonal wrapping in
+    # longitude) and all lines run in ONE parallel region (no per-row barrier: robust on a loaded machine).
     h, w, n = cost.shape
-    prev = np.empty((3, w, n), np.float32)
-    cur = np.empty((3, w, n), np.float32)
-    for s in range(h):
-        y = s if down else h - 1 - s
-        if s == 0:
-            for x in numba.prange(w):
-                for d in range(3):
-                    for i in range(n):
-                        cur[d, x, i] = cost[y, x, i]
-                for i in range(n):
-                    out[y, x, i] += np.uint16(3 * np.int32(cost[y, x, i]))
-        else:
-            yp = y - 1 if down else y + 1
-            for x in numba.prange(w):
-                fmin = np.empty(nfam, np.float32)
-                for d in range(3):
-                    xp = (x + d - 1) % w
-                    p2e, p3e = _penalties(gray[y, x], gray[yp, xp], p1, p2, p3, edge)
-                    _step(prev[d, xp], cost[y, x], cur[d, x], bounds, nfam, fmin, p1, p2e, p3e)
-                for i in range(n):
-                    out[y, x, i] += np.uint16(np.int32(cur[0, x, i] + cur[1, x, i] + cur[2, x, i]))
-        prev, cur = cur, prev
+    for x0 in numba.prange(w):
+        prev = np.empty(n, np.float32)
+        cur = np.empty(n, np.float32)
+        fmin = np.empty(nfam, np.float32)
+        y = np.int64(0) if down else np.int64(h - 1)
+        x = np.int64(x0)
+        for i in range(n):
+            prev[i] = cost[y, x, i]
+            out[y, x, i] += cost[y, x, i]
+        for s in range(1, h):
+            yp, xp = y, x
+            y = s if down else h - 1 - s
+            x = np.int64((xp - dx) % w)
+            p2e, p3e = _penalties(gray[y, x], gray[yp, xp], p1, p2, p3, edge)
+            _step(prev, cost[y, x], cur, bounds, nfam, fmin, p1, p2e, p3e)
+            for i in range(n):
+                out[y, x, i] += np.uint16(np.int32(cur[i]))
+            prev, cur = cur, prev
 
 
 def check_penalties(max_cost: int, p1: int, p2: int, p3: int) -> None:
@@ -143,34 +142,10 @@ def aggregate(cost: np.ndarray, family: np.ndarray, gray: np.ndarray, p1: int, p
     out = np.zeros(cost.shape, np.uint16)
     g = np.ascontiguousarray(gray, np.float32)
     _horizontal(cost, g, fam, nfam, np.float32(p1), float(p2), float(p3), float(edge), out)
-    if paths == 8:
-        _vertical(cost, g, fam, nfam, np.float32(p1), float(p2), float(p3), float(edge), out, True)
-        _vertical(cost, g, fam, nfam, np.float32(p1), float(p2), float(p3), float(edge), out, False)
-    else:
-        _vertical_only(cost, g, fam, nfam, np.float32(p1), float(p2), float(p3), float(edge), out)
+    for down in (True, False):
+        for dx in ((-1, 0, 1) if paths == 8 else (0,)):
+            _lines(cost, g, fam, nfam, np.float32(p1), float(p2), float(p3), float(edge), out, dx, down)
     return out
-
-
-@numba.njit(parallel=True, cache=True)
-def _vertical_only(cost, gray, bounds, nfam, p1, p2, p3, edge, out):
-    h, w, n = cost.shape
-    for x in numba.prange(w):
-        prev = np.empty(n, np.float32)
-        cur = np.empty(n, np.float32)
-        fmin = np.empty(nfam, np.float32)
-        for down in (True, False):
-            y0 = 0 if down else h - 1
-            for i in range(n):
-                prev[i] = cost[y0, x, i]
-                out[y0, x, i] += cost[y0, x, i]
-            for s in range(1, h):
-                y = s if down else h - 1 - s
-                yp = y - 1 if down else y + 1
-                p2e, p3e = _penalties(gray[y, x], gray[yp, x], p1, p2, p3, edge)
-                _step(prev, cost[y, x], cur, bounds, nfam, fmin, p1, p2e, p3e)
-                for i in range(n):
-                    out[y, x, i] += np.uint16(np.int32(cur[i]))
-                prev, cur = cur, prev
 
 
 @numba.njit(parallel=True, cache=True)
