@@ -35,7 +35,7 @@ import OpenEXR
 import pandas as pd
 import pytest
 
-import scenes.registry
+import reconstruction.plugins
 from harness.cli import main
 from harness.data.atomic import parse_staging_name
 from harness.data.frame import read_frame, write_frame
@@ -301,7 +301,7 @@ class FakeEntryPoint:
 def entry_point(name: str, load: Callable[[], object]):
     def setup(env: Env, mp) -> None:
         eps = [FakeEntryPoint(name, f"{name}_pkg:SCENES", load)]
-        mp.setattr(scenes.registry, "entry_points", lambda group=None: eps if group == "tri360.scenes" else [])
+        mp.setattr(reconstruction.plugins, "entry_points", lambda group=None: eps if group == "tri360.scenes" else [])
     return setup
 
 

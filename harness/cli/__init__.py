@@ -12,23 +12,23 @@ import argparse
 import sys
 
 from harness import __version__
-from harness.cli import evaluate, reconstruct, render, report, score
+from harness.cli import evaluate, reconstruct, render, report, score, study
 from harness.cli import scenes as scenes_cmd
 from harness.data.errors import UserError
 from scenes.registry import SceneError
 
 COMMANDS = {"render": render, "scenes": scenes_cmd, "reconstruct": reconstruct, "evaluate": evaluate,
-            "score": score, "report": report}
+            "score": score, "report": report, "study": study}
 EXIT_USAGE = 2
 EXIT_INTERRUPTED = 130
 
 
 class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
     """Shows ``(default: X)`` where a default says something; options whose default is None (meaning "see
-    the text") or False (plain switches) get none."""
+    the text"), False (plain switches) or an empty list (repeatable options) get none."""
 
     def _get_help_string(self, action):
-        if action.default is None or action.default is False:
+        if action.default is None or action.default is False or action.default == []:
             return action.help
         return super()._get_help_string(action)
 

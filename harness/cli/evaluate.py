@@ -5,8 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from harness.cli.methods import add_method_options, selected_methods
 from harness.cli.cluster import add_cluster_arguments, cluster_options
+from harness.cli.methods import add_method_options, selected_methods
 from harness.jobs.evaluate import evaluate, mae_table
 
 HELP = "run methods on every frame under a data root and score them against ground truth"

@@ -12,9 +12,13 @@ Writes a results set into ``out``::
     maps/<scene>/<viewpoint>/<method>/distance.exr                        (methods other than the flow pipeline)
     ... confidence.exr beside each distance map of a method that gives a confidence
 
-and the report (``reports.build``) unless ``report=False``.  The whole set is built in a hidden staging
-directory beside ``out`` and swapped in at the end, so an interrupted run leaves the previous results set
-(results and report together) untouched and never an old report beside new results.
+and the report (``reports.build``) unless ``report=False``.  With a Dask cluster (``cluster``) each frame x
+group of methods is one task whose worker writes the maps into the staging directory (so it must be on a
+file system the workers share) and returns the rows; this process writes the rest (``docs/scale-out.md``).
+
+The whole set is built in a hidden staging directory beside ``out`` and swapped in at the end, so an interrupted
+run leaves the previous results set (results and report together) untouched and never an old report beside new
+results.
 """
 
 from __future__ import annotations
@@ -197,8 +201,8 @@ def evaluate(data_root: Path, out: Path, methods: Sequence[Method], scenes: Sequ
         cluster: run on Dask (``--scheduler`` / ``--workers``), one task per frame x group of methods that share
             work (the variants of one flow configuration); workers write the maps into the staged results
             directory, this process gathers the rows and writes the results files.  None = in this process, one
-            task per frame.  The rows and maps are the same either way (only ``seconds``, each method's wall
-            time, differs from run to run).
+            task per frame.  Also accepts an executor that is already open (a study's).  The rows and maps are
+            the same either way (only ``seconds``, each method's wall time, differs from run to run).
 
     Returns:
         The results table (also written to ``out``).

@@ -220,7 +220,8 @@ def render_frames(scene_name: str = DEFAULT_SCENE, viewpoints: int = 1, out_root
         progress: show a tqdm bar (on stderr) advancing per rendered camera view.
         verbose: let Blender print its own log lines (to stderr).
         renderer: ``"cycles"`` or ``"raycast"``; None = the scene's default.
-        cluster: run each frame as a Dask task (``--scheduler`` / ``--workers``); None = in this process.
+        cluster: run each frame as a Dask task (``--scheduler`` / ``--workers``), or an executor that is already
+            open (``harness.jobs.cluster.open_executor``, e.g. a study's); None = in this process.
 
     Raises:
         UserError: bad option, unwritable output, no free viewpoints, a scene the renderer cannot draw, an

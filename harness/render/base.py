@@ -48,7 +48,9 @@ class RenderSettings:
 
     Attributes:
         width: panorama width W, pixels (height = W / 2).
-        samples: Cycles path-traced samples per pixel (adaptive sampling is off).
+        samples: Cycles path-traced samples per pixel (the maximum when adaptive sampling is on).
+        adaptive_threshold: Cycles adaptive sampling noise threshold (0 = off: every pixel gets ``samples``).
+        adaptive_min_samples: Cycles adaptive sampling minimum samples per pixel (0 = Cycles' automatic choice).
         seed: Cycles sampling seed (noise pattern).  The scene layout and viewpoints have their own seed
             (``SceneSpec.params["seed"]``); ``tri360 render --seed`` sets both.
         threads: CPU threads, 0 = all cores (Cycles).
@@ -70,6 +72,8 @@ class RenderSettings:
 
     width: int = 1000
     samples: int = 12
+    adaptive_threshold: float = 0.0
+    adaptive_min_samples: int = 0
     seed: int = 0
     threads: int = 0
     denoise: bool = True
@@ -94,7 +98,9 @@ class RenderSettings:
         for name in ("samples", "supersample"):
             if getattr(self, name) < 1:
                 raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
-        for name in ("threads", "max_bounces", "diffuse_bounces", "glossy_bounces"):
+        if not self.adaptive_threshold >= 0:
+            raise ValueError(f"adaptive_threshold must be >= 0 (0 = off), got {self.adaptive_threshold}")
+        for name in ("threads", "max_bounces", "diffuse_bounces", "glossy_bounces", "adaptive_min_samples"):
             if getattr(self, name) < 0:
                 raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}")
 

@@ -325,7 +325,10 @@ class SceneRenderer:
         cy = sc.cycles
         cy.device = "CPU"
         cy.samples = s.samples
-        cy.use_adaptive_sampling = False
+        cy.use_adaptive_sampling = s.adaptive_threshold > 0
+        if s.adaptive_threshold > 0:
+            cy.adaptive_threshold = s.adaptive_threshold
+            cy.adaptive_min_samples = s.adaptive_min_samples
         cy.seed = s.seed
         cy.use_animated_seed = False
         cy.use_denoising = s.denoise
@@ -371,7 +374,9 @@ class SceneRenderer:
         s, cy = self.settings, self.scene.cycles
         return {
             "engine": "CYCLES", "versions": {"blender": bpy.app.version_string}, "device": "CPU",
-            "threads": s.threads or os.cpu_count(), "adaptive_sampling": False,
+            "threads": s.threads or os.cpu_count(),
+            "adaptive_sampling": ({"threshold": s.adaptive_threshold, "min_samples": s.adaptive_min_samples}
+                                  if s.adaptive_threshold > 0 else False),
             "denoiser": "OPENIMAGEDENOISE" if s.denoise else "none",
             "denoiser_settings": ({"input_passes": "RGB_ALBEDO_NORMAL", "prefilter": s.denoise_prefilter,
                                    "quality": s.denoise_quality} if s.denoise else None),

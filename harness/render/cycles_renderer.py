@@ -43,7 +43,8 @@ class CyclesRenderer(BaseRenderer):
     # every setting but ``threads`` and ``supersample``: Cycles gives bit-identical pixels and distance with 1 or 2
     # threads (checked on classroom:small, 128 px, 4 samples, OIDN on), and supersample is the ray-caster's
     pixel_settings = ("width", "samples", "seed", "denoise", "max_bounces", "diffuse_bounces", "glossy_bounces",
-                      "filter_width", "clamp_indirect", "light_tree", "denoise_prefilter", "denoise_quality")
+                      "filter_width", "clamp_indirect", "light_tree", "denoise_prefilter", "denoise_quality",
+                      "adaptive_threshold", "adaptive_min_samples")
 
     _proc: subprocess.Popen | None = None
     _workdir: Path | None = None

@@ -1,0 +1,30 @@
+"""``tri360 study``: argument parsing for :func:`harness.jobs.study.run_study`."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from harness.cli.cluster import add_cluster_arguments, cluster_options
+from harness.jobs.study import DEFAULT_METRIC, run_study
+
+HELP = "render and evaluate every point of a grid of settings (a study TOML); write study.csv, plots, study.md"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("study", type=Path, metavar="STUDY.toml",
+                        help="[render] (tri360 render options, dashes as underscores), [evaluate] (method, flow, "
+                             "variants, rectify, report) and [grid] (a list of values for any of those keys)")
+    parser.add_argument("--out", type=Path, required=True, metavar="DIR",
+                        help="study directory: study.csv, <key>.png, study.md, and the frames and results it reuses "
+                             "when the study is rerun or extended")
+    parser.add_argument("--metric", default=DEFAULT_METRIC, help="results column plotted against each grid key")
+    parser.add_argument("--quiet", action="store_true", help="no progress bars")
+    add_cluster_arguments(parser)
+
+
+def run(args) -> int:
+    table = run_study(args.study, args.out, cluster=cluster_options(args), metric=args.metric,
+                      progress=not args.quiet)
+    print(f"{len(table)} rows in {args.out / 'study.csv'}; plots and study.md in {args.out}")
+    return 0

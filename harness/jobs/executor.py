@@ -1,0 +1,170 @@
+"""The Dask ``distributed`` executor: a job's tasks on an existing cluster or on a ``LocalCluster`` of our own.
+
+Loaded only through :func:`harness.jobs.cluster.open_executor` (this is the one module of tri360 that imports
+Dask).  Two ways to get workers:
+
+- ``ClusterOptions(workers=N)``: a ``LocalCluster`` of N worker processes (``threads_per_worker`` threads each)
+  started here and stopped at the end.  Scheduler, workers and nannies listen on 127.0.0.1 only and the
+  dashboard is off, so nothing is reachable from another machine.
+- ``ClusterOptions(scheduler=ADDRESS)``: an existing scheduler (``dask scheduler`` + ``dask worker``, or
+  ``dask-jobqueue`` on SLURM), plain ``tcp://`` or ``tls://`` with certificates (Dask ``Security``:
+  ``tls_ca``, ``tls_cert``, ``tls_key``; encryption required).  ADDRESS may also be a scheduler file.
+
+Tasks are submitted with unique keys (``tri360_<job>-<run token>-<n>``, ``pure=False``; the scheduler groups
+them under the task prefix ``tri360_<job>``), results are taken as they complete (``as_completed``) and
+released at once.  When a worker dies, the scheduler re-runs its tasks elsewhere (up to
+``distributed.scheduler.allowed-failures`` times, then ``KilledWorker``, reported as one line): the tasks write
+their outputs atomically and idempotently, so a re-run costs time only; the client keeps exactly one
+result per key.  The data root (and a results directory that tasks write to) must be on a file system that
+every worker sees at the same path (``docs/scale-out.md``).
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+import uuid
+from collections.abc import Callable, Hashable, Iterator, Mapping
+from pathlib import Path
+
+from distributed import Client, LocalCluster, as_completed, get_worker
+from distributed.client import FutureCancelledError
+from distributed.scheduler import KilledWorker
+from distributed.security import Security
+from tqdm import tqdm
+
+from harness.data.errors import UserError
+from harness.jobs.cluster import ClusterOptions
+
+__all__ = ["DaskExecutor", "security_for", "LOOPBACK"]
+
+LOOPBACK = "127.0.0.1"
+
+
+def security_for(options: ClusterOptions) -> Security | None:
+    """Dask ``Security`` for the client from ``--tls-ca/--tls-cert/--tls-key`` (None without TLS)."""
+    if not options.tls:
+        return None
+    return Security(tls_ca_file=str(options.tls_ca), tls_client_cert=str(options.tls_cert),
+                    tls_client_key=str(options.tls_key), require_encryption=True)
+
+
+def _run_task(fn: Callable, *args):
+    """Runs on a worker: the task, plus where it ran (worker address and process id)."""
+    try:
+        where = get_worker().address
+    except ValueError:  # not on a worker (never in practice)
+        where = None
+    return fn(*args), where, os.getpid()
+
+
+class DaskExecutor:
+    """Runs tasks on Dask workers; see the module docstring.
+
+    Attributes:
+        client: the ``distributed.Client``.
+        cluster: the ``LocalCluster`` started here, or None for an existing scheduler.
+        ran_on: ``key -> (worker address, worker pid)`` of each task result taken (for tests and logs).
+    """
+
+    distributed = True
+
+    def __init__(self, options: ClusterOptions):
+        options.check()
+        self.options = options
+        self.cluster: LocalCluster | None = None
+        self.ran_on: dict[Hashable, tuple[str | None, int]] = {}
+        try:
+            if options.workers is not None:
+                self.cluster = LocalCluster(n_workers=options.workers, threads_per_worker=options.threads_per_worker,
+                                            processes=True, host=LOOPBACK, dashboard_address=None,
+                                            silence_logs=logging.ERROR)
+                self.client = Client(self.cluster, timeout=options.connect_timeout_s)
+            else:
+                self.client = self._connect(options)
+        except BaseException:
+            self.close()
+            raise
+
+    @staticmethod
+    def _connect(options: ClusterOptions) -> Client:
+        security = security_for(options)
+        target = options.scheduler
+        try:
+            if "://" not in target and Path(target).is_file():
+                try:
+                    address = json.loads(Path(target).read_text(encoding="utf-8"))["address"]
+                except (OSError, ValueError, KeyError, TypeError) as exc:
+                    raise UserError(f"{target}: not a Dask scheduler file ({exc})") from None
+            else:
+                address = target
+            return Client(address, security=security, timeout=options.connect_timeout_s)
+        except UserError:
+            raise
+        except (OSError, TimeoutError, ValueError) as exc:
+            why = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+            raise UserError(f"cannot connect to the Dask scheduler {target} ({why}); is it running, and "
+                            f"{'are --tls-ca/--tls-cert/--tls-key right' if options.tls else 'does it need TLS'}?") \
+                from None
+
+    @property
+    def workers(self) -> dict:
+        """The scheduler's view of its workers: address -> info."""
+        return self.client.scheduler_info(n_workers=-1)["workers"]
+
+    def run(self, fn: Callable, tasks: Mapping[Hashable, tuple], desc: str = "task", unit: str = "task",
+            progress: bool = True) -> Iterator[tuple[Hashable, object]]:
+        """Submit ``fn(*args)`` for every ``key: args`` and yield ``(key, result)`` as tasks complete.
+
+        Each key is yielded exactly once.  A task's exception is raised here (the remaining tasks are
+        cancelled); a task whose workers kept dying raises UserError.
+        """
+        token = uuid.uuid4().hex[:10]
+        by_future_key: dict[str, Hashable] = {}
+        futures = []
+        for i, (key, args) in enumerate(tasks.items()):
+            fut = self.client.submit(_run_task, fn, *args, key=f"tri360_{desc}-{token}-{i}", pure=False)
+            by_future_key[fut.key] = key
+            futures.append(fut)
+        done: set[Hashable] = set()
+        bar = tqdm(total=len(futures), desc=f"{desc} (dask)", unit=unit, disable=not progress, dynamic_ncols=True)
+        try:
+            for fut in as_completed(futures):
+                key = by_future_key[fut.key]
+                try:
+                    result, where, pid = fut.result()
+                except KilledWorker as exc:
+                    raise UserError(f"{desc} task {key}: its Dask workers died repeatedly ({exc}"
+                                    "; out of memory? see the worker logs); completed tasks are kept, "
+                                    "rerun to resume") from None
+                except FutureCancelledError:
+                    raise UserError(f"{desc} task {key} was cancelled by the Dask scheduler; rerun to resume") \
+                        from None
+                fut.release()
+                if key in done:  # as_completed yields each future once; kept as a guard
+                    continue
+                done.add(key)
+                self.ran_on[key] = (where, pid)
+                bar.set_postfix_str(str(key))
+                bar.update(1)
+                yield key, result
+        finally:
+            bar.close()
+            pending = [f for f in futures if not f.done()]
+            if pending:
+                self.client.cancel(pending)
+
+    def close(self) -> None:
+        client, cluster = getattr(self, "client", None), self.cluster
+        self.client, self.cluster = None, None
+        if client is not None:
+            client.close()
+        if cluster is not None:
+            cluster.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()

@@ -1,0 +1,166 @@
+"""``tri360 study``: a grid of render/evaluate settings in one command, on a Dask scheduler or in this process;
+frames and results are reused when the study is rerun or extended."""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+import pandas as pd
+import pytest
+from distributed import Client
+
+from harness.cli import main
+from harness.data.errors import UserError
+from harness.jobs.study import grid_points, load_study, run_study
+from tests.harness.test_executor import external_cluster, wait_for_workers
+
+PNG = b"\x89PNG\r\n\x1a\n"
+
+STUDY = """
+[render]
+scene = "synthetic_box"
+width = 200
+viewpoints = 1
+
+[evaluate]
+method = ["dis-rect:gradient", "dis-rect:average"]
+
+[grid]
+baseline = {values}
+"""
+
+
+def write_study(path: Path, values: list) -> Path:
+    path.write_text(STUDY.format(values=json.dumps(values)), encoding="utf-8")
+    return path
+
+
+def mtimes(root: Path, name: str) -> dict:
+    return {p: p.stat().st_mtime_ns for p in root.rglob(name)}
+
+
+@pytest.fixture(scope="module")
+def scheduler(tmp_path_factory):
+    with external_cluster(tmp_path_factory.mktemp("dask"), n_workers=2) as (address, _):
+        wait_for_workers(address, 2)
+        yield address
+
+
+def test_study_on_a_scheduler_writes_csv_plot_and_summary(scheduler, tmp_path, capsys):
+    study = write_study(tmp_path / "baseline.toml", [0.2, 0.4])
+    out = tmp_path / "study"
+    assert main(["study", str(study), "--out", str(out), "--scheduler", scheduler, "--quiet"]) == 0
+    table = pd.read_csv(out / "study.csv")
+    assert list(table.columns[:3]) == ["baseline", "scene", "viewpoint"]
+    assert {"mae_m", "rmse_m", "method", "render_s"} <= set(table.columns)
+    assert len(table) == 2 * 1 * 2  # grid points x frames x methods
+    assert sorted(table.baseline.unique()) == [0.2, 0.4]
+    assert not table.duplicated(["baseline", "scene", "viewpoint", "method"]).any()
+    assert (table.mae_m > 0).all() and (table.mae_m < 0.5).all()  # metres, a sane synthetic-box error
+    # each grid point's frames were rendered with its baseline
+    for point in json.loads((out / "points.json").read_text()):
+        (meta,) = (out / point["data"]).rglob("frame.json")
+        assert json.loads(meta.read_text())["baseline_m"] == pytest.approx(point["grid"]["baseline"])
+    assert (out / "baseline.png").read_bytes().startswith(PNG)
+    md = (out / "study.md").read_text()
+    assert "baseline.png" in md and "dis-rect:gradient" in md and "| 0.4 |" in md
+    with Client(scheduler, timeout=30) as c:
+        prefixes = c.run_on_scheduler(lambda dask_scheduler: sorted(dask_scheduler.task_prefixes))
+    assert {"tri360_render", "tri360_evaluate"} <= set(prefixes)
+
+    # rerun: nothing rendered or evaluated again
+    frames, results = mtimes(out / "data", "frame.json"), mtimes(out / "results", "results.csv")
+    assert main(["study", str(study), "--out", str(out), "--quiet"]) == 0
+    assert mtimes(out / "data", "frame.json") == frames and mtimes(out / "results", "results.csv") == results
+    pd.testing.assert_frame_equal(pd.read_csv(out / "study.csv"), table)
+
+    # extended grid: only the new point is rendered and evaluated
+    write_study(study, [0.2, 0.4, 0.6])
+    assert main(["study", str(study), "--out", str(out), "--quiet"]) == 0
+    assert mtimes(out / "data", "frame.json").items() >= frames.items()
+    assert len(mtimes(out / "data", "frame.json")) == 3
+    assert mtimes(out / "results", "results.csv").items() >= results.items()
+    extended = pd.read_csv(out / "study.csv")
+    assert len(extended) == 6 and sorted(extended.baseline.unique()) == [0.2, 0.4, 0.6]
+    pd.testing.assert_frame_equal(extended.iloc[:4].drop(columns="seconds"), table.drop(columns="seconds"))
+
+
+def test_two_grid_keys_run_the_full_product(tmp_path):
+    study = tmp_path / "two.toml"
+    study.write_text("""
+[render]
+scene = "synthetic_box"
+width = 128
+
+[evaluate]
+flow = "dis"
+
+[grid]
+baseline = [0.3, 0.5]
+variants = [["average"], ["gradient", "angle"]]
+""", encoding="utf-8")
+    spec = load_study(study)
+    assert grid_points(spec) == [{"baseline": 0.3, "variants": ["average"]},
+                                 {"baseline": 0.3, "variants": ["gradient", "angle"]},
+                                 {"baseline": 0.5, "variants": ["average"]},
+                                 {"baseline": 0.5, "variants": ["gradient", "angle"]}]
+    table = run_study(study, tmp_path / "out", progress=False)
+    assert len(table) == 2 * (1 + 2)  # baselines x methods of each variants value, one frame
+    assert len(list((tmp_path / "out" / "data").iterdir())) == 2  # one data root per baseline, shared by variants
+    assert len(list((tmp_path / "out" / "results").iterdir())) == 4
+    for key in ("baseline", "variants"):
+        assert (tmp_path / "out" / f"{key}.png").read_bytes().startswith(PNG)
+    assert set(table.method) == {"dis-rect:average", "dis-rect:gradient", "dis-rect:angle"}
+
+
+@pytest.mark.parametrize(("text", "message"), [
+    ("[render]\nwidht = 200\n", "unknown key(s) widht"),
+    ("[grid]\nbaseline = 0.2\n", "must be a non-empty list"),
+    ("[grid]\nnope = [1]\n", "no render or evaluate option"),
+    ("[sweep]\n", "unknown section"),
+    ("[render\n", "not valid TOML"),
+    ("[grid]\nbaseline = [0.2, 0.2]\n", "lists a value twice"),
+    ("[evaluate]\nmethod = ['nope:gradient']\n", "nope"),
+])
+def test_bad_study_files_are_one_line_errors(tmp_path, capsys, text, message):
+    study = tmp_path / "bad.toml"
+    study.write_text(text, encoding="utf-8")
+    assert main(["study", str(study), "--out", str(tmp_path / "out"), "--quiet"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and message in err, err
+    assert not (tmp_path / "out" / "data").exists()
+
+
+def test_missing_study_file(tmp_path):
+    with pytest.raises(UserError, match="does not exist"):
+        run_study(tmp_path / "none.toml", tmp_path / "out")
+    assert not os.path.exists(tmp_path / "out")
+
+
+def test_shipped_studies_parse():
+    root = Path(__file__).resolve().parents[2] / "studies"
+    expected = {"baseline.toml": "baseline", "resolution.toml": "width", "samples.toml": "samples"}
+    for name, key in expected.items():
+        spec = load_study(root / name)
+        assert key in spec.grid and len(spec.grid[key]) >= 3
+
+
+def test_grid_keys_that_are_results_columns(tmp_path):
+    """width is also a results column (the same value: one column); method is too (a list of labels per point:
+    its own column, grid_method)."""
+    study = tmp_path / "cols.toml"
+    study.write_text("""
+[render]
+scene = "synthetic_box"
+
+[grid]
+width = [128, 160]
+method = [["dis-rect:average"], ["oracle-rect:average"]]
+""", encoding="utf-8")
+    table = run_study(study, tmp_path / "out", progress=False)
+    assert list(table.columns[:2]) == ["width", "grid_method"] and list(table.columns).count("width") == 1
+    assert len(table) == 4 and sorted(table.width.unique()) == [128, 160]
+    assert set(table.method) == {"dis-rect:average", "oracle-rect:average"}
+    assert (tmp_path / "out" / "width.png").is_file() and (tmp_path / "out" / "method.png").is_file()
