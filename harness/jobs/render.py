@@ -2,9 +2,9 @@
 
 Library use::
 
-    from harness.jobs.render import render_frames
-    dirs = render_frames("classroom:small", viewpoints=2, out_root="data", width=256, samples=8)
-    dirs = render_frames("box_room", out_root="data", width=256, renderer="raycast")
+    >>> from harness.jobs.render import render_frames                                        # doctest: +SKIP
+    >>> dirs = render_frames("classroom:small", viewpoints=2, out_root="data", width=256, samples=8)
+    >>> dirs = render_frames("box_room", out_root="data", width=256, renderer="raycast")
 
 Frames land in ``<out>/<scene>/vp000``, ``vp001``, ... (``<scene>`` is the family name, or
 ``family-preset`` for a non-default preset).  The renderer is the scene's default (``tri360 scenes``) unless
