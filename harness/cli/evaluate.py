@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 
 from harness.cli.cluster import add_cluster_arguments, cluster_options
-from harness.cli.methods import add_method_options, selected_methods
+from harness.cli.methods import add_method_options, add_results_options, selected_methods
 from harness.jobs.evaluate import evaluate, mae_table
 
 HELP = "run methods on every frame under a data root and score them against ground truth"
@@ -15,12 +15,8 @@ HELP = "run methods on every frame under a data root and score them against grou
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("data_root", type=Path, metavar="DATA_ROOT",
                         help="folder holding <scene>/<viewpoint>/ frames (or one frame directory)")
-    parser.add_argument("--out", type=Path, default=Path("results"), help="results directory")
     add_method_options(parser, multiple=True)
-    parser.add_argument("--scene", nargs="+", default=None, metavar="NAME", help="evaluate only these scenes")
-    parser.add_argument("--report", action=argparse.BooleanOptionalAction, default=True,
-                        help="write the report with the results (--no-report: results only)")
-    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_results_options(parser, "evaluate")
     add_cluster_arguments(parser)
 
 

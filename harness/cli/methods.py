@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 from harness.data.errors import UserError
 from reconstruction.flow.backends import available_flows
@@ -10,7 +11,7 @@ from reconstruction.methods.base import Method
 from reconstruction.methods.flow_pipeline import DEFAULT_FLOW, available_variants
 from reconstruction.methods.registry import DEFAULT_METHOD, default_methods, flow_methods, get_methods
 
-__all__ = ["add_method_options", "selected_methods"]
+__all__ = ["add_method_options", "add_results_options", "selected_methods"]
 
 
 def add_method_options(parser: argparse.ArgumentParser, multiple: bool) -> None:
@@ -36,6 +37,15 @@ def add_method_options(parser: argparse.ArgumentParser, multiple: bool) -> None:
     parser.add_argument("--rectify", action=argparse.BooleanOptionalAction, default=None,
                         help="with --flow: flow on rectified pairs (baseline = polar axis; the default) or, with "
                              "--no-rectify, on the plain equirect images as the paper does")
+
+
+def add_results_options(parser: argparse.ArgumentParser, what: str) -> None:
+    """``--out``, ``--scene``, ``--report/--no-report`` and ``--quiet``, shared by ``evaluate`` and ``score``."""
+    parser.add_argument("--out", type=Path, default=Path("results"), help="results directory")
+    parser.add_argument("--scene", nargs="+", default=None, metavar="NAME", help=f"{what} only these scenes")
+    parser.add_argument("--report", action=argparse.BooleanOptionalAction, default=True,
+                        help="write the report with the results (--no-report: results only)")
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
 def selected_methods(args, multiple: bool) -> list[Method]:

@@ -6,6 +6,7 @@ import argparse
 from pathlib import Path
 
 from harness.cli.cluster import add_cluster_arguments, cluster_options
+from harness.cli.methods import add_results_options
 from harness.jobs.evaluate import mae_table
 from harness.jobs.score import score
 
@@ -19,11 +20,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="the frames with ground truth (<scene>/<viewpoint>/, or one frame directory)")
     parser.add_argument("--method", nargs="+", default=None, metavar="NAME",
                         help="one name per PRED_ROOT, in order (default: method.json's name, else the folder name)")
-    parser.add_argument("--out", type=Path, default=Path("results"), help="results directory")
-    parser.add_argument("--scene", nargs="+", default=None, metavar="NAME", help="score only these scenes")
-    parser.add_argument("--report", action=argparse.BooleanOptionalAction, default=True,
-                        help="write the report with the results (--no-report: results only)")
-    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_results_options(parser, "score")
     add_cluster_arguments(parser)
 
 

@@ -30,7 +30,6 @@ import json
 import math
 import os
 import platform
-import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -40,6 +39,7 @@ from harness.data import jsonio
 from harness.data.atomic import atomic_write_text, clean_stale_partials
 from harness.data.errors import UserError
 from harness.data.frame import Frame, frame_dir, is_complete, write_frame
+from harness.data.outputs import ensure_output_dir
 from harness.jobs.cluster import ClusterOptions, open_executor
 from harness.render.base import RenderSettings, identity, recorded_identity
 from harness.render.registry import get_renderer
@@ -145,15 +145,6 @@ def _check_options(viewpoints: int, width: int, samples: int, threads: int, base
         raise UserError(f"--baseline must be a positive distance in metres, got {baseline}")
     if max_bounces < 0:
         raise UserError(f"--max-bounces must be >= 0, got {max_bounces}")
-
-
-def _check_writable(directory: Path) -> None:
-    try:
-        directory.mkdir(parents=True, exist_ok=True)
-        with tempfile.NamedTemporaryFile(dir=directory, prefix=".tri360-write-test-"):
-            pass
-    except OSError as exc:
-        raise UserError(f"output directory {directory} is not writable ({exc.strerror or exc})") from None
 
 
 def _short(value) -> str:
@@ -262,7 +253,7 @@ def render_frames(scene_name: str = DEFAULT_SCENE, viewpoints: int = 1, out_root
         todo.append((vp, rig))
     dirs = [frame_dir(out_root, scene_dir, f"vp{i:03d}") for i in range(len(rigs))]
     created = [p for p in (out_root / scene_dir, *(out_root / scene_dir).parents) if not p.exists()]
-    _check_writable(out_root / scene_dir)
+    ensure_output_dir(out_root / scene_dir)
     clean_stale_partials(out_root / scene_dir)  # hidden half-written frames of killed runs
     if not todo:
         return dirs
