@@ -6,9 +6,10 @@ certificates.  Frames and results must equal a sequential run's; a worker killed
 from __future__ import annotations
 
 import contextlib
+import datetime
+import ipaddress
 import json
 import os
-import shutil
 import signal
 import socket
 import subprocess
@@ -20,6 +21,10 @@ from pathlib import Path
 import pandas as pd
 import psutil
 import pytest
+from cryptography import x509
+from cryptography.hazmat.primitives import hashes, serialization
+from cryptography.hazmat.primitives.asymmetric import ec
+from cryptography.x509.oid import NameOID
 from distributed import Client
 from distributed.diagnostics.plugin import WorkerPlugin
 
@@ -254,24 +259,38 @@ def test_local_cluster_listens_on_loopback_only_and_renders_the_same_frames(sequ
     assert not left, f"LocalCluster processes still running: {left}"
 
 
-def _openssl(*args, cwd):
-    subprocess.run(["openssl", *args], cwd=cwd, check=True, capture_output=True)
-
-
 def make_certificates(d: Path, name: str) -> dict:
-    """A self-signed CA and a certificate for 127.0.0.1 signed by it (``openssl``): ``{ca, cert, key}`` paths."""
+    """A self-made CA and a certificate for 127.0.0.1 signed by it: ``{ca, cert, key}`` PEM paths in ``d``.
+
+    Made with ``cryptography`` (a dev dependency), so the TLS test needs no ``openssl`` command and never skips.
+    """
     d.mkdir(parents=True, exist_ok=True)
-    _openssl("req", "-x509", "-newkey", "rsa:2048", "-nodes", "-keyout", "ca.key", "-out", "ca.pem", "-days", "2",
-             "-subj", f"/CN={name}-ca", cwd=d)
-    _openssl("req", "-newkey", "rsa:2048", "-nodes", "-keyout", "node.key", "-out", "node.csr", "-subj",
-             "/CN=127.0.0.1", cwd=d)
-    (d / "ext.cnf").write_text("subjectAltName=IP:127.0.0.1\n")
-    _openssl("x509", "-req", "-in", "node.csr", "-CA", "ca.pem", "-CAkey", "ca.key", "-CAcreateserial", "-out",
-             "node.pem", "-days", "2", "-extfile", "ext.cnf", cwd=d)
+    now = datetime.datetime.now(datetime.UTC)
+
+    def certificate(subject: str, key, issuer: str, issuer_key, ca: bool):
+        b = (x509.CertificateBuilder()
+             .subject_name(x509.Name([x509.NameAttribute(NameOID.COMMON_NAME, subject)]))
+             .issuer_name(x509.Name([x509.NameAttribute(NameOID.COMMON_NAME, issuer)]))
+             .public_key(key.public_key()).serial_number(x509.random_serial_number())
+             .not_valid_before(now - datetime.timedelta(minutes=5)).not_valid_after(now + datetime.timedelta(days=2))
+             .add_extension(x509.BasicConstraints(ca=ca, path_length=None), critical=True))
+        if not ca:
+            b = b.add_extension(x509.SubjectAlternativeName([x509.IPAddress(ipaddress.ip_address("127.0.0.1"))]),
+                                critical=False)
+        return b.sign(issuer_key, hashes.SHA256())
+
+    ca_key = ec.generate_private_key(ec.SECP256R1())
+    node_key = ec.generate_private_key(ec.SECP256R1())
+    ca_cert = certificate(f"{name}-ca", ca_key, f"{name}-ca", ca_key, ca=True)
+    node_cert = certificate("127.0.0.1", node_key, f"{name}-ca", ca_key, ca=False)
+    (d / "ca.pem").write_bytes(ca_cert.public_bytes(serialization.Encoding.PEM))
+    (d / "node.pem").write_bytes(node_cert.public_bytes(serialization.Encoding.PEM))
+    (d / "node.key").write_bytes(node_key.private_bytes(serialization.Encoding.PEM,
+                                                        serialization.PrivateFormat.PKCS8,
+                                                        serialization.NoEncryption()))
     return {"ca": str(d / "ca.pem"), "cert": str(d / "node.pem"), "key": str(d / "node.key")}
 
 
-@pytest.mark.skipif(shutil.which("openssl") is None, reason="needs the openssl command to make certificates")
 def test_tls_cluster_accepts_certified_clients_and_refuses_others(sequential, tmp_path):
     certs = make_certificates(tmp_path / "pki", "tri360")
     other = make_certificates(tmp_path / "other-pki", "intruder")
