@@ -99,10 +99,11 @@ class SequentialExecutor:
     distributed = False
 
     def run(self, fn: Callable, tasks: Mapping[Hashable, tuple], desc: str = "", unit: str = "task",
-            progress: bool = True) -> Iterator[tuple[Hashable, object]]:
+            progress: bool = True, names: Mapping[Hashable, str] | None = None) -> Iterator[tuple[Hashable, object]]:
+        names = names or {}
         with tqdm(total=len(tasks), desc=desc, unit=unit, disable=not progress, dynamic_ncols=True) as bar:
             for key, args in tasks.items():
-                bar.set_postfix_str(str(key))
+                bar.set_postfix_str(names.get(key, str(key)))
                 result = fn(*args)
                 bar.update(1)
                 yield key, result

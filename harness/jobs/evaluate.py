@@ -59,6 +59,11 @@ class FrameRef:
     viewpoint: str
 
 
+def group_name(group: Sequence[Method]) -> str:
+    """A method group's name for progress and errors: its one label, or the first label and how many more."""
+    return group[0].label if len(group) == 1 else f"{group[0].label} +{len(group) - 1}"
+
+
 def select_frames(data_root: Path, scenes: Sequence[str] | None = None) -> list[FrameRef]:
     """Every frame under ``data_root`` (which may itself be a frame directory), optionally only ``scenes``.
 
@@ -226,9 +231,11 @@ def evaluate(data_root: Path, out: Path, methods: Sequence[Method], scenes: Sequ
         stage_abs = str(Path(stage).resolve())
         tasks = {(i, g): (str(ref.path.resolve()), group, stage_abs)
                  for i, ref in enumerate(refs) for g, group in enumerate(groups)}
+        names = {(i, g): f"{ref.scene}/{ref.viewpoint} {group_name(group)}"
+                 for i, ref in enumerate(refs) for g, group in enumerate(groups)}
         done: dict[tuple[int, int], dict] = {}
         with open_executor(cluster) as ex:
-            for key, result in ex.run(evaluate_task, tasks, desc="evaluate",
+            for key, result in ex.run(evaluate_task, tasks, desc="evaluate", names=names,
                                       unit="frame" if len(groups) == 1 else "task", progress=progress):
                 done[key] = result
         for i, _ref in enumerate(refs):

@@ -114,12 +114,14 @@ class DaskExecutor:
         return self.client.scheduler_info(n_workers=-1)["workers"]
 
     def run(self, fn: Callable, tasks: Mapping[Hashable, tuple], desc: str = "task", unit: str = "task",
-            progress: bool = True) -> Iterator[tuple[Hashable, object]]:
+            progress: bool = True, names: Mapping[Hashable, str] | None = None) -> Iterator[tuple[Hashable, object]]:
         """Submit ``fn(*args)`` for every ``key: args`` and yield ``(key, result)`` as tasks complete.
 
         Each key is yielded exactly once.  A task's exception is raised here (the remaining tasks are
-        cancelled); a task whose workers kept dying raises UserError.
+        cancelled); a task whose workers kept dying raises UserError.  ``names`` gives a task's name for the
+        progress bar and error messages (e.g. ``classroom/vp000 fused``); the key is used otherwise.
         """
+        names = names or {}
         token = uuid.uuid4().hex[:10]
         by_future_key: dict[str, Hashable] = {}
         futures = []
@@ -132,21 +134,22 @@ class DaskExecutor:
         try:
             for fut in as_completed(futures):
                 key = by_future_key[fut.key]
+                name = names.get(key, str(key))
                 try:
                     result, where, pid = fut.result()
                 except KilledWorker as exc:
-                    raise UserError(f"{desc} task {key}: its Dask workers died repeatedly ({exc}"
+                    raise UserError(f"{desc} task {name}: its Dask workers died repeatedly ({exc}"
                                     "; out of memory? see the worker logs); completed tasks are kept, "
                                     "rerun to resume") from None
                 except FutureCancelledError:
-                    raise UserError(f"{desc} task {key} was cancelled by the Dask scheduler; rerun to resume") \
+                    raise UserError(f"{desc} task {name} was cancelled by the Dask scheduler; rerun to resume") \
                         from None
                 fut.release()
                 if key in done:  # as_completed yields each future once; kept as a guard
                     continue
                 done.add(key)
                 self.ran_on[key] = (where, pid)
-                bar.set_postfix_str(str(key))
+                bar.set_postfix_str(name)
                 bar.update(1)
                 yield key, result
         finally:

@@ -30,6 +30,7 @@ import json
 import math
 import os
 import platform
+import time
 from pathlib import Path
 
 import numpy as np
@@ -190,8 +191,9 @@ def render_frames(scene_name: str = DEFAULT_SCENE, viewpoints: int = 1, out_root
                   width: int = DEFAULTS.width, samples: int = DEFAULTS.samples, seed: int = DEFAULTS.seed,
                   threads: int = DEFAULTS.threads, baseline: float = DEFAULT_BASELINE_M, force: bool = False,
                   denoise: bool = DEFAULTS.denoise, max_bounces: int = DEFAULTS.max_bounces,
-                  overrides: dict | None = None, progress: bool = True, verbose: bool = False,
-                  renderer: str | None = None, cluster: ClusterOptions | None = None) -> list[Path]:
+                  light_tree: bool = DEFAULTS.light_tree, overrides: dict | None = None, progress: bool = True,
+                  verbose: bool = False, renderer: str | None = None,
+                  cluster: ClusterOptions | None = None) -> list[Path]:
     """Render ``viewpoints`` rig placements of a scene into ``out_root`` and return the frame directories.
 
     Args:
@@ -206,6 +208,7 @@ def render_frames(scene_name: str = DEFAULT_SCENE, viewpoints: int = 1, out_root
         force: re-render frames that are already complete (whatever they were rendered with).
         denoise: OpenImageDenoise on Cycles' colour images (distance is never denoised).
         max_bounces: Cycles light bounces.
+        light_tree: Cycles' light tree (off by default: see ``docs/rendering.md``).
         overrides: scene parameters overriding the preset's (e.g. ``{"model_path": "chair.glb"}``); each key
             must be one of the scene's parameters.
         progress: show a tqdm bar (on stderr) advancing per rendered camera view.
@@ -221,6 +224,8 @@ def render_frames(scene_name: str = DEFAULT_SCENE, viewpoints: int = 1, out_root
     """
 
     _check_options(viewpoints, width, samples, threads, baseline, max_bounces)
+    if not isinstance(light_tree, bool):
+        raise UserError(f"light_tree must be true or false, got {light_tree!r}")
     if isinstance(cluster, ClusterOptions):
         cluster.check()
     entry, preset = get_scene(scene_name)
@@ -231,7 +236,7 @@ def render_frames(scene_name: str = DEFAULT_SCENE, viewpoints: int = 1, out_root
     if reason:
         raise UserError(f"renderer {renderer!r} cannot draw scene {scene_name!r}: {reason}")
     settings = RenderSettings(width=width, samples=samples, seed=seed, threads=threads, denoise=denoise,
-                              max_bounces=max_bounces)
+                              max_bounces=max_bounces, light_tree=light_tree)
     scene_dir = scene_dir_name(entry.name, preset, entry.default_preset)
     try:
         rigs = choose_viewpoints(spec, viewpoints, seed, baseline_m=baseline)
@@ -287,12 +292,14 @@ def write_rendered_frame(frame: Frame, out_root: Path) -> Path:
 
     ``frame.json`` then depends only on the render's inputs: the same frame rendered twice (here, on another
     worker, after a lost worker) is byte-identical.  The sidecar is written after the frame (atomically too);
-    a frame without one is still complete.
+    a frame without one is still complete.  The sidecar holds the per-camera seconds, the host and process that
+    rendered the frame, and when it finished (``finished_unix``, seconds since the epoch).
     """
     renderer = dict(frame.renderer)
     seconds = renderer.pop("seconds", None)
     d = write_frame(dataclasses.replace(frame, renderer=renderer), out_root)
-    atomic_write_text(d / RENDER_LOG, jsonio.dumps({"seconds": seconds, "host": platform.node(), "pid": os.getpid()}))
+    atomic_write_text(d / RENDER_LOG, jsonio.dumps({"seconds": seconds, "host": platform.node(), "pid": os.getpid(),
+                                                    "finished_unix": round(time.time(), 3)}))
     return d
 
 
@@ -317,7 +324,8 @@ def _render_distributed(todo, renderer, spec, settings, scene_dir, out_root: Pat
     tasks = {vp: (renderer, spec, settings, rig, scene_dir, vp, root, verbose) for vp, rig in todo}
     try:
         with open_executor(cluster) as ex:
-            for _ in ex.run(render_one, tasks, desc="render", unit="frame", progress=progress):
+            for _ in ex.run(render_one, tasks, desc="render", unit="frame", progress=progress,
+                            names={vp: f"{scene_dir}/{vp}" for vp in tasks}):
                 pass
     except BaseException:
         _remove_if_empty(created)

@@ -27,7 +27,9 @@ A study is a TOML file::
 Reuse: the hashes are of the settings themselves, so a rerun, or an extended grid, renders only frames that are
 missing (``render_frames`` is resumable and checks that stored frames were rendered with the same settings) and
 evaluates only points without a complete results set.  With a cluster (``--scheduler`` / ``--workers``) one
-executor serves every render and evaluation of the study.
+executor serves every render and evaluation of the study, and every grid point's frames (then every point's
+evaluation) are submitted at once, so the workers are busy even when a point has fewer frames than there are
+workers.
 """
 
 from __future__ import annotations
@@ -39,13 +41,15 @@ import json
 import math
 import time
 import tomllib
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from concurrent.futures import ThreadPoolExecutor, as_completed
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from tqdm import tqdm
 
 from harness.data import jsonio
 from harness.data.atomic import atomic_write_bytes, atomic_write_text
@@ -61,11 +65,13 @@ from reports.schema import METRIC_COLUMNS
 __all__ = ["RENDER_KEYS", "EVALUATE_KEYS", "StudySpec", "load_study", "grid_points", "run_study", "plot_metric"]
 
 RENDER_KEYS = ("scene", "renderer", "viewpoints", "width", "samples", "seed", "threads", "baseline", "max_bounces",
-               "no_denoise", "set")
+               "light_tree", "no_denoise", "set")
 """Keys of ``[render]`` (``tri360 render`` options, dashes as underscores; ``set`` is a table or KEY=VALUE list)."""
 EVALUATE_KEYS = ("method", "flow", "variants", "rectify", "report")
 """Keys of ``[evaluate]`` (``tri360 evaluate`` options; ``report`` defaults to false in a study)."""
 DEFAULT_METRIC = "mae_m"
+#: grid points rendered or evaluated at once on a cluster (threads of this process that submit their tasks)
+MAX_PARALLEL_POINTS = 32
 
 
 class StudySpec:
@@ -239,37 +245,35 @@ def run_study(study_path: Path, out: Path, cluster: ClusterOptions | None = None
     out = ensure_output_dir(Path(out))
     atomic_write_text(out / "points.json", jsonio.dumps(
         [{"grid": p, "data": f"data/{rid}", "results": f"results/{eid}"} for p, _, _, _, rid, eid in plan]))
+    with open_executor(cluster) as ex:
+        parallel = bool(getattr(ex, "distributed", False))
+        renders, evaluations = {}, {}
+        for point, kw, methods, report, rid, eid in plan:
+            data, results = out / "data" / rid, out / "results" / eid
+            renders.setdefault(rid, (f"render {point or ''} -> {data}",
+                                     _job(render_frames, out_root=data, cluster=ex, **kw)))
+            if eid not in evaluations and not _complete(results):
+                evaluations[eid] = (f"evaluate {point or ''} -> {results}",
+                                    _job(evaluate, data, results, methods, report=report, cluster=ex))
+            elif progress and eid not in evaluations:
+                print(f"study: reuse {results}", flush=True)
+        _run_each(list(renders.values()), parallel, progress, "render")
+        _run_each(list(evaluations.values()), parallel, progress, "evaluate")
     tables = []
     colmap = {key: key for key in spec.grid}
-    with open_executor(cluster) as ex:
-        rendered: set[str] = set()
-        for point, kw, methods, report, rid, eid in plan:
-            data = out / "data" / rid
-            if rid not in rendered:
-                if progress:
-                    print(f"study: render {point or ''} -> {data}", flush=True)
-                render_frames(out_root=data, progress=progress, cluster=ex, **kw)
-                rendered.add(rid)
-            results = out / "results" / eid
-            if (results / "results.csv").is_file() and (results / "config.json").is_file():
-                table = pd.read_csv(results / "results.csv", keep_default_na=False, na_values=[""])
-                if progress:
-                    print(f"study: reuse {results}", flush=True)
-            else:
-                if progress:
-                    print(f"study: evaluate {point or ''} -> {results}", flush=True)
-                evaluate(data, results, methods, report=report, progress=progress, cluster=ex)
-                table = pd.read_csv(results / "results.csv", keep_default_na=False, na_values=[""])
-            frames = {(f["scene"], f["viewpoint"]): f["path"]
-                      for f in json.loads((results / "frames.json").read_text(encoding="utf-8"))}
-            table = table.assign(render_s=[_render_seconds(frames.get((s, v), ""))
-                                           for s, v in zip(table.scene, table.viewpoint, strict=True)])
-            colmap = {key: grid_column(key, table.columns) for key in spec.grid}
-            for key in reversed(list(spec.grid)):
-                if colmap[key] in table.columns:  # e.g. width: the results' own column, the same value
-                    table = table.drop(columns=colmap[key])
-                table.insert(0, colmap[key], _cell(point[key]))
-            tables.append(table)
+    for point, _kw, _methods, _report, _rid, eid in plan:
+        results = out / "results" / eid
+        table = pd.read_csv(results / "results.csv", keep_default_na=False, na_values=[""])
+        frames = {(f["scene"], f["viewpoint"]): f["path"]
+                  for f in json.loads((results / "frames.json").read_text(encoding="utf-8"))}
+        table = table.assign(render_s=[_render_seconds(frames.get((s, v), ""))
+                                       for s, v in zip(table.scene, table.viewpoint, strict=True)])
+        colmap = {key: grid_column(key, table.columns) for key in spec.grid}
+        for key in reversed(list(spec.grid)):
+            if colmap[key] in table.columns:  # e.g. width: the results' own column, the same value
+                table = table.drop(columns=colmap[key])
+            table.insert(0, colmap[key], _cell(point[key]))
+        tables.append(table)
     study = pd.concat(tables, ignore_index=True)
     csv = study.to_csv(index=False)
     atomic_write_text(out / "study.csv", csv)
@@ -281,6 +285,45 @@ def run_study(study_path: Path, out: Path, cluster: ClusterOptions | None = None
     atomic_write_text(out / "study.md", study_markdown(spec, study, metric, plots, time.time() - started,
                                                        [colmap[k] for k in spec.grid]))
     return study
+
+
+def _complete(results: Path) -> bool:
+    """A results set that a finished evaluation left (reused as it is)."""
+    return (results / "results.csv").is_file() and (results / "config.json").is_file()
+
+
+def _job(fn: Callable, *args, **kwargs) -> Callable[[bool], object]:
+    """``fn(*args, **kwargs, progress=...)`` with the progress flag given when it runs."""
+    return lambda progress: fn(*args, **kwargs, progress=progress)
+
+
+def _run_each(jobs: list[tuple[str, Callable[[bool], object]]], parallel: bool, progress: bool, what: str) -> None:
+    """Run every ``(name, job)``: one after the other (each with its own progress bar), or, on a Dask cluster,
+    all at once from threads of this process, so the tasks of every grid point share the cluster's workers (a
+    study of one viewpoint per point still keeps every worker busy); then one bar counts finished points.
+
+    Raises the first failure, after every other job has finished (their completed frames and results stay, so a
+    rerun resumes).
+    """
+    if not parallel or len(jobs) <= 1:
+        for name, job in jobs:
+            if progress:
+                print(f"study: {name}", flush=True)
+            job(progress)
+        return
+    errors: list[BaseException] = []
+    with (ThreadPoolExecutor(max_workers=min(len(jobs), MAX_PARALLEL_POINTS), thread_name_prefix="study") as pool,
+          tqdm(total=len(jobs), desc=f"study {what} (dask)", unit="point", disable=not progress,
+               dynamic_ncols=True) as bar):
+        futures = {pool.submit(job, False): name for name, job in jobs}
+        for fut in as_completed(futures):
+            exc = fut.exception()
+            if exc is not None:
+                errors.append(exc)
+            bar.set_postfix_str(futures[fut].split(" -> ")[0])
+            bar.update(1)
+    if errors:
+        raise errors[0]
 
 
 def _x_values(values: Sequence) -> tuple[list, bool]:

@@ -96,3 +96,10 @@ def test_mae_table_never_drops_a_missing_metric():
             for v, x in (("vp0", 1.0), ("vp1", float("nan")))]
     text = mae_table(pd.DataFrame(rows))
     assert "NaN" in text and "1.0000" not in text
+
+
+def test_progress_bar_names_frame_and_methods(synthetic_root, tmp_path, capsys):
+    """The bar's postfix names the task (``scene/viewpoint first-method +N``), not an index tuple."""
+    evaluate(synthetic_root, tmp_path / "res", [Constant(1.0, "a"), Constant(2.0, "b")], report=False, progress=True)
+    err = capsys.readouterr().err
+    assert "synthetic_box/vp000 a +1" in err and "(0, 0)" not in err

@@ -69,6 +69,11 @@ def test_study_on_a_scheduler_writes_csv_plot_and_summary(scheduler, tmp_path, c
     with Client(scheduler, timeout=30) as c:
         prefixes = c.run_on_scheduler(lambda dask_scheduler: sorted(dask_scheduler.task_prefixes))
     assert {"tri360_render", "tri360_evaluate"} <= set(prefixes)
+    # the two points (one frame each) were rendered at the same time, by both workers
+    logs = [json.loads(p.read_text()) for p in sorted((out / "data").rglob("render_log.json"))]
+    assert len(logs) == 2 and logs[0]["pid"] != logs[1]["pid"]
+    spans = [(g["finished_unix"] - g["seconds"]["total"], g["finished_unix"]) for g in logs]
+    assert max(a for a, _ in spans) < min(b for _, b in spans), spans  # the render intervals overlap
 
     # rerun: nothing rendered or evaluated again
     frames, results = mtimes(out / "data", "frame.json"), mtimes(out / "results", "results.csv")
