@@ -6,7 +6,7 @@ with ``importlib``, so neither ``import harness.cli`` nor a render job's own pro
 
 Usage (inside the worker)::
 
-    scene = SceneRenderer(spec, RenderSettings(width=1000, samples=12))   # builds the bpy scene once
+    scene = SceneRenderer(spec, RenderSettings(width=1000, samples=20))   # builds the bpy scene once
     image, distance = scene.render_camera("C", pose, workdir)             # (H, W, 3) uint8, (H, W) float32 m
 
 What a render is (the choices a reader of the data needs to know):

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from harness.jobs import bench
+from harness.jobs import bench, bench_render
 from reconstruction.methods.flow_pipeline import prepare, variant_problem
 from reconstruction.refine.lm import discover_variants
 from tests.helpers import make_synthetic_frame
@@ -55,3 +55,13 @@ def test_main_prints_the_summary_line_last(tmp_path, capsys):
     lines = capsys.readouterr().out.strip().splitlines()
     assert lines[-1].startswith("refine speedup vs per-pixel scipy: ") and lines[-1].endswith(" x")
     assert any("goals vs measured" in line for line in lines)
+
+
+def test_render_bench_times_the_render_command_end_to_end(capsys):
+    """``bench_render`` runs ``tri360 render`` in new processes (here a tiny ray-cast frame) and prints the range."""
+    assert bench_render.main(["--repeats", "2", "--scene", "box_room", "--renderer", "raycast", "--width", "64"]) == 0
+    lines = capsys.readouterr().out.strip().splitlines()
+    assert lines[0].startswith("render bench: `tri360 render --scene box_room --renderer raycast --width 64`")
+    assert [x.split(":")[0].strip() for x in lines[1:3]] == ["render 1", "render 2"]
+    assert "renderer s per camera: C " in lines[1]  # the frame's render_log.json was read
+    assert lines[-1].startswith("render default frame: ") and "over 2 renders [ok: goal <= 60 s]" in lines[-1]

@@ -43,8 +43,10 @@ def test_every_default_has_one_source():
     """The CLI's and the job's defaults are RenderSettings' (the shared dataclass), not copies."""
     args = build_parser().parse_args(["render"])
     d = RenderSettings()
-    assert (args.width, args.samples, args.seed, args.threads, args.max_bounces, not args.no_denoise) == (
-        d.width, d.samples, d.seed, d.threads, d.max_bounces, d.denoise) == (1000, 12, 0, 0, 4, True)
+    assert (args.width, args.samples, args.seed, args.threads, args.max_bounces, not args.no_denoise,
+            args.light_tree) == (d.width, d.samples, d.seed, d.threads, d.max_bounces, d.denoise,
+                                 d.light_tree) == (1000, 20, 0, 0, 4, True, False)
+    assert build_parser().parse_args(["render", "--light-tree"]).light_tree is True
     assert not hasattr(args, "renderer"), "no --renderer means: the scene's default"
 
 
@@ -104,14 +106,16 @@ def test_differences_cover_renderer_cycles_settings_code_version_and_poses(tmp_p
     spec.code_version = "sha256:0000"
     assert differences(meta, identity("raycast", RaycastRenderer.pixel_settings, settings, spec, 0.4), rig) == [
         f"scene code version {meta['renderer']['scene']['code_version']} (now sha256:0000)"]
-    # as if Cycles had drawn it with 16 samples, no denoiser, 2 bounces: a rerun with the defaults names each
+    # as if Cycles had drawn it with 16 samples, no denoiser, 2 bounces, the light tree: a rerun with the defaults
+    # names each
     cycles_settings = get_renderer("cycles").pixel_settings
     meta["renderer"] |= {"renderer": "cycles", "pixel_settings": list(cycles_settings),
                          "settings": {**meta["renderer"]["settings"], "samples": 16, "denoise": False,
-                                      "max_bounces": 2}}
+                                      "max_bounces": 2, "light_tree": True}}
     spec.code_version = meta["renderer"]["scene"]["code_version"]
     diff = differences(meta, identity("cycles", cycles_settings, settings, spec, 0.4), rig)
-    assert diff == ["samples 16 (now 12)", "denoise false (now true)", "max_bounces 2 (now 4)"]
+    assert diff == ["samples 16 (now 20)", "denoise false (now true)", "max_bounces 2 (now 4)",
+                    "light_tree true (now false)"]
     # a frame from before provenance recorded these: every missing item is a difference
     old = {**meta, "renderer": {"engine": "CYCLES", "samples": 12}}
     diff = differences(old, identity("cycles", cycles_settings, settings, spec, 0.4), rig)

@@ -11,6 +11,7 @@ import pytest
 from harness.jobs.evaluate import config_label
 from harness.jobs.regression import (
     BOUNDS_PATH,
+    FINAL,
     check,
     load_bounds,
     make_bounds,
@@ -20,6 +21,7 @@ from harness.jobs.regression import (
     write_bounds,
 )
 from reconstruction.methods.flow_pipeline import available_variants
+from reconstruction.methods.registry import DEFAULT_METHOD
 
 VARIANTS = ["average", "angle", "gradient", "color"]
 
@@ -90,6 +92,21 @@ def test_check_reports_missing_keys_both_ways():
     assert len(problems) == 3, problems
     bounds["newscene"] = {"dis-rect": {"average": 1.0}}  # a whole scene missing from the results
     assert "newscene/dis-rect/average: no result (bound 1.0000 m)" in check(_table(values), bounds)
+
+
+def test_a_method_that_is_no_flow_configuration_has_one_final_bound():
+    """``fused`` rows (no flow, rectify or variant) are bounded as ``scene/fused/final``, not compared with average."""
+    values = _good_values()
+    fused = pd.DataFrame([{"scene": "room", "viewpoint": "vp000", "width": 400, "height": 200, "method": "fused",
+                           "flow": float("nan"), "rectify": float("nan"), "variant": float("nan"), "mae_m": 0.1}])
+    flows = _table(values).assign(method=lambda t: [config_label(f, r) + ":" + v
+                                                    for f, r, v in zip(t.flow, t.rectify, t.variant, strict=True)])
+    table = pd.concat([flows, fused], ignore_index=True)
+    bounds = make_bounds(table, 0.15)["bounds"]
+    assert bounds["room"]["fused"] == {FINAL: 0.115}
+    assert check(table, bounds) == []
+    worse = table.assign(mae_m=[*table.mae_m[:-1], 0.12])
+    assert check(worse, bounds) == ["room/fused/final: MAE 0.1200 m > bound 0.1150 m (+4.3%)"]
 
 
 def test_check_reports_refined_not_beating_average():
@@ -181,9 +198,11 @@ def test_committed_bounds_cover_every_regression_key():
     data = load_bounds(BOUNDS_PATH)
     want = {config_label(f, r) for f, r in regression_configs()}
     for scene in ("classroom", "synthetic_box"):
-        assert set(data["bounds"][scene]) == want
-        for label in want:
-            assert set(data["bounds"][scene][label]) == set(available_variants())
+        assert set(data["bounds"][scene]) == want | {DEFAULT_METHOD}
+        assert set(data["bounds"][scene][DEFAULT_METHOD]) == {FINAL}
+        for label in [*want, DEFAULT_METHOD]:
+            if label != DEFAULT_METHOD:
+                assert set(data["bounds"][scene][label]) == set(available_variants())
             for v, bound in data["bounds"][scene][label].items():
                 measured = data["measured"][scene][label][v]
                 assert 0 < measured <= bound <= measured * (1 + data["margin"]) + 1e-4
