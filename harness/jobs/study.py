@@ -346,8 +346,12 @@ def plot_metric(study: pd.DataFrame, key: str, metric: str = DEFAULT_METRIC) -> 
                         alpha=0.15, linewidth=0)
     if not numeric:
         ax.set_xticks(xs, [str(v) for v in values])
+    elif min(values) > 0 and max(values) / min(values) > 10:  # e.g. samples 4..64: a log axis, ticks at the values
+        ax.set_xscale("log", base=2)
+        ax.set_xticks(values, [f"{v:g}" for v in values])
+        ax.minorticks_off()
     ax.set_xlabel(key)
-    ax.set_ylabel(metric)
+    ax.set_ylabel(f"{metric} (m)" if metric.endswith("_m") else metric)
     n_frames = study.groupby(["scene", "viewpoint"]).ngroups
     ax.set_title(f"{metric} vs {key} (mean over {n_frames} frame(s); band: min-max)", fontsize=10)
     ax.grid(True, alpha=0.3)
