@@ -258,15 +258,25 @@ def evaluate(data_root: Path, out: Path, methods: Sequence[Method], scenes: Sequ
     return table
 
 
+def config_keys(table: pd.DataFrame, other: str = "") -> tuple[list[str], list[str]]:
+    """Per results row, its configuration and variant: ``("dis-rect", "gradient")`` for the flow pipeline, and
+    ``(method label, other)`` for any other method (no flow: an empty or missing value, as read from a CSV)."""
+    config, variant = [], []
+    for f, r, v, m in zip(table["flow"], table["rectify"], table["variant"], table["method"], strict=True):
+        is_flow = isinstance(f, str) and f != ""
+        config.append(config_label(f, bool(r) if not isinstance(r, str) else r == "True") if is_flow else m)
+        variant.append(v if is_flow else other)
+    return config, variant
+
+
 def mae_table(table: pd.DataFrame) -> str:
     """Plain-text MAE table (mean over frames): rows scene x configuration, columns variant, metres.
 
     Methods that are not the flow pipeline appear as their own configuration with variant ``-``.  A NaN
     metric of any frame makes its mean NaN (it is never silently dropped from the mean).
     """
-    t = table.assign(config=[config_label(f, r) if f else m
-                             for f, r, m in zip(table.flow, table.rectify, table.method, strict=True)],
-                     column=[v if v else "-" for v in table.variant])
+    config, column = config_keys(table, other="-")
+    t = table.assign(config=config, column=column)
     pivot = t.pivot_table(index=["scene", "config"], columns="column", values="mae_m", sort=False,
                           aggfunc=lambda s: s.mean(skipna=False), dropna=False)
     return pivot.to_string(float_format=lambda x: f"{x:.4f}")

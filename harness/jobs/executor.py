@@ -23,12 +23,11 @@ from __future__ import annotations
 
 import json
 import logging
-import os
 import uuid
 from collections.abc import Callable, Hashable, Iterator, Mapping
 from pathlib import Path
 
-from distributed import Client, LocalCluster, as_completed, get_worker
+from distributed import Client, LocalCluster, as_completed
 from distributed.client import FutureCancelledError
 from distributed.scheduler import KilledWorker
 from distributed.security import Security
@@ -50,22 +49,12 @@ def security_for(options: ClusterOptions) -> Security | None:
                     tls_client_key=str(options.tls_key), require_encryption=True)
 
 
-def _run_task(fn: Callable, *args):
-    """Runs on a worker: the task, plus where it ran (worker address and process id)."""
-    try:
-        where = get_worker().address
-    except ValueError:  # not on a worker (never in practice)
-        where = None
-    return fn(*args), where, os.getpid()
-
-
 class DaskExecutor:
     """Runs tasks on Dask workers; see the module docstring.
 
     Attributes:
         client: the ``distributed.Client``.
         cluster: the ``LocalCluster`` started here, or None for an existing scheduler.
-        ran_on: ``key -> (worker address, worker pid)`` of each task result taken (for tests and logs).
     """
 
     distributed = True
@@ -74,7 +63,6 @@ class DaskExecutor:
         options.check()
         self.options = options
         self.cluster: LocalCluster | None = None
-        self.ran_on: dict[Hashable, tuple[str | None, int]] = {}
         try:
             if options.workers is not None:
                 self.cluster = LocalCluster(n_workers=options.workers, threads_per_worker=options.threads_per_worker,
@@ -126,7 +114,7 @@ class DaskExecutor:
         by_future_key: dict[str, Hashable] = {}
         futures = []
         for i, (key, args) in enumerate(tasks.items()):
-            fut = self.client.submit(_run_task, fn, *args, key=f"tri360_{desc}-{token}-{i}", pure=False)
+            fut = self.client.submit(fn, *args, key=f"tri360_{desc}-{token}-{i}", pure=False)
             by_future_key[fut.key] = key
             futures.append(fut)
         done: set[Hashable] = set()
@@ -136,7 +124,7 @@ class DaskExecutor:
                 key = by_future_key[fut.key]
                 name = names.get(key, str(key))
                 try:
-                    result, where, pid = fut.result()
+                    result = fut.result()
                 except KilledWorker as exc:
                     raise UserError(f"{desc} task {name}: its Dask workers died repeatedly ({exc}"
                                     "; out of memory? see the worker logs); completed tasks are kept, "
@@ -148,7 +136,6 @@ class DaskExecutor:
                 if key in done:  # as_completed yields each future once; kept as a guard
                     continue
                 done.add(key)
-                self.ran_on[key] = (where, pid)
                 bar.set_postfix_str(name)
                 bar.update(1)
                 yield key, result

@@ -33,9 +33,8 @@ from pathlib import Path
 import pandas as pd
 
 from harness.data.atomic import atomic_write_text
-from harness.jobs.evaluate import evaluate, mae_table
+from harness.jobs.evaluate import config_keys, evaluate, mae_table
 from harness.jobs.render import render_frames
-from reconstruction.methods.flow_pipeline import config_label
 from reconstruction.methods.registry import DEFAULT_CONFIGS, DEFAULT_METHOD, flow_methods, get_methods
 
 #: panorama width of every regression frame, pixels (height = width / 2)
@@ -98,21 +97,13 @@ def run_regression(workdir: Path | str, data: Path | str | None = None, width: i
 FINAL = "final"
 
 
-def _bound_keys(table: pd.DataFrame) -> pd.DataFrame:
-    """``scene, config, variant, mae_m``: a flow configuration's label and variant, or a method label and FINAL."""
-    flow = table["flow"] if "flow" in table else pd.Series([""] * len(table), index=table.index)
-    is_flow = flow.notna() & (flow.astype(str) != "")
-    config = [config_label(f, bool(r)) if ok else m for ok, f, r, m in
-              zip(is_flow, flow, table.get("rectify", is_flow), table.get("method", flow), strict=True)]
-    variant = table["variant"].where(is_flow, FINAL) if "variant" in table else FINAL
-    return pd.DataFrame({"scene": table["scene"], "config": config, "variant": variant, "mae_m": table["mae_m"]})
-
-
 def measured_mae(table: pd.DataFrame) -> dict[str, dict[str, dict[str, float]]]:
     """``{scene: {config label or method label: {variant or "final": MAE}}}``, metres, mean over the frames."""
 
     out: dict[str, dict[str, dict[str, float]]] = {}
-    groups = _bound_keys(table).groupby(["scene", "config", "variant"], sort=True)["mae_m"]
+    config, variant = config_keys(table, other=FINAL)
+    keyed = pd.DataFrame({"scene": table["scene"], "config": config, "variant": variant, "mae_m": table["mae_m"]})
+    groups = keyed.groupby(["scene", "config", "variant"], sort=True)["mae_m"]
     for (scene, config, variant), mae in groups.apply(lambda s: s.mean(skipna=False)).items():
         out.setdefault(scene, {}).setdefault(config, {})[variant] = float(mae)
     return out
@@ -127,7 +118,7 @@ def check(table: pd.DataFrame, bounds: Mapping[str, Mapping[str, Mapping[str, fl
     """Every violation of ``bounds`` by ``table`` (empty list: no regression).
 
     Args:
-        table: results table (columns scene, flow, rectify, variant, mae_m, width, height at least).
+        table: results table (columns scene, method, flow, rectify, variant, mae_m, width, height at least).
         bounds: ``{scene: {config label: {variant: max MAE in metres}}}``, a method that is no flow configuration
             as ``{method label: {"final": ...}}`` (the file's ``"bounds"``).
         resolution: optional ``(width, height)`` every row must have (the bounds' resolution).

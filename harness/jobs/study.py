@@ -28,8 +28,9 @@ Reuse: the hashes are of the settings themselves, so a rerun, or an extended gri
 missing (``render_frames`` is resumable and checks that stored frames were rendered with the same settings) and
 evaluates only points without a complete results set.  With a cluster (``--scheduler`` / ``--workers``) one
 executor serves every render and evaluation of the study, and every grid point's frames (then every point's
-evaluation) are submitted at once, so the workers are busy even when a point has fewer frames than there are
-workers.
+evaluation) are submitted at once (up to ``MAX_PARALLEL_POINTS`` points at a time), so the workers are busy even
+when a point has fewer frames than there are workers.  Without one, each point is rendered, then evaluated, in
+the file's order.
 """
 
 from __future__ import annotations
@@ -43,6 +44,7 @@ import time
 import tomllib
 from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor, as_completed
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -246,19 +248,28 @@ def run_study(study_path: Path, out: Path, cluster: ClusterOptions | None = None
     atomic_write_text(out / "points.json", jsonio.dumps(
         [{"grid": p, "data": f"data/{rid}", "results": f"results/{eid}"} for p, _, _, _, rid, eid in plan]))
     with open_executor(cluster) as ex:
-        parallel = bool(getattr(ex, "distributed", False))
-        renders, evaluations = {}, {}
+        steps = []  # per point: (render job or None, evaluate job or None); a job is (name, callable)
+        rendered = set()
         for point, kw, methods, report, rid, eid in plan:
             data, results = out / "data" / rid, out / "results" / eid
-            renders.setdefault(rid, (f"render {point or ''} -> {data}",
-                                     _job(render_frames, out_root=data, cluster=ex, **kw)))
-            if eid not in evaluations and not _complete(results):
-                evaluations[eid] = (f"evaluate {point or ''} -> {results}",
-                                    _job(evaluate, data, results, methods, report=report, cluster=ex))
-            elif progress and eid not in evaluations:
-                print(f"study: reuse {results}", flush=True)
-        _run_each(list(renders.values()), parallel, progress, "render")
-        _run_each(list(evaluations.values()), parallel, progress, "evaluate")
+            render = None if rid in rendered else (f"render {point or ''} -> {data}",
+                                                   partial(render_frames, out_root=data, cluster=ex, **kw))
+            rendered.add(rid)
+            if _complete(results):
+                if progress:
+                    print(f"study: reuse {results}", flush=True)
+                steps.append((render, None))
+                continue
+            steps.append((render, (f"evaluate {point or ''} -> {results}",
+                                   partial(evaluate, data, results, methods, report=report, cluster=ex))))
+        if getattr(ex, "distributed", False):
+            _run_concurrently([r for r, _ in steps if r], ex, progress, "render")
+            _run_concurrently([e for _, e in steps if e], ex, progress, "evaluate")
+        else:
+            for job in (j for step in steps for j in step if j):
+                if progress:
+                    print(f"study: {job[0]}", flush=True)
+                job[1](progress=progress)
     tables = []
     colmap = {key: key for key in spec.grid}
     for point, _kw, _methods, _report, _rid, eid in plan:
@@ -292,38 +303,38 @@ def _complete(results: Path) -> bool:
     return (results / "results.csv").is_file() and (results / "config.json").is_file()
 
 
-def _job(fn: Callable, *args, **kwargs) -> Callable[[bool], object]:
-    """``fn(*args, **kwargs, progress=...)`` with the progress flag given when it runs."""
-    return lambda progress: fn(*args, **kwargs, progress=progress)
+def _run_concurrently(jobs: list[tuple[str, Callable]], ex, progress: bool, what: str) -> None:
+    """Run every ``(name, job)`` at once from threads of this process (at most ``MAX_PARALLEL_POINTS`` at a
+    time), so the Dask tasks of every grid point share the cluster's workers; one bar counts finished points.
 
-
-def _run_each(jobs: list[tuple[str, Callable[[bool], object]]], parallel: bool, progress: bool, what: str) -> None:
-    """Run every ``(name, job)``: one after the other (each with its own progress bar), or, on a Dask cluster,
-    all at once from threads of this process, so the tasks of every grid point share the cluster's workers (a
-    study of one viewpoint per point still keeps every worker busy); then one bar counts finished points.
-
-    Raises the first failure, after every other job has finished (their completed frames and results stay, so a
-    rerun resumes).
+    When jobs fail, the first in plan order is raised (naming how many others failed) after the rest have
+    finished, so their frames and results are kept for a rerun.  Ctrl-C closes the Dask client, which cancels
+    every pending task, and returns at once.
     """
-    if not parallel or len(jobs) <= 1:
-        for name, job in jobs:
-            if progress:
-                print(f"study: {name}", flush=True)
-            job(progress)
+    if not jobs:
         return
-    errors: list[BaseException] = []
-    with (ThreadPoolExecutor(max_workers=min(len(jobs), MAX_PARALLEL_POINTS), thread_name_prefix="study") as pool,
-          tqdm(total=len(jobs), desc=f"study {what} (dask)", unit="point", disable=not progress,
-               dynamic_ncols=True) as bar):
-        futures = {pool.submit(job, False): name for name, job in jobs}
-        for fut in as_completed(futures):
-            exc = fut.exception()
-            if exc is not None:
-                errors.append(exc)
-            bar.set_postfix_str(futures[fut].split(" -> ")[0])
-            bar.update(1)
+    errors: dict[int, BaseException] = {}
+    pool = ThreadPoolExecutor(max_workers=min(len(jobs), MAX_PARALLEL_POINTS), thread_name_prefix="study")
+    try:
+        with tqdm(total=len(jobs), desc=f"study {what} (dask)", unit="point", disable=not progress,
+                  dynamic_ncols=True) as bar:
+            futures = {pool.submit(job, progress=False): i for i, (_, job) in enumerate(jobs)}
+            for fut in as_completed(futures):
+                if fut.exception() is not None:
+                    errors[futures[fut]] = fut.exception()
+                bar.set_postfix_str(jobs[futures[fut]][0].split(" -> ")[0])
+                bar.update(1)
+    except BaseException:
+        pool.shutdown(wait=False, cancel_futures=True)
+        ex.close()  # cancels the submitted Dask tasks; the threads waiting on them return
+        raise
+    pool.shutdown(wait=True)
     if errors:
-        raise errors[0]
+        first = min(errors)
+        exc = errors[first]
+        if len(errors) > 1 and isinstance(exc, UserError):
+            raise UserError(f"{exc} (and {len(errors) - 1} more grid point(s) failed)") from exc
+        raise exc
 
 
 def _x_values(values: Sequence) -> tuple[list, bool]:

@@ -28,8 +28,8 @@ VARIANTS = ["average", "angle", "gradient", "color"]
 
 def _table(values: dict[tuple[str, str, bool, str], list[float]], width: int = 400) -> pd.DataFrame:
     """Results rows from ``{(scene, flow, rectify, variant): [MAE of vp000, vp001, ...]}`` (metres)."""
-    rows = [{"scene": s, "viewpoint": f"vp{i:03d}", "width": width, "height": width // 2, "flow": f,
-             "rectify": r, "variant": v, "mae_m": mae}
+    rows = [{"scene": s, "viewpoint": f"vp{i:03d}", "width": width, "height": width // 2,
+             "method": f"{config_label(f, r)}:{v}", "flow": f, "rectify": r, "variant": v, "mae_m": mae}
             for (s, f, r, v), maes in values.items() for i, mae in enumerate(maes)]
     return pd.DataFrame(rows)
 
@@ -99,9 +99,7 @@ def test_a_method_that_is_no_flow_configuration_has_one_final_bound():
     values = _good_values()
     fused = pd.DataFrame([{"scene": "room", "viewpoint": "vp000", "width": 400, "height": 200, "method": "fused",
                            "flow": float("nan"), "rectify": float("nan"), "variant": float("nan"), "mae_m": 0.1}])
-    flows = _table(values).assign(method=lambda t: [config_label(f, r) + ":" + v
-                                                    for f, r, v in zip(t.flow, t.rectify, t.variant, strict=True)])
-    table = pd.concat([flows, fused], ignore_index=True)
+    table = pd.concat([_table(values), fused], ignore_index=True)
     bounds = make_bounds(table, 0.15)["bounds"]
     assert bounds["room"]["fused"] == {FINAL: 0.115}
     assert check(table, bounds) == []
