@@ -33,8 +33,8 @@ def add_arguments(parser) -> None:
                         help=f"Cycles total light bounces (diffuse capped at {DEFAULTS.diffuse_bounces}, "
                              f"glossy at {DEFAULTS.glossy_bounces})")
     parser.add_argument("--light-tree", action=argparse.BooleanOptionalAction, default=DEFAULTS.light_tree,
-                        help="Cycles' light tree: less noise per sample, but each sample costs about 1.7x as much; "
-                             "off by default, which is as accurate per second of render (docs/rendering.md)")
+                        help="Cycles' light tree: less noise per sample, but each sample costs about 1.8x as much; "
+                             "off by default, which gives the same accuracy in less time (docs/rendering.md)")
     parser.add_argument("--no-denoise", action="store_true",
                         help="disable Cycles' OpenImageDenoise (much noisier colour, far worse reconstruction)")
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", dest="overrides",

@@ -60,17 +60,18 @@ class RenderSettings:
         diffuse_bounces, glossy_bounces: Cycles per-type bounce limits (each also capped at ``max_bounces``).
         filter_width: Cycles pixel filter (Blackman-Harris) width, pixels.
         clamp_indirect: Cycles clamp on indirect sample values (0 = off); suppresses fireflies at low samples.
-        light_tree: Cycles' light tree for picking which light(s) to sample: less noise per sample on this
-            many-light scene, but each sample costs about 1.7x as much (off by default).
+        light_tree: Cycles' light tree for picking which light(s) to sample: on the 12-light classroom it
+            gives the noise of about 1.7x the samples, but each sample costs about 1.8x as much (off by default).
         denoise_prefilter: OIDN guide-pass prefilter, ``"ACCURATE"``, ``"FAST"`` or ``"NONE"``.
         denoise_quality: OIDN quality, ``"HIGH"``, ``"BALANCED"`` or ``"FAST"``.
         supersample: ray-caster colour rays per pixel along each axis (ss x ss, averaged in linear RGB).
 
     The Cycles defaults are the result of the studies in ``docs/rendering.md`` (1000 x 500 classroom, 2 cores):
-    20 samples without the light tree render the default frame in 56-58 s, against 62-65 s for the earlier 12
-    samples with the light tree, and the default method's MAE is the same (0.0862 m over 3 viewpoints x 2 noise
-    seeds for both).  Each cheaper setting tried (fewer samples, OIDN prefilter FAST or quality BALANCED, fewer
-    bounces, albedo-only guides, fast GI) cost reconstruction accuracy; adaptive sampling saved nothing.
+    with 20 samples and no light tree, ``tri360 render`` draws the default frame in 58.7-59.8 s (3 renders; the
+    earlier 12 samples with the light tree: 62-65 s), and the default method's MAE is the same (0.0862 m over 3
+    viewpoints x 2 noise seeds for both).  Fewer samples, OIDN quality BALANCED or 8 samples cost reconstruction
+    accuracy on full frames; OIDN prefilter FAST, fewer bounces and albedo-only guides added image noise; adaptive
+    sampling stopped no pixel at these sample counts.
     """
 
     width: int = 1000

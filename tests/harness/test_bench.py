@@ -61,7 +61,7 @@ def test_render_bench_times_the_render_command_end_to_end(capsys):
     """``bench_render`` runs ``tri360 render`` in new processes (here a tiny ray-cast frame) and prints the range."""
     assert bench_render.main(["--repeats", "2", "--scene", "box_room", "--renderer", "raycast", "--width", "64"]) == 0
     lines = capsys.readouterr().out.strip().splitlines()
-    assert lines[0].startswith("render bench: `tri360 render --scene box_room --renderer raycast --width 64`")
+    assert lines[0].startswith("render bench: `tri360 render --scene box_room --renderer raycast --width 64`, 2 times")
     assert [x.split(":")[0].strip() for x in lines[1:3]] == ["render 1", "render 2"]
     assert "renderer s per camera: C " in lines[1]  # the frame's render_log.json was read
-    assert lines[-1].startswith("render default frame: ") and "over 2 renders [ok: goal <= 60 s]" in lines[-1]
+    assert lines[-1].startswith("render frame: ") and "over 2 renders [ok: goal <= 60 s]" in lines[-1]
