@@ -24,10 +24,10 @@ A study is a TOML file::
 - ``data/r-<hash>/``: the frames of each distinct render setting (a data root), ``results/e-<hash>/``: the results
   set of each distinct (render, evaluate) setting, ``points.json``: which grid point uses which.
 
-Reuse: the hashes are of the settings themselves, so a rerun, or an extended grid, renders only frames that are
-missing (``render_frames`` is resumable and checks that stored frames were rendered with the same settings) and
-evaluates only points without a complete results set.  With a cluster (``--scheduler`` / ``--workers``) one
-executor serves every render and evaluation of the study, and every grid point's frames (then every point's
+Reuse: the hashes are of the settings themselves (and of the render defaults, :func:`point_ids`), so a rerun, or
+an extended grid, renders only frames that are missing (``render_frames`` is resumable and checks that stored
+frames were rendered with the same settings) and evaluates only points without a complete results set.  With a
+cluster (``--scheduler`` / ``--workers``) one executor serves every render and evaluation of the study, and every grid point's frames (then every point's
 evaluation) are submitted at once (up to ``MAX_PARALLEL_POINTS`` points at a time), so the workers are busy even
 when a point has fewer frames than there are workers.  Without one, each point is rendered, then evaluated, in
 the file's order.
@@ -35,6 +35,7 @@ the file's order.
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import io
 import itertools
@@ -59,7 +60,7 @@ from harness.data.errors import UserError
 from harness.data.outputs import ensure_output_dir
 from harness.jobs.cluster import ClusterOptions, open_executor
 from harness.jobs.evaluate import evaluate
-from harness.jobs.render import RENDER_LOG, render_frames
+from harness.jobs.render import DEFAULTS, RENDER_LOG, render_frames
 from reconstruction.methods.flow_pipeline import DEFAULT_FLOW
 from reconstruction.methods.registry import default_methods, flow_methods, get_methods
 from reports.schema import METRIC_COLUMNS
@@ -135,6 +136,17 @@ def grid_points(spec: StudySpec) -> list[dict]:
 
 def _digest(obj) -> str:
     return hashlib.sha256(json.dumps(obj, sort_keys=True, default=str).encode()).hexdigest()[:12]
+
+
+def point_ids(render: dict, evaluate_: dict, defaults: dict | None = None) -> tuple[str, str]:
+    """``("r-<hash>", "e-<hash>")``: the names of a point's data root and results set.
+
+    The render hash covers the point's ``[render]`` settings and the render defaults they leave to tri360
+    (``harness.jobs.render.DEFAULTS``): when a default changes (e.g. the samples), a rerun renders into a new
+    data root instead of failing on frames rendered the old way.
+    """
+    key = {"render": render, "defaults": dataclasses.asdict(DEFAULTS) if defaults is None else defaults}
+    return "r-" + _digest(key), "e-" + _digest({**key, "evaluate": evaluate_})
 
 
 def _overrides(value, where: str) -> dict:
@@ -241,8 +253,7 @@ def run_study(study_path: Path, out: Path, cluster: ClusterOptions | None = None
         where = f"{spec.path} (grid point {point or 'the only one'})"
         kw = render_kwargs(render, where)
         methods = select_methods(evaluate_, where)
-        rid = "r-" + _digest(render)
-        eid = "e-" + _digest({"render": render, "evaluate": evaluate_})
+        rid, eid = point_ids(render, evaluate_)
         plan.append((point, kw, methods, bool(evaluate_.get("report", False)), rid, eid))
     out = ensure_output_dir(Path(out))
     atomic_write_text(out / "points.json", jsonio.dumps(

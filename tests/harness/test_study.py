@@ -3,6 +3,7 @@ frames and results are reused when the study is rerun or extended."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 from pathlib import Path
@@ -13,7 +14,8 @@ from distributed import Client
 
 from harness.cli import main
 from harness.data.errors import UserError
-from harness.jobs.study import grid_points, load_study, run_study
+from harness.jobs.study import grid_points, load_study, point_ids, run_study
+from harness.render.base import RenderSettings
 from tests.harness.test_executor import external_cluster, wait_for_workers
 
 PNG = b"\x89PNG\r\n\x1a\n"
@@ -90,6 +92,17 @@ def test_study_on_a_scheduler_writes_csv_plot_and_summary(scheduler, tmp_path, c
     extended = pd.read_csv(out / "study.csv")
     assert len(extended) == 6 and sorted(extended.baseline.unique()) == [0.2, 0.4, 0.6]
     pd.testing.assert_frame_equal(extended.iloc[:4].drop(columns="seconds"), table.drop(columns="seconds"))
+
+
+def test_a_change_of_render_defaults_gives_new_data_roots():
+    """Frames rendered under other defaults are never reused (nor refused): the point gets a new data root."""
+    render, evaluate_ = {"scene": "classroom", "width": 500}, {"method": ["fused"]}
+    rid, eid = point_ids(render, evaluate_)
+    assert rid.startswith("r-") and eid.startswith("e-") and point_ids(render, evaluate_) == (rid, eid)
+    old = {**dataclasses.asdict(RenderSettings()), "samples": 12, "light_tree": True}
+    assert point_ids(render, evaluate_, old)[0] != rid and point_ids(render, evaluate_, old)[1] != eid
+    assert point_ids(render, {"method": ["sweep"]})[0] == rid  # the evaluate settings do not change the frames
+    assert point_ids({**render, "width": 1000}, evaluate_)[0] != rid
 
 
 def test_two_grid_keys_run_the_full_product(tmp_path):
