@@ -24,13 +24,13 @@ A study is a TOML file::
 - ``data/r-<hash>/``: the frames of each distinct render setting (a data root), ``results/e-<hash>/``: the results
   set of each distinct (render, evaluate) setting, ``points.json``: which grid point uses which.
 
-Reuse: the hashes are of the settings themselves (and of the render defaults, :func:`point_ids`), so a rerun, or
-an extended grid, renders only frames that are missing (``render_frames`` is resumable and checks that stored
-frames were rendered with the same settings) and evaluates only points without a complete results set.  With a
-cluster (``--scheduler`` / ``--workers``) one executor serves every render and evaluation of the study, and every grid point's frames (then every point's
-evaluation) are submitted at once (up to ``MAX_PARALLEL_POINTS`` points at a time), so the workers are busy even
-when a point has fewer frames than there are workers.  Without one, each point is rendered, then evaluated, in
-the file's order.
+Reuse: the hashes are of the settings themselves (and of the render defaults, :func:`point_ids`), so a rerun, or an
+extended grid, renders only frames that are missing (``render_frames`` is resumable and checks that stored frames
+were rendered with the same settings) and evaluates only points without a complete results set. With a cluster
+(``--scheduler`` / ``--workers``) one executor serves every render and evaluation of the study, and every grid
+point's frames (then every point's evaluation) are submitted at once (up to ``MAX_PARALLEL_POINTS`` points at a
+time), so the workers are busy even when a point has fewer frames than there are workers. Without one, each point is
+rendered, then evaluated, in the file's order.
 """
 
 from __future__ import annotations
