@@ -165,3 +165,59 @@ def test_worker_survives_sigint_and_renders_several_viewpoints(tmp_path):
 def test_render_frames_runs_the_renderer_in_a_worker_not_here(tmp_path):
     render_frames("box_room", out_root=tmp_path, width=64, samples=1, threads=2, progress=False)
     assert "bpy" not in sys.modules
+
+
+def _descendants(pid: int) -> list[int]:
+    """Every process below ``pid``, whichever of their threads started them."""
+    out, todo = [], [pid]
+    while todo:
+        parent, kids = todo.pop(), []
+        for task in Path(f"/proc/{parent}/task").glob("*"):
+            try:
+                kids += [int(k) for k in (task / "children").read_text().split()]
+            except (FileNotFoundError, ProcessLookupError):  # the thread or process just ended
+                pass
+        out += kids
+        todo += kids
+    return out
+
+
+def _cmdline(pid: int) -> str:
+    try:
+        return Path(f"/proc/{pid}/cmdline").read_text().replace("\0", " ")
+    except (FileNotFoundError, ProcessLookupError):
+        return ""
+
+
+def test_ctrl_c_stops_a_study_on_a_local_cluster(tmp_path):
+    """A study whose grid points render at once on a ``--workers 2`` LocalCluster: Ctrl-C (to the process group)
+    exits 130 within seconds, leaves no process (scheduler, workers, Cycles) and no frame behind."""
+    study = tmp_path / "s.toml"
+    # 4 points of one 200 x 100 classroom frame at 256 samples: ~30 s per frame, two at a time
+    study.write_text('[render]\nscene = "classroom"\nwidth = 200\nviewpoints = 1\nsamples = 256\n'
+                     '[evaluate]\nmethod = ["dis-rect:average"]\n[grid]\nbaseline = [0.2, 0.3, 0.4, 0.5]\n')
+    out = tmp_path / "out"
+    proc = subprocess.Popen([*CLI, "study", str(study), "--out", str(out), "--workers", "2", "--quiet"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    try:
+        deadline = time.monotonic() + 90
+        while proc.poll() is None and time.monotonic() < deadline and len(
+                [p for p in _descendants(proc.pid) if _alive(p) and "cycles_worker" in _cmdline(p)]) < 2:
+            time.sleep(0.2)
+        time.sleep(2.0)  # both workers are rendering their point's camera C
+        family = _descendants(proc.pid)
+        assert proc.poll() is None and len(family) >= 4, "the study ended, or never started two renders"
+        start = time.monotonic()
+        os.killpg(proc.pid, signal.SIGINT)
+        _, stderr = proc.communicate(timeout=60)
+        seconds = time.monotonic() - start
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+    assert proc.returncode == 130, (proc.returncode, stderr)
+    assert seconds < 20, f"Ctrl-C took {seconds:.1f} s"
+    assert stderr.strip().splitlines()[-1].startswith("tri360 study: interrupted"), stderr
+    time.sleep(1.0)
+    assert not [p for p in family if _alive(p)], "processes outlived the study"
+    assert not list(out.rglob("frame.json")) and not (out / "study.csv").exists()
