@@ -5,6 +5,7 @@ Every test here starts Blender (in the worker process), so all are marked ``blen
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import subprocess
@@ -51,6 +52,30 @@ def _workdirs(tmp: Path) -> set[str]:
     return {p.name for p in tmp.glob("tri360-cycles-*")}
 
 
+@contextlib.contextmanager
+def _command(args: list[str], **kwargs):
+    """The CLI in a new session (its own process group), text pipes; killed with its group if still running."""
+    proc = subprocess.Popen([*CLI, *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True, **kwargs)
+    try:
+        yield proc
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+
+
+def _interrupt(proc: subprocess.Popen, group: bool, timeout: float) -> tuple[str, str, float]:
+    """Ctrl-C: SIGINT to the process, or to its whole group as a terminal does; (stdout, stderr, seconds to exit)."""
+    start = time.monotonic()
+    if group:
+        os.killpg(proc.pid, signal.SIGINT)
+    else:
+        proc.send_signal(signal.SIGINT)
+    stdout, stderr = proc.communicate(timeout=timeout)
+    return stdout, stderr, time.monotonic() - start
+
+
 @pytest.mark.parametrize("target", ["process", "group"])
 def test_ctrl_c_stops_a_cycles_render_within_seconds(tmp_path, target):
     """SIGINT to the CLI (``process``), or to its whole process group as a terminal's Ctrl-C does (``group``):
@@ -59,27 +84,15 @@ def test_ctrl_c_stops_a_cycles_render_within_seconds(tmp_path, target):
     tmp = tmp_path / "tmp"  # the command's own temporary directory: other processes' renders do not show here
     tmp.mkdir()
     # classroom 400 x 200 at 16 samples renders for ~20 s per frame on 2 cores; we interrupt it after ~3 s
-    proc = subprocess.Popen([*CLI, "render", "--scene", "classroom", "--width", "400", "--samples", "16",
-                             "--out", str(out), "--quiet"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True, start_new_session=True, env={**os.environ, "TMPDIR": str(tmp)})
-    try:
+    with _command(["render", "--scene", "classroom", "--width", "400", "--samples", "16", "--out", str(out),
+                   "--quiet"], env={**os.environ, "TMPDIR": str(tmp)}) as proc:
         deadline = time.monotonic() + 60
         while not _children(proc.pid) and proc.poll() is None and time.monotonic() < deadline:
             time.sleep(0.05)
         (worker,) = _children(proc.pid)
         time.sleep(3.0)  # the worker builds the scene (~1 s) and is rendering camera C
         assert proc.poll() is None, "the render finished before it could be interrupted"
-        start = time.monotonic()
-        if target == "group":
-            os.killpg(proc.pid, signal.SIGINT)
-        else:
-            proc.send_signal(signal.SIGINT)
-        stdout, stderr = proc.communicate(timeout=30)
-        seconds = time.monotonic() - start
-    finally:
-        if proc.poll() is None:
-            os.killpg(proc.pid, signal.SIGKILL)
-            proc.wait()
+        stdout, stderr, seconds = _interrupt(proc, target == "group", timeout=30)
     assert proc.returncode == 130, (proc.returncode, stderr)
     assert seconds < 10, f"Ctrl-C took {seconds:.1f} s"
     assert stdout == ""
@@ -197,9 +210,7 @@ def test_ctrl_c_stops_a_study_on_a_local_cluster(tmp_path):
     study.write_text('[render]\nscene = "classroom"\nwidth = 200\nviewpoints = 1\nsamples = 256\n'
                      '[evaluate]\nmethod = ["dis-rect:average"]\n[grid]\nbaseline = [0.2, 0.3, 0.4, 0.5]\n')
     out = tmp_path / "out"
-    proc = subprocess.Popen([*CLI, "study", str(study), "--out", str(out), "--workers", "2", "--quiet"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
-    try:
+    with _command(["study", str(study), "--out", str(out), "--workers", "2", "--quiet"]) as proc:
         deadline = time.monotonic() + 90
         while proc.poll() is None and time.monotonic() < deadline and len(
                 [p for p in _descendants(proc.pid) if _alive(p) and "cycles_worker" in _cmdline(p)]) < 2:
@@ -207,14 +218,7 @@ def test_ctrl_c_stops_a_study_on_a_local_cluster(tmp_path):
         time.sleep(2.0)  # both workers are rendering their point's camera C
         family = _descendants(proc.pid)
         assert proc.poll() is None and len(family) >= 4, "the study ended, or never started two renders"
-        start = time.monotonic()
-        os.killpg(proc.pid, signal.SIGINT)
-        _, stderr = proc.communicate(timeout=60)
-        seconds = time.monotonic() - start
-    finally:
-        if proc.poll() is None:
-            os.killpg(proc.pid, signal.SIGKILL)
-            proc.wait()
+        _, stderr, seconds = _interrupt(proc, group=True, timeout=60)
     assert proc.returncode == 130, (proc.returncode, stderr)
     assert seconds < 20, f"Ctrl-C took {seconds:.1f} s"
     assert stderr.strip().splitlines()[-1].startswith("tri360 study: interrupted"), stderr
