@@ -1,13 +1,14 @@
 """The trinocular cost volume of camera C over distance hypotheses uniform in inverse distance.
 
-For a pair (C, K), K in {U, R}, both images are resampled into the pair's rectified frame (+Z along the
-world baseline ``K - C``; each image with its *own* camera rotation, so tilted rigs and cameras rotated
+For a pair (C, K), K in {U, R}, both images' features are resampled into the pair's rectified frame (+Z along
+the world baseline ``K - C``; each image with its *own* camera rotation, so tilted rigs and cameras rotated
 against each other are handled).  In that frame a point at distance ``d`` along C's rectified bearing of
 colatitude ``theta`` (angle from the baseline) is seen by K on the same meridian (same column) at colatitude
-``theta' = atan2(sin(theta), cos(theta) - b/d)``: the warp for one hypothesis is one source row per target
-row, so a cost slice is a row gather and an absolute difference.  The slice is then resampled once into C's
-own equirect grid (fixed maps built once per frame), weighted by ``sin^2`` of the angle between the pixel's
-bearing and the pair's baseline, truncated, summed over both pairs and quantised to uint16.
+``theta' = atan2(sin(theta), cos(theta) - b/d)`` (:func:`rect_row`).  For every pixel of C (at its own
+continuous rectified column and row) and every hypothesis, K's rectified features are sampled bilinearly at
+that column and row ``theta'``, compared with C's, truncated, weighted by ``sin^2`` of the angle between the
+pixel's bearing and the pair's baseline, summed over both pairs and quantised to uint16 (then optionally
+box-filtered): one fused numba pass in C's own equirect grid.
 
 Features (computed in the rectified frame, so both images of a pair use the same axes): gray intensity
 (0-255) and its two derivatives along the rectified columns and rows (gray levels per pixel).
@@ -24,8 +25,8 @@ import numpy as np
 from reconstruction.camera.equirect import bearing_grid
 from reconstruction.camera.resample import WRAP_PAD, rectifying_rotation, rotation_maps, warp_equirect
 
-__all__ = ["CostParams", "PairWarp", "inverse_distances", "gray_float", "prepare_pair", "pair_slice",
-           "build_cost_volume", "source_rows", "rect_row"]
+__all__ = ["CostParams", "PairWarp", "inverse_distances", "gray_float", "prepare_pair", "build_cost_volume",
+           "source_rows", "rect_row"]
 
 
 @dataclass(frozen=True)
@@ -93,7 +94,6 @@ class PairWarp:
         ref: (3, H, W) float32 features of C in the rectified frame.
         other: (3, H, W) float32 features of K in the rectified frame.
         cos_theta, sin_theta: (H,) cos / sin of each rectified row's colatitude.
-        map1, map2: fixed-point OpenCV maps from C's grid into the column-padded rectified frame.
         weight: (H, W) float32 pair weight in C's grid, ``sin(angle to baseline) ** pair_power``.
     """
 
@@ -104,13 +104,11 @@ class PairWarp:
     other: np.ndarray
     cos_theta: np.ndarray
     sin_theta: np.ndarray
-    map1: np.ndarray
-    map2: np.ndarray
     weight: np.ndarray
 
 
 def prepare_pair(frame, name: str, gray: dict, params: CostParams) -> PairWarp:
-    """Rectify one pair's features and build its fixed maps.
+    """Rectify one pair's features and compute its rectified row colatitudes and its pair weight.
 
     Args:
         frame: a frame (``cameras`` with ``position``/``rotation``, ``width``, ``height``).
@@ -125,14 +123,11 @@ def prepare_pair(frame, name: str, gray: dict, params: CostParams) -> PairWarp:
     ref = _features(warp_equirect(gray["C"], rect, cam_c.rotation), params.gradient_weight)
     other = _features(warp_equirect(gray[name], rect, cam_k.rotation), params.gradient_weight)
     theta = np.pi * (np.arange(h) + 0.5) / h
-    mu, mv = rotation_maps(w, h, cam_c.rotation, rect)  # C pixel -> rectified pixel
-    mu = (np.mod(mu + 0.5, w) - 0.5 + WRAP_PAD).astype(np.float32)
-    map1, map2 = cv2.convertMaps(mu, mv.astype(np.float32), cv2.CV_16SC2)
     bear = bearing_grid(w, h, cam_c.rotation)
     cos_b = bear @ (base / b)
     sin2 = np.clip(1.0 - cos_b * cos_b, 0.0, 1.0)
     weight = (sin2 ** (0.5 * params.pair_power)).astype(np.float32)
-    return PairWarp(name, b, rect, ref, other, np.cos(theta), np.sin(theta), map1, map2, weight)
+    return PairWarp(name, b, rect, ref, other, np.cos(theta), np.sin(theta), weight)
 
 
 def rect_row(v_rect, baseline_m: float, inv_d: float, height: int):
@@ -153,23 +148,6 @@ def source_rows(pair: PairWarp, inv_d: float, height: int) -> np.ndarray:
     """(H,) float64: the rectified row of K seen by each rectified row of C at inverse distance ``inv_d`` (1/m)."""
     theta2 = np.arctan2(pair.sin_theta, pair.cos_theta - pair.baseline_m * inv_d)
     return theta2 * height / np.pi - 0.5
-
-
-def pair_slice(pair: PairWarp, inv_d: float, truncate: float) -> np.ndarray:
-    """Truncated absolute feature difference of one pair at one hypothesis, in the rectified frame.
-
-    Returns:
-        (H, W + 2 * WRAP_PAD) float32, gray levels, columns padded by wrapping (ready for the back-remap).
-    """
-    _, h, w = pair.ref.shape
-    rows = np.clip(source_rows(pair, inv_d, h), 0.0, h - 1.0)
-    r0 = np.minimum(rows.astype(np.int64), h - 2)
-    f = (rows - r0).astype(np.float32)[None, :, None]
-    a = pair.other[:, r0]
-    warped = a + f * (pair.other[:, r0 + 1] - a)
-    diff = np.abs(warped - pair.ref).sum(axis=0)
-    np.minimum(diff, truncate, out=diff)
-    return np.concatenate([diff[:, w - WRAP_PAD:], diff, diff[:, :WRAP_PAD]], axis=1)
 
 
 def _pair_arrays(pw: PairWarp, frame):
