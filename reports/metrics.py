@@ -41,11 +41,14 @@ __all__ = [
     "BOUNDARY_TOLERANCE_PX",
     "AUSE_STEPS",
     "SUMMARY_KEYS",
+    "scored_pixels",
     "score_pixels",
     "summary",
     "pooled_summary",
     "ScoredMaps",
     "sparsification_curves",
+    "pooled_sparsification_curves",
+    "ause",
     "depth_edges",
     "dilate_wrapped",
     "breakdown",
@@ -85,6 +88,12 @@ SUMMARY_KEYS = ("mae_m", "rmse_m", "median_m", "absrel", "delta1", "outlier_rate
                 "boundary_precision", "boundary_recall", "seam_m")
 
 
+def scored_pixels(gt) -> np.ndarray:
+    """The scored pixels of a ground-truth map: (H, W) bool, True where ``gt`` is finite and positive."""
+    gt = np.asarray(gt)
+    return np.isfinite(gt) & (gt > 0)
+
+
 def score_pixels(pred, gt):
     """Per-pixel absolute error under the scoring rules of this module.
 
@@ -102,7 +111,7 @@ def score_pixels(pred, gt):
     gt = np.asarray(gt, dtype=np.float64)
     if pred.ndim != 2 or pred.shape != gt.shape:
         raise ValueError(f"pred and gt must be 2-D arrays of the same shape, got {pred.shape} and {gt.shape}")
-    mask = np.isfinite(gt) & (gt > 0)
+    mask = scored_pixels(gt)
     p, g = pred[mask], gt[mask]
     valid = np.isfinite(p) & (p > 0)
     abs_err = np.where(valid, np.abs(np.where(valid, p, 0.0) - g), g)
@@ -293,8 +302,18 @@ def _sparsification(err: np.ndarray, conf: np.ndarray, steps: int):
     return fractions, curve, oracle
 
 
-def _trapezoid(y: np.ndarray, x: np.ndarray) -> float:
-    return float(np.sum(0.5 * (y[1:] + y[:-1]) * np.diff(x)))
+def ause(fractions, curve, oracle) -> float:
+    """Area under the sparsification error curve minus the oracle's: ``trapezoid(curve - oracle, fractions)``.
+
+    Args:
+        fractions: (K,) removal fractions, increasing, 0..1.
+        curve, oracle: (K,) MAE of the kept pixels (method / oracle), metres.
+    Returns:
+        The area, metres (NaN if a curve value is NaN).
+    """
+    f = np.asarray(fractions, dtype=np.float64)
+    d = np.asarray(curve, dtype=np.float64) - np.asarray(oracle, dtype=np.float64)
+    return float(np.sum(0.5 * (d[1:] + d[:-1]) * np.diff(f)))
 
 
 def _summarise(parts: Sequence[_Pixels]) -> dict:
@@ -333,8 +352,7 @@ def _summarise(parts: Sequence[_Pixels]) -> dict:
     seam = np.concatenate([p.seam for p in parts])
     out["seam_m"] = float(seam.mean()) if seam.size else nan
     if confs[0] is not None:
-        fractions, curve, oracle = _sparsification(err, np.concatenate(confs), AUSE_STEPS)
-        out["ause"] = _trapezoid(curve - oracle, fractions)
+        out["ause"] = ause(*_sparsification(err, np.concatenate(confs), AUSE_STEPS))
     return out
 
 
@@ -415,7 +433,7 @@ def sparsification_curves(pred, gt, confidence, mask=None, steps: int = AUSE_STE
     kept are the most confident ones (method curve) or the ones with the smallest absolute error (oracle); the
     curve value is their MAE.  Pixels of equal confidence are removed in random order, in expectation: a run of
     ties that is only partly kept contributes its mean error per kept pixel.  NaN confidence counts as the
-    lowest.  ``ause = trapezoid(curve - oracle, fractions)``.
+    lowest.  :func:`ause` of the three is ``summary``'s ``ause``.
 
     Args:
         pred, gt: (H, W) metres, scored as in :func:`summary` (invalid predictions have error = gt).
@@ -431,6 +449,43 @@ def sparsification_curves(pred, gt, confidence, mask=None, steps: int = AUSE_STE
     pred, gt, confidence, mask = _check_maps(pred, gt, confidence, mask)
     px = ScoredMaps(pred, gt, confidence).pixels(mask)
     return _sparsification(px.err, px.conf, steps)
+
+
+def pooled_sparsification_curves(frames: Iterable[Sequence]) -> dict:
+    """Sparsification curves of one method pooled over frames: the pixel-weighted mean of the per-frame curves.
+
+    The area between the mean curve and the mean oracle (:func:`ause`) is the pixel-weighted mean of the
+    frames' ``ause``: the area is linear in the curves.
+
+    Args:
+        frames: per frame ``(fractions, curve, oracle, n_px)``: :func:`sparsification_curves` of the frame (the
+            same fractions for every frame) and its number of scored pixels (the weight; frames with none are
+            left out).
+    Returns:
+        ``{"fractions", "curve", "oracle"}`` ((K,) each: removal fractions, MAE of the kept pixels in metres, the
+        oracle's), ``"ause"`` (metres), ``"frames"`` (frames pooled) and ``"pixels"`` (scored pixels summed).
+    Raises:
+        ValueError: no frame with a scored pixel, or frames with different removal fractions.
+    """
+    fractions = None
+    curve = oracle = 0.0
+    weight = count = 0
+    for f, c, o, n_px in frames:
+        if not n_px:
+            continue
+        f = np.asarray(f, dtype=np.float64)
+        if fractions is not None and not np.array_equal(f, fractions):
+            raise ValueError("pooled_sparsification_curves: frames with different removal fractions")
+        fractions = f
+        curve = curve + n_px * np.asarray(c, dtype=np.float64)
+        oracle = oracle + n_px * np.asarray(o, dtype=np.float64)
+        weight += int(n_px)
+        count += 1
+    if not weight:
+        raise ValueError("pooled_sparsification_curves needs at least one frame with a scored pixel")
+    curve, oracle = curve / weight, oracle / weight
+    return {"fractions": fractions, "curve": curve, "oracle": oracle, "ause": ause(fractions, curve, oracle),
+            "frames": count, "pixels": weight}
 
 
 # --------------------------------------------------------------------------------------------- breakdown

@@ -21,12 +21,13 @@ from matplotlib.figure import Figure
 from matplotlib.patches import Patch
 from matplotlib.ticker import FormatStrFormatter
 
-from reports.metrics import score_pixels
-from reports.tables import PAPER_MAE_M, config_label, config_order, variant_order
+from reports.metrics import score_pixels, scored_pixels
+from reports.tables import PAPER_MAE_M, config_order, config_title, variant_order
 
 __all__ = ["variant_colors", "png_bytes", "fig4_mae", "error_maps", "breakdown_lines", "breakdown_groups",
            "cloud_views", "CLOUD_VIEWS", "sparsification_plot", "region_masks", "REGION_PANELS"]
 
+#: resolution of every PNG tri360 draws (report figures and study plots), dots per inch
 DPI = 90
 NO_SURFACE_RGBA = (0.78, 0.78, 0.78, 1.0)  # light grey: pixel with no surface (not scored)
 NO_PREDICTION_RGBA = (1.0, 0.0, 1.0, 1.0)  # magenta: invalid prediction (scored with |err| = gt)
@@ -38,11 +39,11 @@ def variant_colors(variants) -> dict[str, tuple]:
     return {v: cmap(i % 10) for i, v in enumerate(variant_order(variants))}
 
 
-def png_bytes(fig: Figure, dpi: int = DPI) -> bytes:
-    """Render a figure to PNG bytes."""
+def png_bytes(fig: Figure) -> bytes:
+    """Render a figure to PNG bytes at :data:`DPI`: the one PNG encoder of tri360's figures."""
     FigureCanvasAgg(fig)
     buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=dpi)
+    fig.savefig(buf, format="png", dpi=DPI)
     return buf.getvalue()
 
 
@@ -53,7 +54,7 @@ def fig4_mae(results: pd.DataFrame) -> bytes:
     """Paper Fig. 4 style bar chart.
 
     Args:
-        results: the validated ``results.csv`` table (:func:`reports.tables.load_results`).
+        results: the validated ``results.csv`` table (``harness.data.results.read_results``).
     Returns:
         PNG: one group of bars per flow/rectify configuration, one bar per variant with height = mean of
         the per-frame MAE (metres) over all frames, error bars = min..max of the per-frame MAE; a last,
@@ -71,7 +72,7 @@ def fig4_mae(results: pd.DataFrame) -> bytes:
                  layout="constrained")
     ax = fig.add_subplot()
     width = 0.8 / len(variants)
-    labels = [config_label(f, r).replace(" (", "\n(") for f, r in configs] + ["paper Fig. 4\n(quoted)"]
+    labels = [config_title(f, r).replace(" (", "\n(") for f, r in configs] + ["paper Fig. 4\n(quoted)"]
     for j, variant in enumerate(variants):
         xs, ys, lo, hi = [], [], [], []
         for i, (flow, rect) in enumerate(configs):
@@ -127,7 +128,7 @@ def error_maps(gt: np.ndarray, preds: dict[str, np.ndarray], title: str, ncols: 
         (not scored); magenta: invalid prediction (scored with error = gt).  Each panel title gives its MAE.
     """
     gt = np.asarray(gt, dtype=np.float64)
-    scored = np.isfinite(gt) & (gt > 0)
+    scored = scored_pixels(gt)
     errs, invalid, maes = {}, {}, {}
     for v, p in preds.items():
         mask, e, valid = score_pixels(p, gt)
@@ -183,16 +184,16 @@ OTHER_GROUP = "other methods"
 
 def breakdown_groups(bd: pd.DataFrame) -> pd.DataFrame:
     """Add ``group`` and ``line`` columns to a breakdown table: flow-pipeline rows are grouped by configuration
-    (:func:`reports.tables.config_label`) with one line per variant; every other method is a line of its own
+    (:func:`reports.tables.config_title`) with one line per variant; every other method is a line of its own
     (its label) in the group :data:`OTHER_GROUP`."""
     flow = bd["flow"] != ""
-    group = [config_label(f, r) if f else OTHER_GROUP for f, r in zip(bd["flow"], bd["rectify"], strict=True)]
+    group = [config_title(f, r) if f else OTHER_GROUP for f, r in zip(bd["flow"], bd["rectify"], strict=True)]
     return bd.assign(group=group, line=np.where(flow, bd["variant"], bd["method"]))
 
 
 def _group_order(bd: pd.DataFrame) -> list[str]:
     flow_rows = bd[bd["flow"] != ""]
-    out = [config_label(f, r) for f, r in config_order(zip(flow_rows["flow"], flow_rows["rectify"], strict=True))]
+    out = [config_title(f, r) for f, r in config_order(zip(flow_rows["flow"], flow_rows["rectify"], strict=True))]
     return out + ([OTHER_GROUP] if (bd["flow"] == "").any() else [])
 
 

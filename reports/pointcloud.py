@@ -14,18 +14,17 @@ PLY layout written here::
     property uchar blue
     end_header
     <N records of 15 bytes: 3 x float32 LE, 3 x uint8>
+
+Pure: arrays in, bytes out (and back); the report job writes the files.
 """
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 
-from harness.data.atomic import atomic_write_bytes
 from reconstruction.camera.equirect import bearing_grid
 
-__all__ = ["VERTEX_DTYPE", "point_grid", "ply_bytes", "write_ply", "read_ply"]
+__all__ = ["VERTEX_DTYPE", "point_grid", "ply_bytes", "parse_ply"]
 
 VERTEX_DTYPE = np.dtype([("x", "<f4"), ("y", "<f4"), ("z", "<f4"),
                          ("red", "u1"), ("green", "u1"), ("blue", "u1")])
@@ -77,25 +76,25 @@ def ply_bytes(points, colors, comment: str = "tri360") -> tuple[bytes, int]:
     return header.encode("ascii") + verts.tobytes(), int(verts.size)
 
 
-def write_ply(path, points, colors, comment: str = "tri360") -> int:
-    """Write :func:`ply_bytes` to ``path`` atomically; returns the number of vertices written."""
-    data, n = ply_bytes(points, colors, comment)
-    atomic_write_bytes(Path(path), data)
-    return n
+def parse_ply(raw: bytes, path: str = "PLY data") -> tuple[np.ndarray, np.ndarray]:
+    """Decode a PLY encoded by :func:`ply_bytes` -> ``(points (N, 3) float32, colors (N, 3) uint8)``.
 
-
-def read_ply(path) -> tuple[np.ndarray, np.ndarray]:
-    """Read a PLY written by :func:`write_ply` -> ``(points (N, 3) float32, colors (N, 3) uint8)``.
-
+    Args:
+        raw: the file's bytes.
+        path: what to call the data in error messages (e.g. the file it came from).
     Raises:
-        ValueError: if the file is not exactly that layout (naming the file).
+        ValueError: if the data is not exactly that layout (naming ``path``).
     """
-    path = Path(path)
-    raw = path.read_bytes()
     end = raw.find(b"end_header\n")
     if not raw.startswith(b"ply\n") or end < 0:
         raise ValueError(f"{path}: not a PLY file (no 'ply' magic or 'end_header')")
-    lines = [ln.strip() for ln in raw[:end].decode("ascii").splitlines() if not ln.startswith("comment")]
+    try:
+        header = raw[:end].decode("ascii")
+    except UnicodeDecodeError:
+        raise ValueError(f"{path}: PLY header is not ASCII text") from None
+    lines = [ln.strip() for ln in header.splitlines() if not ln.startswith("comment")]
+    if len(lines) < 3:
+        raise ValueError(f"{path}: PLY header too short ({len(lines)} lines)")
     expected_props = ["property float x", "property float y", "property float z",
                       "property uchar red", "property uchar green", "property uchar blue"]
     if lines[1] != "format binary_little_endian 1.0":

@@ -30,6 +30,7 @@ from reports.metrics import (
     angle_to_baseline_deg,
     depth_edges,
     dilate_wrapped,
+    scored_pixels,
     texture_magnitude,
 )
 
@@ -131,7 +132,7 @@ def occluded_from(frame, other: str, rel_tol: float = OCCLUSION_REL_TOL,
     gt = np.asarray(frame.distance["C"], dtype=np.float64)
     dk = np.asarray(frame.distance[other], dtype=np.float64)
     h, w = gt.shape
-    scored = np.isfinite(gt) & (gt > 0)
+    scored = scored_pixels(gt)
     bearings = bearing_grid(w, h, c.rotation)[scored]  # (N, 3) unit, world
     points = np.asarray(c.position, dtype=np.float64) + gt[scored][:, None] * bearings
     u, v = project(points, k.position, k.rotation, w, h)
@@ -161,7 +162,7 @@ def regions(frame) -> dict[str, np.ndarray]:
         raise ValueError(f"frame {frame.scene}/{frame.viewpoint} has no ground truth for camera(s) {missing}")
     gt = np.asarray(frame.distance["C"], dtype=np.float64)
     h, w = gt.shape
-    valid = np.isfinite(gt) & (gt > 0)
+    valid = scored_pixels(gt)
     occ_u, occ_r = occluded_from(frame, "U"), occluded_from(frame, "R")
     epi = {}
     for name in ("U", "R"):

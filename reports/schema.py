@@ -1,30 +1,29 @@
 """The results schema: one module owns the columns that ``evaluate``/``score`` write and the reports read.
 
 ``results.csv`` / ``results.json``: one row per (scene, viewpoint, method); ``regions.csv``: the same metrics per
-region of the frame (``reports.regions``).  ``flow``, ``rectify`` and
-``variant`` describe flow-pipeline methods and are empty for other methods.  ``breakdown.csv``: the same key
-plus a breakdown kind and bin (long format).
+region of the frame (``reports.regions``).  ``flow``, ``rectify`` and ``variant`` describe flow-pipeline methods
+and are empty for other methods.  ``breakdown.csv``: the same key plus a breakdown kind and bin (long format).
+
+Pure: the column lists, their types and the DataFrame constructors.  The files themselves are read and written
+by ``harness.data.results`` with these definitions.
 """
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import pandas as pd
 
-from harness.data import jsonio
-from harness.data.atomic import atomic_write_text
 from reports.metrics import SUMMARY_KEYS
 
 __all__ = ["KEY_COLUMNS", "FLOW_COLUMNS", "CORE_METRIC_COLUMNS", "METRIC_COLUMNS", "RESULT_COLUMNS", "RESULT_REQUIRED",
-           "REGION_COLUMNS", "BREAKDOWN_COLUMNS", "INT_COLUMNS", "results_table", "regions_table", "breakdown_table",
-           "write_results"]
+           "REGION_COLUMNS", "REGION_REQUIRED", "BREAKDOWN_COLUMNS", "INT_COLUMNS", "TEXT_COLUMNS", "BOOL_COLUMNS",
+           "results_table", "regions_table", "breakdown_table"]
 
 #: identify a row
 KEY_COLUMNS = ["scene", "viewpoint", "method"]
 #: describe the method (flow pipeline only: empty for other methods) and the frame
 FLOW_COLUMNS = ["flow", "rectify", "variant"]
-#: the first metrics (DESIGN.md's order; ``seconds`` is the method's wall time on the frame): always present
+#: the first metrics, always present, in the order every results set has had them (``seconds`` is the
+#: method's wall time on the frame)
 CORE_METRIC_COLUMNS = ["mae_m", "rmse_m", "median_m", "absrel", "delta1", "outlier_rate", "valid_px", "seconds"]
 #: every metric of reports.metrics.summary, then ``ause`` (empty where the method gives no confidence)
 METRIC_COLUMNS = [*CORE_METRIC_COLUMNS, *(k for k in SUMMARY_KEYS if k not in CORE_METRIC_COLUMNS), "ause"]
@@ -33,7 +32,15 @@ RESULT_COLUMNS = ["scene", "viewpoint", "width", "height", "method", *FLOW_COLUM
 RESULT_REQUIRED = ["scene", "viewpoint", "width", "height", "method", *FLOW_COLUMNS, *CORE_METRIC_COLUMNS]
 REGION_COLUMNS = [*KEY_COLUMNS, *FLOW_COLUMNS, "region", *(c for c in METRIC_COLUMNS if c != "seconds")]
 BREAKDOWN_COLUMNS = [*KEY_COLUMNS, *FLOW_COLUMNS, "kind", "bin_lo", "bin_hi", "mae_m", "median_m", "n_px"]
+#: the columns a regions.csv must have (older results sets lack the later metrics)
+REGION_REQUIRED = [*KEY_COLUMNS, *FLOW_COLUMNS, "region", *(c for c in CORE_METRIC_COLUMNS if c != "seconds")]
+#: whole numbers (never empty)
 INT_COLUMNS = {"width", "height", "valid_px", "n_px"}
+#: names (strings, never empty; ``flow`` and ``variant`` only in flow-pipeline rows)
+TEXT_COLUMNS = {"scene", "viewpoint", "method", "flow", "variant", "kind", "region"}
+#: true/false in flow-pipeline rows, empty in the others
+BOOL_COLUMNS = {"rectify"}
+# every other column is a float (NaN allowed: e.g. a frame with no scored pixel, ``ause`` without confidence)
 
 
 def results_table(rows: list[dict]) -> pd.DataFrame:
@@ -49,25 +56,3 @@ def regions_table(rows: list[dict]) -> pd.DataFrame:
 def breakdown_table(rows: list[dict]) -> pd.DataFrame:
     """Rows (dicts with at least :data:`BREAKDOWN_COLUMNS`) -> the breakdown table, columns in schema order."""
     return pd.DataFrame(rows, columns=BREAKDOWN_COLUMNS)
-
-
-def write_results(out: Path, table: pd.DataFrame, breakdown: pd.DataFrame | None = None,
-                  regions: pd.DataFrame | None = None) -> list[Path]:
-    """Write ``results.csv``, ``results.json`` and (if given) ``breakdown.csv`` and ``regions.csv`` into ``out``,
-    each atomically.
-
-    Returns:
-        The paths written.
-    """
-    out = Path(out)
-    table = table[RESULT_COLUMNS]
-    written = [out / "results.csv", out / "results.json"]
-    atomic_write_text(written[0], table.to_csv(index=False))
-    atomic_write_text(written[1], jsonio.dumps(table.to_dict(orient="records")))
-    if breakdown is not None:
-        written.append(out / "breakdown.csv")
-        atomic_write_text(written[-1], breakdown[BREAKDOWN_COLUMNS].to_csv(index=False))
-    if regions is not None:
-        written.append(out / "regions.csv")
-        atomic_write_text(written[-1], regions[REGION_COLUMNS].to_csv(index=False))
-    return written

@@ -1,51 +1,28 @@
-"""Read and validate a results directory; the MAE table (variant x scene, % reduction against ``average``); the
-leaderboard (every method x overall metrics and MAE per region).
+"""The results tables: the MAE table of the flow pipeline (variant x scene, % reduction against ``average``) and
+the leaderboard (every method x overall metrics and MAE per region), with their markdown and display forms.
 
-A results directory (written by ``tri360 evaluate`` / ``tri360 score``) holds ``results.csv`` (one row per scene,
-viewpoint, method), ``regions.csv`` (the same per region), ``breakdown.csv`` (long format), ``frames.json``,
-``config.json`` and ``maps/``.  Readers here raise :class:`harness.data.errors.UserError` with one line naming the
-file and what is wrong.
+Pure: validated results DataFrames in (``harness.data.results`` reads them from a results directory with the
+columns of :mod:`reports.schema`), DataFrames and text out.
 """
 
 from __future__ import annotations
 
-import json
 import math
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from harness.data.errors import UserError
-from reconstruction.methods.flow_pipeline import config_label as flow_config_label
+from reconstruction.methods.flow_pipeline import config_label
 from reports.regions import REGION_NAMES
-from reports.schema import (
-    BREAKDOWN_COLUMNS,
-    CORE_METRIC_COLUMNS,
-    FLOW_COLUMNS,
-    INT_COLUMNS,
-    KEY_COLUMNS,
-    REGION_COLUMNS,
-    RESULT_COLUMNS,
-    RESULT_REQUIRED,
-)
 
 __all__ = [
-    "RESULT_COLUMNS",
-    "BREAKDOWN_COLUMNS",
     "PAPER_MAE_M",
     "PAPER_LABEL",
-    "config_key",
-    "config_label",
+    "config_title",
     "config_order",
     "variant_order",
-    "load_results",
-    "load_breakdown",
-    "load_frames",
-    "load_regions",
-    "load_method_kinds",
     "method_order",
-    "mae_table",
+    "variant_mae_table",
     "mae_markdown",
     "mae_display",
     "LEADERBOARD_OVERALL",
@@ -66,15 +43,11 @@ FLOW_ORDER = ["deepflow", "dis", "farneback", "rlof", "oracle"]
 VARIANT_ORDER = ["average", "angle", "gradient", "color"]
 
 
-def config_key(flow: str, rectify: bool) -> str:
-    """Directory name of a configuration under ``maps/``: ``"<flow>-rect"`` or ``"<flow>-plain"``."""
-    return flow_config_label(flow, bool(rectify))
-
-
-def config_label(flow: str, rectify: bool) -> str:
-    """Human label: the key, plus ``" (paper set-up)"`` for DeepFlow on plain (unrectified) pairs."""
-    key = config_key(flow, rectify)
-    return f"{key} (paper set-up)" if flow == "deepflow" and not rectify else key
+def config_title(flow: str, rectify: bool) -> str:
+    """Human title of a flow configuration: its label (``reconstruction.methods.flow_pipeline.config_label``,
+    e.g. ``dis-rect``), plus ``" (paper set-up)"`` for DeepFlow on plain (unrectified) pairs."""
+    label = config_label(flow, bool(rectify))
+    return f"{label} (paper set-up)" if flow == "deepflow" and not rectify else label
 
 
 def config_order(pairs) -> list[tuple[str, bool]]:
@@ -90,200 +63,6 @@ def variant_order(variants) -> list[str]:
     def rank(v):
         return (VARIANT_ORDER.index(v) if v in VARIANT_ORDER else len(VARIANT_ORDER), v)
     return sorted({str(v) for v in variants}, key=rank)
-
-
-# ------------------------------------------------------------------------------------------------ reading
-
-
-def _require_dir(results_dir) -> Path:
-    d = Path(results_dir)
-    if not d.exists():
-        raise UserError(f"{d}: results directory does not exist "
-                        f"(write one with `tri360 evaluate DATA --out {d}`)")
-    if not d.is_dir():
-        raise UserError(f"{d}: not a directory (expected a results directory written by `tri360 evaluate`)")
-    return d
-
-
-def _parse_bool(series: pd.Series, path: Path, column: str) -> pd.Series:
-    table = {"true": True, "false": False, "1": True, "0": False, "yes": True, "no": False}
-    low = series.astype(str).str.strip().str.lower()
-    bad = ~low.isin(list(table))
-    if bad.any():
-        i = int(np.flatnonzero(bad.to_numpy())[0])
-        raise UserError(f"{path}: column {column!r} must be true/false, "
-                        f"got {series.iloc[i]!r} in data row {i + 1}")
-    return low.map(table).astype(bool)
-
-
-def _parse_numeric(series: pd.Series, path: Path, column: str) -> pd.Series:
-    text = series.astype(str).str.strip()
-    num = pd.to_numeric(text, errors="coerce")
-    missing = text.str.lower().isin(["", "nan"])
-    bad = num.isna() & ~missing
-    if bad.any():
-        i = int(np.flatnonzero(bad.to_numpy())[0])
-        raise UserError(f"{path}: column {column!r} must be numeric, "
-                        f"got {series.iloc[i]!r} in data row {i + 1}")
-    num = num.astype(np.float64)
-    if column in INT_COLUMNS:
-        if missing.any():
-            i = int(np.flatnonzero(missing.to_numpy())[0])
-            raise UserError(f"{path}: column {column!r} is empty in data row {i + 1}")
-        if not np.all(np.isfinite(num)) or not np.all(num == np.round(num)):
-            raise UserError(f"{path}: column {column!r} must hold whole numbers")
-        return num.astype(np.int64)
-    return num
-
-
-def _read_csv(path: Path, columns: list[str], what: str, required: list[str] | None = None) -> pd.DataFrame:
-    if path.exists() and not path.is_file():
-        raise UserError(f"{path}: not a regular file ({what})")
-    if not path.is_file():
-        raise UserError(f"{path}: file is missing ({what})")
-    try:
-        df = pd.read_csv(path, dtype=str, keep_default_na=False)
-    except pd.errors.EmptyDataError:
-        raise UserError(f"{path}: file is empty "
-                        f"(expected a header with columns {', '.join(columns)})") from None
-    except (pd.errors.ParserError, UnicodeDecodeError) as exc:
-        raise UserError(f"{path}: not a readable CSV file ({str(exc).strip()})") from None
-    df.columns = [str(c).strip() for c in df.columns]
-    missing = [c for c in (required or columns) if c not in df.columns]
-    if missing:
-        raise UserError(f"{path}: missing column(s) {', '.join(missing)} (found: {', '.join(df.columns)})")
-    if df.empty:
-        raise UserError(f"{path}: has a header but no data rows")
-    for c in columns:  # optional columns of older files: empty
-        if c not in df.columns:
-            df[c] = ""
-    df = df[columns].copy()
-    # flow, rectify and variant describe flow-pipeline methods and are empty for the others
-    flow_row = df["flow"].astype(str).str.strip() != "" if "flow" in df.columns else None
-    for c in columns:
-        if c == "rectify":
-            parsed = _parse_bool(df.loc[flow_row, c], path, c) if flow_row.any() else None
-            df[c] = ""
-            if parsed is not None:
-                df[c] = df[c].astype(object)
-                df.loc[flow_row, c] = parsed
-        elif c in ("scene", "viewpoint", "method", "flow", "variant", "kind", "region"):
-            df[c] = df[c].astype(str).str.strip()
-            empty = df[c] == ""
-            if c in ("flow", "variant"):
-                empty &= flow_row
-            if empty.any():
-                i = int(np.flatnonzero(empty.to_numpy())[0])
-                raise UserError(f"{path}: column {c!r} is empty in data row {i + 1}")
-        else:
-            df[c] = _parse_numeric(df[c], path, c)
-    return df
-
-
-def _read_json(path: Path):
-    """The parsed JSON of ``path``, or None if it does not exist; UserError naming it if it is not JSON."""
-    if not path.exists():
-        return None
-    try:
-        return json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise UserError(f"{path}: not valid JSON ({exc})") from None
-
-
-def load_results(results_dir) -> pd.DataFrame:
-    """Read and validate ``RESULTS/results.csv``.
-
-    Returns:
-        DataFrame with exactly :data:`RESULT_COLUMNS`: strings for names, bool ``rectify``, int sizes and
-        ``valid_px``, float metrics (NaN allowed, e.g. for a frame with no scored pixel).
-    Raises:
-        UserError: missing/empty directory or file, unreadable CSV, missing columns, no rows, non-numeric
-            metrics, non-boolean ``rectify`` in a flow-pipeline row, or duplicate (scene, viewpoint, method) rows.
-    """
-    d = _require_dir(results_dir)
-    path = d / "results.csv"
-    if not path.is_file() and not any(d.iterdir()):
-        raise UserError(f"{d}: results directory is empty (no results.csv; run `tri360 evaluate` first)")
-    df = _read_csv(path, RESULT_COLUMNS, "the per-frame results written by `tri360 evaluate`", RESULT_REQUIRED)
-    dup = df.duplicated(KEY_COLUMNS, keep=False)
-    if dup.any():
-        r = df[dup].iloc[0]
-        raise UserError(f"{path}: duplicate rows for scene={r.scene} viewpoint={r.viewpoint} method={r.method}")
-    return df.reset_index(drop=True)
-
-
-def load_breakdown(results_dir) -> pd.DataFrame | None:
-    """Read and validate ``RESULTS/breakdown.csv``; ``None`` if the file does not exist.
-
-    Raises:
-        UserError: for an unreadable or malformed file (naming it).
-    """
-    path = Path(results_dir) / "breakdown.csv"
-    if not path.exists():
-        return None
-    return _read_csv(path, BREAKDOWN_COLUMNS, "the error breakdown written by `tri360 evaluate`")
-
-
-def load_frames(results_dir) -> list[dict] | None:
-    """Read ``RESULTS/frames.json`` -> list of ``{"scene", "viewpoint", "path"}``; ``None`` if absent.
-
-    Raises:
-        UserError: if the file is not valid JSON or not a list of objects with those three string keys.
-    """
-    path = Path(results_dir) / "frames.json"
-    raw = _read_json(path)
-    if raw is None:
-        return None
-    if not isinstance(raw, list):
-        raise UserError(f"{path}: must be a JSON list of {{scene, viewpoint, path}} objects")
-    out = []
-    for i, item in enumerate(raw):
-        if not isinstance(item, dict) or not all(isinstance(item.get(k), str) for k in ("scene", "viewpoint",
-                                                                                        "path")):
-            raise UserError(f"{path}: entry {i} must be an object with string keys scene, viewpoint, path")
-        out.append({"scene": item["scene"], "viewpoint": item["viewpoint"], "path": item["path"]})
-    return out
-
-
-#: the columns a regions.csv must have
-REGION_REQUIRED = [*KEY_COLUMNS, *FLOW_COLUMNS, "region", *(c for c in CORE_METRIC_COLUMNS if c != "seconds")]
-
-
-def load_regions(results_dir) -> pd.DataFrame | None:
-    """Read and validate ``RESULTS/regions.csv``; ``None`` if the file does not exist (older results sets).
-
-    Returns:
-        DataFrame with exactly :data:`reports.schema.REGION_COLUMNS` (types as :func:`load_results`).
-    Raises:
-        UserError: unreadable or malformed file, or duplicate (scene, viewpoint, method, region) rows.
-    """
-    path = Path(results_dir) / "regions.csv"
-    if not path.exists():
-        return None
-    df = _read_csv(path, REGION_COLUMNS, "the per-region metrics written by `tri360 evaluate`", REGION_REQUIRED)
-    dup = df.duplicated([*KEY_COLUMNS, "region"], keep=False)
-    if dup.any():
-        r = df[dup].iloc[0]
-        raise UserError(f"{path}: duplicate rows for scene={r.scene} viewpoint={r.viewpoint} method={r.method} "
-                        f"region={r.region}")
-    return df.reset_index(drop=True)
-
-
-def load_method_kinds(results_dir) -> dict[str, str] | None:
-    """``RESULTS/config.json`` -> ``{method label: kind}`` (``flow-pipeline``, ``sweep``, ``predictions``...);
-    ``None`` if the file does not exist.  A method whose configuration names no kind is left out.
-
-    Raises:
-        UserError: the file is not valid JSON or its ``methods`` entry is not an object.
-    """
-    path = Path(results_dir) / "config.json"
-    raw = _read_json(path)
-    if raw is None:
-        return None
-    methods = raw.get("methods", {}) if isinstance(raw, dict) else None
-    if not isinstance(methods, dict):
-        raise UserError(f"{path}: 'methods' must be an object {{label: configuration}}")
-    return {str(k): str(v["kind"]) for k, v in methods.items() if isinstance(v, dict) and v.get("kind")}
 
 
 def method_order(results: pd.DataFrame) -> list[str]:
@@ -308,7 +87,7 @@ def _reduction_pct(avg: float, value: float) -> float:
     return 100.0 * (avg - value) / avg
 
 
-def mae_table(results: pd.DataFrame) -> pd.DataFrame:
+def variant_mae_table(results: pd.DataFrame) -> pd.DataFrame:
     """The MAE table: one row per (configuration, variant), then the paper's reference rows.
 
     For every scene, ``<scene> mae_m`` is the mean of the per-frame ``mae_m`` over that scene's frames
@@ -329,7 +108,7 @@ def mae_table(results: pd.DataFrame) -> pd.DataFrame:
         avg = conf[conf["variant"] == "average"].set_index(["scene", "viewpoint"])["mae_m"]
         for variant in variant_order(conf["variant"]):
             sub = conf[conf["variant"] == variant]
-            row = {"source": "tri360", "configuration": config_label(flow, rect), "flow": flow,
+            row = {"source": "tri360", "configuration": config_title(flow, rect), "flow": flow,
                    "rectify": rect, "variant": variant}
             for scene, part in [*((s, sub[sub["scene"] == s]) for s in scenes), ("all", sub)]:
                 mae = float(part["mae_m"].mean(skipna=False)) if len(part) else float("nan")
@@ -357,7 +136,7 @@ def mae_table(results: pd.DataFrame) -> pd.DataFrame:
 
 
 def mae_display(table: pd.DataFrame) -> pd.DataFrame:
-    """String version of :func:`mae_table` for markdown/HTML: MAE to 5 decimals (m), reductions in %."""
+    """String version of :func:`variant_mae_table` for markdown/HTML: MAE to 5 decimals (m), reductions in %."""
     scene_cols = [c[: -len(" mae_m")] for c in table.columns if c.endswith(" mae_m")]
     out = pd.DataFrame({"configuration": table["configuration"], "variant": table["variant"]})
     for s in scene_cols:
@@ -374,7 +153,7 @@ def _md_cell(text: str) -> str:
 
 
 def mae_markdown(table: pd.DataFrame) -> str:
-    """Markdown document with the MAE table (from :func:`mae_table`) and how to read it."""
+    """Markdown document with the MAE table (from :func:`variant_mae_table`) and how to read it."""
     disp = mae_display(table)
     lines = [
         "# Mean absolute error of camera C's distance",
@@ -439,9 +218,9 @@ def leaderboard_table(results: pd.DataFrame, regions: pd.DataFrame | None = None
     without confidence).
 
     Args:
-        results: validated ``results.csv`` (:func:`load_results`).
-        regions: validated ``regions.csv`` (:func:`load_regions`) or None (region columns all NaN).
-        kinds: method label -> kind from ``config.json`` (:func:`load_method_kinds`).
+        results: validated ``results.csv`` (``harness.data.results.read_results``).
+        regions: validated ``regions.csv`` (``harness.data.results.read_regions``) or None (region columns all NaN).
+        kinds: method label -> kind from ``config.json`` (``harness.data.results.read_method_kinds``).
     Returns:
         DataFrame, columns ``source`` ("tri360" / "paper"), ``method``, ``kind``, ``flow``, ``rectify``,
         ``variant``, ``frames``, the :data:`LEADERBOARD_OVERALL` columns (metres / shares 0..1) and
@@ -469,7 +248,7 @@ def leaderboard_table(results: pd.DataFrame, regions: pd.DataFrame | None = None
         table = table.sort_values("mae_m", kind="stable", na_position="last")
     paper = []
     for variant, mae in PAPER_MAE_M.items():
-        row = {"source": "paper", "method": f"paper: {flow_config_label('deepflow', False)}:{variant}",
+        row = {"source": "paper", "method": f"paper: {config_label('deepflow', False)}:{variant}",
                "kind": PAPER_KIND, "flow": "deepflow", "rectify": False, "variant": variant, "frames": 1}
         row.update({col: float("nan") for col, _ in LEADERBOARD_OVERALL})
         row.update({f"mae_{r}": float("nan") for r in LEADERBOARD_REGIONS})

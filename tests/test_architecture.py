@@ -1,32 +1,66 @@
-"""The layers of DESIGN.md, checked on the source: one import direction, no package cycles, bpy in one place,
-no function-level imports of project modules, and the bottom packages import without Blender."""
+"""The layers of the code base, checked on the source (an AST walk):
+
+* at the top level one import direction: ``reconstruction`` imports no other project package, ``scenes`` and
+  ``reports`` import only ``reconstruction``, ``harness`` imports all three (``TOP_LEVEL``);
+* inside, the layers ``LAYERS`` run one way (a module imports its own layer or the layers below it);
+* no cycles between sub-packages, no function-level import statements of project modules, ``bpy`` in one
+  module, ``reports`` touches no file, and the bottom packages import without Blender.
+
+An import is an ``import`` / ``from ... import`` statement (relative ones resolved against the module's
+package) or a call of ``importlib.import_module`` / ``__import__`` with a string (a literal or a module-level
+string constant): the lazy loads count for the direction too.
+"""
 
 from __future__ import annotations
 
 import ast
 import subprocess
 import sys
+from collections.abc import Iterator
+from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-PACKAGES = ("reconstruction", "scenes", "harness", "reports")
+PACKAGES = ("reconstruction", "scenes", "reports", "harness")
+#: top-level package -> the other project packages it may import
+TOP_LEVEL = {
+    "reconstruction": set(),
+    "scenes": {"reconstruction"},
+    "reports": {"reconstruction"},
+    "harness": {"reconstruction", "scenes", "reports"},
+}
 #: bottom to top; a module may import modules of its own layer or of layers below it
-LAYERS = ["reconstruction", "scenes", "harness.data", "harness.render", "reports", "harness.jobs", "harness.cli"]
-#: third-party packages a layer must never import
+LAYERS = ["reconstruction", "scenes", "reports", "harness.data", "harness.render", "harness.jobs", "harness.cli"]
+#: modules a layer must never import (third-party, and for reports everything that reaches the file system)
 FORBIDDEN = {
     "reconstruction": {"bpy", "pandas", "matplotlib", "OpenEXR", "dask", "distributed"},
     "scenes": {"bpy", "pandas", "matplotlib", "cv2"},
-    "harness.data": {"bpy", "pandas", "matplotlib"},
+    "reports": {"bpy", "os", "pathlib", "shutil", "tempfile", "glob", "subprocess", "OpenEXR"},
+    "harness.data": {"bpy", "matplotlib"},
     "harness.render": {"pandas", "matplotlib"},
-    "reports": {"bpy"},
 }
+#: calls that read or write files (``reports`` makes none of them)
+FILE_CALLS = {"open", "read_text", "write_text", "read_bytes", "write_bytes", "read_csv", "read_json", "mkdir",
+              "unlink", "rmdir", "touch", "iterdir", "glob", "rglob", "imread", "imwrite"}
 BPY_MODULE = "harness.render.cycles"
 
 
-def module_name(path: Path) -> str:
-    rel = path.relative_to(ROOT).with_suffix("")
+@dataclass(frozen=True)
+class Import:
+    """One import found in a source file: the module named, its line, whether it is at module level, and
+    whether it is a statement (``import`` / ``from``) or a dynamic load (``importlib.import_module``,
+    ``__import__``)."""
+
+    module: str
+    line: int
+    top: bool
+    statement: bool = True
+
+
+def module_name(path: Path, root: Path = ROOT) -> str:
+    rel = path.relative_to(root).with_suffix("")
     parts = rel.parts[:-1] if rel.name == "__init__" else rel.parts
     return ".".join(parts)
 
@@ -36,34 +70,115 @@ def layer_of(module: str) -> int:
         return LAYERS.index("harness.data")
     best = max((x for x in LAYERS if module == x or module.startswith(x + ".")), key=len, default=None)
     if best is None:
-        raise AssertionError(f"module {module} is in no layer of DESIGN.md")
+        raise AssertionError(f"module {module} is in no layer of LAYERS")
     return LAYERS.index(best)
 
 
-def source_files() -> list[Path]:
-    return sorted(p for pkg in PACKAGES for p in (ROOT / pkg).rglob("*.py"))
+def source_files(root: Path = ROOT) -> list[Path]:
+    return sorted(p for pkg in PACKAGES if (root / pkg).is_dir() for p in (root / pkg).rglob("*.py"))
 
 
-def imports(path: Path):
-    """``(module imported, line, at module level?)`` for every import statement of ``path``."""
-    tree = ast.parse(path.read_text(encoding="utf-8"))
+def _string_constants(tree: ast.Module) -> dict[str, str]:
+    """Module-level ``NAME = "text"`` assignments (e.g. ``EXECUTOR_MODULE = "harness.jobs.executor"``)."""
+    out = {}
+    for n in tree.body:
+        value = n.value if isinstance(n, ast.Assign | ast.AnnAssign) else None
+        targets = n.targets if isinstance(n, ast.Assign) else [n.target] if isinstance(n, ast.AnnAssign) else []
+        if isinstance(value, ast.Constant) and isinstance(value.value, str):
+            out.update({t.id: value.value for t in targets if isinstance(t, ast.Name)})
+    return out
+
+
+def _dynamic_target(call: ast.Call, constants: dict[str, str]) -> str | None:
+    """The module a call ``importlib.import_module(x)`` / ``import_module(x)`` / ``__import__(x)`` loads, if ``x``
+    is a string literal or a module-level string constant."""
+    f = call.func
+    name = f.attr if isinstance(f, ast.Attribute) else f.id if isinstance(f, ast.Name) else None
+    if name not in ("import_module", "__import__") or not call.args:
+        return None
+    arg = call.args[0]
+    if isinstance(arg, ast.Constant) and isinstance(arg.value, str):
+        return arg.value
+    if isinstance(arg, ast.Name):
+        return constants.get(arg.id)
+    return None
+
+
+def imports_of(source: str, module: str, is_package: bool = False) -> Iterator[Import]:
+    """Every import of the module ``module`` whose text is ``source`` (see the module doc); relative imports are
+    resolved against the module's package (the module itself when ``is_package``, i.e. an ``__init__.py``)."""
+    tree = ast.parse(source)
     top = {id(n) for n in tree.body}
     # imports under a module-level `if TYPE_CHECKING:` or try/except count as module level
     for n in tree.body:
         if isinstance(n, ast.If | ast.Try):
             top.update(id(x) for x in ast.walk(n))
+    constants = _string_constants(tree)
+    package = module.split(".") if is_package else module.split(".")[:-1]
     for node in ast.walk(tree):
         if isinstance(node, ast.Import):
             for alias in node.names:
-                yield alias.name, node.lineno, id(node) in top
-        elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
-            yield node.module, node.lineno, id(node) in top
+                yield Import(alias.name, node.lineno, id(node) in top)
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package[: len(package) - node.level + 1]
+                if len(base) != len(package) - node.level + 1 or not base:
+                    yield Import(f"<relative import beyond the top package in {module}>", node.lineno, True)
+                    continue
+                parent = ".".join(base + ([node.module] if node.module else []))
+            else:
+                parent = node.module or ""
+            if node.module or node.level:
+                yield Import(parent, node.lineno, id(node) in top)
             for alias in node.names:  # `from harness.render import cycles` imports harness.render.cycles
-                yield f"{node.module}.{alias.name}", node.lineno, id(node) in top
+                yield Import(f"{parent}.{alias.name}", node.lineno, id(node) in top)
+        elif isinstance(node, ast.Call):
+            target = _dynamic_target(node, constants)
+            if target:
+                yield Import(target, node.lineno, id(node) in top, statement=False)
+
+
+def imports(path: Path, root: Path = ROOT) -> Iterator[Import]:
+    return imports_of(path.read_text(encoding="utf-8"), module_name(path, root), path.name == "__init__.py")
 
 
 def is_project(module: str) -> bool:
     return module.split(".")[0] in PACKAGES
+
+
+def _resolves(target: str, root: Path = ROOT) -> str | None:
+    """The longest prefix of ``target`` that is a project module or package (``from x import name`` also
+    yields ``x.name``, which may be a function rather than a module)."""
+    parts = target.split(".")
+    for k in range(len(parts), 0, -1):
+        cand = root.joinpath(*parts[:k])
+        if cand.with_suffix(".py").is_file() or (cand / "__init__.py").is_file():
+            return ".".join(parts[:k])
+    return None
+
+
+def direction_violations(root: Path = ROOT) -> list[str]:
+    """Every import against the direction, one line per statement: across top-level packages (:data:`TOP_LEVEL`;
+    a project package that does not exist under ``root`` counts by its name) and between layers (:data:`LAYERS`)."""
+    bad: dict[tuple[Path, int], str] = {}  # `from a.b import c` imports a.b and a.b.c: the first one found
+    for path in source_files(root):
+        mod = module_name(path, root)
+        pkg = mod.split(".")[0]
+        mine = layer_of(mod)
+        where = path.relative_to(root)
+        for imp in imports(path, root):
+            if imp.module.startswith("<"):
+                bad.setdefault((where, imp.line), f"{where}:{imp.line}: {imp.module}")
+            elif not is_project(imp.module):
+                continue
+            elif (other := imp.module.split(".")[0]) != pkg and other not in TOP_LEVEL[pkg]:
+                allowed = ", ".join(sorted(TOP_LEVEL[pkg])) or "no project package"
+                bad.setdefault((where, imp.line), f"{where}:{imp.line}: {mod} imports {imp.module} "
+                                                  f"({pkg} may import only {allowed})")
+            elif (target := _resolves(imp.module, root)) and layer_of(target) > mine:
+                bad.setdefault((where, imp.line), f"{where}:{imp.line}: {mod} ({LAYERS[mine]}) imports "
+                                                  f"{imp.module} ({LAYERS[layer_of(target)]})")
+    return list(bad.values())
 
 
 def test_every_module_is_in_a_layer():
@@ -72,34 +187,55 @@ def test_every_module_is_in_a_layer():
 
 
 def test_imports_run_one_way():
-    """A module imports only its own layer or the layers below it (DESIGN.md's table)."""
-    bad = []
-    for path in source_files():
-        mod = module_name(path)
-        mine = layer_of(mod)
-        for target, line, _ in imports(path):
-            if is_project(target) and _resolves(target) and layer_of(_resolves(target)) > mine:
-                bad.append(f"{path.relative_to(ROOT)}:{line}: {mod} ({LAYERS[mine]}) imports {target} "
-                           f"({LAYERS[layer_of(_resolves(target))]})")
+    """Top level: harness -> reports, scenes -> reconstruction; inside: each layer imports only the layers below."""
+    bad = direction_violations()
     assert not bad, "imports against the layer direction:\n" + "\n".join(bad)
 
 
-def _resolves(target: str) -> str | None:
-    """The longest prefix of ``target`` that is a project module or package (``from x import name`` also
-    yields ``x.name``, which may be a function rather than a module)."""
-    parts = target.split(".")
-    for k in range(len(parts), 0, -1):
-        cand = ROOT.joinpath(*parts[:k])
-        if cand.with_suffix(".py").is_file() or (cand / "__init__.py").is_file():
-            return ".".join(parts[:k])
-    return None
+def _tree(tmp_path: Path, files: dict[str, str]) -> Path:
+    for rel, text in {"reconstruction/__init__.py": "", "scenes/__init__.py": "", "reports/__init__.py": "",
+                      "harness/__init__.py": "", "harness/data/__init__.py": "", "harness/data/errors.py": "",
+                      "harness/jobs/__init__.py": "", "harness/jobs/report.py": "", **files}.items():
+        (tmp_path / rel).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / rel).write_text(text)
+    return tmp_path
+
+
+@pytest.mark.parametrize(("rel", "source", "culprit"), [
+    ("reports/tables.py", "from harness.data.errors import UserError\n", "harness.data.errors"),
+    ("reports/tables.py", "import harness.data\n", "harness.data"),
+    ("reports/tables.py", "import importlib\nM = importlib.import_module('harness.data.errors')\n",
+     "harness.data.errors"),
+    ("reports/tables.py", "import importlib\nNAME = 'harness.jobs'\n\n\ndef f():\n"
+     "    return importlib.import_module(NAME)\n", "harness.jobs"),
+    ("reports/tables.py", "errors = __import__('harness.data.errors')\n", "harness.data.errors"),
+    ("scenes/model.py", "from reports import tables\n", "reports"),
+    ("reconstruction/x.py", "import scenes\n", "scenes"),
+    ("harness/data/frame.py", "from ..jobs import report\n", "harness.jobs"),
+    ("harness/data/frame.py", "from ..jobs.report import build_report\n", "harness.jobs.report"),
+])
+def test_the_direction_check_catches_a_wrong_import(tmp_path, rel, source, culprit):
+    """The checker run on a small synthetic tree: one wrong import (statement, relative, importlib or __import__)
+    is reported, naming the file and what it imports; the same tree without it is clean."""
+    root = _tree(tmp_path, {rel: "x = 1\n"})
+    assert direction_violations(root) == []
+    (root / rel).write_text(source)
+    bad = direction_violations(root)
+    assert len(bad) == 1 and bad[0].startswith(f"{rel}:") and f"imports {culprit} " in bad[0], bad
+
+
+def test_relative_imports_resolve_against_the_package():
+    mods = [i.module for i in imports_of("from . import exr\nfrom .atomic import write\n", "harness.data.frame")]
+    assert mods == ["harness.data", "harness.data.exr", "harness.data.atomic", "harness.data.atomic.write"]
+    mods = [i.module for i in imports_of("from .errors import UserError\n", "harness.data", is_package=True)]
+    assert mods == ["harness.data.errors", "harness.data.errors.UserError"]
 
 
 def test_no_function_level_project_imports():
-    """Project modules are imported at module top only (the one lazy load of the Cycles backend goes through
-    importlib, so that importing the CLI never loads bpy)."""
-    bad = [f"{p.relative_to(ROOT)}:{line}: {t}" for p in source_files() for t, line, top in imports(p)
-           if is_project(t) and not top]
+    """Project modules are imported at module top only (the lazy loads of the Cycles backend and of Dask go
+    through importlib, so that importing the CLI never loads bpy or Dask)."""
+    bad = [f"{p.relative_to(ROOT)}:{i.line}: {i.module}" for p in source_files() for i in imports(p)
+           if i.statement and is_project(i.module) and not i.top]
     assert not bad, "function-level imports of project modules:\n" + "\n".join(bad)
 
 
@@ -108,13 +244,32 @@ def test_third_party_imports_respect_the_layers():
     for path in source_files():
         mod = module_name(path)
         layer = LAYERS[layer_of(mod)]
-        for target, line, _ in imports(path):
-            root = target.split(".")[0]
+        for imp in imports(path):
+            root = imp.module.split(".")[0]
             if root == "bpy" and mod != BPY_MODULE:
-                bad.append(f"{path.relative_to(ROOT)}:{line}: imports bpy (only {BPY_MODULE} may)")
+                bad.append(f"{path.relative_to(ROOT)}:{imp.line}: imports bpy (only {BPY_MODULE} may)")
             elif root in FORBIDDEN.get(layer, set()):
-                bad.append(f"{path.relative_to(ROOT)}:{line}: {layer} must not import {root}")
+                bad.append(f"{path.relative_to(ROOT)}:{imp.line}: {layer} must not import {root}")
     assert not bad, "\n".join(sorted(set(bad)))
+
+
+def test_reports_touch_no_files():
+    """reports is pure: arrays and DataFrames in, DataFrames, figures, bytes and text out.  No call that reads or
+    writes a file (``open``, ``Path.read_text``, ``pd.read_csv``, ...) and no ``to_csv``/``to_json`` to a path."""
+    bad = []
+    for path in source_files():
+        if not module_name(path).startswith("reports"):
+            continue
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if not isinstance(node, ast.Call):
+                continue
+            f = node.func
+            name = f.attr if isinstance(f, ast.Attribute) else f.id if isinstance(f, ast.Name) else ""
+            to_path = name in ("to_csv", "to_json") and bool(node.args or any(k.arg == "path_or_buf"
+                                                                               for k in node.keywords))
+            if name in FILE_CALLS or to_path:
+                bad.append(f"{path.relative_to(ROOT)}:{node.lineno}: calls {name}")
+    assert not bad, "reports must not touch the file system:\n" + "\n".join(bad)
 
 
 def test_no_cycles_between_subpackages():
@@ -126,8 +281,8 @@ def test_no_cycles_between_subpackages():
     graph: dict[str, set[str]] = {}
     for path in source_files():
         src = unit(module_name(path))
-        for target, _, _ in imports(path):
-            res = _resolves(target) if is_project(target) else None
+        for imp in imports(path):
+            res = _resolves(imp.module) if is_project(imp.module) else None
             if res and unit(res) != src:
                 graph.setdefault(src, set()).add(unit(res))
     state: dict[str, int] = {}

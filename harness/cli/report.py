@@ -1,4 +1,4 @@
-"""``tri360 report``: argument parsing for :func:`reports.build.build_report`."""
+"""``tri360 report``: argument parsing for :func:`harness.jobs.report.build_report`."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import time
 from pathlib import Path
 
 from harness.data.errors import UserError
-from reports.build import DEFAULT_CLOUD_POINTS, PLY_CHOICES, build_report
+from harness.jobs.report import DEFAULT_CLOUD_POINTS, PLY_CHOICES, build_report
 
 HELP = "write tables, plots, point clouds and report.html from a results dir"
 

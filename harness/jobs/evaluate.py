@@ -8,11 +8,10 @@ Writes a results set into ``out``::
     frames.json                 where each evaluated frame lives
     config.json                 tri360 version and commit, every method's full configuration, the frames'
                                 renderer settings: everything needed to reproduce the numbers
-    maps/<scene>/<viewpoint>/<flow>-<rect|plain>/<variant>.distance.exr   predicted distance of C
-    maps/<scene>/<viewpoint>/<method>/distance.exr                        (methods other than the flow pipeline)
-    ... confidence.exr beside each distance map of a method that gives a confidence
+    maps/                       predicted distance of C (and confidence, for a method that gives one) per
+                                frame and method, laid out by harness.data.results.map_paths
 
-and the report (``reports.build``) unless ``report=False``.  With a Dask cluster (``cluster``) each frame x
+and the report (``harness.jobs.report``) unless ``report=False``.  With a Dask cluster (``cluster``) each frame x
 group of methods is one task whose worker writes the maps into the staging directory (so it must be on a
 file system the workers share) and returns the rows; this process writes the rest (``docs/scale-out.md``).
 
@@ -31,22 +30,21 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from harness.data import jsonio
-from harness.data.atomic import atomic_write_text
 from harness.data.errors import UserError
 from harness.data.exr import CONFIDENCE_CHANNEL, DISTANCE_CHANNEL, write_float_map
 from harness.data.frame import find_frames, read_frame
 from harness.data.outputs import staged_directory
 from harness.data.provenance import software
+from harness.data.results import map_paths, write_results
 from harness.jobs.cluster import ClusterOptions, open_executor
+from harness.jobs.report import build_report
 from reconstruction.methods.base import Method, MethodOutput, flow_fields, run_methods
 from reconstruction.methods.flow_pipeline import config_label
-from reports.build import build_report
 from reports.metrics import breakdown
 from reports.regions import region_summaries, regions
-from reports.schema import breakdown_table, regions_table, results_table, write_results
+from reports.schema import breakdown_table, regions_table, results_table
 
-__all__ = ["FrameRef", "select_frames", "evaluate", "evaluate_task", "method_groups", "map_path", "mae_table",
+__all__ = ["FrameRef", "select_frames", "evaluate", "evaluate_task", "method_groups", "mae_table",
            "results_config"]
 
 
@@ -100,21 +98,6 @@ def select_frames(data_root: Path, scenes: Sequence[str] | None = None) -> list[
                             "(give each frame a unique scene/viewpoint, or evaluate them separately)")
         seen[key] = r.path
     return refs
-
-
-def confidence_path(distance_path: Path) -> Path:
-    """``.../gradient.distance.exr`` -> ``.../gradient.confidence.exr``; ``.../distance.exr`` -> ``confidence.exr``."""
-    name = distance_path.name
-    return distance_path.with_name(name[: -len("distance.exr")] + "confidence.exr")
-
-
-def map_path(scene: str, viewpoint: str, method: Method) -> Path:
-    """Where a method's predicted distance map goes, relative to the results directory."""
-    base = Path("maps") / scene / viewpoint
-    fields = flow_fields(method)
-    if fields["flow"]:
-        return base / config_label(fields["flow"], fields["rectify"]) / f"{fields['variant']}.distance.exr"
-    return base / method.label / "distance.exr"
 
 
 def results_config(methods: Sequence[Method], frames: list, data_root: Path, started: float) -> dict:
@@ -185,12 +168,11 @@ def evaluate_task(frame_path: str, methods: Sequence[Method], stage: str) -> dic
     for method in methods:
         output = outputs[method.label]
         row, brs, rrs = _score_rows(frame, method, output, masks)
-        dist_path = Path(stage) / map_path(frame.scene, frame.viewpoint, method)
+        dist_rel, conf_rel = map_paths(frame.scene, frame.viewpoint, method.label, **flow_fields(method))
         # a prediction may hold NaN/inf/<= 0 (= no prediction): written as is, like tri360-pred/1
-        write_float_map(dist_path, np.asarray(output.distance, np.float32), DISTANCE_CHANNEL)
+        write_float_map(Path(stage) / dist_rel, np.asarray(output.distance, np.float32), DISTANCE_CHANNEL)
         if output.confidence is not None:
-            write_float_map(confidence_path(dist_path), np.asarray(output.confidence, np.float32),
-                            CONFIDENCE_CHANNEL)
+            write_float_map(Path(stage) / conf_rel, np.asarray(output.confidence, np.float32), CONFIDENCE_CHANNEL)
         scored[method.label] = (row, brs, rrs)
     info = {"path": str(path.resolve()), "scene": frame.scene, "viewpoint": frame.viewpoint,
             "width": frame.width, "height": frame.height, "baseline_m": frame.baseline_m,
@@ -249,10 +231,8 @@ def evaluate(data_root: Path, out: Path, methods: Sequence[Method], scenes: Sequ
             frames_index.append({"scene": info["scene"], "viewpoint": info["viewpoint"], "path": info["path"]})
             frames_config.append(info)
         table = results_table(rows)
-        write_results(stage, table, breakdown_table(brows), regions_table(rrows))
-        atomic_write_text(stage / "frames.json", jsonio.dumps(frames_index))
-        config = results_config(methods, frames_config, data_root, started)
-        atomic_write_text(stage / "config.json", jsonio.dumps(config))
+        write_results(stage, table, breakdown_table(brows), regions_table(rrows), frames=frames_index,
+                      config=results_config(methods, frames_config, data_root, started))
         if report:
             build_report(stage)
     return table

@@ -19,7 +19,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from reports.build import write_report
+from harness.jobs.report import build_report
 from tests.reports.test_reports import CONFIGS, OTHERS, VARIANTS, make_results
 
 pytestmark = pytest.mark.browser
@@ -108,7 +108,7 @@ def _console_lines(stderr: str) -> list[str]:
 
 def test_report_loads_and_every_image_is_shown(chromium, tmp_path):
     res = make_results(tmp_path, others=True)
-    html_file = write_report(res, ply="paper", cloud_points=300)
+    html_file = build_report(res, ply="paper", cloud_points=300).html_path
     expected_imgs = html_file.read_text(encoding="utf-8").count("<img ")
     # fig4, 2 breakdown plots, sparsification; per frame: error maps, region masks, clouds per configuration + others
     assert expected_imgs == 4 + 2 + len(CONFIGS) + 1

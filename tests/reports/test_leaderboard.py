@@ -13,11 +13,11 @@ import pytest
 from harness.data.errors import UserError
 from harness.data.exr import CONFIDENCE_CHANNEL, DISTANCE_CHANNEL, read_float_map
 from harness.data.frame import read_frame
+from harness.data.results import map_paths, read_regions, read_results
+from harness.jobs.report import build_report
 from reports import html as H
 from reports import plots
-from reports.build import build_report, map_paths, sparsification_curves
-from reports.metrics import pooled_summary
-from reports.metrics import sparsification_curves as frame_curves
+from reports.metrics import pooled_sparsification_curves, pooled_summary, sparsification_curves
 from reports.regions import regions
 from reports.tables import (
     LEADERBOARD_REGIONS,
@@ -25,8 +25,6 @@ from reports.tables import (
     leaderboard_display,
     leaderboard_markdown,
     leaderboard_table,
-    load_regions,
-    load_results,
     pixel_weighted,
 )
 from tests.reports.test_reports import CONFIGS, OTHERS, VARIANTS, make_results
@@ -123,7 +121,7 @@ def test_pixel_weighted_edge_cases():
 def test_region_and_overall_columns_equal_pooling_the_pixels(mixed):
     """The leaderboard (from the CSVs) equals reports.metrics.pooled_summary over the maps of both frames."""
     res, out = mixed
-    results = load_results(res)
+    results = read_results(res)
     frames = {s: read_frame(res.parent / "data" / s / "v0") for s in SCENES}
     assert len({int(np.isfinite(f.distance["C"]).sum()) for f in frames.values()}) == 2  # weights differ
     masks = {s: regions(f) for s, f in frames.items()}
@@ -132,7 +130,7 @@ def test_region_and_overall_columns_equal_pooling_the_pixels(mixed):
         items = []
         for s, f in frames.items():
             row = results[(results["method"] == method) & (results["scene"] == s)].iloc[0]
-            dist_rel, _ = map_paths(s, "v0", row)
+            dist_rel, _ = map_paths(s, "v0", method, row["flow"], row["rectify"], row["variant"])
             items.append((read_float_map(res / dist_rel, DISTANCE_CHANNEL), f.distance["C"]))
         pooled = pooled_summary(items)
         for col in ("mae_m", "bad_5pct", "delta110", "coverage"):
@@ -150,7 +148,7 @@ def test_region_and_overall_columns_equal_pooling_the_pixels(mixed):
 def test_leaderboard_files_and_html(mixed):
     res, out = mixed
     board = pd.read_csv(res / "leaderboard.csv", keep_default_na=True)
-    methods = sorted(set(load_results(res)["method"]))
+    methods = sorted(set(read_results(res)["method"]))
     assert len(methods) == len(CONFIGS) * len(VARIANTS) + len(OTHERS)
     assert sorted(board.loc[board["source"] == "tri360", "method"]) == methods
     assert list(board.columns[:7]) == ["source", "method", "kind", "flow", "rectify", "variant", "frames"]
@@ -216,7 +214,7 @@ def test_sortable_table_needs_a_key_per_cell():
 
 def test_sparsification_curves_pool_frames_like_the_results(mixed):
     res, out = mixed
-    results = load_results(res)
+    results = read_results(res)
     assert sorted(out.sparsification) == ["matcher"]  # the only method with a confidence
     assert (res / "sparsification.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     c = out.sparsification["matcher"]
@@ -237,13 +235,33 @@ def test_sparsification_of_repeated_frames_is_the_frame_curve():
     gt = rng.uniform(1, 5, (8, 16))
     pred = gt + rng.normal(0, 0.1, gt.shape)
     conf = -np.abs(pred - gt) + rng.normal(0, 0.05, gt.shape)
-    one = frame_curves(pred, gt, conf)
-    two = sparsification_curves([(pred, gt, conf), (pred, gt, conf)])
+    one = sparsification_curves(pred, gt, conf)
+    two = pooled_sparsification_curves([(*one, gt.size), (*one, gt.size)])
     np.testing.assert_allclose(two["curve"], one[1], atol=1e-12)
     np.testing.assert_allclose(two["oracle"], one[2], atol=1e-12)
     assert two["frames"] == 2 and two["pixels"] == 2 * gt.size
     with pytest.raises(ValueError, match="scored pixel"):
-        sparsification_curves([(pred, np.full_like(gt, np.inf), conf)])
+        pooled_sparsification_curves([(*one, 0)])
+
+
+def test_pooled_sparsification_is_the_pixel_weighted_mean_and_its_ause():
+    """Two frames of 3 and 1 scored pixels: the pooled curve is (3 c1 + c2) / 4 and its AUSE the same mean of the
+    frames' AUSE (the area is linear in the curves)."""
+    rng = np.random.default_rng(4)
+    parts, auses = [], []
+    for n in (3, 1):
+        gt = rng.uniform(1, 4, (4, 8))
+        gt.ravel()[n * 8:] = np.inf  # n rows scored
+        pred = gt + rng.normal(0, 0.2, gt.shape)
+        conf = rng.normal(size=gt.shape)
+        parts.append((*sparsification_curves(pred, gt, conf), n * 8))
+        auses.append(pooled_summary([(pred, gt, conf)])["ause"])
+    pooled = pooled_sparsification_curves(parts)
+    np.testing.assert_allclose(pooled["curve"], (24 * parts[0][1] + 8 * parts[1][1]) / 32, atol=1e-12)
+    assert pooled["ause"] == pytest.approx((24 * auses[0] + 8 * auses[1]) / 32, abs=1e-12)  # metres
+    assert pooled["frames"] == 2 and pooled["pixels"] == 32
+    with pytest.raises(ValueError, match="removal fractions"):
+        pooled_sparsification_curves([parts[0], (parts[1][0][::2], parts[1][1][::2], parts[1][2][::2], 8)])
 
 
 # -------------------------------------------------------------------------------- results without the flow pipeline
@@ -301,15 +319,15 @@ def test_error_maps_hold_every_method(tmp_path, monkeypatch):
     assert read_float_map(res / "maps/room/v0/matcher/confidence.exr", CONFIDENCE_CHANNEL).shape == outside.shape
 
 
-def test_load_regions(tmp_path):
+def test_read_regions(tmp_path):
     res = make_results(tmp_path)
-    table = load_regions(res)
+    table = read_regions(res)
     assert set(table["region"]) == {"all", *LEADERBOARD_REGIONS}
     assert table["valid_px"].dtype == np.int64
     text = (res / "regions.csv").read_text().splitlines()
     (res / "regions.csv").write_text("\n".join([*text, text[1]]) + "\n")
     with pytest.raises(UserError, match=r"regions\.csv: duplicate rows"):
-        load_regions(res)
+        read_regions(res)
     (res / "regions.csv").unlink()
-    assert load_regions(res) is None
-    assert load_regions(Path(tmp_path / "nowhere")) is None
+    assert read_regions(res) is None
+    assert read_regions(Path(tmp_path / "nowhere")) is None

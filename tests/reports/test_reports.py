@@ -1,4 +1,5 @@
-"""reports: a tiny fake results directory (real EXR maps, a real frame on disk) -> write_report outputs."""
+"""The report job end to end: a tiny fake results directory (real EXR maps, a real frame on disk) -> every output
+of ``harness.jobs.report.build_report``; reading a malformed results set (``harness.data.results``)."""
 
 from __future__ import annotations
 
@@ -17,14 +18,16 @@ from harness.cli import main
 from harness.data.errors import UserError
 from harness.data.exr import CONFIDENCE_CHANNEL, DISTANCE_CHANNEL, write_float_map
 from harness.data.frame import Frame, write_frame
+from harness.data.results import read_results, write_results
+from harness.jobs.report import build_report
 from reconstruction.camera.equirect import bearing_grid
 from reconstruction.camera.rig import Rig
-from reports.build import SECTION_HALF_ANGLE_DEG, _section_sample, build_report, write_report
 from reports.metrics import breakdown, summary
-from reports.pointcloud import point_grid, read_ply, write_ply
+from reports.pointcloud import parse_ply, ply_bytes, point_grid
 from reports.regions import region_summaries, regions
-from reports.schema import RESULT_COLUMNS, regions_table, results_table
-from reports.tables import load_results, mae_table
+from reports.schema import RESULT_COLUMNS, breakdown_table, regions_table, results_table
+from reports.sections import SECTION_HALF_ANGLE_DEG, section_sample
+from reports.tables import variant_mae_table
 
 W, H = 64, 32
 VARIANTS = {"average": 0.08, "gradient": 0.05, "color": 0.04}  # relative noise per variant
@@ -43,15 +46,20 @@ def box_room_distance(width, height, half=(3.0, 4.0), floor=-1.2, ceiling=1.8) -
     return np.min(np.abs(np.stack([tx, ty, tz])), axis=0)
 
 
-def make_frame(root: Path, scene: str = "room", viewpoint: str = "v0", sky_px: int = 5) -> Frame:
-    """A 64x32 box-room frame written under ``root``; its first ``sky_px`` pixels (row-major) see no surface."""
+def box_room_frame(scene: str = "room", viewpoint: str = "v0", sky_px: int = 5) -> Frame:
+    """A 64x32 box-room frame in memory; its first ``sky_px`` pixels (row-major) see no surface."""
     v, u = np.mgrid[0:H, 0:W]
     checker = (((u // 4) + (v // 4)) % 2).astype(np.uint8)
     img = np.stack([60 + 150 * checker, 90 + 0 * checker, 200 - 120 * checker], axis=2).astype(np.uint8)
     gt = box_room_distance(W, H).astype(np.float32)
     gt.flat[:sky_px] = np.inf  # a little "sky": no surface, not scored
-    frame = Frame(scene=scene, viewpoint=viewpoint, width=W, height=H, baseline_m=0.4, cameras=Rig().poses(),
-                  images={"C": img, "U": img, "R": img}, distance={"C": gt, "U": gt, "R": gt})
+    return Frame(scene=scene, viewpoint=viewpoint, width=W, height=H, baseline_m=0.4, cameras=Rig().poses(),
+                 images={"C": img, "U": img, "R": img}, distance={"C": gt, "U": gt, "R": gt})
+
+
+def make_frame(root: Path, scene: str = "room", viewpoint: str = "v0", sky_px: int = 5) -> Frame:
+    """:func:`box_room_frame` written under ``root``."""
+    frame = box_room_frame(scene, viewpoint, sky_px)
     frame.path = write_frame(frame, root)
     return frame
 
@@ -96,12 +104,8 @@ def make_results(tmp_path: Path, scenes=("room",), flow: bool = True, others: bo
             rows.append({**key, "width": W, "height": H, **summary(pred, gt, conf), "seconds": 0.5})
             bd_rows.extend({**key, **b} for b in breakdown(frame, pred))
             region_rows.extend({**key, **r} for r in region_summaries(frame, pred, conf, masks=masks))
-    results_table(rows).to_csv(res / "results.csv", index=False)
-    (res / "results.json").write_text(json.dumps(rows))
-    pd.DataFrame(bd_rows).to_csv(res / "breakdown.csv", index=False)
-    regions_table(region_rows).to_csv(res / "regions.csv", index=False)
-    (res / "frames.json").write_text(json.dumps(frames))
-    (res / "config.json").write_text(json.dumps({"methods": {k: {"kind": v} for k, v in kinds.items()}}))
+    write_results(res, results_table(rows), breakdown_table(bd_rows), regions_table(region_rows), frames=frames,
+                  config={"methods": {k: {"kind": v} for k, v in kinds.items()}})
     return res
 
 
@@ -150,12 +154,16 @@ def test_every_output_exists(report):
     assert not list(res.rglob("*.partial*"))  # atomic writes leave no temporaries
 
 
+def _read_ply(path: Path):
+    return parse_ply(path.read_bytes(), str(path))
+
+
 def test_ply_parses_back_with_the_right_vertex_count(report):
     res, _, _ = report
-    gt_pts, gt_col = read_ply(res / "clouds/room/v0/ground_truth.ply")
+    gt_pts, gt_col = _read_ply(res / "clouds/room/v0/ground_truth.ply")
     assert gt_pts.shape == (W * H - 5, 3)  # the 5 sky pixels are dropped
     assert gt_col.dtype == np.uint8
-    pts, col = read_ply(res / "clouds/room/v0/deepflow-plain/average.ply")
+    pts, col = _read_ply(res / "clouds/room/v0/deepflow-plain/average.ply")
     assert pts.shape == (W * H - 5 - 4, 3)  # sky and the 4 pixels without prediction dropped
     # points lie inside the box room (3 x 4 m half-widths, floor -1.2, ceiling 1.8) up to float32 rounding
     assert np.all(np.abs(gt_pts[:, 0]) <= 3.0 + 1e-4) and np.all(np.abs(gt_pts[:, 1]) <= 4.0 + 1e-4)
@@ -164,14 +172,14 @@ def test_ply_parses_back_with_the_right_vertex_count(report):
     assert "format binary_little_endian 1.0" in header and "property uchar red" in header
 
 
-def test_ply_roundtrip_and_nonfinite_points_dropped(tmp_path):
+def test_ply_roundtrip_and_nonfinite_points_dropped():
     pts = np.array([[0.0, 1.0, 2.0], [np.nan, 0, 0], [1.5, -2.0, 0.25], [np.inf, 1, 1]])
     col = np.array([[255, 0, 0], [1, 2, 3], [0, 128, 255], [4, 5, 6]], dtype=np.uint8)
-    assert write_ply(tmp_path / "a.ply", pts, col) == 2
-    back, bcol = read_ply(tmp_path / "a.ply")
+    raw, n = ply_bytes(pts, col)
+    assert n == 2
+    back, bcol = parse_ply(raw)
     np.testing.assert_array_equal(back, pts[[0, 2]].astype(np.float32))
     np.testing.assert_array_equal(bcol, col[[0, 2]])
-    raw = (tmp_path / "a.ply").read_bytes()
     assert raw.startswith(b"ply\nformat binary_little_endian 1.0\n")
     assert len(raw) - raw.index(b"end_header\n") - len(b"end_header\n") == 2 * 15
 
@@ -183,7 +191,7 @@ def test_point_grid_recovers_distance():
     assert np.isnan(point_grid(np.full((2, 4), np.inf), np.zeros(3), np.eye(3))).all()
 
 
-def test_mae_table_reduction_against_average(report):
+def test_variant_mae_table_reduction_against_average(report):
     res, outcome, _ = report
     results = pd.read_csv(res / "results.csv")
     table = pd.read_csv(res / "mae.csv")
@@ -215,7 +223,7 @@ def test_paper_reference_rows(report):
     assert "+23.93 %" in paper[1]  # (0.14337 - 0.10906) / 0.14337
 
 
-def test_mae_table_averages_frames_and_pairs_average():
+def test_variant_mae_table_averages_frames_and_pairs_average():
     rows = []
     for vp, (a, g) in {"v0": (0.2, 0.1), "v1": (0.4, 0.3)}.items():
         for variant, mae in (("average", a), ("gradient", g)):
@@ -223,7 +231,7 @@ def test_mae_table_averages_frames_and_pairs_average():
                          "mae_m": mae})
     rows.append({"scene": "t", "viewpoint": "v0", "flow": "dis", "rectify": True, "variant": "average",
                  "mae_m": 1.0})
-    t = mae_table(pd.DataFrame(rows)).set_index(["source", "variant"])
+    t = variant_mae_table(pd.DataFrame(rows)).set_index(["source", "variant"])
     assert t.loc[("tri360", "gradient"), "s mae_m"] == pytest.approx(0.2, abs=1e-12)
     assert t.loc[("tri360", "gradient"), "s reduction_pct"] == pytest.approx(100 * (0.3 - 0.2) / 0.3, abs=1e-9)
     # "all": gradient has no frame of scene t, so it is compared with average over the same two frames only
@@ -284,13 +292,13 @@ def test_missing_map_and_frame_are_reported_not_fatal(tmp_path):
 
 def test_missing_and_empty_results_dir(tmp_path):
     with pytest.raises(UserError, match="does not exist"):
-        write_report(tmp_path / "nope")
+        build_report(tmp_path / "nope")
     (tmp_path / "empty").mkdir()
     with pytest.raises(UserError, match="empty"):
-        write_report(tmp_path / "empty")
+        build_report(tmp_path / "empty")
     (tmp_path / "file").write_text("x")
     with pytest.raises(UserError, match="not a directory"):
-        write_report(tmp_path / "file")
+        build_report(tmp_path / "file")
 
 
 def _write_csv(path: Path, header, rows):
@@ -317,7 +325,7 @@ GOOD = ["room", "v0", 64, 32, "dis-plain:average", "dis", "False", "average", 0.
 def test_malformed_results_csv(tmp_path, header, rows, message):
     _write_csv(tmp_path / "r" / "results.csv", header, rows)
     with pytest.raises(UserError, match=message) as info:
-        write_report(tmp_path / "r")
+        build_report(tmp_path / "r")
     assert "results.csv" in str(info.value)
 
 
@@ -325,16 +333,16 @@ def test_results_csv_missing_or_empty_file(tmp_path):
     (tmp_path / "r").mkdir()
     (tmp_path / "r" / "frames.json").write_text("[]")
     with pytest.raises(UserError, match=r"results\.csv: file is missing"):
-        write_report(tmp_path / "r")
+        build_report(tmp_path / "r")
     (tmp_path / "r" / "results.csv").write_text("")
     with pytest.raises(UserError, match=r"results\.csv: file is empty"):
-        write_report(tmp_path / "r")
+        build_report(tmp_path / "r")
 
 
 def test_names_stay_strings(tmp_path):
     row = ["007", "001"] + GOOD[2:]
     _write_csv(tmp_path / "r" / "results.csv", RESULT_COLUMNS, [row])
-    df = load_results(tmp_path / "r")
+    df = read_results(tmp_path / "r")
     assert df.loc[0, "scene"] == "007" and df.loc[0, "viewpoint"] == "001"
     assert df.loc[0, "rectify"] is False or df.loc[0, "rectify"] == False  # noqa: E712 (numpy bool)
 
@@ -350,16 +358,6 @@ def test_cli_prints_the_table(tmp_path, capsys):
     assert "does not exist" in capsys.readouterr().err
 
 
-def test_reports_does_not_import_blender():
-    import subprocess
-    import sys
-
-    code = ("import sys, reports, reports.metrics, reports.tables, reports.plots, reports.pointcloud, "
-            "reports.html, reports.build; assert 'bpy' not in sys.modules; print('ok')")
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
-    assert out.stdout.strip() == "ok"
-
-
 def test_report_timing_is_small(report):
     _, _, seconds = report
     assert seconds < 60  # a 64x32 frame, 2 configurations, 3 variants on a shared 2-core machine
@@ -368,13 +366,13 @@ def test_report_timing_is_small(report):
 def test_cloud_sections_sample_the_right_pixels(tmp_path):
 
     frame = make_frame(tmp_path / "data")
-    idx, (top, side) = _section_sample(frame, 200)
+    idx, (top, side) = section_sample(frame, 200)
     b = bearing_grid(W, H).reshape(-1, 3)[idx]
     limit = np.sin(np.radians(SECTION_HALF_ANGLE_DEG))
     assert top.sum() == 100 and side.sum() == 100
     assert np.all(np.abs(b[top, 2]) < limit) and np.all(np.abs(b[side, 1]) < limit)
     assert np.isfinite(frame.distance["C"].ravel()[idx]).all()  # sky pixels are never drawn
-    again, _ = _section_sample(frame, 200)
+    again, _ = section_sample(frame, 200)
     np.testing.assert_array_equal(idx, again)  # seeded
 
 
@@ -382,11 +380,11 @@ def test_malformed_breakdown_and_frames_json(tmp_path):
     _write_csv(tmp_path / "r" / "results.csv", RESULT_COLUMNS, [GOOD])
     (tmp_path / "r" / "frames.json").write_text('{"scene": "room"}')
     with pytest.raises(UserError, match=r"frames\.json: must be a JSON list"):
-        write_report(tmp_path / "r")
+        build_report(tmp_path / "r")
     (tmp_path / "r" / "frames.json").write_text("[{")
     with pytest.raises(UserError, match=r"frames\.json: not valid JSON"):
-        write_report(tmp_path / "r")
+        build_report(tmp_path / "r")
     (tmp_path / "r" / "frames.json").unlink()
     _write_csv(tmp_path / "r" / "breakdown.csv", ["scene", "kind"], [["room", "distance"]])
     with pytest.raises(UserError, match=r"breakdown\.csv: missing column"):
-        write_report(tmp_path / "r")
+        build_report(tmp_path / "r")
