@@ -1,6 +1,6 @@
 """Equirectangular camera model (pure numpy).
 
-Conventions (DESIGN.md, verified against Blender renders):
+Conventions (the rig and frame format follow them; verified against Blender renders):
 
 * Camera frame: X right, Y forward, Z up.  A pose is ``position`` (3,) and ``rotation`` (3, 3),
   world-from-camera (columns are the camera axes in world coordinates).
