@@ -8,11 +8,15 @@ in this package run inside :func:`native_output_captured`: descriptors 1 and 2 p
 the duration of the call, and the text is handed back so that the caller can quote the library's reason in
 its own one-line message.
 
-Caveat: file descriptors are process-wide.  Output written by *another thread* during the (short) decode
-ends up in the capture; :func:`native_output_captured` writes captured text back to the real descriptors
-when the caller says the decode succeeded (``Captured.release()``), so nothing is lost in the normal case;
-the text of a failed decode is summarised in the caller's error message instead.
-Captures in one process are serialised by a lock; a nested capture in the same thread is a no-op.
+**Process-wide, main thread only.**  File descriptors belong to the process, so a redirection cannot be per
+call or per thread.  The capture is therefore done only on the main thread (where the commands decode their
+inputs and report bad ones); on any other thread (a Dask worker thread, a study's thread pool)
+:func:`native_output_captured` does nothing (``Captured.active`` is False): decodes there run in parallel,
+unserialised, and their library messages go to the process's real descriptors (a worker's log), while the error
+raised still names the file.  While the main thread captures, output that *other* threads write to the
+descriptors lands in the capture too: it is written back to the real stderr when the caller says the decode
+succeeded (``Captured.release()``), and summarised in the caller's error message otherwise.  A nested capture is
+a no-op.
 """
 
 from __future__ import annotations
@@ -29,10 +33,9 @@ from dataclasses import dataclass, field
 
 __all__ = ["Captured", "native_output_captured", "first_library_message"]
 
-_LOCK = threading.RLock()
 # OpenCV's log prefix, e.g. "[ WARN:0@1.190] global grfmt_png.cpp:678 read_from_io "
 _OPENCV_PREFIX = re.compile(r"^\[\s*(?:WARN|ERROR|INFO|DEBUG)[^\]]*\]\s*(?:global\s+\S+:\d+\s+\S+\s+)?")
-_STATE = threading.local()
+_DEPTH = [0]  # captures open on the main thread (only the main thread captures, so no lock is needed)
 
 
 def _libc_fflush() -> None:
@@ -49,7 +52,8 @@ class Captured:
 
     Attributes:
         text: everything captured (decoded as UTF-8 with replacement), filled when the block exits.
-        active: False when nothing could be captured (nested capture, or descriptors unavailable).
+        active: False when nothing was captured (not the main thread, nested capture, or descriptors
+            unavailable): the library's output went to the real descriptors.
     """
 
     text: str = ""
@@ -75,45 +79,46 @@ def _write_stderr(text: str) -> None:
 
 @contextlib.contextmanager
 def native_output_captured() -> Iterator[Captured]:
-    """Redirect file descriptors 1 and 2 to a temporary file for the duration of the block.
+    """Redirect file descriptors 1 and 2 to a temporary file for the duration of the block, on the main thread
+    only (see the module doc: descriptors are process-wide).
 
     Yields:
-        A :class:`Captured` whose ``text`` holds the native output once the block has exited.
+        A :class:`Captured` whose ``text`` holds the native output once the block has exited (inactive and empty
+        on other threads and when nested).
     """
-    if getattr(_STATE, "depth", 0):  # nested: the outer capture already has the descriptors
+    if threading.current_thread() is not threading.main_thread() or _DEPTH[0]:
         yield Captured(active=False)
         return
-    with _LOCK:
-        _STATE.depth = 1
+    _DEPTH[0] = 1
+    try:
+        for stream in (sys.stdout, sys.stderr):
+            with contextlib.suppress(Exception):
+                stream.flush()
+        _libc_fflush()
         try:
-            for stream in (sys.stdout, sys.stderr):
-                with contextlib.suppress(Exception):
-                    stream.flush()
-            _libc_fflush()
+            saved = (os.dup(1), os.dup(2))
+        except OSError:  # descriptors closed (daemonised process): decode without capturing
+            yield Captured(active=False)
+            return
+        captured = Captured()
+        with tempfile.TemporaryFile() as sink:
             try:
-                saved = (os.dup(1), os.dup(2))
-            except OSError:  # descriptors closed (daemonised process): decode without capturing
-                yield Captured(active=False)
-                return
-            captured = Captured()
-            with tempfile.TemporaryFile() as sink:
-                try:
-                    os.dup2(sink.fileno(), 1)
-                    os.dup2(sink.fileno(), 2)
-                    yield captured
-                finally:
-                    _libc_fflush()
-                    os.dup2(saved[0], 1)
-                    os.dup2(saved[1], 2)
-                    os.close(saved[0])
-                    os.close(saved[1])
-                    sink.seek(0)
-                    captured.text = sink.read().decode("utf-8", errors="replace")
-                    captured._done = True
-            if captured._release:
-                _write_stderr(captured.text)
-        finally:
-            _STATE.depth = 0
+                os.dup2(sink.fileno(), 1)
+                os.dup2(sink.fileno(), 2)
+                yield captured
+            finally:
+                _libc_fflush()
+                os.dup2(saved[0], 1)
+                os.dup2(saved[1], 2)
+                os.close(saved[0])
+                os.close(saved[1])
+                sink.seek(0)
+                captured.text = sink.read().decode("utf-8", errors="replace")
+                captured._done = True
+        if captured._release:
+            _write_stderr(captured.text)
+    finally:
+        _DEPTH[0] = 0
 
 
 def first_library_message(text: str, path: str | os.PathLike | None = None, limit: int = 160) -> str:
