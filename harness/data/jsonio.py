@@ -1,11 +1,14 @@
 """Strict JSON for everything tri360 writes: NaN and infinities become ``null`` (plain ``json.dumps`` writes
-the non-standard tokens ``NaN``/``Infinity``, which strict readers reject); numpy scalars and arrays, paths and
-tuples become their JSON equivalents."""
+the non-standard tokens ``NaN``/``Infinity``, which strict readers reject); numpy scalars and arrays, paths,
+mappings, tuples and sets become their JSON equivalents.  The one normalisation of values bound for JSON: what
+is compared after a round trip through a file (e.g. a frame's recorded scene parameters) is normalised here on
+both sides."""
 
 from __future__ import annotations
 
 import json
 import math
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -16,7 +19,7 @@ __all__ = ["to_jsonable", "dumps"]
 
 def to_jsonable(obj: Any) -> Any:
     """A copy of ``obj`` made of dicts, lists, strings, finite floats, ints, bools and None."""
-    if isinstance(obj, dict):
+    if isinstance(obj, Mapping):
         return {str(k): to_jsonable(v) for k, v in obj.items()}
     if isinstance(obj, list | tuple | set):
         return [to_jsonable(v) for v in obj]

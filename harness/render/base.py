@@ -18,21 +18,22 @@ from __future__ import annotations
 import abc
 import platform
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, fields
-from typing import Any, ClassVar, Protocol, runtime_checkable
+from typing import ClassVar, Protocol, runtime_checkable
 
 import numpy as np
 
 from harness import __version__
 from harness.data.errors import UserError
 from harness.data.frame import Frame
+from harness.data.jsonio import to_jsonable
 from harness.data.provenance import source_commit
 from reconstruction.camera.rig import CAMERA_NAMES, CameraPose, Rig
 from scenes.model import SceneSpec
 
 __all__ = ["RenderSettings", "Renderer", "BaseRenderer", "RenderError", "OnCamera", "srgb_encode", "provenance",
-           "identity", "recorded_identity", "jsonable", "scene_label"]
+           "identity", "recorded_identity", "scene_label"]
 
 OnCamera = Callable[[str, float], None]
 """Progress callback: ``on_camera(camera_name, seconds)`` after each of C, U, R."""
@@ -129,21 +130,6 @@ def srgb_encode(linear: np.ndarray) -> np.ndarray:
 # -------------------------------------------------------------------------------------------- provenance
 
 
-def jsonable(obj: Any) -> Any:
-    """Scene parameters and the like -> JSON values (tuples -> lists, numpy -> python, paths -> str)."""
-    if isinstance(obj, Mapping):
-        return {str(k): jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, list | tuple):
-        return [jsonable(v) for v in obj]
-    if isinstance(obj, np.generic):
-        return obj.item()
-    if isinstance(obj, np.ndarray):
-        return obj.tolist()
-    if obj is None or isinstance(obj, bool | int | float | str):
-        return obj
-    return str(obj)
-
-
 def scene_label(spec: SceneSpec) -> str:
     """``family:preset`` of a spec built by the registry (just the family name otherwise)."""
     preset = spec.params.get("preset")
@@ -160,7 +146,7 @@ def identity(renderer: str, pixel_settings: tuple[str, ...], settings: RenderSet
     """
     out = {"renderer": renderer, "width": int(settings.width), "baseline_m": float(baseline_m)}
     out |= {name: getattr(settings, name) for name in pixel_settings if name != "width"}
-    out["scene params"] = jsonable(spec.params)
+    out["scene params"] = to_jsonable(spec.params)
     out["scene code version"] = spec.code_version or None
     return out
 
@@ -204,11 +190,11 @@ def provenance(renderer: str, engine: dict, pixel_settings: tuple[str, ...], set
         "settings": asdict(settings),
         "pixel_settings": list(pixel_settings),
         "scene": {"family": spec.name, "preset": spec.params.get("preset"), "seed": spec.params.get("seed"),
-                  "params": jsonable(spec.params), "code_version": spec.code_version or None},
+                  "params": to_jsonable(spec.params), "code_version": spec.code_version or None},
         "rig": {"position": [float(x) for x in rig.position], "yaw_rad": float(rig.yaw_rad),
                 "baseline_m": float(rig.baseline_m)},
         "seconds": {k: round(float(v), 3) for k, v in seconds.items()},
-        "details": jsonable(engine),
+        "details": to_jsonable(engine),
     }
 
 
