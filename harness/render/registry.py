@@ -11,21 +11,23 @@ from harness.render.cycles_renderer import CyclesRenderer
 from harness.render.raycast import RaycastRenderer
 from scenes.model import SceneSpec
 
-__all__ = ["RENDERERS", "available_renderers", "get_renderer", "open_renderer"]
+__all__ = ["RENDERER_CLASSES", "available_renderers", "get_renderer", "open_renderer"]
 
-RENDERERS: dict[str, type[BaseRenderer]] = {cls.name: cls for cls in (CyclesRenderer, RaycastRenderer)}
+#: renderer name -> its backend class; the names are those a scene may name as its default
+#: (``scenes.model.RENDERERS``)
+RENDERER_CLASSES: dict[str, type[BaseRenderer]] = {cls.name: cls for cls in (CyclesRenderer, RaycastRenderer)}
 
 
 def available_renderers() -> list[str]:
     """The ``--renderer`` names, sorted."""
-    return sorted(RENDERERS)
+    return sorted(RENDERER_CLASSES)
 
 
 def get_renderer(name: str) -> type[BaseRenderer]:
     """The renderer class called ``name``; raises UserError listing the known names."""
-    if name not in RENDERERS:
+    if name not in RENDERER_CLASSES:
         raise UserError(f"unknown renderer {name!r} (known: {', '.join(available_renderers())})")
-    return RENDERERS[name]
+    return RENDERER_CLASSES[name]
 
 
 def open_renderer(name: str, spec: SceneSpec, settings: RenderSettings, verbose: bool = False) -> BaseRenderer:

@@ -17,7 +17,7 @@ from harness.data.frame import read_frame
 from harness.jobs.render import MIN_WIDTH, differences, max_width, render_frames
 from harness.render.base import BaseRenderer, Renderer, RenderSettings, identity, srgb_encode
 from harness.render.raycast import RaycastRenderer
-from harness.render.registry import RENDERERS, available_renderers, get_renderer, open_renderer
+from harness.render.registry import RENDERER_CLASSES, available_renderers, get_renderer, open_renderer
 from reconstruction.camera.rig import Rig
 from scenes.model import Box, Material, ModelFile, SceneSpec
 from scenes.registry import SceneEntry, SceneError, discover
@@ -32,7 +32,7 @@ def test_min_width_is_the_measured_flow_minimum():
 
 def test_registry_lists_both_backends_with_one_interface():
     assert available_renderers() == ["cycles", "raycast"]
-    for name, cls in RENDERERS.items():
+    for name, cls in RENDERER_CLASSES.items():
         assert cls.name == name and issubclass(cls, BaseRenderer)
         assert "width" in cls.pixel_settings and set(cls.pixel_settings) <= set(RenderSettings.__dataclass_fields__)
     with pytest.raises(UserError, match="unknown renderer 'nope' \\(known: cycles, raycast\\)"):
