@@ -5,7 +5,8 @@ then one of 2 workers (127.0.0.1 only, 1 thread each, Cycles with ``--threads`` 
 give each worker the same threads), renders ``--frames`` viewpoints of ``--scene`` on each (one Dask task per
 frame, scene built by each task, as ``tri360 render --workers N`` does) into a temporary data root, and prints the
 wall time of each run (cluster start-up excluded), the speed-up and whether both runs gave byte-identical frames.
-The last line is ``dask speedup 2 vs 1 workers: N x`` (goal: >= 1.6 x on 2 cores).  The result is only
+The last line is ``dask speedup 2 vs 1 workers: N x`` (goal: >= 1.6 x on 2 cores; exit status 1 when it is missed
+or the frames differ).  The result is only
 meaningful on an otherwise idle machine: the load average before each run is printed beside it.
 """
 
@@ -18,6 +19,7 @@ import tempfile
 import time
 from pathlib import Path
 
+from harness.jobs.bench import goals_status
 from harness.jobs.cluster import ClusterOptions
 from harness.jobs.executor import DaskExecutor
 from harness.jobs.render import RENDER_LOG, render_frames
@@ -66,7 +68,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"  frames byte-identical between the runs: {'yes' if same else 'NO'}")
     print(f"  goal >= {GOAL_SPEEDUP} x: {'met' if speedup >= GOAL_SPEEDUP else 'NOT met'}")
     print(f"dask speedup 2 vs 1 workers: {speedup:.2f} x")
-    return 0 if same else 1
+    return goals_status([same, speedup >= GOAL_SPEEDUP])
 
 
 if __name__ == "__main__":

@@ -5,7 +5,8 @@ Run as ``python -m harness.jobs.bench_render`` (part of ``make bench``).  Each r
 Cycles settings, viewpoint ``vp000``), in a fresh process into a fresh temporary data root, and times it from
 start to exit (Python start-up, Blender start-up, scene build, three cameras, writing the frame).  It prints each
 wall time with the renderer's time per camera (from the frame's ``render_log.json``) and the load average before it;
-the last line is ``render default frame: MIN-MAX s over N renders`` (goal: <= 60 s on 2 idle cores).  Any other
+the last line is ``render default frame: MIN-MAX s over N renders`` (goal: <= 60 s on 2 idle cores; exit status 1
+when the slowest render misses it).  Any other
 arguments are passed to ``tri360 render`` (e.g. ``--scene box_room --width 400``).  Only
 meaningful on an otherwise idle machine.
 """
@@ -21,6 +22,7 @@ import tempfile
 import time
 from pathlib import Path
 
+from harness.jobs.bench import goals_status
 from harness.jobs.render import DEFAULT_SCENE, DEFAULTS, RENDER_LOG
 
 __all__ = ["GOAL_S", "time_default_render", "main"]
@@ -64,7 +66,7 @@ def main(argv: list[str] | None = None) -> int:
     label = "frame" if extra else "default frame"
     print(f"render {label}: {min(walls):.1f}-{max(walls):.1f} s over {len(walls)} renders "
           f"[{'ok' if ok else 'NOT MET'}: goal <= {GOAL_S:.0f} s]", flush=True)
-    return 0
+    return goals_status([ok])
 
 
 if __name__ == "__main__":

@@ -51,17 +51,26 @@ def test_scipy_pixel_solves_a_known_minimum(tiny):
 
 
 def test_main_prints_the_summary_line_last(tmp_path, capsys):
-    assert bench.main(["--width", "32", "--subset", "5", "--frame", str(tmp_path), "--no-progress"]) == 0
-    lines = capsys.readouterr().out.strip().splitlines()
+    status = bench.main(["--width", "32", "--subset", "5", "--frame", str(tmp_path), "--no-progress"])
+    out = capsys.readouterr().out
+    lines = out.strip().splitlines()
+    assert sum("[PASS]" in x or "[FAIL]" in x for x in lines) == 5
+    assert status == (1 if "[FAIL]" in out else 0)  # a missed goal fails `make bench`
     assert lines[-1].startswith("refine speedup vs per-pixel scipy: ") and lines[-1].endswith(" x")
     assert any("goals vs measured" in line for line in lines)
 
 
 def test_render_bench_times_the_render_command_end_to_end(capsys):
     """``bench_render`` runs ``tri360 render`` in new processes (here a tiny ray-cast frame) and prints the range."""
-    assert bench_render.main(["--repeats", "2", "--scene", "box_room", "--renderer", "raycast", "--width", "64"]) == 0
+    status = bench_render.main(["--repeats", "2", "--scene", "box_room", "--renderer", "raycast", "--width", "64"])
     lines = capsys.readouterr().out.strip().splitlines()
+    assert status == (0 if "[ok: goal <= 60 s]" in lines[-1] else 1)  # a missed goal fails `make bench`
     assert lines[0].startswith("render bench: `tri360 render --scene box_room --renderer raycast --width 64`, 2 times")
     assert [x.split(":")[0].strip() for x in lines[1:3]] == ["render 1", "render 2"]
     assert "renderer s per camera: C " in lines[1]  # the frame's render_log.json was read
-    assert lines[-1].startswith("render frame: ") and "over 2 renders [ok: goal <= 60 s]" in lines[-1]
+    assert lines[-1].startswith("render frame: ") and "over 2 renders [" in lines[-1]
+
+
+def test_goals_status_fails_on_any_missed_goal():
+    assert bench.goals_status([True, True]) == 0
+    assert bench.goals_status([True, False]) == 1
