@@ -47,7 +47,7 @@ bench: $(STAMP) ## timings and peak memory: flow pipeline stages (+ LM vs scipy)
 	$(PY) -m harness.jobs.bench_dask
 
 regress-update: $(STAMP) ## rewrite the CI regression bounds (tests/regression_bounds.json) from a fresh run
-	$(PY) -m harness.jobs.regression --update
+	$(PY) -m harness.jobs.regression --bounds tests/regression_bounds.json --update
 
 clean: ## remove the venv, caches, rendered data and results
 	rm -rf $(VENV) .pytest_cache .ruff_cache $(RESULTS) build *.egg-info

@@ -5,17 +5,18 @@ The data set (:func:`build_dataset`) is one real Cycles frame of ``classroom`` a
 (:func:`run_regression`) with the default method (``fused``), tri360's flow configuration (``DEFAULT_FLOW``,
 rectified) and the paper's (DeepFlow on plain equirect images) over every variant.
 
-``tests/regression_bounds.json`` holds an upper bound on the MAE (metres, mean over that scene's frames) per
-scene x configuration label (``dis-rect``) x variant, and per scene x method label (``fused``) x ``final``: the
-measured MAE x (1 + margin), written by ``make regress-update``.  :func:`check` reports every bound exceeded,
+A bounds file (``--bounds``; the repository's is ``tests/regression_bounds.json``, which ``make regress-update``
+rewrites and the tests read) holds an upper bound on the MAE (metres, mean over that scene's frames) per scene x
+configuration label (``dis-rect``) x variant, and per scene x method label (``fused``) x ``final``: the measured
+MAE x (1 + margin).  :func:`check` reports every bound exceeded,
 every key missing on either side, and every configuration whose best refined variant does not beat ``average``
 on a scene (unless the file waives that scene/configuration, with a reason; a waiver that is no longer needed is
 reported too).
 
-    python -m harness.jobs.regression                      # run and check; exit 1 listing the violations
-    python -m harness.jobs.regression --update             # re-run and rewrite the bounds (margin 0.15)
-    python -m harness.jobs.regression --data DIR           # keep/reuse the rendered frames in DIR
-    python -m harness.jobs.regression --update --waive classroom/dis-rect="why"   # record a known exception
+    python -m harness.jobs.regression --bounds FILE                 # run and check; exit 1 listing the violations
+    python -m harness.jobs.regression --bounds FILE --update        # re-run and rewrite the bounds (margin 0.15)
+    python -m harness.jobs.regression --bounds FILE --data DIR      # keep/reuse the rendered frames in DIR
+    python -m harness.jobs.regression --bounds FILE --update --waive classroom/dis-rect="why"   # a known exception
 """
 
 from __future__ import annotations
@@ -33,7 +34,7 @@ from pathlib import Path
 import pandas as pd
 
 from harness.data.atomic import atomic_write_text
-from harness.jobs.evaluate import config_keys, evaluate, mae_table
+from harness.jobs.evaluate import config_keys, evaluate
 from harness.jobs.render import render_frames
 from reconstruction.methods.registry import DEFAULT_CONFIGS, DEFAULT_METHOD, flow_methods, get_methods
 
@@ -48,7 +49,6 @@ SEED = 0
 SCENES = (("classroom", 1), ("synthetic_box", 2))
 #: default relative margin of a bound over the measured MAE
 DEFAULT_MARGIN = 0.15
-BOUNDS_PATH = Path(__file__).resolve().parents[2] / "tests" / "regression_bounds.json"
 
 
 def regression_configs() -> list[tuple[str, bool]]:
@@ -107,6 +107,13 @@ def measured_mae(table: pd.DataFrame) -> dict[str, dict[str, dict[str, float]]]:
     for (scene, config, variant), mae in groups.apply(lambda s: s.mean(skipna=False)).items():
         out.setdefault(scene, {}).setdefault(config, {})[variant] = float(mae)
     return out
+
+
+def measured_text(table: pd.DataFrame) -> str:
+    """:func:`measured_mae` as text, one ``scene/config/variant  MAE`` line per bounds key (metres)."""
+    flat = _flatten(measured_mae(table)) if len(table) else {}
+    width = max((len("/".join(k)) for k in flat), default=0)
+    return "\n".join(f"  {'/'.join(k):<{width}s}  {v:.4f}" for k, v in sorted(flat.items()))
 
 
 def _flatten(nested: Mapping) -> dict[tuple[str, str, str], float]:
@@ -212,7 +219,7 @@ def make_bounds(table: pd.DataFrame, margin: float = DEFAULT_MARGIN, samples: in
     }
 
 
-def load_bounds(path: Path | str = BOUNDS_PATH) -> dict:
+def load_bounds(path: Path | str) -> dict:
     """Read a bounds file (see :func:`make_bounds`)."""
     path = Path(path)
     try:
@@ -224,7 +231,7 @@ def load_bounds(path: Path | str = BOUNDS_PATH) -> dict:
     return data
 
 
-def write_bounds(data: dict, path: Path | str = BOUNDS_PATH) -> None:
+def write_bounds(data: dict, path: Path | str) -> None:
     """Write the bounds file atomically, keys sorted so that diffs read well."""
 
     atomic_write_text(Path(path), json.dumps(data, indent=2, sort_keys=True) + "\n")
@@ -235,7 +242,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--update", action="store_true", help="re-run and rewrite the bounds file")
     parser.add_argument("--margin", type=float, default=DEFAULT_MARGIN,
                         help="with --update: bound = measured x (1 + margin) (default %(default)s)")
-    parser.add_argument("--bounds", type=Path, default=BOUNDS_PATH, help="bounds file (default %(default)s)")
+    parser.add_argument("--bounds", type=Path, required=True, metavar="FILE",
+                        help="bounds file to check against (with --update: to write); the repository's is "
+                             "tests/regression_bounds.json")
     parser.add_argument("--data", type=Path, default=None,
                         help="render the data set into (or reuse it from) this directory instead of a temporary one")
     parser.add_argument("--threads", type=int, default=0, help="Cycles threads (0 = all cores)")
@@ -263,10 +272,8 @@ def main(argv: list[str] | None = None) -> int:
         table = run_regression(tmp, data=args.data, width=width, samples=samples, threads=args.threads,
                                progress=True)
     seconds = time.perf_counter() - start
-
-
-    print(f"\nMAE (m), mean over frames, {width}x{height}, {seconds:.0f} s")
-    print(mae_table(table))
+    print(f"\nMAE (m), mean over each scene's frames, {width}x{height}, {seconds:.0f} s")
+    print(measured_text(table))
     if args.update:
         if args.bounds.exists():
             waivers = {**load_bounds(args.bounds).get("waivers", {}), **waivers}

@@ -4,24 +4,28 @@ unit tests of ``check`` on hand-made tables."""
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import pandas as pd
 import pytest
 
-from harness.jobs.evaluate import config_label
 from harness.jobs.regression import (
-    BOUNDS_PATH,
     FINAL,
     check,
     load_bounds,
+    main,
     make_bounds,
     measured_mae,
+    measured_text,
     regression_configs,
     run_regression,
     write_bounds,
 )
-from reconstruction.methods.flow_pipeline import available_variants
+from reconstruction.methods.flow_pipeline import available_variants, config_label
 from reconstruction.methods.registry import DEFAULT_METHOD
+
+#: the repository's bounds file (the regression job takes it as ``--bounds``: no path is built into the package)
+BOUNDS_PATH = Path(__file__).resolve().parents[1] / "regression_bounds.json"
 
 VARIANTS = ["average", "angle", "gradient", "color"]
 
@@ -217,3 +221,17 @@ def test_accuracy_has_not_regressed(tmp_path):
     got = json.dumps(measured_mae(table), indent=1, sort_keys=True)
     assert problems == [], ("accuracy regressed against tests/regression_bounds.json:\n  " + "\n  ".join(problems)
                             + f"\nmeasured MAE (m):\n{got}\n(if the change is intended: make regress-update)")
+
+
+def test_measured_text_lists_every_bounds_key():
+    values = _good_values()
+    lines = measured_text(_table(values)).splitlines()
+    assert len(lines) == len(values)
+    assert lines[0].split() == ["box/deepflow-plain/angle", "0.2000"]  # metres, sorted by key
+
+
+def test_main_needs_a_bounds_file(capsys):
+    """The bounds file is named on the command line (found without assuming a source checkout)."""
+    with pytest.raises(SystemExit) as info:
+        main([])
+    assert info.value.code == 2 and "--bounds" in capsys.readouterr().err
