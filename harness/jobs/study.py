@@ -37,7 +37,6 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
-import io
 import itertools
 import json
 import math
@@ -63,6 +62,7 @@ from harness.jobs.evaluate import evaluate
 from harness.jobs.render import DEFAULTS, RENDER_LOG, render_frames
 from reconstruction.methods.flow_pipeline import DEFAULT_FLOW
 from reconstruction.methods.registry import default_methods, flow_methods, get_methods
+from reports.plots import png_bytes
 from reports.schema import METRIC_COLUMNS
 
 __all__ = ["RENDER_KEYS", "EVALUATE_KEYS", "StudySpec", "load_study", "grid_points", "run_study", "plot_metric"]
@@ -355,7 +355,7 @@ def _x_values(values: Sequence) -> tuple[list, bool]:
 
 def plot_metric(study: pd.DataFrame, key: str, metric: str = DEFAULT_METRIC) -> bytes:
     """PNG: ``metric`` against ``key``, one line per method (mean over frames and other grid keys), min-max band."""
-    fig = Figure(figsize=(6.4, 4.2), dpi=110)
+    fig = Figure(figsize=(6.4, 4.2))
     FigureCanvasAgg(fig)
     ax = fig.add_subplot()
     order = list(dict.fromkeys(study[key].tolist()))
@@ -379,9 +379,7 @@ def plot_metric(study: pd.DataFrame, key: str, metric: str = DEFAULT_METRIC) -> 
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=8)
     fig.tight_layout()
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png")
-    return buf.getvalue()
+    return png_bytes(fig)
 
 
 def _fmt(x) -> str:
