@@ -253,12 +253,12 @@ def test_third_party_imports_respect_the_layers():
     assert not bad, "\n".join(sorted(set(bad)))
 
 
-def test_reports_touch_no_files():
-    """reports is pure: arrays and DataFrames in, DataFrames, figures, bytes and text out.  No call that reads or
-    writes a file (``open``, ``Path.read_text``, ``pd.read_csv``, ...) and no ``to_csv``/``to_json`` to a path."""
+def file_access_calls(root: Path = ROOT) -> list[str]:
+    """Every call in ``reports`` that reads or writes a file (:data:`FILE_CALLS`, or ``to_csv``/``to_json`` given a
+    path or buffer)."""
     bad = []
-    for path in source_files():
-        if not module_name(path).startswith("reports"):
+    for path in source_files(root):
+        if not module_name(path, root).startswith("reports"):
             continue
         for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
             if not isinstance(node, ast.Call):
@@ -268,8 +268,25 @@ def test_reports_touch_no_files():
             to_path = name in ("to_csv", "to_json") and bool(node.args or any(k.arg == "path_or_buf"
                                                                                for k in node.keywords))
             if name in FILE_CALLS or to_path:
-                bad.append(f"{path.relative_to(ROOT)}:{node.lineno}: calls {name}")
+                bad.append(f"{path.relative_to(root)}:{node.lineno}: calls {name}")
+    return bad
+
+
+def test_reports_touch_no_files():
+    """reports is pure: arrays and DataFrames in, DataFrames, figures, bytes and text out."""
+    bad = file_access_calls()
     assert not bad, "reports must not touch the file system:\n" + "\n".join(bad)
+
+
+@pytest.mark.parametrize("source", ["def f(p):\n    return open(p).read()\n",
+                                    "def f(p):\n    return p.read_text()\n",
+                                    "def f(df, p):\n    df.to_csv(p, index=False)\n",
+                                    "import pandas as pd\n\n\ndef f(p):\n    return pd.read_csv(p)\n"])
+def test_the_file_check_catches_a_file_access(tmp_path, source):
+    root = _tree(tmp_path, {"reports/tables.py": "def f(df):\n    return df.to_csv(index=False)\n"})
+    assert file_access_calls(root) == []  # text out: fine
+    (root / "reports/tables.py").write_text(source)
+    assert [x.split(":")[0] for x in file_access_calls(root)] == ["reports/tables.py"]
 
 
 def test_no_cycles_between_subpackages():
