@@ -18,7 +18,7 @@ from harness.cli import main
 from harness.data.errors import UserError
 from harness.data.exr import CONFIDENCE_CHANNEL, DISTANCE_CHANNEL, write_float_map
 from harness.data.frame import Frame, write_frame
-from harness.data.results import read_results, write_results
+from harness.data.results import map_paths, read_results, write_results
 from harness.jobs.report import build_report
 from reconstruction.camera.equirect import bearing_grid
 from reconstruction.camera.rig import Rig
@@ -388,3 +388,21 @@ def test_malformed_breakdown_and_frames_json(tmp_path):
     _write_csv(tmp_path / "r" / "breakdown.csv", ["scene", "kind"], [["room", "distance"]])
     with pytest.raises(UserError, match=r"breakdown\.csv: missing column"):
         build_report(tmp_path / "r")
+
+
+def test_results_set_round_trip_and_maps_layout(tmp_path):
+    """harness.data.results writes what it reads back (schema types), and lays out the maps of both kinds of
+    method (the one layout evaluate writes and report reads)."""
+    row = dict(zip(RESULT_COLUMNS, GOOD, strict=False))
+    row.update({"rectify": False, "mae_m": 0.1})
+    other = {**row, "method": "sweep", "flow": "", "rectify": "", "variant": ""}
+    written = write_results(tmp_path / "r", results_table([row, other]), frames=[], config={"methods": {}})
+    assert [p.name for p in written] == ["results.csv", "results.json", "frames.json", "config.json"]
+    back = read_results(tmp_path / "r")
+    assert back.loc[0, "rectify"] == False and back.loc[1, "rectify"] == ""  # noqa: E712 (numpy bool)
+    assert back["valid_px"].dtype == np.int64 and np.isnan(back.loc[0, "ause"])
+    assert json.loads((tmp_path / "r" / "results.json").read_text())[0]["ause"] is None  # strict JSON
+    assert [p.as_posix() for p in map_paths("s", "v", "dis-plain:color", "dis", False, "color")] == [
+        "maps/s/v/dis-plain/color.distance.exr", "maps/s/v/dis-plain/color.confidence.exr"]
+    assert [p.as_posix() for p in map_paths("s", "v", "sweep")] == [
+        "maps/s/v/sweep/distance.exr", "maps/s/v/sweep/confidence.exr"]
