@@ -61,6 +61,7 @@ from harness.data.atomic import atomic_write_bytes, atomic_write_text, clean_sta
 from harness.data.errors import FrameError, UserError
 from harness.data.exr import CONFIDENCE_CHANNEL, DISTANCE_CHANNEL, read_float_map
 from harness.data.frame import read_frame
+from harness.data.names import is_safe_name
 from harness.data.outputs import ensure_output_dir
 from reconstruction.camera.equirect import bearing_grid
 from reports import html as H
@@ -134,10 +135,6 @@ def write_report(results_dir, *, ply: str = "all", cloud_points: int = DEFAULT_C
 
 
 # ------------------------------------------------------------------------------------------------ helpers
-
-
-def _safe_part(name: str) -> bool:
-    return bool(name) and "/" not in name and "\\" not in name and name not in (".", "..")
 
 
 def map_paths(scene: str, viewpoint: str, row) -> tuple[Path, Path]:
@@ -379,7 +376,7 @@ def _frame_section(d: Path, scene: str, viewpoint: str, frame_paths: dict, all_r
                    conf_frames: dict, first: bool) -> str:
     """One frame's HTML (error maps of every method, region masks, cloud views); writes its figures and PLYs,
     adds its sparsification curves to ``curve_sums``.  Returns "" when the frame cannot be shown (a problem)."""
-    if not (_safe_part(scene) and _safe_part(viewpoint)):
+    if not (is_safe_name(scene) and is_safe_name(viewpoint)):
         out.problems.append(f"scene/viewpoint name {scene!r}/{viewpoint!r} cannot be used as a path; skipped")
         return ""
     if (scene, viewpoint) not in frame_paths:
@@ -400,7 +397,8 @@ def _frame_section(d: Path, scene: str, viewpoint: str, frame_paths: dict, all_r
     preds: dict[str, np.ndarray] = {}
     for label in (m for m in order if m in rows):
         row = rows[label]
-        if not row["flow"] and not _safe_part(label):
+        parts = ([config_key(row["flow"], row["rectify"]), row["variant"]] if row["flow"] else [label])
+        if not all(is_safe_name(x) for x in parts):
             out.problems.append(f"method name {label!r} cannot be used as a path; its maps are not shown")
             continue
         dist_rel, conf_rel = map_paths(scene, viewpoint, row)
