@@ -34,9 +34,10 @@ from pathlib import Path
 from harness.data import jsonio
 from harness.data.atomic import atomic_directory, atomic_write_text, clean_stale_siblings, parse_staging_name
 from harness.data.errors import UserError
+from harness.data.predictions import FORMAT as PRED_FORMAT
 
-__all__ = ["MARKER", "MARKER_FORMAT", "KINDS", "check_output", "mark_output", "read_marker", "output_kind",
-           "foreign_entries", "check_output_dir", "ensure_output_dir", "staged_directory"]
+__all__ = ["MARKER", "MARKER_FORMAT", "KINDS", "RESULTS_FORMAT", "check_output", "mark_output", "read_marker",
+           "output_kind", "foreign_entries", "check_output_dir", "ensure_output_dir", "staged_directory"]
 
 MARKER = ".tri360-output.json"
 MARKER_FORMAT = "tri360-output/1"
@@ -54,20 +55,23 @@ _FRAME_FILE_RE = re.compile(r"^(frame\.json|render_log\.json|[CUR]\.png|[CUR]\.[
 PREDICTION_FILES = frozenset({"distance.exr", "confidence.exr", "reconstruction.json"})
 STUDY_FILES = frozenset({"points.json", "study.csv", "study.md"})
 STUDY_DIRS = frozenset({"data", "results"})
-_PRED_FORMAT = "tri360-pred/1"  # harness.data.predictions.FORMAT
-_RESULTS_FORMAT = "tri360-results/1"
+OS_LITTER = frozenset({".DS_Store", "Thumbs.db", "desktop.ini"})
+"""Folder-view files of macOS / Windows: nobody's data, so they neither make a directory foreign nor non-empty."""
+RESULTS_FORMAT = "tri360-results/1"
+"""The ``format`` of a results set's ``config.json``."""
 
 
 # ------------------------------------------------------------------------------------------- the marker
 
 
 def _entries(path: Path) -> list[str]:
-    """The names in ``path``, without the marker and without tri360 staging leftovers (``.x.partial-...``)."""
+    """The names in ``path``, without the marker, tri360 staging leftovers (``.x.partial-...``) and the files
+    desktop systems drop into every folder they show (:data:`OS_LITTER`)."""
     try:
         names = os.listdir(path)
     except OSError:
         return []
-    return sorted(n for n in names if n != MARKER and parse_staging_name(n) is None)
+    return sorted(n for n in names if n != MARKER and n not in OS_LITTER and parse_staging_name(n) is None)
 
 
 def read_marker(path: Path) -> dict | None:
@@ -182,12 +186,12 @@ def output_kind(path: Path) -> str | None:
         return marker["kind"]
     if not path.is_dir():
         return None
-    if (path / "results.csv").is_file() or _json_format(path / "config.json") == _RESULTS_FORMAT:
+    if (path / "results.csv").is_file() or _json_format(path / "config.json") == RESULTS_FORMAT:
         return "results"
     if (path / "points.json").is_file() and ((path / "data").is_dir() or (path / "results").is_dir()
                                              or (path / "study.csv").is_file()):
         return "study"
-    if _json_format(path / "method.json") == _PRED_FORMAT:
+    if _json_format(path / "method.json") == PRED_FORMAT:
         return "predictions"
     for a in _entries(path):
         pa = path / a
@@ -206,7 +210,7 @@ def output_kind(path: Path) -> str | None:
 def _holds_files(path: Path) -> bool:
     """True if anything but directories and tri360 staging leftovers is under ``path``."""
     for _dirpath, dirnames, filenames in os.walk(path):
-        if any(n != MARKER and parse_staging_name(n) is None for n in filenames):
+        if any(n != MARKER and n not in OS_LITTER and parse_staging_name(n) is None for n in filenames):
             return True
         dirnames[:] = [d for d in dirnames if parse_staging_name(d) is None]
     return False

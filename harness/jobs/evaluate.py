@@ -41,7 +41,7 @@ from harness.data.errors import UserError
 from harness.data.exr import CONFIDENCE_CHANNEL, DISTANCE_CHANNEL, write_float_map
 from harness.data.frame import find_frames, read_frame
 from harness.data.names import check_name
-from harness.data.outputs import check_output, mark_output, staged_directory
+from harness.data.outputs import RESULTS_FORMAT, check_output, mark_output, staged_directory
 from harness.data.provenance import software
 from harness.jobs.cluster import ClusterOptions, open_executor
 from reconstruction.methods.base import Method, MethodOutput, flow_fields, run_methods
@@ -165,7 +165,7 @@ def scorable_frame(path: Path):
 def results_config(methods: Sequence[Method], frames: list, data_root: Path, started: float) -> dict:
     """The contents of ``config.json``."""
     return {
-        "format": "tri360-results/1",
+        "format": RESULTS_FORMAT,
         "software": software(),
         "created_unix_s": round(started, 3),
         "data_root": str(Path(data_root).resolve()),

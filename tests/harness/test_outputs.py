@@ -289,10 +289,13 @@ def test_a_broken_marker_is_named(work):
         check_output(work / "results", "results")
 
 
-def test_staging_leftovers_do_not_make_a_directory_foreign(work):
+def test_staging_leftovers_and_folder_view_files_do_not_make_a_directory_foreign(work):
     d = work / "empty-ish"
     (d / ".x.partial-1-0000abcd").mkdir(parents=True)
+    (d / ".DS_Store").write_bytes(b"\0")
     assert check_output(d, "results") == d
+    (work / "results" / "Thumbs.db").write_bytes(b"\0")
+    assert check_output(work / "results", "results") == work / "results"
 
 
 def test_study_out_around_its_own_file_is_refused(work, capfd):
