@@ -49,10 +49,12 @@ def check_name(name: str, source: str) -> str:
         why = "is empty"
     elif len(name) > MAX_NAME_LENGTH:
         why = f"is {len(name)} characters long (at most {MAX_NAME_LENGTH})"
-    elif name.startswith("."):
-        why = "starts with a dot"
+    elif "/" in name or "\\" in name:
+        why = "contains a path separator"
     elif ".." in name:
         why = "contains '..'"
+    elif name.startswith("."):
+        why = "starts with a dot"
     else:
         bad = sorted({c for c in name if not re.fullmatch(f"[{NAME_CHARACTERS}]", c)})
         why = "contains " + ", ".join(repr(c) for c in bad[:5])

@@ -271,6 +271,9 @@ def check_output(path: Path, kind: str, inputs: Iterable[Path] = ()) -> Path:
             raise UserError(f"{path}: is a tri360 {KINDS[found]} ({how} says so), not a {what}; tri360 writes a "
                             f"{what} only into an absent or empty directory or a {what} it wrote: choose another "
                             "output directory")
+        if found is None and (path / "frame.json").is_file():
+            raise UserError(f"{path}: is a frame directory (it holds frame.json), not a {what}: choose another "
+                            "output directory")
         foreign = foreign_entries(path, kind, marker.get("entries", []) if marker else ())
         if found is None and not foreign and _holds_files(path):  # tri360's names, but none of its signature files
             foreign = _entries(path)
