@@ -402,6 +402,20 @@ def check_marked(where: str, kind: str):
     return check
 
 
+def escaping_map(env: Env, mp) -> None:
+    """Setup: a real map where ``maps/<scene>/<viewpoint>/oracle-rect/`` + six ``..`` + ``escape`` points, beside
+    the test directory, so that a report taking the name as a path would find it and write a PLY out there."""
+    src = env.res / "maps" / "synthetic_box" / "vp000" / "oracle-rect" / "average.distance.exr"
+    shutil.copy(src, env.tmp.parent / "escape.distance.exr")
+
+
+def check_nothing_outside_res(env: Env, out: str, err: str) -> None:
+    """A report of results whose names are unsafe writes only under {res}, and says what it left out."""
+    written = [p for p in env.tmp.parent.rglob("*") if "escape" in p.name and not p.name.endswith(".exr")]
+    assert written == [], written
+    assert "cannot be used as a path" in err
+
+
 def check_scenes_warning(source: str):
     def check(env: Env, out: str, err: str) -> None:
         assert "synthetic_box" in out  # the other scenes are still listed
@@ -643,6 +657,13 @@ CASES = [
     Case("report", "results-holds-a-users-file", REP, ("{res}", "notes.txt"), setup=users_file("{res}/notes.txt")),
     Case("report", "results-of-the-previous-release", REP, code=0, setup=drop_markers("{res}"),
          check=check_marked("{res}", "results")),
+    Case("report", "results-csv-variant-escapes", (*REP[:-1], "all"), code=0, check=check_nothing_outside_res,
+         setup=combine(escaping_map, lambda env, mp: pd.read_csv(env.res / "results.csv").assign(
+             variant="../../../../../../escape").to_csv(env.res / "results.csv", index=False))),
+    Case("report", "results-csv-method-escapes", (*REP[:-1], "all"), code=0, check=check_nothing_outside_res,
+         setup=lambda env, mp: pd.read_csv(env.res / "results.csv").assign(
+             method="../../../../../../escape", flow="", rectify="", variant="").to_csv(env.res / "results.csv",
+                                                                                        index=False)),
     Case("study", "out-is-the-data-root", (*ST[:3], "{root}", *ST[4:]), ("{root}", "data root")),
     Case("study", "out-is-the-data-roots-parent", (*ST[:3], "{tmp}", *ST[4:]), ("{tmp}", "input")),
     Case("study", "out-is-a-predictions-root", (*ST[:3], "{preds}", *ST[4:]), ("{preds}", "predictions root")),

@@ -330,6 +330,9 @@ def check_output_dir(path: Path) -> Path:
 def staged_directory(target: Path) -> Iterator[Path]:
     """Build a directory's new contents in a hidden sibling, then swap it in place of ``target``.
 
+    The previous ``target`` is deleted as a whole: call :func:`check_output` first (it must be absent, empty or a
+    directory of the same kind that tri360 wrote), and :func:`mark_output` on the staging directory at the end.
+
     Checks first (before the caller does any work) that ``target`` can be replaced: it is a directory or
     absent, its parent is writable, and an existing ``target`` is writable too; leftovers of killed runs
     beside it are removed.  Yields the staging directory (:func:`harness.data.atomic.atomic_directory`); on
