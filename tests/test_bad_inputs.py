@@ -35,6 +35,7 @@ import OpenEXR
 import pandas as pd
 import pytest
 
+import harness.jobs.evaluate
 import reconstruction.plugins
 from harness.cli import main
 from harness.data.atomic import parse_staging_name
@@ -72,9 +73,13 @@ class Env:
     def file(self) -> Path:  # an ordinary file, to be used where a directory is expected
         return self.tmp / "a_file"
 
+    @property
+    def preds(self) -> Path:  # a predictions root of the frame (written by `tri360 reconstruct`, oracle-rect:average)
+        return self.tmp / "preds"
+
     def fmt(self, text: str) -> str:
         return text.format(tmp=self.tmp, root=self.root, frame=self.frame, out=self.out, res=self.res,
-                           file=self.file)
+                           file=self.file, preds=self.preds)
 
 
 @dataclass(frozen=True)
@@ -82,10 +87,10 @@ class Case:
     """One catalogue entry.
 
     Attributes:
-        group: the command (render, scenes, reconstruct, evaluate, report) or "data" (data-layer faults, run
-            through a command).
+        group: the command (render, scenes, reconstruct, evaluate, score, report, study) or "data" (data-layer
+            faults, run through a command).
         name: what is wrong.
-        argv: the command line; ``{tmp} {root} {frame} {out} {res} {file}`` are filled from :class:`Env`.
+        argv: the command line; ``{tmp} {root} {frame} {out} {res} {file} {preds}`` are filled from :class:`Env`.
         culprit: substrings the single error line must contain (same placeholders).
         setup: ``setup(env, monkeypatch)`` breaks the input before the run.
         code: expected exit status; 2 = a failing case, anything else = a succeeding case checked by ``check``.
@@ -309,6 +314,51 @@ def _raise_import_error():
     raise ImportError("No module named 'broken_pkg'")
 
 
+def users_file(rel: str):
+    """Setup: a file of the user's (tri360 never wrote it), e.g. ``{out}/notes.txt``."""
+    return write_text(rel, "my notes: not written by tri360\n")
+
+
+def symlink(rel: str, target: str):
+    def setup(env: Env, mp) -> None:
+        Path(env.fmt(rel)).symlink_to(Path(env.fmt(target)))
+    return setup
+
+
+def edit_json(rel: str, fn: Callable[[dict], object]):
+    def setup(env: Env, mp) -> None:
+        p = Path(env.fmt(rel))
+        data = json.loads(p.read_text())
+        fn(data)
+        p.write_text(json.dumps(data))
+    return setup
+
+
+def no_method_may_run(env: Env, mp) -> None:
+    """Setup: any method run fails loudly (not with exit 2), so a refusal proves the check came before any work."""
+    def forbidden(*args, **kwargs):
+        raise AssertionError("a method ran before the preconditions were checked")
+    mp.setattr(harness.jobs.evaluate, "run_methods", forbidden)
+
+
+def vp001_without_ground_truth(env: Env, mp) -> None:
+    """Setup: a second frame synthetic_box/vp001 without ground truth, and its prediction (for score)."""
+    second_viewpoint(env, mp)
+    for k in "CUR":
+        (env.root / "synthetic_box" / "vp001" / f"{k}.distance.exr").unlink()
+    shutil.copytree(env.preds / "synthetic_box" / "vp000", env.preds / "synthetic_box" / "vp001")
+
+
+def prediction_exr(fn: Callable[[np.ndarray], np.ndarray]):
+    """Setup: rewrite the predictions root's distance.exr with OpenEXR directly: ``fn(old float32) -> new``."""
+    return raw_exr("{preds}/synthetic_box/vp000/distance.exr", fn)
+
+
+def drop_markers(*rels: str):
+    """Setup: remove the output markers, as in directories written by the previous release."""
+    return remove(*(f"{r}/.tri360-output.json" for r in rels))
+
+
 # ---------------------------------------------------------------------------------------------- checkers
 
 
@@ -345,6 +395,27 @@ def check_report_written(env: Env, out: str, err: str) -> None:
     assert (env.res / "report.html").is_file() and (env.res / "mae.md").is_file()
 
 
+def check_marked(where: str, kind: str):
+    def check(env: Env, out: str, err: str) -> None:
+        marker = json.loads((Path(env.fmt(where)) / ".tri360-output.json").read_text())
+        assert marker["format"] == "tri360-output/1" and marker["kind"] == kind, marker
+    return check
+
+
+def escaping_map(env: Env, mp) -> None:
+    """Setup: a real map where ``maps/<scene>/<viewpoint>/oracle-rect/`` + six ``..`` + ``escape`` points, beside
+    the test directory, so that a report taking the name as a path would find it and write a PLY out there."""
+    src = env.res / "maps" / "synthetic_box" / "vp000" / "oracle-rect" / "average.distance.exr"
+    shutil.copy(src, env.tmp.parent / "escape.distance.exr")
+
+
+def check_nothing_outside_res(env: Env, out: str, err: str) -> None:
+    """A report of results whose names are unsafe writes only under {res}, and says what it left out."""
+    written = [p for p in env.tmp.parent.rglob("*") if "escape" in p.name and not p.name.endswith(".exr")]
+    assert written == [], written
+    assert "cannot be used as a path" in err
+
+
 def check_scenes_warning(source: str):
     def check(env: Env, out: str, err: str) -> None:
         assert "synthetic_box" in out  # the other scenes are still listed
@@ -359,6 +430,8 @@ R = ("render", "--scene", "synthetic_box", "--width", "64", "--quiet", "--out", 
 REC = ("reconstruct", "{frame}", "--out", "{out}", "--flow", "oracle", "--variant", "average", "--quiet")
 EV = ("evaluate", "{root}", "--out", "{out}", "--flow", "oracle", "--variants", "average", "--no-report", "--quiet")
 REP = ("report", "{res}", "--ply", "none")
+SC = ("score", "{preds}", "--data", "{root}", "--out", "{out}", "--no-report", "--quiet")
+ST = ("study", "{tmp}/study.toml", "--out", "{out}", "--quiet")
 PROC = "/proc/tri360-no-such-dir/out"
 
 CASES = [
@@ -505,6 +578,97 @@ CASES = [
     Case("report", "cleans-leftovers-of-killed-runs", REP, code=0,
          setup=lambda env, mp: write_text(f"{{res}}/.mae.md.partial-{dead_pid()}-0000abcd", "half")(env, mp),
          check=check_report_written),
+    # ---- score
+    Case("score", "prediction-missing", SC, ("{preds}/synthetic_box/vp000/distance.exr", "missing"),
+         setup=remove("{preds}/synthetic_box/vp000/distance.exr")),
+    Case("score", "prediction-negative", SC, ("{preds}/synthetic_box/vp000/distance.exr", "negative"),
+         setup=prediction_exr(lambda d: -d)),
+    Case("score", "prediction-minus-inf", SC, ("{preds}/synthetic_box/vp000/distance.exr", "negative"),
+         setup=prediction_exr(lambda d: np.where(d > 2.0, -np.inf, d).astype(np.float32))),
+    Case("score", "prediction-uint32", SC, ("{preds}/synthetic_box/vp000/distance.exr", "uint32"),
+         setup=prediction_exr(lambda d: np.nan_to_num(d, posinf=0.0).astype(np.uint32))),
+    Case("score", "prediction-all-nan", SC, ("{preds}/synthetic_box/vp000/distance.exr",),
+         setup=prediction_exr(lambda d: np.full_like(d, np.nan))),
+    Case("score", "method-name-dotdot", (*SC, "--method", "../x"), ("--method", "../x")),
+    Case("score", "method-name-absolute", (*SC, "--method", "{tmp}/abs"), ("--method",)),
+    Case("score", "method-name-separator", (*SC, "--method", "a/b"), ("--method", "a/b")),
+    Case("score", "method-name-hidden", (*SC, "--method", ".x"), ("--method",)),
+    Case("score", "method-name-too-long", (*SC, "--method", "m" * 101), ("--method", "101 characters")),
+    Case("score", "method-json-name-escapes", SC, ("{preds}/method.json",),
+         setup=edit_json("{preds}/method.json", lambda m: m.__setitem__("name", "../../../escape"))),
+    Case("score", "method-json-name-absolute", SC, ("{preds}/method.json",),
+         setup=edit_json("{preds}/method.json", lambda m: m.__setitem__("name", "/tmp/tri360-escape"))),
+    Case("score", "folder-name-unsafe", (SC[0], "{tmp}/my preds", *SC[2:]), ("{tmp}/my preds", "--method"),
+         setup=lambda env, mp: (shutil.copytree(env.preds, env.tmp / "my preds"),
+                                (env.tmp / "my preds" / "method.json").unlink())),
+    Case("score", "frame-without-ground-truth-before-work", SC, ("{root}/synthetic_box/vp001", "ground-truth"),
+         setup=combine(vp001_without_ground_truth, no_method_may_run)),
+    Case("score", "out-is-the-predictions-root", (*SC[:5], "{preds}", *SC[6:]), ("{preds}", "input")),
+    Case("score", "out-inside-the-predictions-root", (*SC[:5], "{preds}/res", *SC[6:]), ("{preds}/res", "input")),
+    Case("score", "out-is-the-data-root", (*SC[:5], "{root}", *SC[6:]), ("{root}", "input")),
+    Case("score", "out-holds-a-users-file", SC, ("{out}", "notes.txt"), setup=users_file("{out}/notes.txt")),
+    # ---- outputs replace only what tri360 wrote (every writing command)
+    Case("evaluate", "out-is-the-data-root", (*EV[:2], "--out", "{root}", *EV[4:]), ("{root}", "input")),
+    Case("evaluate", "out-is-the-data-roots-parent", (*EV[:2], "--out", "{tmp}", *EV[4:]), ("{tmp}", "input")),
+    Case("evaluate", "out-is-a-frame-dir", (*EV[:2], "--out", "{frame}", *EV[4:]), ("{frame}", "input")),
+    Case("evaluate", "out-inside-the-data-root", (*EV[:2], "--out", "{root}/res", *EV[4:]), ("{root}/res",)),
+    Case("evaluate", "out-is-a-link-to-the-data-root", (*EV[:2], "--out", "{tmp}/link", *EV[4:]),
+         ("{tmp}/link", "input"), setup=symlink("{tmp}/link", "{root}")),
+    Case("evaluate", "out-is-a-predictions-root", (*EV[:2], "--out", "{preds}", *EV[4:]),
+         ("{preds}", "predictions root")),
+    Case("evaluate", "out-holds-a-users-file", EV, ("{out}", "1 entry not written by tri360, e.g. notes.txt"),
+         setup=users_file("{out}/notes.txt")),
+    Case("evaluate", "out-is-a-results-set-with-a-users-file", (*EV[:2], "--out", "{res}", *EV[4:]),
+         ("{res}", "thesis.tex"), setup=users_file("{res}/thesis.tex")),
+    Case("evaluate", "out-has-a-broken-marker", (*EV[:2], "--out", "{res}", *EV[4:]), ("{res}/.tri360-output.json",),
+         setup=write_text("{res}/.tri360-output.json", "{")),
+    Case("evaluate", "rerun-into-its-results-set", (*EV[:2], "--out", "{res}", *EV[4:]), code=0,
+         check=check_marked("{res}", "results")),
+    Case("evaluate", "rerun-into-a-results-set-of-the-previous-release", (*EV[:2], "--out", "{res}", *EV[4:]),
+         code=0, setup=drop_markers("{res}"), check=check_marked("{res}", "results")),
+    Case("evaluate", "frame-without-ground-truth-before-work", EV, ("{root}/synthetic_box/vp001", "ground-truth"),
+         setup=combine(vp001_without_ground_truth, no_method_may_run)),
+    Case("evaluate", "scene-name-with-a-space", EV, ("{frame}/frame.json", "scene"),
+         setup=edit_meta(lambda m: m.__setitem__("scene", "my room"))),
+    Case("reconstruct", "out-is-the-data-root", (*REC[:2], "--out", "{root}", *REC[4:]), ("{root}", "input")),
+    Case("reconstruct", "out-is-the-frame-dir", (*REC[:2], "--out", "{frame}", *REC[4:]), ("{frame}", "input")),
+    Case("reconstruct", "out-is-the-data-roots-parent", (*REC[:2], "--out", "{tmp}", *REC[4:]), ("{tmp}", "input")),
+    Case("reconstruct", "out-is-a-results-set", (*REC[:2], "--out", "{res}", *REC[4:]), ("{res}", "results set")),
+    Case("reconstruct", "out-holds-a-users-file", REC, ("{out}", "notes.txt"), setup=users_file("{out}/notes.txt")),
+    Case("reconstruct", "another-method-into-a-predictions-root",
+         (*REC[:2], "--out", "{preds}", "--flow", "oracle", "--variant", "gradient", "--quiet"),
+         ("{preds}", "'oracle-rect:average'")),
+    Case("reconstruct", "predictions-root-without-method-json",
+         (*REC[:2], "--out", "{preds}", "--flow", "oracle", "--variant", "gradient", "--quiet"),
+         ("{preds}", "no method.json"), setup=remove("{preds}/method.json")),
+    Case("reconstruct", "same-method-again-into-its-root", (*REC[:2], "--out", "{preds}", *REC[4:]), code=0,
+         setup=drop_markers("{preds}"), check=check_marked("{preds}", "predictions")),
+    Case("render", "out-is-the-data-roots-parent", (*R[:-1], "{tmp}"), ("{tmp}",)),
+    Case("render", "out-is-a-results-set", (*R[:-1], "{res}"), ("{res}", "results set")),
+    Case("render", "out-is-a-predictions-root", (*R[:-1], "{preds}"), ("{preds}", "predictions root")),
+    Case("render", "out-holds-a-users-file", R, ("{out}", "notes.txt"), setup=users_file("{out}/notes.txt")),
+    Case("render", "out-frame-dir-holds-a-users-file", R, ("{out}", "synthetic_box/vp000/notes.txt"),
+         setup=combine(rendered(), users_file("{out}/synthetic_box/vp000/notes.txt"))),
+    Case("render", "rerun-into-a-data-root-of-the-previous-release", R, code=0,
+         setup=combine(rendered(), drop_markers("{out}")), check=check_marked("{out}", "data")),
+    Case("report", "results-is-the-data-root", (REP[0], "{root}", *REP[2:]), ("{root}", "data root")),
+    Case("report", "results-is-a-predictions-root", (REP[0], "{preds}", *REP[2:]), ("{preds}", "predictions root")),
+    Case("report", "results-is-the-data-roots-parent", (REP[0], "{tmp}", *REP[2:]), ("{tmp}",)),
+    Case("report", "results-holds-a-users-file", REP, ("{res}", "notes.txt"), setup=users_file("{res}/notes.txt")),
+    Case("report", "results-of-the-previous-release", REP, code=0, setup=drop_markers("{res}"),
+         check=check_marked("{res}", "results")),
+    Case("report", "results-csv-variant-escapes", (*REP[:-1], "all"), code=0, check=check_nothing_outside_res,
+         setup=combine(escaping_map, lambda env, mp: pd.read_csv(env.res / "results.csv").assign(
+             variant="../../../../../../escape").to_csv(env.res / "results.csv", index=False))),
+    Case("report", "results-csv-method-escapes", (*REP[:-1], "all"), code=0, check=check_nothing_outside_res,
+         setup=lambda env, mp: pd.read_csv(env.res / "results.csv").assign(
+             method="../../../../../../escape", flow="", rectify="", variant="").to_csv(env.res / "results.csv",
+                                                                                        index=False)),
+    Case("study", "out-is-the-data-root", (*ST[:3], "{root}", *ST[4:]), ("{root}", "data root")),
+    Case("study", "out-is-the-data-roots-parent", (*ST[:3], "{tmp}", *ST[4:]), ("{tmp}", "input")),
+    Case("study", "out-is-a-predictions-root", (*ST[:3], "{preds}", *ST[4:]), ("{preds}", "predictions root")),
+    Case("study", "out-is-a-results-set", (*ST[:3], "{res}", *ST[4:]), ("{res}", "results set")),
+    Case("study", "out-holds-a-users-file", ST, ("{out}", "notes.txt"), setup=users_file("{out}/notes.txt")),
     # ---- data layer, through the commands
     Case("data", "frame-json-is-a-directory", REC, ("{frame}/frame.json",),
          setup=dir_in_place_of("{frame}/frame.json")),
@@ -538,7 +702,12 @@ def template(tmp_path_factory) -> Path:
     code, _ = run_cli(["evaluate", str(t / "data"), "--out", str(t / "results"), "--flow", "oracle", "--variants",
                        "average", "--no-report", "--quiet"])
     assert code == 0, "the template results could not be made"
+    code, _ = run_cli(["reconstruct", str(t / "data" / "synthetic_box" / "vp000"), "--out", str(t / "preds"),
+                       "--flow", "oracle", "--variant", "average", "--quiet"])
+    assert code == 0, "the template predictions could not be made"
     (t / "a_file").write_text("I am a file, not a directory\n")
+    (t / "study.toml").write_text('[render]\nscene = "synthetic_box"\nwidth = 64\n\n[evaluate]\n'
+                                  'method = ["oracle-rect:average"]\n')
     return t
 
 
@@ -558,7 +727,8 @@ def test_catalogue_size():
     groups = {}
     for c in CASES:
         groups[c.group] = groups.get(c.group, 0) + 1
-    assert len(CASES) >= 40 and set(groups) == {"render", "scenes", "reconstruct", "evaluate", "report", "data"}
+    assert len(CASES) >= 40 and set(groups) == {"render", "scenes", "reconstruct", "evaluate", "score", "report",
+                                                 "study", "data"}
     assert len({(c.group, c.name) for c in CASES}) == len(CASES)
 
 

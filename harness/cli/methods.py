@@ -41,7 +41,10 @@ def add_method_options(parser: argparse.ArgumentParser, multiple: bool) -> None:
 
 def add_results_options(parser: argparse.ArgumentParser, what: str) -> None:
     """``--out``, ``--scene``, ``--report/--no-report`` and ``--quiet``, shared by ``evaluate`` and ``score``."""
-    parser.add_argument("--out", type=Path, default=Path("results"), help="results directory")
+    parser.add_argument("--out", type=Path, default=Path("results"),
+                        help="results directory, replaced as a whole: it must be absent, empty or a results set "
+                             "tri360 wrote (holding nothing else); never the data root, a frame or predictions "
+                             "root, inside one or a parent of one")
     parser.add_argument("--scene", nargs="+", default=None, metavar="NAME", help=f"{what} only these scenes")
     parser.add_argument("--report", action=argparse.BooleanOptionalAction, default=True,
                         help="write the report with the results (--no-report: results only)")

@@ -15,7 +15,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("frame_dir", type=Path, metavar="FRAME_DIR", help="a tri360-frame/1 directory")
     parser.add_argument("--out", type=Path, required=True, metavar="PRED_ROOT",
                         help="predictions root: writes PRED_ROOT/<scene>/<viewpoint>/distance.exr (+ confidence.exr) "
-                             "and PRED_ROOT/method.json, ready for `tri360 score`")
+                             "and PRED_ROOT/method.json, ready for `tri360 score`; it must be absent, empty or a "
+                             "predictions root tri360 wrote with this same method (one method per root), never the "
+                             "frame, inside it or a parent of it")
     add_method_options(parser, multiple=False)
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
 

@@ -40,7 +40,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", dest="overrides",
                         help="override a scene parameter (value parsed as JSON if possible); repeatable; "
                              "an unknown KEY is an error that lists the scene's parameters")
-    parser.add_argument("--out", default="data", help="data root directory")
+    parser.add_argument("--out", default="data",
+                        help="data root directory (frames go to OUT/<scene>/<viewpoint>/): absent, empty or a data "
+                             "root tri360 wrote, holding only frames")
     parser.add_argument("--force", action="store_true",
                         help="re-render frames that are already complete (otherwise they are kept when rendered "
                              "with the same settings, and the run is refused when not)")

@@ -8,6 +8,7 @@ import time
 from pathlib import Path
 
 from harness.data.errors import UserError
+from harness.data.outputs import check_output, mark_output
 from harness.jobs.report import DEFAULT_CLOUD_POINTS, PLY_CHOICES, build_report
 
 HELP = "write tables, plots, point clouds and report.html from a results dir"
@@ -15,7 +16,9 @@ HELP = "write tables, plots, point clouds and report.html from a results dir"
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("results", type=Path, metavar="RESULTS",
-                        help="results directory written by `tri360 evaluate`")
+                        help="results set written by `tri360 evaluate` or `tri360 score`; the report is written into "
+                             "it, so it must hold only what tri360 wrote there (a directory holding anything else, a "
+                             "data root or a predictions root is refused)")
     parser.add_argument("--ply", choices=PLY_CHOICES, default="all",
                         help="which point clouds to write as PLY: every configuration, only the paper set-up "
                              "(deepflow-plain), or none")
@@ -27,7 +30,9 @@ def run(args) -> int:
     if args.cloud_points < 1:
         raise UserError(f"--cloud-points must be at least 1, got {args.cloud_points}")
     t0 = time.perf_counter()
+    check_output(args.results, "results")  # writes only into a results set tri360 wrote
     out = build_report(args.results, ply=args.ply, cloud_points=args.cloud_points)
+    mark_output(args.results, "results")
     print(out.markdown)
     for p in out.problems:
         print(f"tri360 report: warning: {p}", file=sys.stderr)

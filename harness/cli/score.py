@@ -19,7 +19,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--data", type=Path, required=True, metavar="DATA_ROOT",
                         help="the frames with ground truth (<scene>/<viewpoint>/, or one frame directory)")
     parser.add_argument("--method", nargs="+", default=None, metavar="NAME",
-                        help="one name per PRED_ROOT, in order (default: method.json's name, else the folder name)")
+                        help="one name per PRED_ROOT, in order (default: method.json's name, else the folder name); "
+                             "a name becomes part of the maps' paths, so it may use only letters, digits and "
+                             "_ . : + = - (no leading dot, no '..', at most 100 characters)")
     add_results_options(parser, "score")
     add_cluster_arguments(parser)
 

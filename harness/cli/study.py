@@ -17,7 +17,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "variants, rectify, report) and [grid] (a list of values for any of those keys)")
     parser.add_argument("--out", type=Path, required=True, metavar="DIR",
                         help="study directory: study.csv, <key>.png, study.md, and the frames and results it reuses "
-                             "when the study is rerun or extended")
+                             "when the study is rerun or extended; absent, empty or a study directory tri360 wrote "
+                             "(holding nothing else), never around the study file")
     parser.add_argument("--metric", default=DEFAULT_METRIC, help="results column plotted against each grid key")
     parser.add_argument("--quiet", action="store_true", help="no progress bars")
     add_cluster_arguments(parser)

@@ -33,6 +33,7 @@ from harness.data.atomic import atomic_directory, atomic_write_text
 from harness.data.errors import FrameError
 from harness.data.exr import read_distance_exr, write_distance_exr
 from harness.data.images import read_png, write_png
+from harness.data.names import MAX_NAME_LENGTH, NAME_CHARACTERS, is_safe_name
 from reconstruction.camera.rig import CAMERA_NAMES, CameraPose
 
 __all__ = [
@@ -113,12 +114,6 @@ def _require(cond: bool, where, msg: str) -> None:
         raise FrameError(f"{where}: {msg}")
 
 
-def _safe_name(name: str) -> bool:
-    """A scene or viewpoint name usable as one visible directory level."""
-    return (bool(name) and name == name.strip() and not name.startswith(".") and "/" not in name
-            and "\\" not in name and "\0" not in name)
-
-
 def _parse_pose(meta_path: Path, name: str, raw) -> CameraPose:
     where = f"{meta_path} (cameras.{name})"
     _require(isinstance(raw, dict), where, "must be an object with 'position' and 'rotation'")
@@ -171,8 +166,9 @@ def validate_metadata(meta: dict, meta_path: Path) -> dict[str, CameraPose]:
         _require(isinstance(meta[key], typ) and not isinstance(meta[key], bool), meta_path,
                  f"{key!r} has the wrong type ({type(meta[key]).__name__})")
     for key in ("scene", "viewpoint"):
-        _require(_safe_name(meta[key]), meta_path,
-                 f"{key} {meta[key]!r} cannot be a directory name (empty, hidden, or contains a path separator)")
+        _require(is_safe_name(meta[key]), meta_path,
+                 f"{key} {meta[key]!r} cannot be a directory name (use only {NAME_CHARACTERS}, no leading dot, "
+                 f"no '..', at most {MAX_NAME_LENGTH} characters)")
     w, h = meta["width"], meta["height"]
     _require(w > 0 and h > 0, meta_path, f"width and height must be positive, got {w}x{h}")
     _require(w == 2 * h, meta_path, f"equirectangular frames need width == 2*height, got {w}x{h}")

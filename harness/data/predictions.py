@@ -3,15 +3,18 @@
 ::
 
     <pred_root>/<scene>/<viewpoint>/
-      distance.exr      # float32, one channel "distance", metres, camera C's distance, frame size;
-                        # NaN, +inf or 0 = no prediction at that pixel (scored with error = true distance)
-      confidence.exr    # optional, float32, one channel "confidence", higher = more confident
+      distance.exr      # float32 (float16 accepted), one channel "distance", metres, camera C's distance,
+                        # frame size; NaN, +inf or 0 = no prediction at that pixel (scored with error = true
+                        # distance); a negative value, -inf included, is refused
+      confidence.exr    # optional, float32 (or float16), one channel "confidence", higher = more confident
     <pred_root>/method.json   # optional: {"name", "description", "url", "parameters"}
 
-Readers validate and raise :class:`FrameError` naming the file: a missing frame, a wrong channel name, a
-size other than the frame's, a map with no valid prediction at all, a negative distance (a sign error: a
-distance is never negative; write NaN, inf or 0 for "no prediction"), a NaN confidence where the distance is
-valid.  Writers are atomic.
+Readers validate and raise :class:`FrameError` naming the file: a missing frame, a wrong channel name, a channel
+that is not floating point (float32 or float16: a uint32 channel is not metres), a size other than the frame's, a
+map with no valid prediction at all, a negative distance, ``-inf`` included (a sign error: a distance is never
+negative; write NaN, +inf or 0 for "no prediction"), a NaN confidence where the distance is valid.  The method's
+name (method.json's ``name``) is an outside name: ``tri360 score`` checks it before it becomes part of a path
+(:func:`harness.data.names.check_name`).  Writers are atomic.
 """
 
 from __future__ import annotations
@@ -25,7 +28,7 @@ import numpy as np
 from harness.data import jsonio
 from harness.data.atomic import atomic_write_text
 from harness.data.errors import FrameError
-from harness.data.exr import CONFIDENCE_CHANNEL, DISTANCE_CHANNEL, read_exr_channels, write_float_map
+from harness.data.exr import CONFIDENCE_CHANNEL, DISTANCE_CHANNEL, float_channel, read_exr_channels, write_float_map
 
 __all__ = ["FORMAT", "Prediction", "prediction_dir", "write_prediction", "read_prediction", "read_method_info",
            "write_method_info", "METHOD_INFO_KEYS"]
@@ -39,7 +42,7 @@ class Prediction:
     """One frame's prediction.
 
     Attributes:
-        distance: (H, W) float32 metres; NaN, +inf or 0 = no prediction.
+        distance: (H, W) float32 metres; NaN, +inf or 0 = no prediction (never negative, never -inf).
         confidence: (H, W) float32 (higher = more confident) or None.
         path: the directory it was read from.
     """
@@ -69,10 +72,10 @@ def _one_channel(path: Path, want: str) -> np.ndarray:
     if want not in channels:
         raise FrameError(f"{path}: no channel named {want!r} (found {', '.join(sorted(channels)) or 'none'}); "
                          f"{FORMAT} wants exactly one float channel {want!r}")
-    values = np.asarray(channels[want])
-    if values.ndim != 2:
-        raise FrameError(f"{path}: channel {want!r} must be single-valued, got shape {values.shape}")
-    return values.astype(np.float32, copy=False)
+    if channels[want].dtype.kind != "f":
+        raise FrameError(f"{path}: channel {want!r} holds {channels[want].dtype} values; {FORMAT} wants float32 "
+                         "(or float16)")
+    return float_channel(channels, path, want)
 
 
 def read_prediction(pred_root: Path, scene: str, viewpoint: str, width: int, height: int) -> Prediction:
@@ -89,11 +92,11 @@ def read_prediction(pred_root: Path, scene: str, viewpoint: str, width: int, hei
     if dist.shape != (height, width):
         raise FrameError(f"{path}: size {dist.shape[1]}x{dist.shape[0]} != the frame's {width}x{height}")
     with np.errstate(invalid="ignore"):
-        negative = np.isfinite(dist) & (dist < 0)
+        negative = dist < 0  # -inf included; NaN compares False
         valid = np.isfinite(dist) & (dist > 0)
     if negative.any():
         raise FrameError(f"{path}: {int(negative.sum())} pixels have a negative distance (min "
-                         f"{float(dist[negative].min()):.4g} m); write NaN, inf or 0 where there is no prediction")
+                         f"{float(dist[negative].min()):.4g} m); write NaN, +inf or 0 where there is no prediction")
     if not valid.any():
         raise FrameError(f"{path}: no pixel holds a valid prediction (all NaN, inf or 0)")
     conf = None

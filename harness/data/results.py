@@ -27,6 +27,7 @@ import pandas as pd
 from harness.data import jsonio
 from harness.data.atomic import atomic_write_text
 from harness.data.errors import UserError
+from harness.data.names import check_name
 from reconstruction.methods.flow_pipeline import config_label
 from reports.schema import (
     BOOL_COLUMNS,
@@ -54,24 +55,30 @@ MAPS_DIR = "maps"
 
 
 def map_paths(scene: str, viewpoint: str, method: str, flow: str = "", rectify=False,
-              variant: str = "") -> tuple[Path, Path]:
+              variant: str = "", source: str = "method label") -> tuple[Path, Path]:
     """Where a method's maps of one frame live, relative to the results directory.
 
     Flow-pipeline methods (``flow`` given): ``maps/<scene>/<viewpoint>/<flow>-<rect|plain>/<variant>.distance.exr``
     (+ ``<variant>.confidence.exr``); every other method: ``maps/<scene>/<viewpoint>/<method>/distance.exr``
-    (+ ``confidence.exr``).  NaN, inf and ``<= 0`` in a distance map mean "no prediction".
+    (+ ``confidence.exr``).  NaN, inf and ``<= 0`` in a distance map mean "no prediction".  Every component is
+    checked with :func:`harness.data.names.check_name`, so no name can point outside the results directory.
 
     Args:
         scene, viewpoint: the frame; method: the method's label; flow, rectify, variant: the results columns of
-            that name (empty for methods that are not the flow pipeline).
+            that name (empty for methods that are not the flow pipeline); source: where ``method`` came from, for
+            the message (``--method``, a ``method.json`` path, a results file).
     Returns:
         ``(distance map, confidence map)``; the confidence map exists only for methods that give one.
+    Raises:
+        UserError: a component that cannot be one path component, naming ``source``.
     """
-    base = Path(MAPS_DIR) / scene / viewpoint
+    base = Path(MAPS_DIR) / check_name(scene, "scene") / check_name(viewpoint, "viewpoint")
     if flow:
-        key = base / config_label(flow, bool(rectify))
+        key = base / check_name(config_label(flow, bool(rectify)), f"{source} (flow of {method!r})")
+        variant = check_name(str(variant), f"{source} (variant of {method!r})")
         return key / f"{variant}.distance.exr", key / f"{variant}.confidence.exr"
-    return base / method / "distance.exr", base / method / "confidence.exr"
+    d = base / check_name(method, source)
+    return d / "distance.exr", d / "confidence.exr"
 
 
 # ------------------------------------------------------------------------------------------------ writing

@@ -17,7 +17,11 @@ file system the workers share) and returns the rows; this process writes the res
 
 The whole set is built in a hidden staging directory beside ``out`` and swapped in at the end, so an interrupted
 run leaves the previous results set (results and report together) untouched and never an old report beside new
-results.
+results.  ``out`` must be absent, empty or a results set tri360 wrote (nothing else in it), and never the data root,
+a frame, a predictions root, inside one or a parent of one (:func:`harness.data.outputs.check_output`); the set
+carries the marker of a results set.  Every name that becomes part of a map's path (scene, viewpoint, method label,
+flow configuration, variant) is checked (:func:`harness.data.names.check_name`), and every frame must have usable
+ground truth, all before the first method runs.
 """
 
 from __future__ import annotations
@@ -33,7 +37,8 @@ import pandas as pd
 from harness.data.errors import UserError
 from harness.data.exr import CONFIDENCE_CHANNEL, DISTANCE_CHANNEL, write_float_map
 from harness.data.frame import find_frames, read_frame
-from harness.data.outputs import staged_directory
+from harness.data.names import check_name
+from harness.data.outputs import RESULTS_FORMAT, check_output, mark_output, staged_directory
 from harness.data.provenance import software
 from harness.data.results import map_paths, write_results
 from harness.jobs.cluster import ClusterOptions, open_executor
@@ -79,6 +84,8 @@ def select_frames(data_root: Path, scenes: Sequence[str] | None = None) -> list[
     refs = []
     for d in find_frames(data_root):
         meta = read_frame(d, load_distance=False)
+        check_name(meta.scene, f"{d / 'frame.json'} (scene)")
+        check_name(meta.viewpoint, f"{d / 'frame.json'} (viewpoint)")
         refs.append(FrameRef(d, meta.scene, meta.viewpoint))
     if scenes:
         wanted = set(scenes)
@@ -100,10 +107,42 @@ def select_frames(data_root: Path, scenes: Sequence[str] | None = None) -> list[
     return refs
 
 
+def check_method_paths(methods: Sequence[Method]) -> None:
+    """Every method's maps get a path of their own, made of safe names.
+
+    Raises:
+        UserError: an unsafe label, flow or variant name (naming its source), or two methods whose maps would
+            be the same file.
+    """
+    seen: dict[Path, str] = {}
+    for m in methods:
+        rel, _ = map_paths("scene", "viewpoint", m.label, source=getattr(m, "label_source", "--method"),
+                           **flow_fields(m))
+        if rel in seen:
+            raise UserError(f"methods {seen[rel]!r} and {m.label!r} would write the same map ({rel.parent.name}/"
+                            f"{rel.name}); evaluate them separately")
+        seen[rel] = m.label
+
+
+def scorable_frame(path: Path):
+    """Read the frame at ``path`` with its ground truth, refusing one that cannot be scored.
+
+    Raises:
+        UserError: a malformed frame, no ground-truth distance, or no pixel with a finite distance (named).
+    """
+    frame = read_frame(path)
+    if not frame.has_ground_truth:
+        raise UserError(f"{path}: frame has no ground-truth distance, nothing to score "
+                        "(use 'tri360 reconstruct' for captures without ground truth)")
+    if not np.isfinite(frame.distance["C"]).any():
+        raise UserError(f"{path / 'C.distance.exr'}: no pixel has a finite distance, nothing to score")
+    return frame
+
+
 def results_config(methods: Sequence[Method], frames: list, data_root: Path, started: float) -> dict:
     """The contents of ``config.json``."""
     return {
-        "format": "tri360-results/1",
+        "format": RESULTS_FORMAT,
         "software": software(),
         "created_unix_s": round(started, 3),
         "data_root": str(Path(data_root).resolve()),
@@ -153,12 +192,7 @@ def evaluate_task(frame_path: str, methods: Sequence[Method], stage: str) -> dic
         UserError: the frame has no usable ground truth, or a method fails on it (named).
     """
     path = Path(frame_path)
-    frame = read_frame(path)
-    if not frame.has_ground_truth:
-        raise UserError(f"{path}: frame has no ground-truth distance, nothing to score "
-                        "(use 'tri360 reconstruct' for captures without ground truth)")
-    if not np.isfinite(frame.distance["C"]).any():
-        raise UserError(f"{path / 'C.distance.exr'}: no pixel has a finite distance, nothing to score")
+    frame = scorable_frame(path)
     try:
         outputs = run_methods(frame, methods)
     except ValueError as exc:
@@ -181,10 +215,16 @@ def evaluate_task(frame_path: str, methods: Sequence[Method], stage: str) -> dic
 
 
 def evaluate(data_root: Path, out: Path, methods: Sequence[Method], scenes: Sequence[str] | None = None,
-             report: bool = True, progress: bool = True, cluster: ClusterOptions | None = None) -> pd.DataFrame:
+             report: bool = True, progress: bool = True, cluster: ClusterOptions | None = None,
+             inputs: Sequence[Path] = ()) -> pd.DataFrame:
     """Run ``methods`` on every frame with ground truth under ``data_root`` and write a results set to ``out``.
 
+    Before any method runs: the frames are found and read, every name that becomes a path is checked, every frame
+    must have ground truth, and ``out`` must be absent, empty or a results set tri360 wrote, and neither an input
+    nor inside or above one (the data root, the frames and ``inputs``, e.g. ``score``'s predictions roots).
+
     Args:
+        inputs: further inputs that ``out`` must keep clear of (predictions roots).
         cluster: run on Dask (``--scheduler`` / ``--workers``), one task per frame x group of methods that share
             work (the variants of one flow configuration); workers write the maps into the staged results
             directory, this process gathers the rows and writes the results files.  None = in this process, one
@@ -194,8 +234,8 @@ def evaluate(data_root: Path, out: Path, methods: Sequence[Method], scenes: Sequ
     Returns:
         The results table (also written to ``out``).
     Raises:
-        UserError: bad data root, a malformed frame or one without ground truth (named), an unusable
-            output location (checked before any long work), or a method that fails on a frame.
+        UserError: bad data root, a malformed frame or one without ground truth (named), an unsafe name, an
+            unusable output location (all checked before any long work), or a method that fails on a frame.
     """
     started = time.time()
     if isinstance(cluster, ClusterOptions):
@@ -206,6 +246,10 @@ def evaluate(data_root: Path, out: Path, methods: Sequence[Method], scenes: Sequ
         raise UserError("no methods to evaluate")
     if len(set(labels)) != len(labels):
         raise UserError(f"duplicate method labels: {', '.join(sorted({x for x in labels if labels.count(x) > 1}))}")
+    check_method_paths(methods)
+    check_output(out, "results", [data_root, *(r.path for r in refs), *inputs])
+    for ref in refs:  # ground truth of every frame, before the first method runs
+        scorable_frame(ref.path)
     distributed = cluster is not None and getattr(cluster, "distributed", False)
     groups = method_groups(methods) if distributed else [list(methods)]
     rows, brows, rrows, frames_index, frames_config = [], [], [], [], []
@@ -235,6 +279,7 @@ def evaluate(data_root: Path, out: Path, methods: Sequence[Method], scenes: Sequ
                       config=results_config(methods, frames_config, data_root, started))
         if report:
             build_report(stage)
+        mark_output(stage, "results")
     return table
 
 

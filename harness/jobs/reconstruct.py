@@ -7,7 +7,10 @@ Writes under ``out`` (each file atomically)::
     <out>/<scene>/<viewpoint>/reconstruction.json   seconds, method details, metrics when the frame has GT
     <out>/method.json                          the method's name and full configuration
 
-so ``out`` can be handed to ``tri360 score`` like any outside method's predictions.
+so ``out`` can be handed to ``tri360 score`` like any outside method's predictions.  ``out`` must be absent, empty
+or a predictions root tri360 wrote (nothing else in it), never the frame, inside it or a parent of it
+(:func:`harness.data.outputs.check_output`), and it holds one method: writing another method (or the same label with
+other parameters) into a root that holds one is refused, so ``method.json`` describes every frame in it.
 """
 
 from __future__ import annotations
@@ -21,13 +24,19 @@ from harness.data import jsonio
 from harness.data.atomic import atomic_write_text
 from harness.data.errors import UserError
 from harness.data.frame import read_frame
-from harness.data.outputs import check_output_dir
-from harness.data.predictions import prediction_dir, write_method_info, write_prediction
+from harness.data.names import check_name
+from harness.data.outputs import check_output, mark_output
+from harness.data.predictions import (
+    prediction_dir,
+    read_method_info,
+    write_method_info,
+    write_prediction,
+)
 from harness.data.provenance import software
 from reconstruction.methods.base import Method, MethodOutput, run_methods
 from reports.metrics import summary
 
-__all__ = ["run_with_progress", "reconstruct_to"]
+__all__ = ["run_with_progress", "reconstruct_to", "check_one_method"]
 
 
 def run_with_progress(frame, methods: Sequence[Method], desc: str, progress: bool = True,
@@ -46,11 +55,50 @@ def run_with_progress(frame, methods: Sequence[Method], desc: str, progress: boo
             raise UserError(f"{frame.path or frame.scene + '/' + frame.viewpoint}: {exc}") from None
 
 
+def _method_info(method: Method) -> dict:
+    """The contents of ``method.json`` for ``method`` (strict JSON values, as read back)."""
+    config = method.config()
+    return jsonio.to_jsonable({"name": method.label, "description": config.get("description", ""),
+                               "parameters": config})
+
+
+def _has_predictions(root: Path) -> bool:
+    return any(p.is_file() for p in Path(root).glob("*/*/distance.exr"))
+
+
+def check_one_method(out: Path, method: Method) -> None:
+    """Refuse to write ``method`` into predictions root ``out`` when it holds another method's predictions.
+
+    Raises:
+        UserError: ``out``'s method.json names another method, or the same label with other parameters, or ``out``
+            holds predictions without a method.json (their method is unknown); a malformed method.json (named).
+    """
+    out = Path(out)
+    info = read_method_info(out)
+    if not info:
+        if _has_predictions(out):
+            raise UserError(f"{out}: predictions root holds predictions but no method.json, so their method is "
+                            f"unknown; one method per predictions root: write {method.label} into another --out")
+        return
+    want = _method_info(method)
+    held = info.get("name", "")
+    if held != want["name"]:
+        raise UserError(f"{out}: predictions root holds method {held!r} ({out / 'method.json'}); one method per "
+                        f"predictions root: write {method.label} into another --out")
+    have = info.get("parameters", {})
+    if have != want["parameters"]:
+        keys = sorted(k for k in set(have) | set(want["parameters"]) if have.get(k) != want["parameters"].get(k))
+        raise UserError(f"{out}: predictions root holds method {held!r} with other parameters (differing: "
+                        f"{', '.join(keys[:5])}; {out / 'method.json'}); one configuration per predictions root: "
+                        "choose another --out")
+
+
 def reconstruct_to(frame_dir: Path, out: Path, method: Method, progress: bool = True) -> dict:
     """Reconstruct one frame with ``method`` and write its prediction in ``tri360-pred/1`` under ``out``.
 
-    The output location is checked (usable, writable) before any computation; nothing is written unless the
-    method succeeds.
+    The output location is checked before any computation (usable, writable, a predictions root of this method or
+    absent or empty, not the frame or around it; names safe); nothing is written unless the method succeeds.
+    ``method.json`` is written before the maps, so it describes every frame of the root even after an interrupt.
 
     Returns:
         The ``reconstruction.json`` contents (frame, method, seconds, metrics if the frame has ground truth).
@@ -58,7 +106,11 @@ def reconstruct_to(frame_dir: Path, out: Path, method: Method, progress: bool = 
         UserError: a malformed frame, an unusable output directory, or the method failing on the frame.
     """
     frame = read_frame(frame_dir)
-    check_output_dir(out)
+    check_name(frame.scene, f"{Path(frame_dir) / 'frame.json'} (scene)")
+    check_name(frame.viewpoint, f"{Path(frame_dir) / 'frame.json'} (viewpoint)")
+    check_name(method.label, "--method")
+    check_output(out, "predictions", [frame_dir])
+    check_one_method(out, method)
     desc = f"{frame.scene}/{frame.viewpoint} {method.label}"
     output = run_with_progress(frame, [method], desc, progress)[method.label]
     info = {"frame": str(Path(frame_dir).resolve()), "scene": frame.scene, "viewpoint": frame.viewpoint,
@@ -66,9 +118,10 @@ def reconstruct_to(frame_dir: Path, out: Path, method: Method, progress: bool = 
             "software": software()}
     if frame.has_ground_truth:
         info["metrics"] = summary(output.distance, frame.distance["C"], output.confidence)
+    method_info = _method_info(method)
+    write_method_info(out, method_info)
     write_prediction(out, frame.scene, frame.viewpoint, output.distance, output.confidence)
     atomic_write_text(prediction_dir(out, frame.scene, frame.viewpoint) / "reconstruction.json",
                       jsonio.dumps(info, indent=2))
-    write_method_info(out, {"name": method.label, "description": method.config().get("description", ""),
-                            "parameters": method.config()})
+    mark_output(out, "predictions")
     return info

@@ -40,7 +40,8 @@ from harness.data import jsonio
 from harness.data.atomic import atomic_write_text, clean_stale_partials
 from harness.data.errors import UserError
 from harness.data.frame import Frame, frame_dir, is_complete, write_frame
-from harness.data.outputs import ensure_output_dir
+from harness.data.names import check_name
+from harness.data.outputs import check_output, ensure_output_dir, mark_output
 from harness.jobs.cluster import ClusterOptions, open_executor
 from harness.render.base import RenderSettings, identity, recorded_identity
 from harness.render.registry import get_renderer
@@ -242,7 +243,8 @@ def render_frames(scene_name: str = DEFAULT_SCENE, viewpoints: int = 1, out_root
         rigs = choose_viewpoints(spec, viewpoints, seed, baseline_m=baseline)
     except ValueError as exc:
         raise UserError(str(exc)) from None
-    out_root = Path(out_root)
+    out_root = check_output(Path(out_root), "data")  # absent, empty or a data root tri360 wrote
+    check_name(scene_dir, "--scene")
     planned = identity(renderer, backend.pixel_settings, settings, spec, baseline)
 
     todo = []
@@ -261,9 +263,11 @@ def render_frames(scene_name: str = DEFAULT_SCENE, viewpoints: int = 1, out_root
     ensure_output_dir(out_root / scene_dir)
     clean_stale_partials(out_root / scene_dir)  # hidden half-written frames of killed runs
     if not todo:
+        mark_output(out_root, "data")
         return dirs
     if cluster is not None and getattr(cluster, "distributed", False):
         _render_distributed(todo, renderer, spec, settings, scene_dir, out_root, cluster, progress, verbose, created)
+        mark_output(out_root, "data")
         return dirs
 
     bar = tqdm(total=len(todo) * len(CAMERA_NAMES), unit="view", disable=not progress,
@@ -284,6 +288,7 @@ def render_frames(scene_name: str = DEFAULT_SCENE, viewpoints: int = 1, out_root
         raise
     finally:
         bar.close()
+    mark_output(out_root, "data")
     return dirs
 
 

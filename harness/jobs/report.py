@@ -25,6 +25,7 @@ from harness.data.atomic import atomic_write_bytes, atomic_write_text, clean_sta
 from harness.data.errors import FrameError, UserError
 from harness.data.exr import CONFIDENCE_CHANNEL, DISTANCE_CHANNEL, read_float_map
 from harness.data.frame import read_frame
+from harness.data.names import is_safe_name
 from harness.data.outputs import ensure_output_dir
 from harness.data.results import ResultsSet, map_paths, read_results_set
 from reports.metrics import pooled_sparsification_curves
@@ -67,11 +68,6 @@ class ReportOutcome:
     sparsification: dict[str, dict] = field(default_factory=dict)
 
 
-def _safe_part(name: str) -> bool:
-    """A name that can be one component of a path below the results directory."""
-    return bool(name) and "/" not in name and "\\" not in name and name not in (".", "..")
-
-
 def _read_map(path: Path, channel: str, shape: tuple[int, int]) -> np.ndarray:
     """One float32 map (NaN / inf / <= 0 kept: they mean "no prediction"); FrameError naming the file."""
     values = read_float_map(path, channel)
@@ -90,7 +86,7 @@ def read_frame_maps(rs: ResultsSet, scene: str, viewpoint: str, order: list[str]
     """
     d = rs.directory
     problems: list[str] = []
-    if not (_safe_part(scene) and _safe_part(viewpoint)):
+    if not (is_safe_name(scene) and is_safe_name(viewpoint)):
         return None, {}, {}, {}, [f"scene/viewpoint name {scene!r}/{viewpoint!r} cannot be used as a path; skipped"]
     if (scene, viewpoint) not in frame_paths:
         return None, {}, {}, {}, [f"{d / 'frames.json'}: no entry for {scene}/{viewpoint}; its maps are not shown"]
@@ -108,10 +104,11 @@ def read_frame_maps(rs: ResultsSet, scene: str, viewpoint: str, order: list[str]
     shape = frame.distance["C"].shape
     for label in (m for m in order if m in rows):
         row = rows[label]
-        if not row["flow"] and not _safe_part(label):
+        try:
+            dist_rel, conf_rel = map_paths(scene, viewpoint, label, row["flow"], row["rectify"], row["variant"])
+        except UserError:
             problems.append(f"method name {label!r} cannot be used as a path; its maps are not shown")
             continue
-        dist_rel, conf_rel = map_paths(scene, viewpoint, label, row["flow"], row["rectify"], row["variant"])
         try:
             preds[label] = _read_map(d / dist_rel, DISTANCE_CHANNEL, shape)
             if (d / conf_rel).exists():

@@ -14,6 +14,7 @@ from pathlib import Path
 import pandas as pd
 
 from harness.data.errors import UserError
+from harness.data.names import check_name
 from harness.data.predictions import FORMAT, prediction_dir, read_method_info, read_prediction
 from harness.jobs.cluster import ClusterOptions
 from harness.jobs.evaluate import evaluate, select_frames
@@ -27,14 +28,17 @@ class PredictionMethod:
     """A method whose outputs are predictions on disk.
 
     Attributes:
-        label: the name the results use (``--method``, else method.json's ``name``, else the folder's name).
+        label: the name the results use (``--method``, else method.json's ``name``, else the folder's name), a
+            safe name (:func:`harness.data.names.check_name`): it becomes part of the maps' paths.
         root: the predictions root.
         info: the contents of ``method.json`` (may be empty).
+        label_source: where the label came from (``--method``, the method.json path, the folder), for messages.
     """
 
     label: str
     root: Path
     info: dict = field(default_factory=dict)
+    label_source: str = "--method"
 
     def config(self) -> dict:
         return {"kind": "predictions", "format": FORMAT, "label": self.label, "root": str(self.root.resolve()),
@@ -48,9 +52,12 @@ class PredictionMethod:
 def prediction_methods(pred_roots: Sequence[Path], names: Sequence[str] | None = None) -> list[PredictionMethod]:
     """One :class:`PredictionMethod` per predictions root.
 
+    Every label is an outside name (``--method``, an outside ``method.json``, a folder's name) and is checked with
+    :func:`harness.data.names.check_name` before it can become part of a path.
+
     Raises:
-        UserError: a missing root, a count of names different from the count of roots, duplicate labels, or a
-            malformed method.json.
+        UserError: a missing root, a count of names different from the count of roots, duplicate labels, an unsafe
+            label (naming where it came from), or a malformed method.json.
     """
     roots = [Path(r) for r in pred_roots]
     if names is not None and len(names) != len(roots):
@@ -62,8 +69,14 @@ def prediction_methods(pred_roots: Sequence[Path], names: Sequence[str] | None =
             raise UserError(f"{root}: predictions root does not exist" if not root.exists()
                             else f"{root}: predictions root is not a directory")
         info = read_method_info(root)
-        label = names[i] if names is not None else (info.get("name") or root.resolve().name)
-        out.append(PredictionMethod(label, root.resolve(), info))  # absolute: Dask workers may run elsewhere
+        if names is not None:
+            label, source = names[i], "--method"
+        elif info.get("name"):
+            label, source = info["name"], f"{root / 'method.json'} (name)"
+        else:
+            label, source = root.resolve().name, f"{root} (the folder's name, the method's by default; see --method)"
+        check_name(label, source)
+        out.append(PredictionMethod(label, root.resolve(), info, source))  # absolute: Dask workers may run elsewhere
     labels = [m.label for m in out]
     dup = sorted({x for x in labels if labels.count(x) > 1})
     if dup:
@@ -92,10 +105,13 @@ def score(pred_roots: Sequence[Path], data_root: Path, out: Path, names: Sequenc
 
     Returns:
         The results table.
+    ``out`` is checked like ``evaluate``'s, and must also keep clear of every predictions root.
+
     Raises:
         UserError: see :func:`prediction_methods`, a frame without a prediction, a malformed prediction (named),
             or anything :func:`harness.jobs.evaluate.evaluate` refuses.
     """
     methods = prediction_methods(pred_roots, names)
     _check_complete(methods, data_root, scenes)
-    return evaluate(data_root, out, methods, scenes, report=report, progress=progress, cluster=cluster)
+    return evaluate(data_root, out, methods, scenes, report=report, progress=progress, cluster=cluster,
+                    inputs=[Path(r) for r in pred_roots])

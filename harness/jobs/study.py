@@ -56,7 +56,7 @@ from tqdm import tqdm
 from harness.data import jsonio
 from harness.data.atomic import atomic_write_bytes, atomic_write_text
 from harness.data.errors import UserError
-from harness.data.outputs import ensure_output_dir
+from harness.data.outputs import check_output, ensure_output_dir, mark_output
 from harness.jobs.cluster import ClusterOptions, open_executor
 from harness.jobs.evaluate import evaluate
 from harness.jobs.render import DEFAULTS, RENDER_LOG, render_frames
@@ -244,6 +244,7 @@ def run_study(study_path: Path, out: Path, cluster: ClusterOptions | None = None
     """
     started = time.time()
     spec = load_study(study_path)
+    check_output(Path(out), "study", [study_path])  # absent, empty or a study tri360 wrote; not around the file
     if metric not in METRIC_COLUMNS:
         raise UserError(f"unknown metric {metric!r}; choose one of {', '.join(METRIC_COLUMNS)}")
     points = grid_points(spec)
@@ -306,6 +307,7 @@ def run_study(study_path: Path, out: Path, cluster: ClusterOptions | None = None
         plots[key] = name
     atomic_write_text(out / "study.md", study_markdown(spec, study, metric, plots, time.time() - started,
                                                        [colmap[k] for k in spec.grid]))
+    mark_output(out, "study")
     return study
 
 

@@ -85,10 +85,14 @@ def test_interrupted_evaluate_keeps_the_previous_results_set(synthetic_root, tmp
 def test_rerun_replaces_the_whole_results_set(synthetic_root, tmp_path):
     out = tmp_path / "res"
     evaluate(synthetic_root, out, [Constant(2.0, "a")], report=False, progress=False)
-    (out / "stale.txt").write_text("from an earlier run")
+    (out / "notes.txt").write_text("a user's file: never replaced")
+    with pytest.raises(UserError, match="notes.txt"):
+        evaluate(synthetic_root, out, [Constant(3.0, "b")], report=False, progress=False)
+    assert (out / "notes.txt").exists()
+    (out / "notes.txt").unlink()
     evaluate(synthetic_root, out, [Constant(3.0, "b")], report=False, progress=False)
     assert set(pd.read_csv(out / "results.csv").method) == {"b"}
-    assert not (out / "stale.txt").exists() and not (out / "maps/synthetic_box/vp000/a").exists()
+    assert not (out / "maps/synthetic_box/vp000/a").exists()
 
 
 def test_mae_table_never_drops_a_missing_metric():
