@@ -34,7 +34,6 @@ import time
 from pathlib import Path
 
 import numpy as np
-from tqdm import tqdm
 
 from harness.data import jsonio
 from harness.data.atomic import atomic_write_text, clean_stale_partials
@@ -42,6 +41,7 @@ from harness.data.errors import UserError
 from harness.data.frame import Frame, frame_dir, is_complete, write_frame
 from harness.data.outputs import ensure_output_dir
 from harness.jobs.cluster import ClusterOptions, open_executor
+from harness.jobs.progress import progress_bar
 from harness.render.base import RenderSettings, identity, recorded_identity
 from harness.render.registry import get_renderer
 from reconstruction.camera.rig import CAMERA_NAMES, DEFAULT_BASELINE_M, Rig
@@ -266,8 +266,8 @@ def render_frames(scene_name: str = DEFAULT_SCENE, viewpoints: int = 1, out_root
         _render_distributed(todo, renderer, spec, settings, scene_dir, out_root, cluster, progress, verbose, created)
         return dirs
 
-    bar = tqdm(total=len(todo) * len(CAMERA_NAMES), unit="view", disable=not progress,
-               desc=f"{scene_dir} ({renderer})", dynamic_ncols=True)
+    bar = progress_bar(len(todo) * len(CAMERA_NAMES), desc=f"{scene_dir} ({renderer})", unit="view",
+                       enabled=progress)
     try:
         with backend(spec, settings, verbose=verbose) as drawer:
             for vp, rig in todo:
