@@ -205,6 +205,7 @@ def _cmdline(pid: int) -> str:
         return ""
 
 
+@pytest.mark.cluster
 def test_ctrl_c_stops_a_study_on_a_local_cluster(tmp_path):
     """A study whose grid points render at once on a ``--workers 2`` LocalCluster: Ctrl-C (to the process group)
     exits 130 within seconds, leaves no process (scheduler, workers, Cycles) and no frame behind."""
