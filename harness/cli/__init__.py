@@ -43,14 +43,14 @@ def _guard_startup():
 
 
 _UNGUARD = _guard_startup()
+# every import below runs under the guard (so ruff's E402 is off for this file, in pyproject.toml)
+import argparse
 
-import argparse  # noqa: E402 (the imports run under the start-up guard)
-
-from harness import __version__  # noqa: E402
-from harness.cli import evaluate, reconstruct, render, report, score, study  # noqa: E402
-from harness.cli import scenes as scenes_cmd  # noqa: E402
-from harness.data.errors import UserError  # noqa: E402
-from scenes.registry import SceneError  # noqa: E402
+from harness import __version__
+from harness.cli import evaluate, reconstruct, render, report, score, study
+from harness.cli import scenes as scenes_cmd
+from harness.data.errors import UserError
+from scenes.registry import SceneError
 
 COMMANDS = {"render": render, "scenes": scenes_cmd, "reconstruct": reconstruct, "evaluate": evaluate,
             "score": score, "report": report, "study": study}
