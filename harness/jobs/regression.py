@@ -33,7 +33,7 @@ from pathlib import Path
 import pandas as pd
 
 from harness.data.atomic import atomic_write_text
-from harness.jobs.evaluate import config_keys, evaluate, mae_table
+from harness.jobs.evaluate import config_keys, evaluate, summary_text
 from harness.jobs.render import render_frames
 from reconstruction.methods.registry import DEFAULT_CONFIGS, DEFAULT_METHOD, flow_methods, get_methods
 
@@ -266,7 +266,7 @@ def main(argv: list[str] | None = None) -> int:
 
 
     print(f"\nMAE (m), mean over frames, {width}x{height}, {seconds:.0f} s")
-    print(mae_table(table))
+    print(summary_text(table))
     if args.update:
         if args.bounds.exists():
             waivers = {**load_bounds(args.bounds).get("waivers", {}), **waivers}
