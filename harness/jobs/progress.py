@@ -49,7 +49,8 @@ class LineProgress:
             return
         self._last_line = now
         count = f"{self.n}/{self.total}" if self.total is not None else f"{self.n}"
-        units = self.unit if self.n == 1 or self.unit in ("it", "") or self.unit.endswith("s") else f"{self.unit}s"
+        one = (self.total if self.total is not None else self.n) == 1
+        units = self.unit if one or self.unit in ("it", "") or self.unit.endswith("s") else f"{self.unit}s"
         head = f"{self.desc}: " if self.desc else ""
         tail = f" ({self.postfix})" if self.postfix else ""
         self.stream.write(f"{head}{count} {units}, {now - self.started:.1f} s{tail}\n")

@@ -25,7 +25,7 @@ def test_without_a_terminal_each_finished_item_is_one_line():
     assert "\r" not in text and "\x1b" not in text
     lines = text.splitlines()
     assert len(lines) == 3
-    assert lines[0].startswith("render: 1/3 view, ") and lines[0].endswith(" s (vp000/C)")
+    assert lines[0].startswith("render: 1/3 views, ") and lines[0].endswith(" s (vp000/C)")
     assert lines[2].startswith("render: 3/3 views, ") and lines[2].endswith(" s (vp000/R)")
 
 
@@ -56,12 +56,12 @@ def test_min_interval_thins_the_lines_but_keeps_the_last(monkeypatch):
     for _ in range(10):
         bar.update(1)  # one clock second per item
     assert [line.split(",")[0] for line in out.getvalue().splitlines()] == [
-        "scipy: 1/10 pixel", "scipy: 5/10 pixels", "scipy: 9/10 pixels", "scipy: 10/10 pixels"]
+        "scipy: 1/10 pixels", "scipy: 5/10 pixels", "scipy: 9/10 pixels", "scipy: 10/10 pixels"]
 
 
 def test_track_yields_every_item_and_counts_after_each(capsys):
     seen = []
     for item in track(["a", "b"], desc="t", unit="item"):
         seen.append((item, capsys.readouterr().err))  # the line of an item comes once it is done
-    assert [s for s, _ in seen] == ["a", "b"] and seen[0][1] == "" and seen[1][1].startswith("t: 1/2 item, ")
+    assert [s for s, _ in seen] == ["a", "b"] and seen[0][1] == "" and seen[1][1].startswith("t: 1/2 items, ")
     assert capsys.readouterr().err.startswith("t: 2/2 items, ")
