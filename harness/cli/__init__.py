@@ -3,7 +3,8 @@
 Each command module exposes ``HELP``, ``add_arguments(parser)`` and ``run(args) -> int`` and calls into
 ``harness.jobs``.  Anticipated failures (bad input, unknown name, malformed file, an unusable output path)
 print one line naming the culprit and exit with status 2; Ctrl-C exits with status 130 and one line at any
-moment, the seconds of start-up included (the imports below run under a SIGINT handler that exits at once).
+moment, the seconds of start-up included (the imports below run under a SIGINT handler that exits at once; only
+Python's own start-up before this module runs, tens of milliseconds, is the interpreter's).
 Nothing half-written is left behind (every writer is atomic).
 """
 

@@ -211,7 +211,7 @@ def render_frames(scene_name: str = DEFAULT_SCENE, viewpoints: int = 1, out_root
         light_tree: Cycles' light tree (off by default: see ``docs/rendering.md``).
         overrides: scene parameters overriding the preset's (e.g. ``{"model_path": "chair.glb"}``); each key
             must be one of the scene's parameters.
-        progress: show a tqdm bar (on stderr) advancing per rendered camera view.
+        progress: show progress on stderr per rendered camera view (harness.jobs.progress: a bar or log lines).
         verbose: let Blender print its own log lines (to stderr).
         renderer: ``"cycles"`` or ``"raycast"``; None = the scene's default.
         cluster: run each frame as a Dask task (``--scheduler`` / ``--workers``), or an executor that is already
