@@ -21,7 +21,7 @@ setup: $(STAMP) ## create .venv and install tri360 with its pinned dependencies
 render: $(STAMP) ## render the default scene set (classroom, 3 viewpoints, 1000x500) into $(DATA)/
 	$(TRI) render --scene classroom --viewpoints 3 --out $(DATA)
 
-evaluate: $(STAMP) ## render the default scene if missing, evaluate the default methods (fused, dis-rect:*, deepflow-plain:*), write $(RESULTS)/ and print the MAE table
+evaluate: $(STAMP) ## render the default scene if missing, evaluate the default methods (fused, dis-rect:*, deepflow-plain:*), write $(RESULTS)/ and print one row per method (MAE, median, delta<1.10, seconds; best first)
 	$(TRI) render --scene classroom --viewpoints 1 --out $(DATA)
 	$(TRI) evaluate $(DATA) --out $(RESULTS)
 
@@ -37,8 +37,8 @@ browser: ## install Chromium for the browser test of report.html (Debian package
 test: $(STAMP) browser ## run the whole test suite (fast tests, Blender renders, the browser check)
 	$(PY) -m pytest -q
 
-test-fast: $(STAMP) ## the tests that need neither Blender renders nor a browser (about a minute)
-	$(PY) -m pytest -q -m "not blender and not browser"
+test-fast: $(STAMP) ## the tests that need no Blender render, browser or Dask cluster
+	$(PY) -m pytest -q -m "not blender and not browser and not cluster"
 
 bench: $(STAMP) ## timings and peak memory: flow pipeline stages (+ LM vs scipy), the default method (fused) at 1000x500 and 4000x2000, the default classroom render (3 times), Dask render speed-up
 	$(PY) -m harness.jobs.bench

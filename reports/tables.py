@@ -23,6 +23,8 @@ __all__ = [
     "variant_order",
     "method_order",
     "variant_mae_table",
+    "SUMMARY_METRICS",
+    "method_summary",
     "mae_markdown",
     "mae_display",
     "LEADERBOARD_OVERALL",
@@ -76,6 +78,29 @@ def method_order(results: pd.DataFrame) -> list[str]:
             out.extend(sorted(set(conf.loc[conf["variant"] == variant, "method"])))
     out.extend(sorted(set(results.loc[results["flow"] == "", "method"]) - set(out)))
     return out
+
+
+#: the metrics of :func:`method_summary`, each the mean over a method's frames
+SUMMARY_METRICS = ("mae_m", "median_m", "delta110", "seconds")
+
+
+def method_summary(results: pd.DataFrame) -> pd.DataFrame:
+    """One row per method, best first: the mean over its frames of MAE (m), median absolute error (m), the share
+    of pixels with ``max(pred/gt, gt/pred) < 1.10`` (``delta110``, 0..1) and its wall time per frame (s).
+
+    Args:
+        results: a results table (``RESULT_COLUMNS``; a metric column it lacks reads as NaN).
+    Returns:
+        DataFrame with columns ``method, frames`` and :data:`SUMMARY_METRICS`, sorted by ``mae_m`` (NaN last),
+        then by method label.  A mean is NaN when any of its frames' values is (never silently dropped).
+    """
+    t = results.assign(**{c: np.nan for c in SUMMARY_METRICS if c not in results.columns})
+    grouped = t.groupby("method", sort=True)
+    out = pd.DataFrame({"frames": grouped.size()})
+    for c in SUMMARY_METRICS:
+        out[c] = grouped[c].agg(lambda s: float(pd.to_numeric(s, errors="coerce").mean(skipna=False)))
+    out = out.reset_index().sort_values(["mae_m", "method"], na_position="last", kind="stable")
+    return out.reset_index(drop=True)[["method", "frames", *SUMMARY_METRICS]]
 
 
 # ---------------------------------------------------------------------------------------------- MAE table

@@ -2,14 +2,50 @@
 
 Each command module exposes ``HELP``, ``add_arguments(parser)`` and ``run(args) -> int`` and calls into
 ``harness.jobs``.  Anticipated failures (bad input, unknown name, malformed file, an unusable output path)
-print one line naming the culprit and exit with status 2; Ctrl-C exits with status 130.  Nothing
-half-written is left behind (every writer is atomic).
+print one line naming the culprit and exit with status 2; Ctrl-C exits with status 130 and one line at any
+moment, the seconds of start-up included (the imports below run under a SIGINT handler that exits at once; only
+Python's own start-up before this module runs, tens of milliseconds, is the interpreter's).
+Nothing half-written is left behind (every writer is atomic).
 """
 
 from __future__ import annotations
 
-import argparse
+import os
+import signal
 import sys
+
+EXIT_USAGE = 2
+EXIT_INTERRUPTED = 130
+
+
+def _interrupted_while_starting(signum, frame) -> None:
+    """SIGINT while the command's modules load (numba, pandas, matplotlib, Dask: seconds).  A KeyboardInterrupt
+    raised there would unwind through a library's import and print its traceback; nothing has been done yet, so
+    this prints one line and exits 130 at once."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # a second Ctrl-C does not print a second line
+    os.write(2, b"tri360: interrupted while starting (nothing was done)\n")
+    os._exit(EXIT_INTERRUPTED)
+
+
+def _guard_startup():
+    """Catch Ctrl-C while the imports below run; the handler to put back afterwards, or None.
+
+    Only Python's own handler is replaced: SIGINT ignored (a job started in the background) stays ignored, and
+    a program that set its own handler keeps it; off the main thread signals cannot be set and are left alone.
+    """
+    previous = signal.getsignal(signal.SIGINT)
+    if previous is not signal.default_int_handler:
+        return None
+    try:
+        signal.signal(signal.SIGINT, _interrupted_while_starting)
+    except ValueError:  # not the main thread
+        return None
+    return previous
+
+
+_UNGUARD = _guard_startup()
+# every import below runs under the guard (so ruff's E402 is off for this file, in pyproject.toml)
+import argparse
 
 from harness import __version__
 from harness.cli import evaluate, reconstruct, render, report, score, study
@@ -19,8 +55,6 @@ from scenes.registry import SceneError
 
 COMMANDS = {"render": render, "scenes": scenes_cmd, "reconstruct": reconstruct, "evaluate": evaluate,
             "score": score, "report": report, "study": study}
-EXIT_USAGE = 2
-EXIT_INTERRUPTED = 130
 
 
 class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
@@ -54,20 +88,26 @@ def _os_error_line(exc: OSError) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    """Parse ``argv`` (default: the command line), run the command; its exit status.  Ctrl-C at any moment
+    (parsing included) is one line and 130."""
+    prog = "tri360"
     try:
+        args = build_parser().parse_args(argv)
+        prog = f"tri360 {args.command}"
         return int(args._module.run(args) or 0)
     except (UserError, SceneError) as exc:
-        print(f"tri360 {args.command}: error: {exc}", file=sys.stderr)
+        print(f"{prog}: error: {exc}", file=sys.stderr)
         return EXIT_USAGE
     except OSError as exc:
-        print(f"tri360 {args.command}: error: {_os_error_line(exc)}", file=sys.stderr)
+        print(f"{prog}: error: {_os_error_line(exc)}", file=sys.stderr)
         return EXIT_USAGE
     except KeyboardInterrupt:
-        print(f"tri360 {args.command}: interrupted (finished outputs are complete; partial ones were removed)",
-              file=sys.stderr)
+        print(f"{prog}: interrupted (finished outputs are complete; partial ones were removed)", file=sys.stderr)
         return EXIT_INTERRUPTED
+
+
+if _UNGUARD is not None and signal.getsignal(signal.SIGINT) is _interrupted_while_starting:
+    signal.signal(signal.SIGINT, _UNGUARD)  # from here on Ctrl-C is a KeyboardInterrupt, handled by main()
 
 
 if __name__ == "__main__":

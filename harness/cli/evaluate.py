@@ -7,7 +7,7 @@ from pathlib import Path
 
 from harness.cli.cluster import add_cluster_arguments, cluster_options
 from harness.cli.methods import add_method_options, add_results_options, selected_methods
-from harness.jobs.evaluate import evaluate, mae_table
+from harness.jobs.evaluate import evaluate, summary_text
 
 HELP = "run methods on every frame under a data root and score them against ground truth"
 
@@ -24,6 +24,6 @@ def run(args) -> int:
     methods = selected_methods(args, multiple=True)
     table = evaluate(args.data_root, args.out, methods, args.scene, report=args.report, progress=not args.quiet,
                      cluster=cluster_options(args))
-    print(f"\nMAE (m), mean over frames — {len(table)} rows in {args.out / 'results.csv'}")
-    print(mae_table(table))
+    print(f"\n{len(table)} results in {args.out / 'results.csv'}; per method, mean over frames:")
+    print(summary_text(table))
     return 0

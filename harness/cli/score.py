@@ -7,7 +7,7 @@ from pathlib import Path
 
 from harness.cli.cluster import add_cluster_arguments, cluster_options
 from harness.cli.methods import add_results_options
-from harness.jobs.evaluate import mae_table
+from harness.jobs.evaluate import summary_text
 from harness.jobs.score import score
 
 HELP = "score predictions of any method (tri360-pred/1) against the ground truth of a data root"
@@ -29,6 +29,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args) -> int:
     table = score(args.pred_roots, args.data, args.out, args.method, args.scene, report=args.report,
                   progress=not args.quiet, cluster=cluster_options(args))
-    print(f"\nMAE (m), mean over frames — {len(table)} rows in {args.out / 'results.csv'}")
-    print(mae_table(table))
+    print(f"\n{len(table)} results in {args.out / 'results.csv'}; per method, mean over frames:")
+    print(summary_text(table))
     return 0

@@ -33,6 +33,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from harness.data.frame import find_frames, read_frame, write_frame
+from harness.jobs.progress import track
 from harness.render.raycast import render_frame
 from reconstruction.flow.matching import match_pair
 from reconstruction.methods.flow_pipeline import (
@@ -153,13 +154,10 @@ def scipy_pixel(problem: RefineProblem, i: int, x0: float, d_min: float, d_max: 
 
 def run_scipy(problem: RefineProblem, d0: np.ndarray, idx: np.ndarray, limits: TriangulationLimits,
               desc: str = "scipy", progress: bool = True):
-    """Per-pixel scipy over ``idx``: ``(d (len(idx),), seconds)``, with a tqdm bar on stderr."""
-    from tqdm import tqdm
-
+    """Per-pixel scipy over ``idx``: ``(d (len(idx),), seconds)``, with progress on stderr."""
     out = np.empty(len(idx))
     start = time.perf_counter()
-    for j, i in enumerate(tqdm(idx, desc=desc, file=sys.stderr, disable=not progress, leave=False,
-                               mininterval=0.5)):
+    for j, i in enumerate(track(idx, desc=desc, unit="pixel", enabled=progress, leave=False, min_interval_s=5)):
         out[j], _ = scipy_pixel(problem, int(i), d0[i], limits.d_min_m, limits.d_max_m)
     return out, time.perf_counter() - start
 
@@ -255,7 +253,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=0, help="seed of the random scipy subset")
     ap.add_argument("--frame", type=Path, default=None,
                     help="frame directory, or cache root to reuse / render into (default: a temporary dir)")
-    ap.add_argument("--no-progress", action="store_true", help="no tqdm progress bar")
+    ap.add_argument("--no-progress", action="store_true", help="no progress on stderr")
     args = ap.parse_args(argv)
     if args.width < 8 or args.width % 2:
         ap.error("--width must be an even number >= 8")

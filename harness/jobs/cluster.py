@@ -23,9 +23,8 @@ from collections.abc import Callable, Hashable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
-from tqdm import tqdm
-
 from harness.data.errors import UserError
+from harness.jobs.progress import progress_bar
 
 __all__ = ["ClusterOptions", "SequentialExecutor", "open_executor", "EXECUTOR_MODULE"]
 
@@ -101,7 +100,7 @@ class SequentialExecutor:
     def run(self, fn: Callable, tasks: Mapping[Hashable, tuple], desc: str = "", unit: str = "task",
             progress: bool = True, names: Mapping[Hashable, str] | None = None) -> Iterator[tuple[Hashable, object]]:
         names = names or {}
-        with tqdm(total=len(tasks), desc=desc, unit=unit, disable=not progress, dynamic_ncols=True) as bar:
+        with progress_bar(len(tasks), desc=desc, unit=unit, enabled=progress) as bar:
             for key, args in tasks.items():
                 bar.set_postfix_str(names.get(key, str(key)))
                 result = fn(*args)

@@ -48,8 +48,9 @@ from reconstruction.methods.flow_pipeline import config_label
 from reports.metrics import breakdown
 from reports.regions import region_summaries, regions
 from reports.schema import breakdown_table, regions_table, results_table
+from reports.tables import method_summary
 
-__all__ = ["FrameRef", "select_frames", "evaluate", "evaluate_task", "method_groups", "mae_table",
+__all__ = ["FrameRef", "select_frames", "evaluate", "evaluate_task", "method_groups", "summary_text",
            "results_config"]
 
 
@@ -294,14 +295,21 @@ def config_keys(table: pd.DataFrame, other: str = "") -> tuple[list[str], list[s
     return config, variant
 
 
-def mae_table(table: pd.DataFrame) -> str:
-    """Plain-text MAE table (mean over frames): rows scene x configuration, columns variant, metres.
+def summary_text(table: pd.DataFrame) -> str:
+    """The results table as the plain-text summary a run prints: one row per method, best MAE first (means over
+    its frames, :func:`reports.tables.method_summary`); a mean that is not a number (a frame without one) is
+    ``-``."""
+    summary = method_summary(table)
+    header = ["method", "frames", "MAE (m)", "median (m)", "delta<1.10", "s/frame"]
 
-    Methods that are not the flow pipeline appear as their own configuration with variant ``-``.  A NaN
-    metric of any frame makes its mean NaN (it is never silently dropped from the mean).
-    """
-    config, column = config_keys(table, other="-")
-    t = table.assign(config=config, column=column)
-    pivot = t.pivot_table(index=["scene", "config"], columns="column", values="mae_m", sort=False,
-                          aggfunc=lambda s: s.mean(skipna=False), dropna=False)
-    return pivot.to_string(float_format=lambda x: f"{x:.4f}")
+    def num(x: float, fmt: str) -> str:
+        return format(x, fmt) if np.isfinite(x) else "-"
+
+    rows = [[str(r.method), str(r.frames), num(r.mae_m, ".4f"), num(r.median_m, ".4f"),
+             num(100.0 * r.delta110, ".1f") + (" %" if np.isfinite(r.delta110) else ""), num(r.seconds, ".1f")]
+            for r in summary.itertuples(index=False)]
+    widths = [max(len(x) for x in col) for col in zip(header, *rows, strict=True)]
+    lines = ["  ".join(x.ljust(w) if i == 0 else x.rjust(w) for i, (x, w) in enumerate(zip(line, widths,
+                                                                                         strict=True)))
+             for line in [header, *rows]]
+    return "\n".join(lines)

@@ -31,10 +31,10 @@ from distributed import Client, LocalCluster, as_completed
 from distributed.client import FutureCancelledError
 from distributed.scheduler import KilledWorker
 from distributed.security import Security
-from tqdm import tqdm
 
 from harness.data.errors import UserError
 from harness.jobs.cluster import ClusterOptions
+from harness.jobs.progress import progress_bar
 
 __all__ = ["DaskExecutor", "security_for", "LOOPBACK"]
 
@@ -118,7 +118,7 @@ class DaskExecutor:
             by_future_key[fut.key] = key
             futures.append(fut)
         done: set[Hashable] = set()
-        bar = tqdm(total=len(futures), desc=f"{desc} (dask)", unit=unit, disable=not progress, dynamic_ncols=True)
+        bar = progress_bar(len(futures), desc=f"{desc} (dask)", unit=unit, enabled=progress)
         try:
             for fut in as_completed(futures):
                 key = by_future_key[fut.key]

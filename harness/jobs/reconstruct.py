@@ -18,8 +18,6 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
-from tqdm import tqdm
-
 from harness.data import jsonio
 from harness.data.atomic import atomic_write_text
 from harness.data.errors import UserError
@@ -33,6 +31,7 @@ from harness.data.predictions import (
     write_prediction,
 )
 from harness.data.provenance import software
+from harness.jobs.progress import progress_bar
 from reconstruction.methods.base import Method, MethodOutput, run_methods
 from reports.metrics import summary
 
@@ -43,7 +42,7 @@ def run_with_progress(frame, methods: Sequence[Method], desc: str, progress: boo
                       on_stage: Callable[[str], None] | None = None) -> dict[str, MethodOutput]:
     """:func:`run_methods` with a stage progress bar; a method's ValueError (e.g. the oracle without ground
     truth) becomes a :class:`UserError` naming the frame."""
-    with tqdm(desc=desc, unit="stage", leave=False, disable=not progress) as bar:
+    with progress_bar(None, desc=desc, unit="stage", enabled=progress, leave=False) as bar:
         def note(name):
             bar.set_postfix_str(name)
             bar.update(1)

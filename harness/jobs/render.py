@@ -34,7 +34,6 @@ import time
 from pathlib import Path
 
 import numpy as np
-from tqdm import tqdm
 
 from harness.data import jsonio
 from harness.data.atomic import atomic_write_text, clean_stale_partials
@@ -43,6 +42,7 @@ from harness.data.frame import Frame, frame_dir, is_complete, write_frame
 from harness.data.names import check_name
 from harness.data.outputs import check_output, ensure_output_dir, mark_output
 from harness.jobs.cluster import ClusterOptions, open_executor
+from harness.jobs.progress import progress_bar
 from harness.render.base import RenderSettings, identity, recorded_identity
 from harness.render.registry import get_renderer
 from reconstruction.camera.rig import CAMERA_NAMES, DEFAULT_BASELINE_M, Rig
@@ -212,7 +212,7 @@ def render_frames(scene_name: str = DEFAULT_SCENE, viewpoints: int = 1, out_root
         light_tree: Cycles' light tree (off by default: see ``docs/rendering.md``).
         overrides: scene parameters overriding the preset's (e.g. ``{"model_path": "chair.glb"}``); each key
             must be one of the scene's parameters.
-        progress: show a tqdm bar (on stderr) advancing per rendered camera view.
+        progress: show progress on stderr per rendered camera view (harness.jobs.progress: a bar or log lines).
         verbose: let Blender print its own log lines (to stderr).
         renderer: ``"cycles"`` or ``"raycast"``; None = the scene's default.
         cluster: run each frame as a Dask task (``--scheduler`` / ``--workers``), or an executor that is already
@@ -270,8 +270,8 @@ def render_frames(scene_name: str = DEFAULT_SCENE, viewpoints: int = 1, out_root
         mark_output(out_root, "data")
         return dirs
 
-    bar = tqdm(total=len(todo) * len(CAMERA_NAMES), unit="view", disable=not progress,
-               desc=f"{scene_dir} ({renderer})", dynamic_ncols=True)
+    bar = progress_bar(len(todo) * len(CAMERA_NAMES), desc=f"{scene_dir} ({renderer})", unit="view",
+                       enabled=progress)
     try:
         with backend(spec, settings, verbose=verbose) as drawer:
             for vp, rig in todo:

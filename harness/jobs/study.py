@@ -51,7 +51,6 @@ import numpy as np
 import pandas as pd
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
-from tqdm import tqdm
 
 from harness.data import jsonio
 from harness.data.atomic import atomic_write_bytes, atomic_write_text
@@ -59,6 +58,7 @@ from harness.data.errors import UserError
 from harness.data.outputs import check_output, ensure_output_dir, mark_output
 from harness.jobs.cluster import ClusterOptions, open_executor
 from harness.jobs.evaluate import evaluate
+from harness.jobs.progress import progress_bar
 from harness.jobs.render import DEFAULTS, RENDER_LOG, render_frames
 from reconstruction.methods.flow_pipeline import DEFAULT_FLOW
 from reconstruction.methods.registry import default_methods, flow_methods, get_methods
@@ -329,8 +329,7 @@ def _run_concurrently(jobs: list[tuple[str, Callable]], ex, progress: bool, what
     errors: dict[int, BaseException] = {}
     pool = ThreadPoolExecutor(max_workers=min(len(jobs), MAX_PARALLEL_POINTS), thread_name_prefix="study")
     try:
-        with tqdm(total=len(jobs), desc=f"study {what} (dask)", unit="point", disable=not progress,
-                  dynamic_ncols=True) as bar:
+        with progress_bar(len(jobs), desc=f"study {what} (dask)", unit="point", enabled=progress) as bar:
             futures = {pool.submit(job, progress=False): i for i, (_, job) in enumerate(jobs)}
             for fut in as_completed(futures):
                 if fut.exception() is not None:

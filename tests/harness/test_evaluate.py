@@ -11,7 +11,7 @@ import pytest
 
 from harness.cli import main
 from harness.data.errors import UserError
-from harness.jobs.evaluate import evaluate, mae_table, select_frames
+from harness.jobs.evaluate import evaluate, select_frames, summary_text
 from reconstruction.methods.base import MethodOutput
 from reconstruction.methods.registry import flow_methods
 from reports.schema import RESULT_COLUMNS
@@ -95,11 +95,17 @@ def test_rerun_replaces_the_whole_results_set(synthetic_root, tmp_path):
     assert not (out / "maps/synthetic_box/vp000/a").exists()
 
 
-def test_mae_table_never_drops_a_missing_metric():
-    rows = [{"scene": "s", "viewpoint": v, "method": "m", "flow": "", "rectify": "", "variant": "", "mae_m": x}
-            for v, x in (("vp0", 1.0), ("vp1", float("nan")))]
-    text = mae_table(pd.DataFrame(rows))
-    assert "NaN" in text and "1.0000" not in text
+def test_summary_text_is_one_row_per_method_best_first_and_never_drops_a_missing_metric():
+    rows = [{"scene": "s", "viewpoint": v, "method": m, "flow": "", "rectify": "", "variant": "", "mae_m": x,
+             "median_m": x / 2, "delta110": 0.5, "seconds": 2.0}
+            for m, v, x in (("m", "vp0", 1.0), ("m", "vp1", float("nan")), ("good", "vp0", 0.25), ("good", "vp1", 0.75),
+                            ("bad", "vp0", 3.0))]
+    lines = summary_text(pd.DataFrame(rows)).splitlines()
+    assert lines[0].split() == ["method", "frames", "MAE", "(m)", "median", "(m)", "delta<1.10", "s/frame"]
+    assert [line.split()[:3] for line in lines[1:]] == [["good", "2", "0.5000"], ["bad", "1", "3.0000"],
+                                                        ["m", "2", "-"]]  # a NaN frame: no mean, shown last
+    assert lines[1].split()[3:] == ["0.2500", "50.0", "%", "2.0"]
+    assert "nan" not in "\n".join(lines).lower() and len({len(line) for line in lines}) == 1  # aligned
 
 
 def test_progress_bar_names_frame_and_methods(synthetic_root, tmp_path, capsys):

@@ -512,7 +512,7 @@ def test_failing_writer_leaves_target_and_no_temporary(tmp_path):
 # ------------------------------------------------------------------------------------------- concurrency
 
 WRITER = r"""
-import json, sys, time
+import json, os, sys, time
 from pathlib import Path
 import harness.data.atomic as atomic
 from harness.data.frame import read_frame, write_frame
@@ -521,6 +521,7 @@ src, root, go, n, exchange = sys.argv[1], Path(sys.argv[2]), Path(sys.argv[3]), 
 if not exchange:
     atomic._exchange_supported = False  # force the rename-aside fallback
 frame = read_frame(src)
+(go.parent / f"ready-{os.getpid()}").touch()  # imported and loaded: the test gives the go once both are
 deadline = time.time() + 60
 while not go.exists():
     if time.time() > deadline:
@@ -548,7 +549,10 @@ def test_concurrent_forced_writes_of_one_frame(tmp_path, small_frame, exchange):
     procs = [subprocess.Popen([sys.executable, "-c", WRITER, str(src), str(root), str(go), "20", str(int(exchange))],
                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env, cwd=REPO)
              for _ in range(2)]
-    time.sleep(0.5)
+    deadline = time.monotonic() + 120  # both writers ready (however long their start-up takes), then go at once
+    while len(list(tmp_path.glob("ready-*"))) < 2 and all(p.poll() is None for p in procs):
+        assert time.monotonic() < deadline, "the writers did not start"
+        time.sleep(0.01)
     go.touch()
     results = [p.communicate(timeout=120) for p in procs]
     for p, (_, err) in zip(procs, results, strict=True):

@@ -25,6 +25,7 @@ from harness.render.base import RenderError, RenderSettings
 from harness.render.registry import open_renderer
 from reconstruction.camera.rig import Rig
 from scenes.model import Box, Material, ModelFile, SceneSpec
+from tests.helpers import sigint_default
 
 pytestmark = pytest.mark.blender
 
@@ -54,9 +55,10 @@ def _workdirs(tmp: Path) -> set[str]:
 
 @contextlib.contextmanager
 def _command(args: list[str], **kwargs):
-    """The CLI in a new session (its own process group), text pipes; killed with its group if still running."""
+    """The CLI in a new session (its own process group), text pipes, SIGINT at its default action (this test
+    run may have it ignored); killed with its group if still running."""
     proc = subprocess.Popen([*CLI, *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            start_new_session=True, **kwargs)
+                            start_new_session=True, preexec_fn=sigint_default, **kwargs)
     try:
         yield proc
     finally:
@@ -83,8 +85,9 @@ def test_ctrl_c_stops_a_cycles_render_within_seconds(tmp_path, target):
     out = tmp_path / "data"
     tmp = tmp_path / "tmp"  # the command's own temporary directory: other processes' renders do not show here
     tmp.mkdir()
-    # classroom 400 x 200 at 16 samples renders for ~20 s per frame on 2 cores; we interrupt it after ~3 s
-    with _command(["render", "--scene", "classroom", "--width", "400", "--samples", "16", "--out", str(out),
+    # classroom 400 x 200 at 128 samples renders for minutes on 2 cores (and for long enough on many); we interrupt
+    # it after ~3 s, so the sample count costs nothing here
+    with _command(["render", "--scene", "classroom", "--width", "400", "--samples", "128", "--out", str(out),
                    "--quiet"], env={**os.environ, "TMPDIR": str(tmp)}) as proc:
         deadline = time.monotonic() + 60
         while not _children(proc.pid) and proc.poll() is None and time.monotonic() < deadline:
@@ -202,12 +205,14 @@ def _cmdline(pid: int) -> str:
         return ""
 
 
+@pytest.mark.cluster
 def test_ctrl_c_stops_a_study_on_a_local_cluster(tmp_path):
     """A study whose grid points render at once on a ``--workers 2`` LocalCluster: Ctrl-C (to the process group)
     exits 130 within seconds, leaves no process (scheduler, workers, Cycles) and no frame behind."""
     study = tmp_path / "s.toml"
-    # 4 points of one 200 x 100 classroom frame at 256 samples: ~30 s per frame, two at a time
-    study.write_text('[render]\nscene = "classroom"\nwidth = 200\nviewpoints = 1\nsamples = 256\n'
+    # 4 points of one 200 x 100 classroom frame at 2048 samples: minutes per frame, two at a time (interrupted
+    # after seconds, so the sample count costs nothing here)
+    study.write_text('[render]\nscene = "classroom"\nwidth = 200\nviewpoints = 1\nsamples = 2048\n'
                      '[evaluate]\nmethod = ["dis-rect:average"]\n[grid]\nbaseline = [0.2, 0.3, 0.4, 0.5]\n')
     out = tmp_path / "out"
     with _command(["study", str(study), "--out", str(out), "--workers", "2", "--quiet"]) as proc:
@@ -222,6 +227,8 @@ def test_ctrl_c_stops_a_study_on_a_local_cluster(tmp_path):
     assert proc.returncode == 130, (proc.returncode, stderr)
     assert seconds < 20, f"Ctrl-C took {seconds:.1f} s"
     assert stderr.strip().splitlines()[-1].startswith("tri360 study: interrupted"), stderr
-    time.sleep(1.0)
+    deadline = time.monotonic() + 30  # the study's processes end with it; orphans are reaped asynchronously
+    while [p for p in family if _alive(p)] and time.monotonic() < deadline:
+        time.sleep(0.1)
     assert not [p for p in family if _alive(p)], "processes outlived the study"
     assert not list(out.rglob("frame.json")) and not (out / "study.csv").exists()

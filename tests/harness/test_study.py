@@ -6,17 +6,19 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
+import time
 from pathlib import Path
 
 import pandas as pd
 import pytest
 from distributed import Client
+from distributed.diagnostics.plugin import WorkerPlugin
 
 from harness.cli import main
 from harness.data.errors import UserError
 from harness.jobs.study import grid_points, load_study, point_ids, run_study
 from harness.render.base import RenderSettings
-from tests.harness.test_executor import external_cluster, wait_for_workers
+from tests.helpers import wait_for_workers
 
 PNG = b"\x89PNG\r\n\x1a\n"
 
@@ -43,17 +45,51 @@ def mtimes(root: Path, name: str) -> dict:
     return {p: p.stat().st_mtime_ns for p in root.rglob(name)}
 
 
-@pytest.fixture(scope="module")
-def scheduler(tmp_path_factory):
-    with external_cluster(tmp_path_factory.mktemp("dask"), n_workers=2) as (address, _):
-        wait_for_workers(address, 2)
-        yield address
+@pytest.fixture
+def scheduler(dask_cluster):
+    """The shared cluster's address, both workers up now."""
+    wait_for_workers(dask_cluster.address, 2)
+    return dask_cluster.address
 
 
+class Barrier(WorkerPlugin):
+    """Holds each task of ``prefix`` at its start until ``n`` of them, on different workers, have started
+    (files in ``directory``), for at most ``timeout_s``: tasks that run at the same time pass it, tasks run one
+    after another cannot.  Proves concurrency without comparing wall-clock times; a timeout leaves a file
+    ``timeout-<pid>`` and lets the task go on (so the test fails on it instead of hanging)."""
+
+    def __init__(self, directory: str, prefix: str, n: int, timeout_s: float = 120.0):
+        self.directory, self.prefix, self.n, self.timeout_s = directory, prefix, n, timeout_s
+
+    def transition(self, key, start, finish, **kwargs):
+        if finish != "executing" or not str(key).startswith(self.prefix):
+            return
+        d = Path(self.directory)
+        (d / f"arrived-{os.getpid()}").touch()
+        deadline = time.monotonic() + self.timeout_s
+        while len(list(d.glob("arrived-*"))) < self.n:
+            if time.monotonic() > deadline:
+                (d / f"timeout-{os.getpid()}").touch()
+                return
+            time.sleep(0.05)
+
+
+@pytest.mark.cluster
 def test_study_on_a_scheduler_writes_csv_plot_and_summary(scheduler, tmp_path, capsys):
     study = write_study(tmp_path / "baseline.toml", [0.2, 0.4])
     out = tmp_path / "study"
-    assert main(["study", str(study), "--out", str(out), "--scheduler", scheduler, "--quiet"]) == 0
+    barrier = tmp_path / "barrier"
+    barrier.mkdir()
+    with Client(scheduler, timeout=30) as c:
+        c.register_plugin(Barrier(str(barrier), "tri360_render-", n=2), name="barrier")
+        try:
+            assert main(["study", str(study), "--out", str(out), "--scheduler", scheduler, "--quiet"]) == 0
+        finally:
+            c.unregister_worker_plugin("barrier")
+    # the two points (one frame each) were rendered at the same time, by both workers: each render waited at
+    # its start for the other's
+    assert len(list(barrier.glob("arrived-*"))) == 2 and not list(barrier.glob("timeout-*")), \
+        sorted(p.name for p in barrier.iterdir())
     table = pd.read_csv(out / "study.csv")
     assert list(table.columns[:3]) == ["baseline", "scene", "viewpoint"]
     assert {"mae_m", "rmse_m", "method", "render_s"} <= set(table.columns)
@@ -71,11 +107,9 @@ def test_study_on_a_scheduler_writes_csv_plot_and_summary(scheduler, tmp_path, c
     with Client(scheduler, timeout=30) as c:
         prefixes = c.run_on_scheduler(lambda dask_scheduler: sorted(dask_scheduler.task_prefixes))
     assert {"tri360_render", "tri360_evaluate"} <= set(prefixes)
-    # the two points (one frame each) were rendered at the same time, by both workers
     logs = [json.loads(p.read_text()) for p in sorted((out / "data").rglob("render_log.json"))]
     assert len(logs) == 2 and logs[0]["pid"] != logs[1]["pid"]
-    spans = [(g["finished_unix"] - g["seconds"]["total"], g["finished_unix"]) for g in logs]
-    assert max(a for a, _ in spans) < min(b for _, b in spans), spans  # the render intervals overlap
+    assert {f"arrived-{g['pid']}" for g in logs} == {p.name for p in barrier.glob("arrived-*")}
 
     # rerun: nothing rendered or evaluated again
     frames, results = mtimes(out / "data", "frame.json"), mtimes(out / "results", "results.csv")

@@ -134,18 +134,32 @@ def test_breakdown_angle_to_up_baseline_is_colatitude():
 def test_breakdown_angle_to_right_baseline():
     # R is to the right (+X): the angle is arccos(cos(phi) * sin(lam)); the bins are symmetric about 90 deg,
     # and the pixels nearest the right-looking direction (u + 0.5 = 0.75 W, equator) fall into bin 0.
+    # A few pixels of this grid lie on a bin edge up to rounding (|angle - edge| ~ 1e-14 deg; the next nearest is
+    # 0.14 deg away): the last bits of numpy's SIMD trigonometry differ between CPUs, so such a pixel may fall
+    # into either neighbouring bin.  Every other pixel has one right bin.
     w, h = 36, 18
+    edge_tol_deg = 1e-6
     frame = make_frame(w, h)
     rows = _rows(breakdown(frame, frame.distance["C"]), "angle_R")
     counts = np.array([r["n_px"] for r in rows])
     assert counts.sum() == w * h
-    np.testing.assert_array_equal(counts, counts[::-1])
     v, u = np.mgrid[0:h, 0:w]
     lam = 2 * np.pi * (u + 0.5) / w - np.pi
     phi = np.pi / 2 - np.pi * (v + 0.5) / h
-    ang = np.degrees(np.arccos(np.clip(np.cos(phi) * np.sin(lam), -1, 1)))
-    expected = np.histogram(ang, bins=ANGLE_EDGES_DEG)[0]
-    np.testing.assert_array_equal(counts, expected)
+    ang = np.degrees(np.arccos(np.clip(np.cos(phi) * np.sin(lam), -1, 1))).ravel()
+    on_edge = np.abs(ang[:, None] - ANGLE_EDGES_DEG[None, 1:-1]).min(axis=1) < edge_tol_deg
+    assert 0 < on_edge.sum() <= 8  # the property below is tested with ambiguity, but not much of it
+    n_bins = len(ANGLE_EDGES_DEG) - 1
+    sure = np.histogram(ang[~on_edge], bins=ANGLE_EDGES_DEG)[0]
+    # a pixel on edge k (1 <= k < n_bins) may land in bin k - 1 or bin k
+    edge_index = np.abs(ang[on_edge, None] - ANGLE_EDGES_DEG[None, :]).argmin(axis=1)
+    maybe = np.zeros(n_bins, int)
+    np.add.at(maybe, edge_index - 1, 1)
+    np.add.at(maybe, edge_index, 1)
+    assert np.all(counts >= sure) and np.all(counts <= sure + maybe), (counts, sure, maybe)
+    # mirror symmetry about 90 deg, up to the pixels on an edge
+    assert np.abs(counts - counts[::-1]).sum() <= 2 * on_edge.sum(), counts
+    assert np.array_equal(sure, sure[::-1])
     assert counts[0] > 0 and all(r["mae_m"] == 0.0 for r in rows if r["n_px"])
 
 

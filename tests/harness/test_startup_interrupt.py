@@ -1,0 +1,57 @@
+"""Ctrl-C at any moment of the command, its start-up included (the imports of numba, pandas, matplotlib and Dask
+take seconds): exit status 130 and one line on stderr, never a traceback.
+
+The command is started with SIGINT at its default action (this test run may have it ignored, as a job started in
+the background has).  Python's own start-up before any tri360 code runs (the interpreter and ``site``, tens of
+milliseconds) is Python's business, so each Ctrl-C is sent a chosen delay after the command began loading its
+modules (numpy's extension mapped into the process), wherever that lands: in the imports, in argument parsing or
+in the render itself.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from tests.helpers import sigint_default
+
+CLI = [sys.executable, "-m", "harness.cli"]
+
+
+def _loading_modules(pid: int) -> bool:
+    """True once numpy's compiled extension is mapped into ``pid``: the command's own imports have begun."""
+    try:
+        return "numpy" in Path(f"/proc/{pid}/maps").read_text()
+    except (FileNotFoundError, ProcessLookupError):
+        return False
+
+
+@pytest.mark.parametrize("delay_s", [0.0, 0.05, 0.2, 0.5, 1.5, 4.0])
+def test_ctrl_c_during_start_up_or_run_is_one_line_and_130(tmp_path, delay_s):
+    # a render that would take minutes (numpy ray-caster, many large frames): it is interrupted long before
+    args = ["render", "--scene", "synthetic_box", "--width", "2000", "--viewpoints", "500",
+            "--out", str(tmp_path / "data"), "--quiet"]
+    proc = subprocess.Popen([*CLI, *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=sigint_default, start_new_session=True)
+    try:
+        deadline = time.monotonic() + 120
+        while not _loading_modules(proc.pid) and proc.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.002)
+        assert proc.poll() is None, proc.communicate()
+        time.sleep(delay_s)
+        os.killpg(proc.pid, signal.SIGINT)  # as a terminal's Ctrl-C: the whole process group
+        _, stderr = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+    lines = stderr.splitlines()
+    assert proc.returncode == 130, (proc.returncode, stderr)
+    assert len(lines) == 1 and "Traceback" not in stderr, stderr
+    assert lines[0].startswith(("tri360: interrupted", "tri360 render: interrupted")), stderr
