@@ -25,6 +25,7 @@ from reconstruction.camera.rig import Rig, yaw_rotation
 
 MATERIAL_KINDS = ("paint", "wood", "tiles", "board", "fabric", "metal", "plastic", "glass", "emission", "noise")
 LIGHT_KINDS = ("area", "point", "sun")
+DIFFICULTY_TAGS = ("weak_texture", "reflective", "repetitive", "far", "thin", "cluttered")
 MODEL_SUFFIXES = (".blend", ".glb", ".gltf", ".obj")
 
 
@@ -295,6 +296,7 @@ class SceneEntry:
     parameters: Mapping[str, str] = field(default_factory=dict)
     renderer: str = "cycles"
     source: str = ""
+    tags: tuple[str, ...] = ()
 
     def __post_init__(self):
         if self.renderer not in RENDERERS:

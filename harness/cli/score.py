@@ -7,8 +7,10 @@ from pathlib import Path
 
 from harness.cli.cluster import add_cluster_arguments, cluster_options
 from harness.cli.methods import add_results_options
+from harness.cli.suite_options import add_suite_arguments, refuse_with_suite, suite_choice
 from harness.jobs.evaluate import mae_table
 from harness.jobs.score import score
+from harness.jobs.suite import score_suite
 
 HELP = "score predictions of any method (tri360-pred/1) against the ground truth of a data root"
 
@@ -21,12 +23,19 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--method", nargs="+", default=None, metavar="NAME",
                         help="one name per PRED_ROOT, in order (default: method.json's name, else the folder name)")
     add_results_options(parser, "score")
+    add_suite_arguments(parser, "score")
     add_cluster_arguments(parser)
 
 
 def run(args) -> int:
-    table = score(args.pred_roots, args.data, args.out, args.method, args.scene, report=args.report,
-                  progress=not args.quiet, cluster=cluster_options(args))
+    suite = suite_choice(args)
+    if suite is not None:
+        refuse_with_suite(args, {"scene": None})
+        table = score_suite(args.pred_roots, args.data, suite[0], suite[1], args.out, args.method,
+                            report=args.report, progress=not args.quiet, cluster=cluster_options(args))
+    else:
+        table = score(args.pred_roots, args.data, args.out, args.method, args.scene, report=args.report,
+                      progress=not args.quiet, cluster=cluster_options(args))
     print(f"\nMAE (m), mean over frames — {len(table)} rows in {args.out / 'results.csv'}")
     print(mae_table(table))
     return 0

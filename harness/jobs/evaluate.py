@@ -45,6 +45,7 @@ from reports.build import build_report
 from reports.metrics import breakdown
 from reports.regions import region_summaries, regions
 from reports.schema import breakdown_table, regions_table, results_table, write_results
+from scenes.registry import discover
 
 __all__ = ["FrameRef", "select_frames", "evaluate", "evaluate_task", "method_groups", "map_path", "mae_table",
            "results_config"]
@@ -117,8 +118,9 @@ def map_path(scene: str, viewpoint: str, method: Method) -> Path:
     return base / method.label / "distance.exr"
 
 
-def results_config(methods: Sequence[Method], frames: list, data_root: Path, started: float) -> dict:
-    """The contents of ``config.json``."""
+def results_config(methods: Sequence[Method], frames: list, data_root: Path, started: float,
+                   suite: dict | None = None) -> dict:
+    """The contents of ``config.json`` (with a ``suite`` entry when a suite's split was evaluated)."""
     return {
         "format": "tri360-results/1",
         "software": software(),
@@ -126,7 +128,27 @@ def results_config(methods: Sequence[Method], frames: list, data_root: Path, sta
         "data_root": str(Path(data_root).resolve()),
         "methods": {m.label: m.config() for m in methods},
         "frames": frames,
+        **({"suite": suite} if suite else {}),
     }
+
+
+def frame_labels(frames: list[dict], suite: dict | None = None) -> dict[tuple[str, str], dict]:
+    """``(scene, viewpoint) -> {family, tags, suite_id, split}`` of each evaluated frame (``frames``: the
+    ``config.json`` entries): the suite's record when given, else the family the frame's provenance names and
+    that family's registered difficulty tags (``SceneEntry.tags``); tags joined by ``;``."""
+    if suite:
+        known = {(f["scene"], f["viewpoint"]): f for f in suite["frames"]}
+        return {k: {"family": f["family"], "tags": ";".join(f["tags"]), "suite_id": suite["id"],
+                    "split": suite["split"]} for k, f in known.items()}
+    entries = discover()[0]
+    out = {}
+    for info in frames:
+        scene = info["renderer"].get("scene") if isinstance(info.get("renderer"), dict) else None
+        family = scene.get("family") if isinstance(scene, dict) and isinstance(scene.get("family"), str) else ""
+        tags = getattr(entries[family], "tags", ()) if family in entries else ()
+        out[(info["scene"], info["viewpoint"])] = {"family": family, "tags": ";".join(tags), "suite_id": "",
+                                                  "split": ""}
+    return out
 
 
 def _score_rows(frame, method: Method, output: MethodOutput, masks: dict) -> tuple[dict, list[dict], list[dict]]:
@@ -199,7 +221,8 @@ def evaluate_task(frame_path: str, methods: Sequence[Method], stage: str) -> dic
 
 
 def evaluate(data_root: Path, out: Path, methods: Sequence[Method], scenes: Sequence[str] | None = None,
-             report: bool = True, progress: bool = True, cluster: ClusterOptions | None = None) -> pd.DataFrame:
+             report: bool = True, progress: bool = True, cluster: ClusterOptions | None = None,
+             suite: dict | None = None) -> pd.DataFrame:
     """Run ``methods`` on every frame with ground truth under ``data_root`` and write a results set to ``out``.
 
     Args:
@@ -208,6 +231,9 @@ def evaluate(data_root: Path, out: Path, methods: Sequence[Method], scenes: Sequ
             directory, this process gathers the rows and writes the results files.  None = in this process, one
             task per frame.  Also accepts an executor that is already open (a study's).  The rows and maps are
             the same either way (only ``seconds``, each method's wall time, differs from run to run).
+        suite: the evaluated suite split (``harness.data.suite.Suite.describe``, from ``harness.jobs.suite``, which
+            checks the data root first): recorded in ``config.json`` and in every row (``suite_id``, ``split``).
+            Every row also names its frame's family and difficulty tags (:func:`frame_labels`).
 
     Returns:
         The results table (also written to ``out``).
@@ -248,10 +274,12 @@ def evaluate(data_root: Path, out: Path, methods: Sequence[Method], scenes: Sequ
                 rrows.extend(rrs)
             frames_index.append({"scene": info["scene"], "viewpoint": info["viewpoint"], "path": info["path"]})
             frames_config.append(info)
+        labels = frame_labels(frames_config, suite)
+        rows = [{**r, **labels.get((r["scene"], r["viewpoint"]), {})} for r in rows]
         table = results_table(rows)
         write_results(stage, table, breakdown_table(brows), regions_table(rrows))
         atomic_write_text(stage / "frames.json", jsonio.dumps(frames_index))
-        config = results_config(methods, frames_config, data_root, started)
+        config = results_config(methods, frames_config, data_root, started, suite)
         atomic_write_text(stage / "config.json", jsonio.dumps(config))
         if report:
             build_report(stage)
