@@ -11,16 +11,19 @@ import shutil
 import tomllib
 from pathlib import Path
 
+import cv2
 import numpy as np
 import pandas as pd
 import pytest
 
 from harness.cli import main
 from harness.data.errors import UserError
+from harness.data.frame import read_frame
 from harness.data.suite import load_suite, suite_id
 from harness.jobs import bench_suite as bench
 from harness.jobs.render import DEFAULTS, render_frames
 from harness.jobs.suite import check_suite_data, evaluate_suite, load, plan, render_suite
+from reconstruction.camera.equirect import bearing_grid, project
 from reconstruction.methods.registry import get_methods
 from reports.tables import leaderboard_markdown, leaderboard_table, load_results
 from scenes.registry import discover
@@ -328,3 +331,42 @@ def test_bench_suite_exits_non_zero_when_the_median_frame_is_slower(mini, monkey
     monkeypatch.setattr(bench, "time_frame", lambda *a: next(times))
     assert bench.main(["--suite", str(mini), "--split", "dev", "--width", "64"]) == 0
     assert "ratio 0.95 [ok" in capsys.readouterr().out
+
+
+TILTED_CYCLES = """\
+format = "tri360-suite/1"
+name = "tilted"
+
+[render]
+width = 128
+samples = 1
+denoise = false
+
+[[frames]]
+family = "box_room"
+seed = 4
+viewpoints = 1
+split = "dev"
+rig = { baseline_m = 0.3, tilt_max_rad = 0.15 }
+"""
+
+
+@pytest.mark.blender
+def test_cycles_draws_tilted_rigs_with_consistent_ground_truth(tmp_path):
+    """A tilted 0.3 m rig drawn by Cycles: C's ground-truth points, projected into U and R with their recorded
+    poses, land at U's and R's own ground-truth distance (box_room: no occlusion, so nearly everywhere)."""
+    (d,) = render_suite(write(tmp_path, TILTED_CYCLES), "dev", tmp_path / "data", threads=2, progress=False)
+    f = read_frame(d)
+    assert f.renderer["rig"]["pitch_rad"] != 0.0
+    c = f.cameras["C"]
+    points = c.position + f.distance["C"][..., None] * bearing_grid(f.width, f.height, c.rotation)
+    for k in "UR":
+        pk = f.cameras[k]
+        u, v = project(points, pk.position, pk.rotation, f.width, f.height)
+        wrapped = np.concatenate([f.distance[k][:, -1:], f.distance[k], f.distance[k][:, :1]], axis=1)
+        seen = cv2.remap(wrapped.astype(np.float32), (u + 1).astype(np.float32), v.astype(np.float32),
+                         cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)  # bilinear, columns wrap
+        expected = np.linalg.norm(points - pk.position, axis=-1)
+        agree = np.abs(seen - expected) < 0.02 * expected
+        # measured: 99.3 % (U) and 99.5 % (R) tilted, 99.3 % and 99.4 % for the same rig level
+        assert agree.mean() >= 0.985, f"{k}: only {agree.mean():.2%} agree within 2 %"
