@@ -252,7 +252,7 @@ def _entry(path: Path, i: int, raw, scenes: dict[str, SceneEntry], errors: dict[
     renderer = table.get("renderer", scene.renderer)
     if renderer not in RENDERERS:
         _fail(path, f"{where} renderer", f"must be one of {', '.join(RENDERERS)}, got {renderer!r}")
-    tags = table.get("tags", list(getattr(scene, "tags", ())))
+    tags = table.get("tags", list(scene.tags))
     if not isinstance(tags, list | tuple) or any(t not in DIFFICULTY_TAGS for t in tags):
         _fail(path, f"{where} tags", f"must be a list of {', '.join(DIFFICULTY_TAGS)}, got {tags!r}")
     default_name = f"{family}-s{seed}" if preset == scene.default_preset else f"{family}-{preset}-s{seed}"

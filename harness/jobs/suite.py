@@ -230,10 +230,6 @@ def check_suite_data(suite: Suite, split: str, data_root: Path) -> list[FrameRef
     return [by_key[k] for k in wanted]
 
 
-def _suite_info(suite: Suite, split: str) -> dict:
-    return suite.describe(split)
-
-
 def evaluate_suite(data_root: Path, path: Path, split: str, out: Path, methods: Sequence[Method],
                    report: bool = True, progress: bool = True, cluster: ClusterOptions | None = None) -> pd.DataFrame:
     """:func:`harness.jobs.evaluate.evaluate` on a suite's split, after :func:`check_suite_data`; the results
@@ -241,7 +237,7 @@ def evaluate_suite(data_root: Path, path: Path, split: str, out: Path, methods: 
     suite = load(path)
     check_suite_data(suite, split, data_root)
     return evaluate(data_root, out, methods, report=report, progress=progress, cluster=cluster,
-                    suite=_suite_info(suite, split))
+                    suite=suite.describe(split))
 
 
 def score_suite(pred_roots: Sequence[Path], data_root: Path, path: Path, split: str, out: Path,
@@ -251,4 +247,4 @@ def score_suite(pred_roots: Sequence[Path], data_root: Path, path: Path, split: 
     suite = load(path)
     check_suite_data(suite, split, data_root)
     return score(pred_roots, data_root, out, names, report=report, progress=progress, cluster=cluster,
-                 suite=_suite_info(suite, split))
+                 suite=suite.describe(split))
