@@ -19,6 +19,7 @@ import pytest
 from harness.cli import main
 from harness.data.errors import UserError
 from harness.data.frame import read_frame
+from harness.data.predictions import write_prediction
 from harness.data.suite import load_suite, suite_id
 from harness.jobs import bench_suite as bench
 from harness.jobs.render import DEFAULTS, render_frames
@@ -370,3 +371,20 @@ def test_cycles_draws_tilted_rigs_with_consistent_ground_truth(tmp_path):
         agree = np.abs(seen - expected) < 0.02 * expected
         # measured: 99.3 % (U) and 99.5 % (R) tilted, 99.3 % and 99.4 % for the same rig level
         assert agree.mean() >= 0.985, f"{k}: only {agree.mean():.2%} agree within 2 %"
+
+
+def test_score_suite_scores_predictions_on_the_split(rendered, tmp_path, capsys):
+    """`tri360 score --suite`: an outside method's predictions (here: the truth plus 0.1 m) on exactly the split."""
+    path, root = rendered
+    preds = tmp_path / "preds"
+    for f in load(path).frames("dev"):
+        frame = read_frame(root / f.scene / f.viewpoint)
+        write_prediction(preds, f.scene, f.viewpoint, frame.distance["C"] + 0.1)
+    out = tmp_path / "res"
+    assert main(["score", str(preds), "--data", str(root), "--suite", str(path), "--split", "dev", "--method", "mine",
+                 "--out", str(out), "--no-report", "--quiet"]) == 0
+    results = load_results(out)
+    assert set(results["suite_id"]) == {load(path).id} and set(results["split"]) == {"dev"}
+    assert results["mae_m"].to_numpy() == pytest.approx(0.1, abs=1e-5)  # float32 maps
+    assert results["mae_sw_m"].to_numpy() == pytest.approx(0.1, abs=1e-5)
+    assert json.loads((out / "config.json").read_text())["suite"]["name"] == "mini"
