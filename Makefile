@@ -40,11 +40,12 @@ test: $(STAMP) browser ## run the whole test suite (fast tests, Blender renders,
 test-fast: $(STAMP) ## the tests that need no Blender render, browser or Dask cluster
 	$(PY) -m pytest -q -m "not blender and not browser and not cluster"
 
-bench: $(STAMP) ## timings and peak memory: flow pipeline stages (+ LM vs scipy), the default method (fused) at 1000x500 and 4000x2000, the default classroom render (3 times), Dask render speed-up
+bench: $(STAMP) ## timings and peak memory: flow pipeline stages (+ LM vs scipy), the default method (fused) at 1000x500 and 4000x2000, the default classroom render (3 times), Dask render speed-up, suite frame render time vs the default frame
 	$(PY) -m harness.jobs.bench
 	$(PY) -m harness.jobs.bench_sweep --method fused
 	$(PY) -m harness.jobs.bench_render
 	$(PY) -m harness.jobs.bench_dask
+	$(PY) -m harness.jobs.bench_suite
 
 regress-update: $(STAMP) ## rewrite the CI regression bounds (tests/regression_bounds.json) from a fresh run
 	$(PY) -m harness.jobs.regression --bounds tests/regression_bounds.json --update

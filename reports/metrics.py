@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from reconstruction.camera.equirect import bearing_grid
+from reconstruction.camera.equirect import bearing_grid, pixel_to_lonlat
 
 __all__ = [
     "ANGLE_EDGES_DEG",
@@ -40,8 +40,11 @@ __all__ = [
     "EDGE_LOG_JUMP",
     "BOUNDARY_TOLERANCE_PX",
     "AUSE_STEPS",
+    "SOLID_ANGLE_KEYS",
     "SUMMARY_KEYS",
     "scored_pixels",
+    "solid_angle_weights",
+    "pixel_solid_angle_sr",
     "score_pixels",
     "summary",
     "pooled_summary",
@@ -82,10 +85,46 @@ EDGE_LOG_JUMP = math.log(1.10)
 BOUNDARY_TOLERANCE_PX = 1
 #: removal fractions of the sparsification curves: ``k / AUSE_STEPS`` for ``k = 0 .. AUSE_STEPS``.
 AUSE_STEPS = 20
+#: the main metrics again, each pixel weighted by its solid angle (cos latitude, Pano3D), then ``valid_sr``, the
+#: solid angle of the scored pixels in steradians (the weight that pools the weighted metrics over frames).
+SOLID_ANGLE_KEYS = ("mae_sw_m", "rmse_sw_m", "median_sw_m", "absrel_sw", "delta1_sw", "outlier_rate_sw", "valid_sr")
 #: every key of :func:`summary` and :func:`pooled_summary`, in order; ``ause`` follows when a confidence is given.
 SUMMARY_KEYS = ("mae_m", "rmse_m", "median_m", "absrel", "delta1", "outlier_rate", "valid_px",
                 *(f"p{q}_m" for q in PERCENTILES), *BAD_FRACTIONS, *DELTA_RATIOS, "coverage",
-                "boundary_precision", "boundary_recall", "seam_m")
+                "boundary_precision", "boundary_recall", "seam_m", *SOLID_ANGLE_KEYS)
+
+
+def solid_angle_weights(height: int) -> np.ndarray:
+    """Relative solid angle of each row of an equirect image: ``cos(latitude)`` of the row's pixel centres.
+
+    Args:
+        height: H, rows (latitude of row ``v``: ``pi/2 - pi (v + 0.5) / H``).
+    Returns:
+        (H,) float64 in (0, 1]: 1 at the equator, -> 0 at the poles.
+    """
+    _, lat = pixel_to_lonlat(np.zeros(height), np.arange(height), 2 * height, height)
+    return np.cos(lat)
+
+
+def pixel_solid_angle_sr(width: int, height: int) -> float:
+    """Steradians per unit weight of :func:`solid_angle_weights`: a pixel covers ``w * (2 pi / W) (pi / H)`` sr
+    (the cell's area on the unit sphere at its centre's latitude; over the whole image the weights sum to
+    about 4 pi sr)."""
+    return (2.0 * np.pi / width) * (np.pi / height)
+
+
+def _weighted_median(values: np.ndarray, weights: np.ndarray) -> float:
+    """The weighted median of ``values`` (N,) with positive ``weights`` (N,): the smallest value whose
+    cumulative weight (values sorted ascending) reaches half the total weight (exactly half: the mean of that
+    value and the next), so equal weights give numpy's median."""
+    order = np.argsort(values, kind="stable")
+    v, cw = values[order], np.cumsum(weights[order])
+    half = 0.5 * cw[-1]
+    i = int(np.searchsorted(cw, half, side="left"))
+    i = min(i, v.size - 1)
+    if i + 1 < v.size and abs(cw[i] - half) <= 1e-12 * cw[-1]:
+        return float(0.5 * (v[i] + v[i + 1]))
+    return float(v[i])
 
 
 def scored_pixels(gt) -> np.ndarray:
@@ -190,7 +229,8 @@ class _Pixels:
 
     Arrays over the N selected scored pixels, row-major: ``err`` absolute error (metres, = gt where invalid),
     ``gt`` true distance (metres), ``pred`` prediction with invalid values replaced by 1.0 (metres),
-    ``valid`` prediction valid, ``conf`` confidence or None.  Counts of edge pixels: ``pred_edges`` /
+    ``valid`` prediction valid, ``conf`` confidence or None, ``weight`` solid-angle weight (cos latitude),
+    ``sr`` steradians per unit weight.  Counts of edge pixels: ``pred_edges`` /
     ``pred_hits`` (predicted edge pixels, and those with a true edge within the tolerance), ``gt_edges`` /
     ``gt_hits`` likewise; ``seam`` (M,) per-row seam disagreement, metres.
     """
@@ -205,6 +245,8 @@ class _Pixels:
     gt_edges: int
     gt_hits: int
     seam: np.ndarray
+    weight: np.ndarray | None = None
+    sr: float = float("nan")
 
 
 class ScoredMaps:
@@ -261,7 +303,9 @@ class ScoredMaps:
                        conf=None if self.confidence is None else self.confidence[sel],
                        pred_edges=int(pe.sum()), pred_hits=int((pe & self.near_gt_edge).sum()),
                        gt_edges=int(ge.sum()), gt_hits=int((ge & self.near_pred_edge).sum()),
-                       seam=self.seam[rows])
+                       seam=self.seam[rows],
+                       weight=np.broadcast_to(solid_angle_weights(self.shape[0])[:, None], self.shape)[sel],
+                       sr=pixel_solid_angle_sr(self.shape[1], self.shape[0]))
 
     def summary(self, mask=None) -> dict:
         """:func:`summary` over the scored pixels inside ``mask`` ((H, W) bool, None = all scored pixels)."""
@@ -327,6 +371,7 @@ def _summarise(parts: Sequence[_Pixels]) -> dict:
     if n == 0:
         out = {k: nan for k in SUMMARY_KEYS}
         out["valid_px"] = 0
+        out["valid_sr"] = 0.0
         if confs[0] is not None:
             out["ause"] = nan
         return out
@@ -351,8 +396,24 @@ def _summarise(parts: Sequence[_Pixels]) -> dict:
     out["boundary_recall"] = _ratio(sum(p.gt_hits for p in parts), sum(p.gt_edges for p in parts))
     seam = np.concatenate([p.seam for p in parts])
     out["seam_m"] = float(seam.mean()) if seam.size else nan
+    out.update(_solid_angle_weighted(parts, err, g, valid, ratio))
     if confs[0] is not None:
         out["ause"] = ause(*_sparsification(err, np.concatenate(confs), AUSE_STEPS))
+    return out
+
+
+def _solid_angle_weighted(parts: Sequence[_Pixels], err, g, valid, ratio) -> dict:
+    """The :data:`SOLID_ANGLE_KEYS` over the pixels of ``parts`` (``err, g, valid, ratio``: their concatenated
+    arrays); each pixel weighs its solid angle in steradians (so frames of different sizes pool correctly)."""
+    w = np.concatenate([p.weight * p.sr for p in parts])
+    total = float(w.sum())
+    out = {"mae_sw_m": float(np.sum(w * err) / total),
+           "rmse_sw_m": float(np.sqrt(np.sum(w * err * err) / total)),
+           "median_sw_m": _weighted_median(err, w),
+           "absrel_sw": float(np.sum(w * err / g) / total),
+           "delta1_sw": float(np.sum(w * (valid & (ratio < DELTA1_RATIO))) / total),
+           "outlier_rate_sw": float(np.sum(w * (err > OUTLIER_FRACTION * g)) / total),
+           "valid_sr": total}
     return out
 
 
@@ -386,6 +447,10 @@ def summary(pred, gt, confidence=None, mask=None) -> dict:
           depth-edge pixels with a predicted edge that near (both over scored pixels; NaN with no edge pixel);
         * ``seam_m``: mean over the rows where both seam pixels are scored and validly predicted of
           ``|(pred[v, 0] - pred[v, W-1]) - (gt[v, 0] - gt[v, W-1])|``, metres (NaN with no such row);
+        * ``mae_sw_m rmse_sw_m median_sw_m absrel_sw delta1_sw outlier_rate_sw``: the first six metrics with
+          every pixel weighted by its solid angle, ``cos(latitude)`` of its row (:func:`solid_angle_weights`;
+          Pano3D's recommendation: equirect pixels near the poles cover less of the sphere); the median is the
+          weighted median; ``valid_sr``: the solid angle of the scored pixels, steradians;
         * ``ause``: area under the sparsification error curve (MAE, :data:`AUSE_STEPS` steps) minus the
           oracle's, metres (:func:`sparsification_curves`); only when ``confidence`` is given.
 

@@ -14,9 +14,9 @@ import pandas as pd
 
 from reports.metrics import SUMMARY_KEYS
 
-__all__ = ["KEY_COLUMNS", "FLOW_COLUMNS", "CORE_METRIC_COLUMNS", "METRIC_COLUMNS", "RESULT_COLUMNS", "RESULT_REQUIRED",
-           "REGION_COLUMNS", "REGION_REQUIRED", "BREAKDOWN_COLUMNS", "INT_COLUMNS", "TEXT_COLUMNS", "BOOL_COLUMNS",
-           "results_table", "regions_table", "breakdown_table"]
+__all__ = ["KEY_COLUMNS", "FLOW_COLUMNS", "SUITE_COLUMNS", "CORE_METRIC_COLUMNS", "METRIC_COLUMNS", "RESULT_COLUMNS",
+           "RESULT_REQUIRED", "REGION_COLUMNS", "REGION_REQUIRED", "BREAKDOWN_COLUMNS", "INT_COLUMNS", "TEXT_COLUMNS",
+           "BOOL_COLUMNS", "results_table", "regions_table", "breakdown_table"]
 
 #: identify a row
 KEY_COLUMNS = ["scene", "viewpoint", "method"]
@@ -27,7 +27,10 @@ FLOW_COLUMNS = ["flow", "rectify", "variant"]
 CORE_METRIC_COLUMNS = ["mae_m", "rmse_m", "median_m", "absrel", "delta1", "outlier_rate", "valid_px", "seconds"]
 #: every metric of reports.metrics.summary, then ``ause`` (empty where the method gives no confidence)
 METRIC_COLUMNS = [*CORE_METRIC_COLUMNS, *(k for k in SUMMARY_KEYS if k not in CORE_METRIC_COLUMNS), "ause"]
-RESULT_COLUMNS = ["scene", "viewpoint", "width", "height", "method", *FLOW_COLUMNS, *METRIC_COLUMNS]
+#: what the frame is (its scene family, difficulty tags joined by ``;``) and, for a suite's split, the suite id and
+#: split (empty otherwise); older results sets lack them
+SUITE_COLUMNS = ["family", "tags", "suite_id", "split"]
+RESULT_COLUMNS = ["scene", "viewpoint", "width", "height", "method", *FLOW_COLUMNS, *METRIC_COLUMNS, *SUITE_COLUMNS]
 #: the columns a results.csv must have (older results sets lack the later metrics)
 RESULT_REQUIRED = ["scene", "viewpoint", "width", "height", "method", *FLOW_COLUMNS, *CORE_METRIC_COLUMNS]
 REGION_COLUMNS = [*KEY_COLUMNS, *FLOW_COLUMNS, "region", *(c for c in METRIC_COLUMNS if c != "seconds")]

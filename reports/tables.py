@@ -205,13 +205,20 @@ def mae_markdown(table: pd.DataFrame) -> str:
 
 
 #: overall columns of the leaderboard: (results.csv column, which way is better: "low" or "high")
-LEADERBOARD_OVERALL = (("mae_m", "low"), ("median_m", "low"), ("p90_m", "low"), ("bad_5pct", "low"),
-                       ("delta110", "high"), ("coverage", "high"), ("ause", "low"))
+LEADERBOARD_OVERALL = (("mae_m", "low"), ("mae_sw_m", "low"), ("median_m", "low"), ("median_sw_m", "low"),
+                       ("p90_m", "low"), ("bad_5pct", "low"), ("delta110", "high"), ("coverage", "high"),
+                       ("ause", "low"))
+#: solid-angle-weighted columns: pooled over frames by the scored pixels' solid angle (``valid_sr``), not their count
+SOLID_ANGLE_COLUMNS = {"mae_sw_m", "median_sw_m"}
+#: prefixes of the per-family and per-difficulty-tag MAE columns (plain and solid-angle weighted)
+FAMILY_PREFIX, TAG_PREFIX = "mae_family:", "mae_tag:"
+FAMILY_SW_PREFIX, TAG_SW_PREFIX = "mae_sw_family:", "mae_sw_tag:"
 #: regions with an MAE column of their own (``all`` is ``mae_m``)
 LEADERBOARD_REGIONS = tuple(r for r in REGION_NAMES if r != "all")
 #: leaderboard columns shown as percentages (shares 0..1 in leaderboard.csv)
 SHARE_COLUMNS = {"bad_5pct", "delta110", "coverage"}
 LEADERBOARD_HEADERS = {"method": "method", "kind": "kind", "frames": "frames", "mae_m": "MAE (m)",
+                       "mae_sw_m": "MAE, solid-angle weighted (m)", "median_sw_m": "median, solid-angle weighted (m)",
                        "median_m": "median (m)", "p90_m": "p90 (m)", "bad_5pct": "bad 5 % (%)",
                        "delta110": "δ < 1.10 (%)", "coverage": "coverage (%)", "ause": "AUSE (m)"}
 PAPER_KIND = "quoted from the paper"
@@ -230,6 +237,20 @@ def pixel_weighted(values, weights) -> float:
     return float(np.sum(v[keep] * w[keep]) / np.sum(w[keep]))
 
 
+def _groups(results: pd.DataFrame) -> list[tuple[str, str, pd.Series]]:
+    """``(plain column, weighted column, row mask)`` for every family and every difficulty tag in ``results``
+    (families in order of appearance, then tags in order of appearance)."""
+    if "family" not in results.columns:
+        return []
+    fam = results["family"].fillna("").astype(str)
+    tags = results["tags"].fillna("").astype(str).str.split(";") if "tags" in results.columns else None
+    out = [(FAMILY_PREFIX + f, FAMILY_SW_PREFIX + f, fam == f) for f in dict.fromkeys(fam) if f]
+    if tags is not None:
+        names = dict.fromkeys(t for ts in tags for t in ts if t)
+        out += [(TAG_PREFIX + t, TAG_SW_PREFIX + t, tags.map(lambda ts, t=t: t in ts).astype(bool)) for t in names]
+    return out
+
+
 def leaderboard_table(results: pd.DataFrame, regions: pd.DataFrame | None = None,
                       kinds: dict[str, str] | None = None) -> pd.DataFrame:
     """Every method of a results set against the overall metrics and the MAE per region, plus the paper's rows.
@@ -240,7 +261,13 @@ def leaderboard_table(results: pd.DataFrame, regions: pd.DataFrame | None = None
     over all scored pixels of all frames together; for ``median_m``, ``p90_m`` and ``ause`` it is the
     pixel-weighted mean of the per-frame values (a percentile of the pooled pixels would need the maps).  With
     one frame per method every number is that frame's.  A NaN of any frame gives NaN (e.g. ``ause`` of a method
-    without confidence).
+    without confidence).  The solid-angle-weighted columns (``mae_sw_m``, ``median_sw_m``: each pixel weighted by
+    cos latitude) pool with each frame weighted by its scored pixels' solid angle (``valid_sr``) instead.
+
+    When the rows name their family and difficulty tags (``family``, ``tags``), ``mae_family:<family>`` and
+    ``mae_tag:<tag>`` (then ``mae_sw_family:...``, ``mae_sw_tag:...``, solid-angle weighted) pool the MAE over the
+    frames of that family or tag (NaN where the method has none); ``suite_id`` and ``split`` name the suite split
+    the results were measured on (empty outside a suite; "mixed" if the rows disagree).
 
     Args:
         results: validated ``results.csv`` (``harness.data.results.read_results``).
@@ -248,21 +275,36 @@ def leaderboard_table(results: pd.DataFrame, regions: pd.DataFrame | None = None
         kinds: method label -> kind from ``config.json`` (``harness.data.results.read_method_kinds``).
     Returns:
         DataFrame, columns ``source`` ("tri360" / "paper"), ``method``, ``kind``, ``flow``, ``rectify``,
-        ``variant``, ``frames``, the :data:`LEADERBOARD_OVERALL` columns (metres / shares 0..1) and
-        ``mae_<region>`` for each of :data:`LEADERBOARD_REGIONS` (metres).  tri360 rows sorted by ``mae_m``
+        ``variant``, ``frames``, ``suite_id``, ``split``, the :data:`LEADERBOARD_OVERALL` columns (metres / shares
+        0..1), the family and tag columns (metres) and ``mae_<region>`` for each of :data:`LEADERBOARD_REGIONS`
+        (metres).  tri360 rows sorted by ``mae_m``
         (NaN last), then one row per :data:`PAPER_MAE_M` entry, labelled ``paper: deepflow-plain:<variant>`` (MAE
         only; every other number NaN).
     """
     kinds = kinds or {}
     rows = []
+    groups = _groups(results)
+    suite = {}
+    for col in ("suite_id", "split"):
+        values = set(results[col].fillna("").astype(str)) if col in results.columns else {""}
+        suite[col] = values.pop() if len(values) == 1 else "mixed"
     for label in method_order(results):
-        sub = results[results["method"] == label]
+        sel = results["method"] == label
+        sub = results[sel]
         first = sub.iloc[0]
         row = {"source": "tri360", "method": label,
                "kind": kinds.get(label) or ("flow-pipeline" if first["flow"] else ""),
-               "flow": first["flow"], "rectify": first["rectify"], "variant": first["variant"], "frames": len(sub)}
+               "flow": first["flow"], "rectify": first["rectify"], "variant": first["variant"], "frames": len(sub),
+               **suite}
         for col, _ in LEADERBOARD_OVERALL:
-            row[col] = pixel_weighted(sub[col], sub["valid_px"])
+            weight = "valid_sr" if col in SOLID_ANGLE_COLUMNS else "valid_px"
+            row[col] = (pixel_weighted(sub[col], sub[weight]) if col in sub.columns and weight in sub.columns
+                        else float("nan"))
+        for plain, weighted, mask in groups:
+            part = results[sel & mask]
+            row[plain] = pixel_weighted(part["mae_m"], part["valid_px"]) if len(part) else float("nan")
+            row[weighted] = (pixel_weighted(part["mae_sw_m"], part["valid_sr"])
+                             if len(part) and "valid_sr" in part.columns else float("nan"))
         for region in LEADERBOARD_REGIONS:
             part = None if regions is None else regions[(regions["method"] == label) & (regions["region"] == region)]
             row[f"mae_{region}"] = (float("nan") if part is None or part.empty
@@ -274,16 +316,35 @@ def leaderboard_table(results: pd.DataFrame, regions: pd.DataFrame | None = None
     paper = []
     for variant, mae in PAPER_MAE_M.items():
         row = {"source": "paper", "method": f"paper: {config_label('deepflow', False)}:{variant}",
-               "kind": PAPER_KIND, "flow": "deepflow", "rectify": False, "variant": variant, "frames": 1}
+               "kind": PAPER_KIND, "flow": "deepflow", "rectify": False, "variant": variant, "frames": 1,
+               "suite_id": "", "split": ""}
         row.update({col: float("nan") for col, _ in LEADERBOARD_OVERALL})
+        row.update({c: float("nan") for plain, weighted, _ in groups for c in (plain, weighted)})
         row.update({f"mae_{r}": float("nan") for r in LEADERBOARD_REGIONS})
         row["mae_m"] = mae
         paper.append(row)
     return pd.concat([table, pd.DataFrame(paper)], ignore_index=True)
 
 
-def _metric_columns() -> list[tuple[str, str]]:
-    return [*LEADERBOARD_OVERALL, *((f"mae_{r}", "low") for r in LEADERBOARD_REGIONS)]
+def group_columns(table: pd.DataFrame) -> list[str]:
+    """The per-family and per-tag MAE columns of a leaderboard table, plain ones first, in table order."""
+    cols = [str(c) for c in table.columns]
+    return ([c for c in cols if c.startswith((FAMILY_PREFIX, TAG_PREFIX))]
+            + [c for c in cols if c.startswith((FAMILY_SW_PREFIX, TAG_SW_PREFIX))])
+
+
+def _group_header(col: str) -> str:
+    for prefix, what in ((FAMILY_PREFIX, ""), (TAG_PREFIX, "tag "), (FAMILY_SW_PREFIX, "sw "),
+                         (TAG_SW_PREFIX, "sw tag ")):
+        if col.startswith(prefix):
+            name = col[len(prefix):]
+            return what + (name.replace("_", " ") if "tag" in what else name)
+    return col
+
+
+def _metric_columns(table: pd.DataFrame | None = None) -> list[tuple[str, str]]:
+    groups = [] if table is None else [(c, "low") for c in group_columns(table)]
+    return [*LEADERBOARD_OVERALL, *groups, *((f"mae_{r}", "low") for r in LEADERBOARD_REGIONS)]
 
 
 def _fmt(col: str, v: float) -> str:
@@ -303,14 +364,15 @@ def leaderboard_display(table: pd.DataFrame) -> dict:
         column among tri360's rows, ties included within 1e-9 relative) and ``row_classes`` ("paper" for the
         quoted rows).
     """
-    metric_cols = _metric_columns()
+    metric_cols = _metric_columns(table)
     columns = ["method", "kind", "frames", *(c for c, _ in metric_cols)]
     better = ["", "", "", *(b for _, b in metric_cols)]
     disp = pd.DataFrame({"method": table["method"].astype(str),
                          "kind": [k if k else "—" for k in table["kind"].astype(str)],
                          "frames": table["frames"].astype(int).astype(str)})
     for col, _ in metric_cols:
-        disp[LEADERBOARD_HEADERS.get(col, col.removeprefix("mae_"))] = [_fmt(col, float(v)) for v in table[col]]
+        header = LEADERBOARD_HEADERS.get(col) or (_group_header(col) if ":" in col else col.removeprefix("mae_"))
+        disp[header] = [_fmt(col, float(v)) for v in table[col]]
     keys = []
     for _, r in table.iterrows():
         keys.append([r["method"], r["kind"], int(r["frames"]),
@@ -339,7 +401,11 @@ def leaderboard_markdown(table: pd.DataFrame) -> str:
         "Shares in %; lower is better except for δ < 1.10 and coverage.  A missing or invalid prediction",
         "counts with error = true distance.  Rows of kind \"quoted from the paper\" are the paper's own Fig. 4 MAEs",
         "(one 1000x500 classroom frame of theirs, DeepFlow on plain equirect pairs), not computed by tri360.",
+        "Columns marked \"solid-angle weighted\" weight every pixel by the solid angle it covers (cos latitude,",
+        "as Pano3D recommends: equirect pixels near the poles cover less of the sphere) and pool frames by their",
+        "scored solid angle; every other column weighs each pixel the same.",
         "",
+        *_suite_lines(table),
         "| method | kind | frames | " + " | ".join(LEADERBOARD_HEADERS[c] for c in overall) + " |",
         "|---|---|---:|" + "---:|" * len(overall),
     ]
@@ -353,4 +419,32 @@ def leaderboard_markdown(table: pd.DataFrame) -> str:
     for _, r in table[table["source"] == "tri360"].iterrows():
         cells = [r["method"], *(_fmt("mae_m", float(r[f"mae_{g}"])) for g in LEADERBOARD_REGIONS)]
         lines.append("| " + " | ".join(_md_cell(x) for x in cells) + " |")
+    groups = group_columns(table)
+    for title, cols in (("MAE per family and difficulty tag (m)",
+                         [c for c in groups if c.startswith((FAMILY_PREFIX, TAG_PREFIX))]),
+                        ("MAE per family and difficulty tag, solid-angle weighted (m)",
+                         [c for c in groups if c.startswith((FAMILY_SW_PREFIX, TAG_SW_PREFIX))])):
+        if not cols:
+            continue
+        lines += ["", f"## {title}", "",
+                  "Pooled over the frames of each scene family, and of each difficulty tag (a frame counts for every "
+                  "tag it carries); — where the method has no such frame.", "",
+                  "| method | " + " | ".join(_group_header(c).removeprefix("sw ") for c in cols) + " |",
+                  "|---|" + "---:|" * len(cols)]
+        for _, r in table[table["source"] == "tri360"].iterrows():
+            cells = [r["method"], *(_fmt("mae_m", float(r[c])) for c in cols)]
+            lines.append("| " + " | ".join(_md_cell(x) for x in cells) + " |")
     return "\n".join(lines) + "\n"
+
+
+def _suite_lines(table: pd.DataFrame) -> list[str]:
+    """The leaderboard's line naming the suite split it was measured on (none outside a suite)."""
+    if "suite_id" not in table.columns:
+        return []
+    ours = table[table["source"] == "tri360"]
+    ids = sorted({str(x) for x in ours["suite_id"]} - {""})
+    splits = sorted({str(x) for x in ours["split"]} - {""})
+    if not ids:
+        return []
+    return [f"Measured on suite {', '.join(ids)}, split {', '.join(splits) or '?'} (the suite id names the exact "
+            "frames: docs/suites.md).", ""]

@@ -25,6 +25,7 @@ from reconstruction.camera.rig import Rig, yaw_rotation
 
 MATERIAL_KINDS = ("paint", "wood", "tiles", "board", "fabric", "metal", "plastic", "glass", "emission", "noise")
 LIGHT_KINDS = ("area", "point", "sun")
+DIFFICULTY_TAGS = ("weak_texture", "reflective", "repetitive", "far", "thin", "cluttered")
 MODEL_SUFFIXES = (".blend", ".glb", ".gltf", ".obj")
 
 
@@ -178,7 +179,8 @@ class SceneSpec:
 
 def choose_viewpoints(spec: SceneSpec, n: int, seed: int, baseline_m: float = 0.4,
                       clearance_m: float = 0.3, floor_clearance_m: float = 0.35,
-                      max_tries: int = 20000) -> list[Rig]:
+                      max_tries: int = 20000, tilt_max_rad: float = 0.0,
+                      height_range: tuple[float, float] | None = None) -> list[Rig]:
     """Pick ``n`` rig placements deterministically from ``seed``, never inside or too near furniture.
 
     Viewpoint 0 is the free position closest to the centre of ``spec.bounds`` (a stable default); the
@@ -189,13 +191,33 @@ def choose_viewpoints(spec: SceneSpec, n: int, seed: int, baseline_m: float = 0.
     it from C but not from R 0.4 m away: measured on classroom frames, such placements leave only 88 % of
     C's pixels visible from R; in aisles 95 %+.)
 
+    ``height_range`` ((low, high) metres) replaces ``spec.rig_height`` for camera C's height.  With
+    ``tilt_max_rad`` > 0 every rig (viewpoint 0 included) is tilted: pitch and roll each uniform in
+    [-tilt_max_rad, tilt_max_rad], drawn from a generator of their own (seeded by ``(seed, 1)``), so the
+    placements' draw is the same stream as without tilt; with 0 (the default) the rigs are level and every
+    placement is exactly what it always was.
+
     Raises:
-        ValueError: if fewer than ``n`` free placements are found.
+        ValueError: if fewer than ``n`` free placements are found, or a bad tilt or height range.
     """
     if spec.viewpoints:
         if len(spec.viewpoints) < n:
             raise ValueError(f"scene {spec.name!r} defines {len(spec.viewpoints)} viewpoints, {n} requested")
         return list(spec.viewpoints[:n])
+    if not 0.0 <= tilt_max_rad < np.pi / 2:
+        raise ValueError(f"scene {spec.name!r}: tilt_max_rad must be in [0, pi/2), got {tilt_max_rad}")
+    rig_height = spec.rig_height if height_range is None else tuple(float(x) for x in height_range)
+    if len(rig_height) != 2 or not 0.0 < rig_height[0] <= rig_height[1]:
+        raise ValueError(f"scene {spec.name!r}: height range must be (low, high) with 0 < low <= high, "
+                         f"got {height_range}")
+    tilt_rng = np.random.default_rng([seed, 1]) if tilt_max_rad > 0 else None
+
+    def tilt() -> dict:
+        if tilt_rng is None:
+            return {}
+        pitch, roll = tilt_rng.uniform(-tilt_max_rad, tilt_max_rad, size=2)
+        return {"pitch_rad": float(pitch), "roll_rad": float(roll)}
+
     rng = np.random.default_rng(seed)
     lo, hi = np.asarray(spec.bounds[0], float), np.asarray(spec.bounds[1], float)
     solids = [b for b in spec.boxes if not b.inward]
@@ -216,12 +238,12 @@ def choose_viewpoints(spec: SceneSpec, n: int, seed: int, baseline_m: float = 0.
 
     rigs: list[Rig] = []
     centre = (lo + hi) / 2.0
-    h_mid = float(np.mean(spec.rig_height))
+    h_mid = float(np.mean(rig_height))
     # viewpoint 0: nearest free spot to the room centre, on a fixed spiral (deterministic, seed-independent)
     for k in range(2000):
         r, a = 0.05 * k ** 0.5 * 3, 2.39996 * k
         cand = Rig(position=np.array([centre[0] + r * np.cos(a), centre[1] + r * np.sin(a), h_mid]),
-                   yaw_rad=0.0, baseline_m=baseline_m)
+                   yaw_rad=0.0, baseline_m=baseline_m, **tilt())
         if free(cand):
             rigs.append(cand)
             break
@@ -229,8 +251,8 @@ def choose_viewpoints(spec: SceneSpec, n: int, seed: int, baseline_m: float = 0.
         if len(rigs) >= n:
             break
         pos = rng.uniform(lo, hi)
-        pos[2] = rng.uniform(*spec.rig_height)
-        cand = Rig(position=pos, yaw_rad=float(rng.uniform(-np.pi, np.pi)), baseline_m=baseline_m)
+        pos[2] = rng.uniform(*rig_height)
+        cand = Rig(position=pos, yaw_rad=float(rng.uniform(-np.pi, np.pi)), baseline_m=baseline_m, **tilt())
         if free(cand):
             rigs.append(cand)
     if len(rigs) < n:
@@ -274,6 +296,7 @@ class SceneEntry:
     parameters: Mapping[str, str] = field(default_factory=dict)
     renderer: str = "cycles"
     source: str = ""
+    tags: tuple[str, ...] = ()
 
     def __post_init__(self):
         if self.renderer not in RENDERERS:

@@ -7,7 +7,9 @@ from pathlib import Path
 
 from harness.cli.cluster import add_cluster_arguments, cluster_options
 from harness.cli.methods import add_method_options, add_results_options, selected_methods
+from harness.cli.suite_options import add_suite_arguments, refuse_with_suite, suite_choice
 from harness.jobs.evaluate import evaluate, summary_text
+from harness.jobs.suite import evaluate_suite
 
 HELP = "run methods on every frame under a data root and score them against ground truth"
 
@@ -17,13 +19,20 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="folder holding <scene>/<viewpoint>/ frames (or one frame directory)")
     add_method_options(parser, multiple=True)
     add_results_options(parser, "evaluate")
+    add_suite_arguments(parser, "evaluate")
     add_cluster_arguments(parser)
 
 
 def run(args) -> int:
     methods = selected_methods(args, multiple=True)
-    table = evaluate(args.data_root, args.out, methods, args.scene, report=args.report, progress=not args.quiet,
-                     cluster=cluster_options(args))
+    suite = suite_choice(args)
+    if suite is not None:
+        refuse_with_suite(args, {"scene": None})
+        table = evaluate_suite(args.data_root, suite[0], suite[1], args.out, methods, report=args.report,
+                               progress=not args.quiet, cluster=cluster_options(args))
+    else:
+        table = evaluate(args.data_root, args.out, methods, args.scene, report=args.report,
+                         progress=not args.quiet, cluster=cluster_options(args))
     print(f"\n{len(table)} results in {args.out / 'results.csv'}; per method, mean over frames:")
     print(summary_text(table))
     return 0

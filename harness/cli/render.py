@@ -6,7 +6,9 @@ import argparse
 import os
 
 from harness.cli.cluster import add_cluster_arguments, cluster_options
+from harness.cli.suite_options import add_suite_arguments, refuse_with_suite, suite_choice
 from harness.jobs.render import DEFAULT_SCENE, DEFAULTS, MIN_WIDTH, parse_overrides, render_frames
+from harness.jobs.suite import render_suite
 from harness.render.registry import available_renderers
 from reconstruction.camera.rig import DEFAULT_BASELINE_M
 
@@ -48,10 +50,26 @@ def add_arguments(parser) -> None:
                              "with the same settings, and the run is refused when not)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     parser.add_argument("--verbose", action="store_true", help="show Blender's own log output (on stderr)")
+    add_suite_arguments(parser, "render")
     add_cluster_arguments(parser)
 
 
+#: options a suite fixes (argparse dest -> default); --suite refuses them
+SUITE_FIXED = {"scene": DEFAULT_SCENE, "renderer": None, "viewpoints": 1, "width": DEFAULTS.width,
+               "samples": DEFAULTS.samples, "seed": DEFAULTS.seed, "baseline": DEFAULT_BASELINE_M,
+               "max_bounces": DEFAULTS.max_bounces, "light_tree": DEFAULTS.light_tree, "no_denoise": False,
+               "overrides": []}
+
+
 def run(args) -> int:
+    suite = suite_choice(args)
+    if suite is not None:
+        refuse_with_suite(args, SUITE_FIXED)
+        dirs = render_suite(suite[0], suite[1], args.out, threads=args.threads, force=args.force,
+                            progress=not args.quiet, verbose=args.verbose, cluster=cluster_options(args))
+        for d in dirs:
+            print(os.fspath(d))
+        return 0
     dirs = render_frames(args.scene, viewpoints=args.viewpoints, out_root=args.out, width=args.width,
                          samples=args.samples, seed=args.seed, threads=args.threads, baseline=args.baseline,
                          force=args.force, denoise=not args.no_denoise, max_bounces=args.max_bounces,

@@ -7,8 +7,10 @@ from pathlib import Path
 
 from harness.cli.cluster import add_cluster_arguments, cluster_options
 from harness.cli.methods import add_results_options
+from harness.cli.suite_options import add_suite_arguments, refuse_with_suite, suite_choice
 from harness.jobs.evaluate import summary_text
 from harness.jobs.score import score
+from harness.jobs.suite import score_suite
 
 HELP = "score predictions of any method (tri360-pred/1) against the ground truth of a data root"
 
@@ -23,12 +25,19 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "a name becomes part of the maps' paths, so it may use only letters, digits and "
                              "_ . : + = - (no leading dot, no '..', at most 100 characters)")
     add_results_options(parser, "score")
+    add_suite_arguments(parser, "score")
     add_cluster_arguments(parser)
 
 
 def run(args) -> int:
-    table = score(args.pred_roots, args.data, args.out, args.method, args.scene, report=args.report,
-                  progress=not args.quiet, cluster=cluster_options(args))
+    suite = suite_choice(args)
+    if suite is not None:
+        refuse_with_suite(args, {"scene": None})
+        table = score_suite(args.pred_roots, args.data, suite[0], suite[1], args.out, args.method,
+                            report=args.report, progress=not args.quiet, cluster=cluster_options(args))
+    else:
+        table = score(args.pred_roots, args.data, args.out, args.method, args.scene, report=args.report,
+                      progress=not args.quiet, cluster=cluster_options(args))
     print(f"\n{len(table)} results in {args.out / 'results.csv'}; per method, mean over frames:")
     print(summary_text(table))
     return 0

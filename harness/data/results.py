@@ -38,6 +38,7 @@ from reports.schema import (
     REGION_REQUIRED,
     RESULT_COLUMNS,
     RESULT_REQUIRED,
+    SUITE_COLUMNS,
     TEXT_COLUMNS,
 )
 
@@ -191,6 +192,8 @@ def _read_csv(path: Path, columns: list[str], what: str, required: list[str] | N
             if parsed is not None:
                 df[c] = df[c].astype(object)
                 df.loc[flow_row, c] = parsed
+        elif c in SUITE_COLUMNS:  # may be empty (frames of no suite, or of no known family)
+            df[c] = df[c].astype(str).str.strip()
         elif c in TEXT_COLUMNS:
             df[c] = df[c].astype(str).str.strip()
             empty = df[c] == ""

@@ -49,6 +49,7 @@ from reports.metrics import breakdown
 from reports.regions import region_summaries, regions
 from reports.schema import breakdown_table, regions_table, results_table
 from reports.tables import method_summary
+from scenes.registry import discover
 
 __all__ = ["FrameRef", "select_frames", "evaluate", "evaluate_task", "method_groups", "summary_text",
            "results_config"]
@@ -140,8 +141,9 @@ def scorable_frame(path: Path):
     return frame
 
 
-def results_config(methods: Sequence[Method], frames: list, data_root: Path, started: float) -> dict:
-    """The contents of ``config.json``."""
+def results_config(methods: Sequence[Method], frames: list, data_root: Path, started: float,
+                   suite: dict | None = None) -> dict:
+    """The contents of ``config.json`` (with a ``suite`` entry when a suite's split was evaluated)."""
     return {
         "format": RESULTS_FORMAT,
         "software": software(),
@@ -149,7 +151,27 @@ def results_config(methods: Sequence[Method], frames: list, data_root: Path, sta
         "data_root": str(Path(data_root).resolve()),
         "methods": {m.label: m.config() for m in methods},
         "frames": frames,
+        **({"suite": suite} if suite else {}),
     }
+
+
+def frame_labels(frames: list[dict], suite: dict | None = None) -> dict[tuple[str, str], dict]:
+    """``(scene, viewpoint) -> {family, tags, suite_id, split}`` of each evaluated frame (``frames``: the
+    ``config.json`` entries): the suite's record when given, else the family the frame's provenance names and
+    that family's registered difficulty tags (``SceneEntry.tags``); tags joined by ``;``."""
+    if suite:
+        known = {(f["scene"], f["viewpoint"]): f for f in suite["frames"]}
+        return {k: {"family": f["family"], "tags": ";".join(f["tags"]), "suite_id": suite["id"],
+                    "split": suite["split"]} for k, f in known.items()}
+    entries = discover()[0]
+    out = {}
+    for info in frames:
+        scene = info["renderer"].get("scene") if isinstance(info.get("renderer"), dict) else None
+        family = scene.get("family") if isinstance(scene, dict) and isinstance(scene.get("family"), str) else ""
+        tags = getattr(entries[family], "tags", ()) if family in entries else ()
+        out[(info["scene"], info["viewpoint"])] = {"family": family, "tags": ";".join(tags), "suite_id": "",
+                                                  "split": ""}
+    return out
 
 
 def _score_rows(frame, method: Method, output: MethodOutput, masks: dict) -> tuple[dict, list[dict], list[dict]]:
@@ -217,7 +239,7 @@ def evaluate_task(frame_path: str, methods: Sequence[Method], stage: str) -> dic
 
 def evaluate(data_root: Path, out: Path, methods: Sequence[Method], scenes: Sequence[str] | None = None,
              report: bool = True, progress: bool = True, cluster: ClusterOptions | None = None,
-             inputs: Sequence[Path] = ()) -> pd.DataFrame:
+             inputs: Sequence[Path] = (), suite: dict | None = None) -> pd.DataFrame:
     """Run ``methods`` on every frame with ground truth under ``data_root`` and write a results set to ``out``.
 
     Before any method runs: the frames are found and read, every name that becomes a path is checked, every frame
@@ -231,6 +253,9 @@ def evaluate(data_root: Path, out: Path, methods: Sequence[Method], scenes: Sequ
             directory, this process gathers the rows and writes the results files.  None = in this process, one
             task per frame.  Also accepts an executor that is already open (a study's).  The rows and maps are
             the same either way (only ``seconds``, each method's wall time, differs from run to run).
+        suite: the evaluated suite split (``harness.data.suite.Suite.describe``, from ``harness.jobs.suite``, which
+            checks the data root first): recorded in ``config.json`` and in every row (``suite_id``, ``split``).
+            Every row also names its frame's family and difficulty tags (:func:`frame_labels`).
 
     Returns:
         The results table (also written to ``out``).
@@ -275,9 +300,11 @@ def evaluate(data_root: Path, out: Path, methods: Sequence[Method], scenes: Sequ
                 rrows.extend(rrs)
             frames_index.append({"scene": info["scene"], "viewpoint": info["viewpoint"], "path": info["path"]})
             frames_config.append(info)
+        labels = frame_labels(frames_config, suite)
+        rows = [{**r, **labels.get((r["scene"], r["viewpoint"]), {})} for r in rows]
         table = results_table(rows)
         write_results(stage, table, breakdown_table(brows), regions_table(rrows), frames=frames_index,
-                      config=results_config(methods, frames_config, data_root, started))
+                      config=results_config(methods, frames_config, data_root, started, suite))
         if report:
             build_report(stage)
         mark_output(stage, "results")

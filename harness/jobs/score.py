@@ -98,10 +98,11 @@ def _check_complete(methods: Sequence[PredictionMethod], data_root: Path, scenes
 
 def score(pred_roots: Sequence[Path], data_root: Path, out: Path, names: Sequence[str] | None = None,
           scenes: Sequence[str] | None = None, report: bool = True, progress: bool = True,
-          cluster: ClusterOptions | None = None) -> pd.DataFrame:
+          cluster: ClusterOptions | None = None, suite: dict | None = None) -> pd.DataFrame:
     """Score every predictions root against the frames under ``data_root``; write a results set to ``out``.
 
-    ``cluster`` runs the scoring on Dask (one task per frame x predictions root), as in ``evaluate``.
+    ``cluster`` runs the scoring on Dask (one task per frame x predictions root), as in ``evaluate``; ``suite``
+    (``harness.jobs.suite.score_suite``) is recorded as in ``evaluate``.
 
     Returns:
         The results table.
@@ -114,4 +115,4 @@ def score(pred_roots: Sequence[Path], data_root: Path, out: Path, names: Sequenc
     methods = prediction_methods(pred_roots, names)
     _check_complete(methods, data_root, scenes)
     return evaluate(data_root, out, methods, scenes, report=report, progress=progress, cluster=cluster,
-                    inputs=[Path(r) for r in pred_roots])
+                    inputs=[Path(r) for r in pred_roots], suite=suite)

@@ -192,7 +192,9 @@ def provenance(renderer: str, engine: dict, pixel_settings: tuple[str, ...], set
         "scene": {"family": spec.name, "preset": spec.params.get("preset"), "seed": spec.params.get("seed"),
                   "params": to_jsonable(spec.params), "code_version": spec.code_version or None},
         "rig": {"position": [float(x) for x in rig.position], "yaw_rad": float(rig.yaw_rad),
-                "baseline_m": float(rig.baseline_m)},
+                "baseline_m": float(rig.baseline_m),
+                # a level rig records no tilt, so its frame.json stays byte-identical to before tilt existed
+                **({"pitch_rad": float(rig.pitch_rad), "roll_rad": float(rig.roll_rad)} if rig.tilted else {})},
         "seconds": {k: round(float(v), 3) for k, v in seconds.items()},
         "details": to_jsonable(engine),
     }

@@ -1,0 +1,339 @@
+"""Benchmark suites (``tri360-suite/1``): a versioned TOML file that lists frames by recipe, split into dev/test.
+
+A suite file ``suites/<name>.toml`` (format and rationale: ``docs/suites.md``)::
+
+    format = "tri360-suite/1"
+    name = "tri360-v1"
+    description = "one line"
+
+    [render]                    # render settings of every frame (harness.render.base.RenderSettings fields but
+    width = 1000                # threads, which is this machine's business: `tri360 render --threads`)
+    samples = 20
+
+    [[frames]]                  # one group of viewpoints of one scene: family, preset, parameters, seed
+    family = "classroom"
+    preset = "lecture"          # optional: the family's default preset
+    seed = 101                  # scene layout, viewpoint draw and render noise (as `tri360 render --seed`)
+    viewpoints = 2
+    split = "dev"               # "dev" or "test"
+    name = "classroom-lecture-s101"   # optional: the scene directory of its frames (default shown)
+    params = { rows = 5 }       # optional: scene parameter overrides (the family's declared parameters)
+    renderer = "cycles"         # optional: the family's default renderer
+    tags = ["far"]              # optional: difficulty tags (scenes.model.DIFFICULTY_TAGS), default the family's
+    rig = { baseline_m = 0.3, height_m = [1.0, 1.6], tilt_max_rad = 0.1 }   # optional, defaults 0.4, the
+                                # family's height range, 0 (level)
+
+Frames land in ``<data root>/<name>/vp000 ...``.  A published suite file is never edited: a change is a new file
+(``tri360-v2.toml``).  The **suite id** (:func:`suite_id`) hashes the file's bytes, the code version of every
+family it uses and the complete render settings (with tri360's defaults for what the file leaves out): two results
+with the same suite id and split were measured on the same frames.
+
+Every problem is one :class:`UserError` line naming the file and the key.  This module reads and checks only; the
+render settings' names and defaults come from the caller (``harness.jobs.suite``, which owns ``RenderSettings``).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import re
+import tomllib
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from harness.data.errors import UserError
+from scenes.model import DIFFICULTY_TAGS, RENDERERS, SceneEntry
+from scenes.registry import discover
+
+__all__ = ["FORMAT", "SPLITS", "SuiteRig", "SuiteEntry", "SuiteFrame", "Suite", "load_suite", "suite_id"]
+
+FORMAT = "tri360-suite/1"
+SPLITS = ("dev", "test")
+TOP_KEYS = ("format", "name", "description", "render", "frames")
+ENTRY_KEYS = ("family", "preset", "seed", "viewpoints", "split", "name", "params", "renderer", "tags", "rig")
+RIG_KEYS = ("baseline_m", "height_m", "tilt_max_rad")
+#: render settings a suite may not fix: ``threads`` changes no pixel (this machine's choice), ``seed`` is each
+#: ``[[frames]]`` group's own (as ``tri360 render --seed`` sets both the scene's and the render noise's seed)
+MACHINE_SETTINGS = ("threads", "seed")
+#: safe names (the directory level of a suite's frames): the character set of tri360's names, no leading dot
+NAME_RE = re.compile(r"^[A-Za-z0-9_+=:-][A-Za-z0-9_.:+=-]{0,99}$")
+MAX_VIEWPOINTS = 1000
+
+
+@dataclass(frozen=True)
+class SuiteRig:
+    """The rig of a frame group: baseline (metres), C's height range (metres, None = the family's), tilt bound
+    (radians: pitch and roll each uniform in [-t, t]; 0 = level)."""
+
+    baseline_m: float = 0.4
+    height_m: tuple[float, float] | None = None
+    tilt_max_rad: float = 0.0
+
+
+@dataclass(frozen=True)
+class SuiteEntry:
+    """One ``[[frames]]`` group: ``viewpoints`` rig placements of one scene (family, preset, params, seed)."""
+
+    name: str
+    family: str
+    preset: str
+    seed: int
+    viewpoints: int
+    split: str
+    params: Mapping = field(default_factory=dict)
+    renderer: str = ""
+    tags: tuple[str, ...] = ()
+    rig: SuiteRig = SuiteRig()
+
+    def viewpoint_names(self) -> list[str]:
+        return [f"vp{i:03d}" for i in range(self.viewpoints)]
+
+
+@dataclass(frozen=True)
+class SuiteFrame:
+    """One frame of a suite: its group and viewpoint index; it lives in ``<root>/<entry.name>/<viewpoint>``."""
+
+    entry: SuiteEntry
+    index: int
+
+    @property
+    def scene(self) -> str:
+        return self.entry.name
+
+    @property
+    def viewpoint(self) -> str:
+        return f"vp{self.index:03d}"
+
+    @property
+    def label(self) -> str:
+        return f"{self.scene}/{self.viewpoint}"
+
+
+@dataclass(frozen=True)
+class Suite:
+    """A loaded, checked suite.
+
+    Attributes:
+        path: the file.  name, description: from the file.  render: every render setting (the file's over the
+        defaults, without :data:`MACHINE_SETTINGS`).  entries: the frame groups in file order.  code_versions:
+        family -> code version (``SceneEntry.code_version``).  id: :func:`suite_id`.
+    """
+
+    path: Path
+    name: str
+    description: str
+    render: Mapping
+    entries: tuple[SuiteEntry, ...]
+    code_versions: Mapping
+    id: str
+
+    def splits(self) -> list[str]:
+        return [s for s in SPLITS if any(e.split == s for e in self.entries)]
+
+    def frames(self, split: str) -> list[SuiteFrame]:
+        """Every frame of ``split``, in file order (UserError naming the file for an unknown or empty split)."""
+        if split not in SPLITS:
+            raise UserError(f"{self.path}: unknown split {split!r} (a suite has {', '.join(SPLITS)})")
+        out = [SuiteFrame(e, i) for e in self.entries if e.split == split for i in range(e.viewpoints)]
+        if not out:
+            raise UserError(f"{self.path}: split {split!r} has no frames")
+        return out
+
+    def describe(self, split: str) -> dict:
+        """What results record about the suite: ``{format, name, id, split, file, frames: [{scene, viewpoint,
+        family, preset, seed, tags}]}``."""
+        return {"format": FORMAT, "name": self.name, "id": self.id, "split": split,
+                "file": str(Path(self.path).resolve()), "code_versions": dict(self.code_versions),
+                "render": dict(self.render),
+                "frames": [{"scene": f.scene, "viewpoint": f.viewpoint, "family": f.entry.family,
+                            "preset": f.entry.preset, "seed": f.entry.seed, "tags": list(f.entry.tags)}
+                           for f in self.frames(split)]}
+
+
+def _fail(path: Path, where: str, what: str):
+    raise UserError(f"{path}: {where}: {what}")
+
+
+def _is_int(v) -> bool:
+    return isinstance(v, int) and not isinstance(v, bool)
+
+
+def _is_number(v) -> bool:
+    return (isinstance(v, int | float) and not isinstance(v, bool)) and math.isfinite(v)
+
+
+def _check_keys(path: Path, where: str, table, allowed) -> dict:
+    if not isinstance(table, dict):
+        _fail(path, where, "must be a table")
+    bad = sorted(set(table) - set(allowed))
+    if bad:
+        _fail(path, where, f"unknown key(s) {', '.join(bad)} (allowed: {', '.join(allowed)})")
+    return table
+
+
+def _render(path: Path, raw, defaults: Mapping) -> dict:
+    allowed = [k for k in defaults if k not in MACHINE_SETTINGS]
+    if isinstance(raw, dict):
+        if "threads" in raw:
+            _fail(path, "[render] threads", "is this machine's choice, not the suite's (use `tri360 render --threads`)")
+        if "seed" in raw:
+            _fail(path, "[render] seed", "is set per [[frames]] group (its seed also seeds the render noise)")
+    table = _check_keys(path, "[render]", raw, allowed)
+    out = {k: v for k, v in defaults.items() if k not in MACHINE_SETTINGS}
+    for key, value in table.items():
+        want = defaults[key]
+        if isinstance(want, bool):
+            ok = isinstance(value, bool)
+        elif isinstance(want, int):
+            ok = _is_int(value)
+        elif isinstance(want, float):
+            ok = _is_number(value)
+            value = float(value) if ok else value
+        else:
+            ok = isinstance(value, type(want))
+        if not ok:
+            _fail(path, f"[render] {key}", f"must be a {type(want).__name__} (like the default {want!r}), "
+                                           f"got {value!r}")
+        out[key] = value
+    return out
+
+
+def _rig(path: Path, where: str, raw) -> SuiteRig:
+    table = _check_keys(path, f"{where} rig", raw, RIG_KEYS)
+    b = table.get("baseline_m", 0.4)
+    if not _is_number(b) or not 0 < b < 100:
+        _fail(path, f"{where} rig.baseline_m", f"must be a positive distance in metres, got {b!r}")
+    h = table.get("height_m")
+    if h is not None:
+        if not (isinstance(h, list) and len(h) == 2 and all(_is_number(x) for x in h) and 0 < h[0] <= h[1] < 100):
+            _fail(path, f"{where} rig.height_m", f"must be [low, high] metres with 0 < low <= high, got {h!r}")
+        h = (float(h[0]), float(h[1]))
+    t = table.get("tilt_max_rad", 0.0)
+    if not _is_number(t) or not 0 <= t < math.pi / 2:
+        _fail(path, f"{where} rig.tilt_max_rad", f"must be in [0, pi/2) radians, got {t!r}")
+    return SuiteRig(float(b), h, float(t))
+
+
+def _entry(path: Path, i: int, raw, scenes: dict[str, SceneEntry], errors: dict[str, str]) -> SuiteEntry:
+    where = f"frames[{i}]"
+    table = _check_keys(path, where, raw, ENTRY_KEYS)
+    for key in ("family", "seed", "viewpoints", "split"):
+        if key not in table:
+            _fail(path, f"{where}", f"missing key {key!r}")
+    family = table["family"]
+    if not isinstance(family, str) or family not in scenes:
+        hint = f"; failed scene files: {', '.join(sorted(errors))}" if errors else ""
+        _fail(path, f"{where} family", f"unknown family {family!r} (known: {', '.join(sorted(scenes))}{hint})")
+    scene = scenes[family]
+    where = f"{where} ({family})"
+    preset = table.get("preset", scene.default_preset)
+    if not isinstance(preset, str) or preset not in scene.presets:
+        _fail(path, f"{where} preset", f"unknown preset {preset!r} of {family} (known: "
+                                       f"{', '.join(sorted(scene.presets))})")
+    seed = table["seed"]
+    if not _is_int(seed) or not 0 <= seed < 2**32:
+        _fail(path, f"{where} seed", f"must be a whole number in [0, 2^32), got {seed!r}")
+    n = table["viewpoints"]
+    if not _is_int(n) or not 1 <= n <= MAX_VIEWPOINTS:
+        _fail(path, f"{where} viewpoints", f"must be a whole number in [1, {MAX_VIEWPOINTS}], got {n!r}")
+    split = table["split"]
+    if split not in SPLITS:
+        _fail(path, f"{where} split", f"must be one of {', '.join(SPLITS)}, got {split!r}")
+    params = table.get("params", {})
+    if not isinstance(params, dict):
+        _fail(path, f"{where} params", "must be a table of scene parameters")
+    known = scene.known_parameters
+    bad = sorted(set(params) - set(known))
+    if bad:
+        _fail(path, f"{where} params", f"unknown parameter(s) {', '.join(bad)} of {family} "
+                                       f"(known: {', '.join(known) or 'none'})")
+    renderer = table.get("renderer", scene.renderer)
+    if renderer not in RENDERERS:
+        _fail(path, f"{where} renderer", f"must be one of {', '.join(RENDERERS)}, got {renderer!r}")
+    tags = table.get("tags", list(scene.tags))
+    if not isinstance(tags, list | tuple) or any(t not in DIFFICULTY_TAGS for t in tags):
+        _fail(path, f"{where} tags", f"must be a list of {', '.join(DIFFICULTY_TAGS)}, got {tags!r}")
+    default_name = f"{family}-s{seed}" if preset == scene.default_preset else f"{family}-{preset}-s{seed}"
+    name = table.get("name", default_name)
+    if not isinstance(name, str) or not NAME_RE.match(name) or ".." in name:
+        _fail(path, f"{where} name", f"must be 1-100 characters of [A-Za-z0-9_.:+=-], no leading dot and no "
+                                     f"'..', got {name!r}")
+    return SuiteEntry(name=name, family=family, preset=preset, seed=int(seed), viewpoints=int(n), split=split,
+                      params=dict(params), renderer=renderer, tags=tuple(dict.fromkeys(tags)),
+                      rig=_rig(path, where, table.get("rig", {})))
+
+
+def suite_id(file_bytes: bytes, code_versions: Mapping, render: Mapping) -> str:
+    """``"sha256:<16 hex>"`` of the suite file's bytes, every family's code version and the render settings.
+
+    Args:
+        file_bytes: the suite file as stored.
+        code_versions: family -> ``SceneEntry.code_version``, of every family the suite uses.
+        render: the complete render settings (the file's over tri360's defaults).
+    """
+    blob = json.dumps({"format": FORMAT, "file_sha256": hashlib.sha256(file_bytes).hexdigest(),
+                       "code_versions": dict(sorted(code_versions.items())), "render": dict(sorted(render.items()))},
+                      sort_keys=True)
+    return "sha256:" + hashlib.sha256(blob.encode("utf-8")).hexdigest()[:16]
+
+
+def load_suite(path: Path, render_defaults: Mapping, scenes: dict[str, SceneEntry] | None = None) -> Suite:
+    """Read and check a suite file.
+
+    Args:
+        path: the ``.toml`` file.
+        render_defaults: every render setting's name and default (``dataclasses.asdict(RenderSettings())``); the
+            ``[render]`` keys must be among them and of the same type.
+        scenes: the scene registry (``scenes.registry.discover()[0]``); None = discover it.
+    Raises:
+        UserError: one line naming the file and the key: unreadable file, bad TOML, wrong format, unknown key,
+            wrong type, unknown family/preset/parameter, duplicate frame names, or a seed used by both splits.
+    """
+    path = Path(path)
+    try:
+        data = path.read_bytes()
+    except FileNotFoundError:
+        raise UserError(f"{path}: suite file does not exist") from None
+    except IsADirectoryError:
+        raise UserError(f"{path}: is a directory, not a suite file") from None
+    except OSError as exc:
+        raise UserError(f"{path}: cannot read the suite file ({exc.strerror or exc})") from None
+    try:
+        raw = tomllib.loads(data.decode("utf-8"))
+    except (UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
+        raise UserError(f"{path}: not valid TOML ({exc})") from None
+    _check_keys(path, "top level", raw, TOP_KEYS)
+    if raw.get("format") != FORMAT:
+        _fail(path, "format", f"must be {FORMAT!r}, got {raw.get('format')!r}")
+    name = raw.get("name")
+    if not isinstance(name, str) or not NAME_RE.match(name):
+        _fail(path, "name", f"must be a name of [A-Za-z0-9_.:+=-], got {name!r}")
+    description = raw.get("description", "")
+    if not isinstance(description, str):
+        _fail(path, "description", "must be a string")
+    render = _render(path, raw.get("render", {}), render_defaults)
+    frames = raw.get("frames")
+    if not isinstance(frames, list) or not frames:
+        _fail(path, "frames", "must be a non-empty array of tables ([[frames]])")
+    if scenes is None:
+        scenes, errors = discover()
+    else:
+        errors = {}
+    entries = [_entry(path, i, f, scenes, errors) for i, f in enumerate(frames)]
+    seen: dict[str, int] = {}
+    for i, e in enumerate(entries):
+        if e.name in seen:
+            _fail(path, f"frames[{i}] name", f"{e.name!r} is also the name of frames[{seen[e.name]}] (their frames "
+                                             "would share a directory); give one a distinct name")
+        seen[e.name] = i
+    seeds = {s: {e.seed for e in entries if e.split == s} for s in SPLITS}
+    shared = sorted(seeds["dev"] & seeds["test"])
+    if shared:
+        i = next(i for i, e in enumerate(entries) if e.split == "test" and e.seed == shared[0])
+        _fail(path, f"frames[{i}] seed", f"seed {shared[0]} is used by both splits (dev and test must share no "
+                                         f"seed{'; also ' + ', '.join(map(str, shared[1:])) if shared[1:] else ''})")
+    code_versions = {e.family: scenes[e.family].code_version for e in entries}
+    return Suite(path=path, name=name, description=description, render=render, entries=tuple(entries),
+                 code_versions=code_versions, id=suite_id(data, code_versions, render))

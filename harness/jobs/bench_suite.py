@@ -1,0 +1,103 @@
+"""Benchmark of a suite's render cost: the median suite frame's render time over today's default classroom frame.
+
+Run as ``python -m harness.jobs.bench_suite`` (part of ``make bench``; goal: ratio <= 1, the exit status is 1 when it
+is not met).  Both are timed the same way, in this process, one after the other: open the renderer on the scene
+(for Cycles: start the worker, build the scene), render the three cameras, close it (nothing is written); the
+reference is ``tri360 render``'s default frame (``classroom``, its default preset and seed, viewpoint ``vp000``,
+every render default), the suite frames are those of ``--split`` (default ``dev``) with the suite's settings.
+
+By default one frame per family is timed (the first viewpoint of the family's first group in the split: 7 frames on
+``tri360-v1`` dev), since the whole split takes about an hour; ``--all`` times every frame.  ``--width W`` renders
+the reference and the suite frames at W instead (a quick check of the machinery, e.g. on a 2-frame suite; the ratio
+is then not the goal's).  ``--threads`` as for ``tri360 render``.  Only meaningful on an otherwise idle machine.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import os
+import statistics
+import sys
+import time
+from pathlib import Path
+
+from harness.data.errors import UserError
+from harness.jobs.render import DEFAULT_SCENE, DEFAULTS
+from harness.jobs.suite import PlannedFrame, load, plan
+from harness.render.registry import get_renderer
+from scenes.model import choose_viewpoints
+from scenes.registry import get_scene
+
+__all__ = ["GOAL_RATIO", "time_frame", "reference_frame", "main"]
+
+GOAL_RATIO = 1.0
+DEFAULT_SUITE = Path("suites/tri360-v1.toml")
+
+
+def time_frame(renderer: str, spec, settings, rig) -> float:
+    """Wall seconds to open ``renderer`` on ``spec``, render ``rig``'s three cameras and close it."""
+    t0 = time.perf_counter()
+    with get_renderer(renderer)(spec, settings) as drawer:
+        drawer.render(rig, scene="bench", viewpoint="vp000")
+    return time.perf_counter() - t0
+
+
+def reference_frame(width: int | None = None, threads: int = 0):
+    """``(renderer, spec, settings, rig)`` of ``tri360 render``'s default frame (optionally at another width)."""
+    entry, preset = get_scene(DEFAULT_SCENE)
+    spec = entry.build_spec(preset, DEFAULTS.seed)
+    settings = dataclasses.replace(DEFAULTS, threads=threads, **({"width": width} if width else {}))
+    rig = choose_viewpoints(spec, 1, DEFAULTS.seed)[0]
+    return entry.renderer, spec, settings, rig
+
+
+def _selected(planned: list[PlannedFrame], every: bool) -> list[PlannedFrame]:
+    if every:
+        return planned
+    seen, out = set(), []
+    for p in planned:
+        if p.frame.entry.family not in seen:
+            seen.add(p.frame.entry.family)
+            out.append(p)
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m harness.jobs.bench_suite", description=__doc__.splitlines()[0])
+    ap.add_argument("--suite", type=Path, default=DEFAULT_SUITE, help="suite file")
+    ap.add_argument("--split", default="dev", help="split whose frames are timed")
+    ap.add_argument("--all", action="store_true", help="time every frame of the split (default: one per family)")
+    ap.add_argument("--width", type=int, default=None, help="render everything at this width instead")
+    ap.add_argument("--threads", type=int, default=0, help="CPU threads for Cycles (0 = all)")
+    args = ap.parse_args(argv)
+    try:
+        suite = load(args.suite)
+        planned = _selected(plan(suite, args.split, args.threads), args.all)
+    except UserError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    width = args.width or int(suite.render["width"])
+    print(f"suite render bench: {suite.name} ({suite.id}) split {args.split}, {len(planned)} frame(s) at "
+          f"{width}x{width // 2}, {os.cpu_count()} cores", flush=True)
+    ref = reference_frame(args.width, args.threads)
+    t_ref = time_frame(*ref)
+    print(f"  reference: default {DEFAULT_SCENE} frame at {ref[2].width}x{ref[2].height}: {t_ref:.1f} s "
+          f"(load average before the next: {os.getloadavg()[0]:.1f})", flush=True)
+    times = []
+    for p in planned:
+        settings = dataclasses.replace(p.settings, width=args.width) if args.width else p.settings
+        t = time_frame(p.renderer, p.spec, settings, p.rig)
+        times.append(t)
+        print(f"  {p.frame.label} ({p.frame.entry.family}, {p.renderer}): {t:.1f} s", flush=True)
+    median = statistics.median(times)
+    ratio = median / t_ref
+    ok = ratio <= GOAL_RATIO
+    print(f"suite render: median frame {median:.1f} s ({min(times):.1f}-{max(times):.1f} s over {len(times)} "
+          f"frames) / default {DEFAULT_SCENE} frame {t_ref:.1f} s = ratio {ratio:.2f} "
+          f"[{'ok' if ok else 'NOT MET'}: goal <= {GOAL_RATIO:.0f}]", flush=True)
+    return 0 if ok else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

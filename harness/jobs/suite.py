@@ -1,0 +1,250 @@
+"""Suite jobs: render a suite's split, and check that a data root holds exactly it before evaluating or scoring.
+
+``tri360 render --suite suites/tri360-v1.toml --split dev --out data/dev`` renders every frame of the split
+(``harness.data.suite``: family, preset, parameters, seed, viewpoints, rig) into ``<out>/<group name>/vpNNN``,
+with the machinery of every render (``harness.jobs.render``): resumable (complete frames rendered with the same
+settings are kept, others refused naming the difference unless ``force``), atomic frames, and with ``cluster``
+one Dask task per frame.
+
+``tri360 evaluate DATA --suite FILE --split dev`` (and ``score``) first checks, reading only the ``frame.json``
+files, that the data root holds exactly the split's frames rendered with the suite's settings (the same
+comparison a rerun of ``render`` makes) and refuses, naming the frame, when a frame is missing, extra, or was
+rendered otherwise; the results then carry the suite's id and split (``config.json``'s ``suite`` entry and the
+``suite_id``/``split`` columns), and each row its family and difficulty tags, so the leaderboard gets a column per
+family and per tag.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import pandas as pd
+from tqdm import tqdm
+
+from harness.data.atomic import clean_stale_partials
+from harness.data.errors import UserError
+from harness.data.frame import frame_dir, is_complete
+from harness.data.outputs import ensure_output_dir
+from harness.data.suite import Suite, SuiteFrame, load_suite
+from harness.jobs.cluster import ClusterOptions, open_executor
+from harness.jobs.evaluate import FrameRef, evaluate, select_frames
+from harness.jobs.render import DEFAULTS, check_width, differences, render_one, write_rendered_frame
+from harness.jobs.score import score
+from harness.render.base import RenderSettings, identity
+from harness.render.registry import get_renderer
+from reconstruction.camera.rig import CAMERA_NAMES, Rig
+from reconstruction.methods.base import Method
+from scenes.model import SceneSpec, choose_viewpoints
+from scenes.registry import discover
+
+__all__ = ["PlannedFrame", "load", "plan", "render_suite", "check_suite_data", "evaluate_suite", "score_suite"]
+
+
+@dataclass(frozen=True)
+class PlannedFrame:
+    """A suite frame as it is to be rendered: the scene, rig, renderer, settings and the identity it records."""
+
+    frame: SuiteFrame
+    spec: SceneSpec
+    rig: Rig
+    renderer: str
+    settings: RenderSettings
+    identity: dict
+
+
+def load(path: Path) -> Suite:
+    """:func:`harness.data.suite.load_suite` with tri360's render defaults (``harness.jobs.render.DEFAULTS``)."""
+    return load_suite(Path(path), dataclasses.asdict(DEFAULTS), discover()[0])
+
+
+def settings_for(suite: Suite, seed: int, threads: int = 0) -> RenderSettings:
+    """The render settings of a suite frame group (the suite's, its seed, this machine's threads)."""
+    try:
+        settings = RenderSettings(**{**suite.render, "seed": int(seed), "threads": int(threads)})
+        settings.check()
+    except ValueError as exc:
+        raise UserError(f"{suite.path}: [render]: {exc}") from None
+    return settings
+
+
+def plan(suite: Suite, split: str, threads: int = 0) -> list[PlannedFrame]:
+    """Every frame of ``split``: scenes built, rigs placed (``choose_viewpoints`` with the group's baseline,
+    height range and tilt), in file order.
+
+    Raises:
+        UserError: a render setting no renderer accepts, a width the reconstruction cannot use, a scene the
+            renderer cannot draw, or too few free rig placements (naming the group).
+        SceneError: a family that fails to build.
+    """
+    frames = suite.frames(split)
+    check_width(int(suite.render["width"]))
+    out, entries = [], []
+    scenes = discover()[0]
+    for f in frames:
+        if f.entry not in entries:
+            entries.append(f.entry)
+    for e in entries:
+        settings = settings_for(suite, e.seed, threads)
+        scene = scenes[e.family]
+        spec = scene.build_spec(e.preset, e.seed, dict(e.params))
+        backend = get_renderer(e.renderer)
+        reason = backend.unsupported(spec)
+        if reason:
+            raise UserError(f"{suite.path}: {e.name}: renderer {e.renderer!r} cannot draw {e.family}: {reason}")
+        try:
+            rigs = choose_viewpoints(spec, e.viewpoints, e.seed, baseline_m=e.rig.baseline_m,
+                                     tilt_max_rad=e.rig.tilt_max_rad, height_range=e.rig.height_m)
+        except ValueError as exc:
+            raise UserError(f"{suite.path}: {e.name}: {exc}") from None
+        ident = identity(e.renderer, backend.pixel_settings, settings, spec, e.rig.baseline_m)
+        out += [PlannedFrame(SuiteFrame(e, i), spec, rig, e.renderer, settings, ident) for i, rig in enumerate(rigs)]
+    return out
+
+
+def _stored_differences(d: Path, p: PlannedFrame) -> list[str]:
+    try:
+        meta = json.loads((d / "frame.json").read_text(encoding="utf-8"))
+    except (OSError, json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise UserError(f"{d / 'frame.json'}: unreadable ({exc})") from None
+    return differences(meta, p.identity, p.rig)
+
+
+def render_suite(path: Path, split: str, out_root: Path, threads: int = DEFAULTS.threads, force: bool = False,
+                 progress: bool = True, verbose: bool = False, cluster: ClusterOptions | None = None) -> list[Path]:
+    """Render every frame of a suite's split into ``out_root`` (resumable); return the frame directories.
+
+    Args:
+        path: the suite file.  split: ``"dev"`` or ``"test"``.
+        out_root: the data root (one per split: ``evaluate --suite`` wants exactly the split's frames in it).
+        threads: Cycles threads, 0 = all (a machine setting, not part of the suite).
+        force: re-render complete frames whatever they were rendered with.
+        cluster: one Dask task per frame (``--workers`` / ``--scheduler``); None = in this process.
+    Raises:
+        UserError: see :func:`plan`; an existing frame rendered with other settings (naming it and the
+            differences; use ``force``); an unwritable output; a renderer failure.
+    """
+    if threads < 0:
+        raise UserError(f"--threads must be >= 0 (0 = all cores), got {threads}")
+    if isinstance(cluster, ClusterOptions):
+        cluster.check()
+    suite = load(path)
+    planned = plan(suite, split, threads)
+    out_root = Path(out_root)
+    todo = []
+    for p in planned:
+        d = frame_dir(out_root, p.frame.scene, p.frame.viewpoint)
+        if not force and is_complete(d):
+            diff = _stored_differences(d, p)
+            if diff:
+                raise UserError(f"{d} holds a frame rendered with other settings than suite {suite.name} "
+                                f"({suite.id}) asks: {'; '.join(diff)}; use --force to re-render it or choose "
+                                "another --out")
+            continue
+        todo.append(p)
+    dirs = [frame_dir(out_root, p.frame.scene, p.frame.viewpoint) for p in planned]
+    scene_dirs = [out_root / scene for scene in dict.fromkeys(p.frame.scene for p in planned)]
+    created = [d for d in (*scene_dirs, out_root, *out_root.parents) if not d.exists()]
+    for d in scene_dirs:
+        ensure_output_dir(d)
+        clean_stale_partials(d)  # hidden half-written frames of killed runs
+    if not todo:
+        return dirs
+    try:
+        _render(suite, split, todo, out_root, progress, verbose, cluster)
+    except BaseException:
+        for d in created:  # an interrupted first render leaves no empty directories behind
+            try:
+                d.rmdir()
+            except OSError:
+                pass
+        raise
+    return dirs
+
+
+def _render(suite: Suite, split: str, todo: list[PlannedFrame], out_root: Path, progress: bool, verbose: bool,
+            cluster) -> None:
+    if cluster is not None and getattr(cluster, "distributed", False):
+        root = os.fspath(out_root.resolve())
+        tasks = {p.frame.label: (p.renderer, p.spec, p.settings, p.rig, p.frame.scene, p.frame.viewpoint, root,
+                                 verbose) for p in todo}
+        with open_executor(cluster) as ex:
+            for _ in ex.run(render_one, tasks, desc="render", unit="frame", progress=progress,
+                            names={k: k for k in tasks}):
+                pass
+        for scene in dict.fromkeys(p.frame.scene for p in todo):
+            clean_stale_partials(out_root / scene)  # hidden half-frames of workers lost mid-write
+        return
+    bar = tqdm(total=len(todo) * len(CAMERA_NAMES), unit="view", disable=not progress,
+               desc=f"{suite.name} {split}", dynamic_ncols=True)
+    try:
+        groups: dict = {}
+        for p in todo:
+            groups.setdefault(p.frame.scene, []).append(p)
+        for group in groups.values():
+            first = group[0]
+            with get_renderer(first.renderer)(first.spec, first.settings, verbose=verbose) as drawer:
+                for p in group:
+                    def on_camera(name, seconds, label=p.frame.label):
+                        bar.set_postfix_str(f"{label}/{name} {seconds:.1f}s")
+                        bar.update(1)
+
+                    frame = drawer.render(p.rig, scene=p.frame.scene, viewpoint=p.frame.viewpoint,
+                                          on_camera=on_camera)
+                    write_rendered_frame(frame, out_root)
+    finally:
+        bar.close()
+
+
+def check_suite_data(suite: Suite, split: str, data_root: Path) -> list[FrameRef]:
+    """The frames of ``data_root`` if it holds exactly the split's frames rendered with the suite's settings.
+
+    Raises:
+        UserError: naming the first frame that is missing, extra (not in the split) or rendered with other
+            settings (and how), or anything :func:`harness.jobs.evaluate.select_frames` refuses.
+    """
+    data_root = Path(data_root)
+    planned = plan(suite, split)
+    refs = select_frames(data_root)
+    by_key = {(r.scene, r.viewpoint): r for r in refs}
+    wanted = {(p.frame.scene, p.frame.viewpoint): p for p in planned}
+    how = f"render it with `tri360 render --suite {suite.path} --split {split} --out {data_root}`"
+    for key, p in wanted.items():
+        if key not in by_key:
+            raise UserError(f"{data_root / p.frame.scene / p.frame.viewpoint}: frame {p.frame.label} of suite "
+                            f"{suite.name} (split {split}) is missing from the data root; {how}")
+    for r in refs:
+        if (r.scene, r.viewpoint) not in wanted:
+            raise UserError(f"{r.path}: frame {r.scene}/{r.viewpoint} is not in suite {suite.name} split {split}; "
+                            "the data root must hold exactly the split's frames (render each split into a data "
+                            "root of its own)")
+    for key, p in wanted.items():
+        diff = _stored_differences(by_key[key].path, p)
+        if diff:
+            raise UserError(f"{by_key[key].path}: frame {p.frame.label} was not rendered with the settings of suite "
+                            f"{suite.name} ({suite.id}): {'; '.join(diff)}")
+    return [by_key[k] for k in wanted]
+
+
+def evaluate_suite(data_root: Path, path: Path, split: str, out: Path, methods: Sequence[Method],
+                   report: bool = True, progress: bool = True, cluster: ClusterOptions | None = None) -> pd.DataFrame:
+    """:func:`harness.jobs.evaluate.evaluate` on a suite's split, after :func:`check_suite_data`; the results
+    carry the suite id and split."""
+    suite = load(path)
+    check_suite_data(suite, split, data_root)
+    return evaluate(data_root, out, methods, report=report, progress=progress, cluster=cluster,
+                    suite=suite.describe(split))
+
+
+def score_suite(pred_roots: Sequence[Path], data_root: Path, path: Path, split: str, out: Path,
+                names: Sequence[str] | None = None, report: bool = True, progress: bool = True,
+                cluster: ClusterOptions | None = None) -> pd.DataFrame:
+    """:func:`harness.jobs.score.score` on a suite's split, after :func:`check_suite_data`."""
+    suite = load(path)
+    check_suite_data(suite, split, data_root)
+    return score(pred_roots, data_root, out, names, report=report, progress=progress, cluster=cluster,
+                 suite=suite.describe(split))
