@@ -37,13 +37,13 @@ from __future__ import annotations
 import hashlib
 import json
 import math
-import re
 import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from harness.data.errors import UserError
+from harness.data.names import check_name
 from scenes.model import DIFFICULTY_TAGS, RENDERERS, SceneEntry
 from scenes.registry import discover
 
@@ -58,7 +58,6 @@ RIG_KEYS = ("baseline_m", "height_m", "tilt_max_rad")
 #: ``[[frames]]`` group's own (as ``tri360 render --seed`` sets both the scene's and the render noise's seed)
 MACHINE_SETTINGS = ("threads", "seed")
 #: safe names (the directory level of a suite's frames): the character set of tri360's names, no leading dot
-NAME_RE = re.compile(r"^[A-Za-z0-9_+=:-][A-Za-z0-9_.:+=-]{0,99}$")
 MAX_VIEWPOINTS = 1000
 
 
@@ -257,9 +256,7 @@ def _entry(path: Path, i: int, raw, scenes: dict[str, SceneEntry], errors: dict[
         _fail(path, f"{where} tags", f"must be a list of {', '.join(DIFFICULTY_TAGS)}, got {tags!r}")
     default_name = f"{family}-s{seed}" if preset == scene.default_preset else f"{family}-{preset}-s{seed}"
     name = table.get("name", default_name)
-    if not isinstance(name, str) or not NAME_RE.match(name) or ".." in name:
-        _fail(path, f"{where} name", f"must be 1-100 characters of [A-Za-z0-9_.:+=-], no leading dot and no "
-                                     f"'..', got {name!r}")
+    check_name(name, f"{path}: {where} name")
     return SuiteEntry(name=name, family=family, preset=preset, seed=int(seed), viewpoints=int(n), split=split,
                       params=dict(params), renderer=renderer, tags=tuple(dict.fromkeys(tags)),
                       rig=_rig(path, where, table.get("rig", {})))
@@ -308,8 +305,7 @@ def load_suite(path: Path, render_defaults: Mapping, scenes: dict[str, SceneEntr
     if raw.get("format") != FORMAT:
         _fail(path, "format", f"must be {FORMAT!r}, got {raw.get('format')!r}")
     name = raw.get("name")
-    if not isinstance(name, str) or not NAME_RE.match(name):
-        _fail(path, "name", f"must be a name of [A-Za-z0-9_.:+=-], got {name!r}")
+    check_name(name, f"{path}: name")
     description = raw.get("description", "")
     if not isinstance(description, str):
         _fail(path, "description", "must be a string")

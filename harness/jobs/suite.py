@@ -24,15 +24,15 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import pandas as pd
-from tqdm import tqdm
 
 from harness.data.atomic import clean_stale_partials
 from harness.data.errors import UserError
 from harness.data.frame import frame_dir, is_complete
-from harness.data.outputs import ensure_output_dir
+from harness.data.outputs import check_output, ensure_output_dir, mark_output
 from harness.data.suite import Suite, SuiteFrame, load_suite
 from harness.jobs.cluster import ClusterOptions, open_executor
 from harness.jobs.evaluate import FrameRef, evaluate, select_frames
+from harness.jobs.progress import progress_bar
 from harness.jobs.render import DEFAULTS, check_width, differences, render_one, write_rendered_frame
 from harness.jobs.score import score
 from harness.render.base import RenderSettings, identity
@@ -134,7 +134,7 @@ def render_suite(path: Path, split: str, out_root: Path, threads: int = DEFAULTS
         cluster.check()
     suite = load(path)
     planned = plan(suite, split, threads)
-    out_root = Path(out_root)
+    out_root = check_output(Path(out_root), "data")  # absent, empty or a data root tri360 wrote
     todo = []
     for p in planned:
         d = frame_dir(out_root, p.frame.scene, p.frame.viewpoint)
@@ -153,9 +153,11 @@ def render_suite(path: Path, split: str, out_root: Path, threads: int = DEFAULTS
         ensure_output_dir(d)
         clean_stale_partials(d)  # hidden half-written frames of killed runs
     if not todo:
+        mark_output(out_root, "data")
         return dirs
     try:
         _render(suite, split, todo, out_root, progress, verbose, cluster)
+        mark_output(out_root, "data")
     except BaseException:
         for d in created:  # an interrupted first render leaves no empty directories behind
             try:
@@ -179,8 +181,7 @@ def _render(suite: Suite, split: str, todo: list[PlannedFrame], out_root: Path, 
         for scene in dict.fromkeys(p.frame.scene for p in todo):
             clean_stale_partials(out_root / scene)  # hidden half-frames of workers lost mid-write
         return
-    bar = tqdm(total=len(todo) * len(CAMERA_NAMES), unit="view", disable=not progress,
-               desc=f"{suite.name} {split}", dynamic_ncols=True)
+    bar = progress_bar(len(todo) * len(CAMERA_NAMES), desc=f"{suite.name} {split}", unit="view", enabled=progress)
     try:
         groups: dict = {}
         for p in todo:

@@ -20,13 +20,14 @@ from harness.cli import main
 from harness.data.errors import UserError
 from harness.data.frame import read_frame
 from harness.data.predictions import write_prediction
+from harness.data.results import read_results
 from harness.data.suite import load_suite, suite_id
 from harness.jobs import bench_suite as bench
 from harness.jobs.render import DEFAULTS, render_frames
 from harness.jobs.suite import check_suite_data, evaluate_suite, load, plan, render_suite
 from reconstruction.camera.equirect import bearing_grid, project
 from reconstruction.methods.registry import get_methods
-from reports.tables import leaderboard_markdown, leaderboard_table, load_results
+from reports.tables import leaderboard_markdown, leaderboard_table
 from scenes.registry import discover
 
 DEFAULTS_DICT = dataclasses.asdict(DEFAULTS)
@@ -114,7 +115,7 @@ def test_load_a_suite(mini):
     (lambda t: t.replace("tilt_max_rad = 0.1", "tilt_max_rad = 2.0"), r"rig.tilt_max_rad: must be in \[0, pi/2\)"),
     (lambda t: t.replace("height_m = [1.0, 1.4]", "height_m = [1.4, 1.0]"), r"rig.height_m: must be \[low, high\]"),
     (lambda t: t.replace("seed = 11", 'seed = 11\nparams = { colour = 1 }'), r"params: unknown parameter\(s\) colour"),
-    (lambda t: t.replace('name = "mini"', 'name = "../x"'), r"name: must be a name"),
+    (lambda t: t.replace('name = "mini"', 'name = "../x"'), r"name: name '../x' contains a path separator"),
     (lambda t: t.replace("tri360-suite/1", "tri360-suite/9"), r"format: must be 'tri360-suite/1'"),
     (lambda t: t + "\n[[frames]\n", r"not valid TOML"),
 ])
@@ -261,7 +262,7 @@ def test_evaluate_suite_records_the_suite_and_the_leaderboard_has_family_and_tag
     assert config["suite"]["id"] == suite.id and config["suite"]["split"] == "dev"
     assert [f["scene"] + "/" + f["viewpoint"] for f in config["suite"]["frames"]] == [
         f.label for f in suite.frames("dev")]
-    results = load_results(out)
+    results = read_results(out)
     board = leaderboard_table(results).set_index("method")
     row = board.loc["dis-rect:average"]
     assert row["suite_id"] == suite.id and row["split"] == "dev"
@@ -383,7 +384,7 @@ def test_score_suite_scores_predictions_on_the_split(rendered, tmp_path, capsys)
     out = tmp_path / "res"
     assert main(["score", str(preds), "--data", str(root), "--suite", str(path), "--split", "dev", "--method", "mine",
                  "--out", str(out), "--no-report", "--quiet"]) == 0
-    results = load_results(out)
+    results = read_results(out)
     assert set(results["suite_id"]) == {load(path).id} and set(results["split"]) == {"dev"}
     assert results["mae_m"].to_numpy() == pytest.approx(0.1, abs=1e-5)  # float32 maps
     assert results["mae_sw_m"].to_numpy() == pytest.approx(0.1, abs=1e-5)
