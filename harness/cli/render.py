@@ -6,7 +6,14 @@ import argparse
 import os
 
 from harness.cli.cluster import add_cluster_arguments, cluster_options
-from harness.jobs.render import DEFAULT_SCENE, DEFAULTS, MIN_WIDTH, parse_overrides, render_frames
+from harness.jobs.render import (
+    DEFAULT_SCENE,
+    DEFAULTS,
+    MIN_WIDTH,
+    parse_overrides,
+    render_frames,
+    settings_from_options,
+)
 from harness.render.registry import available_renderers
 from reconstruction.camera.rig import DEFAULT_BASELINE_M
 
@@ -50,13 +57,10 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
-    dirs = render_frames(args.scene, viewpoints=args.viewpoints, out_root=args.out, width=args.width,
-                         samples=args.samples, seed=args.seed, threads=args.threads, baseline=args.baseline,
-                         force=args.force, denoise=not args.no_denoise, max_bounces=args.max_bounces,
-                         light_tree=args.light_tree,
-                         overrides=parse_overrides(args.overrides), progress=not args.quiet,
-                         verbose=args.verbose, renderer=getattr(args, "renderer", None),
-                         cluster=cluster_options(args))
+    dirs = render_frames(settings_from_options(vars(args)), args.scene, viewpoints=args.viewpoints,
+                         out_root=args.out, baseline=args.baseline, overrides=parse_overrides(args.overrides),
+                         renderer=getattr(args, "renderer", None), force=args.force, progress=not args.quiet,
+                         verbose=args.verbose, cluster=cluster_options(args))
     for d in dirs:
         print(os.fspath(d))
     return 0

@@ -38,7 +38,7 @@ from harness.data.exr import CONFIDENCE_CHANNEL, DISTANCE_CHANNEL, write_float_m
 from harness.data.frame import find_frames, read_frame
 from harness.data.outputs import staged_directory
 from harness.data.provenance import software
-from harness.jobs.cluster import ClusterOptions, open_executor
+from harness.jobs.cluster import ClusterOptions, Executor, executor_for, is_distributed
 from reconstruction.methods.base import Method, MethodOutput, flow_fields, run_methods
 from reconstruction.methods.flow_pipeline import config_label
 from reports.build import build_report
@@ -199,15 +199,17 @@ def evaluate_task(frame_path: str, methods: Sequence[Method], stage: str) -> dic
 
 
 def evaluate(data_root: Path, out: Path, methods: Sequence[Method], scenes: Sequence[str] | None = None,
-             report: bool = True, progress: bool = True, cluster: ClusterOptions | None = None) -> pd.DataFrame:
+             report: bool = True, progress: bool = True, cluster: ClusterOptions | None = None,
+             executor: Executor | None = None) -> pd.DataFrame:
     """Run ``methods`` on every frame with ground truth under ``data_root`` and write a results set to ``out``.
 
     Args:
         cluster: run on Dask (``--scheduler`` / ``--workers``), one task per frame x group of methods that share
             work (the variants of one flow configuration); workers write the maps into the staged results
             directory, this process gathers the rows and writes the results files.  None = in this process, one
-            task per frame.  Also accepts an executor that is already open (a study's).  The rows and maps are
-            the same either way (only ``seconds``, each method's wall time, differs from run to run).
+            task per frame.  The rows and maps are the same either way (only ``seconds``, each method's wall
+            time, differs from run to run).
+        executor: instead of ``cluster``, an executor that is already open (a study's); left open.
 
     Returns:
         The results table (also written to ``out``).
@@ -216,7 +218,7 @@ def evaluate(data_root: Path, out: Path, methods: Sequence[Method], scenes: Sequ
             output location (checked before any long work), or a method that fails on a frame.
     """
     started = time.time()
-    if isinstance(cluster, ClusterOptions):
+    if cluster is not None:
         cluster.check()
     refs = select_frames(data_root, scenes)
     labels = [m.label for m in methods]
@@ -224,7 +226,7 @@ def evaluate(data_root: Path, out: Path, methods: Sequence[Method], scenes: Sequ
         raise UserError("no methods to evaluate")
     if len(set(labels)) != len(labels):
         raise UserError(f"duplicate method labels: {', '.join(sorted({x for x in labels if labels.count(x) > 1}))}")
-    distributed = cluster is not None and getattr(cluster, "distributed", False)
+    distributed = is_distributed(cluster, executor)
     groups = method_groups(methods) if distributed else [list(methods)]
     rows, brows, rrows, frames_index, frames_config = [], [], [], [], []
     with staged_directory(out) as stage:
@@ -234,7 +236,7 @@ def evaluate(data_root: Path, out: Path, methods: Sequence[Method], scenes: Sequ
         names = {(i, g): f"{ref.scene}/{ref.viewpoint} {group_name(group)}"
                  for i, ref in enumerate(refs) for g, group in enumerate(groups)}
         done: dict[tuple[int, int], dict] = {}
-        with open_executor(cluster) as ex:
+        with executor_for(cluster, executor) as ex:
             for key, result in ex.run(evaluate_task, tasks, desc="evaluate", names=names,
                                       unit="frame" if len(groups) == 1 else "task", progress=progress):
                 done[key] = result
