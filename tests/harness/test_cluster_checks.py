@@ -97,21 +97,21 @@ def test_a_scheduler_address_that_is_not_dask_is_one_line_in_bounded_time(servic
                          cluster=ClusterOptions(scheduler=address, connect_timeout_s=3))
         elapsed = time.monotonic() - t0
     message = str(info.value)
-    assert elapsed < 20, f"took {elapsed:.1f} s with a 3 s connect timeout"
+    assert elapsed < 20, f"took {elapsed:.1f} s with a 3 s connect timeout (6 s in all for an answer)"
     assert len(message.splitlines()) == 1 and address in message, message
     assert "Dask" in message
     assert not (tmp_path / "d" / "synthetic_box").exists()
 
 
 def test_the_cli_gives_up_on_a_silent_scheduler_within_its_connect_timeout(tmp_path, capsys):
-    """The command line's own timeout (30 s) bounds the wait too."""
+    """The command line's own connect timeout (30 s, and 5 s for the answer) bounds the wait too."""
     with silent_listener() as address:
         t0 = time.monotonic()
         assert main([*RENDER, "--out", str(tmp_path / "d"), "--scheduler", address]) == 2
         elapsed = time.monotonic() - t0
     err = one_line_error(capsys)
-    assert "no Dask answer within 30 s" in err and address in err
-    assert elapsed < 45
+    assert "no Dask answer within 35 s" in err and address in err
+    assert elapsed < 50
 
 
 # ---------------------------------------------------------------------------------------------- TLS files
