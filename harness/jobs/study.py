@@ -24,9 +24,15 @@ A study is a TOML file::
 - ``data/r-<hash>/``: the frames of each distinct render setting (a data root), ``results/e-<hash>/``: the results
   set of each distinct (render, evaluate) setting, ``points.json``: which grid point uses which.
 
-Reuse: the hashes are of the settings themselves (and of the render defaults, :func:`point_ids`), so a rerun, or an
+Before any work every key is checked against its option's type (:func:`load_study`; the types come from
+``RenderSettings``, ``plan_render`` and ``MethodSelection``, not from a table here), every grid point as render
+and evaluate would check it (:func:`plan_point`), and the plan's size (:data:`LIMIT_POINTS`, :data:`LIMIT_FRAMES`:
+past them only with ``yes``).
+
+Reuse: the data roots are named by what decides the frames' pixels (:func:`point_ids`), so a rerun, or an
 extended grid, renders only frames that are missing (``render_frames`` is resumable and checks that stored frames
-were rendered with the same settings) and evaluates only points without a complete results set. With a cluster
+were rendered with the same settings), a threads-only change renders nothing, and only points without a complete
+results set are evaluated. With a cluster
 (``--scheduler`` / ``--workers``) one executor serves every render and evaluation of the study, and every grid
 point's frames (then every point's evaluation) are submitted at once (up to ``MAX_PARALLEL_POINTS`` points at a
 time), so the workers are busy even when a point has fewer frames than there are workers. Without one, each point is
