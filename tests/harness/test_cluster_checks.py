@@ -19,7 +19,16 @@ import pytest
 
 from harness.cli import main
 from harness.data.errors import UserError
-from harness.jobs.cluster import BASE_BYTES, ClusterOptions, machine_cores, max_workers, physical_memory_bytes
+from harness.jobs.cluster import (
+    BASE_BYTES,
+    ClusterOptions,
+    Executor,
+    SequentialExecutor,
+    executor_for,
+    machine_cores,
+    max_workers,
+    physical_memory_bytes,
+)
 from tests.harness.test_executor import make_certificates
 from tests.helpers import render_scene
 
@@ -222,3 +231,14 @@ def test_ctrl_c_with_workers_prints_one_line(frames, tmp_path, command):
     lines = err.decode().strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith(f"tri360 {command}: interrupted"), err.decode()
 
+
+
+def test_a_job_runs_on_options_or_an_open_executor_never_both():
+    seq = SequentialExecutor()
+    assert isinstance(seq, Executor) and not seq.distributed
+    with executor_for(None, seq) as ex:
+        assert ex is seq and list(ex.run(pow, {"a": (2, 3)}, progress=False)) == [("a", 8)]
+    with executor_for(None, None) as ex:
+        assert isinstance(ex, SequentialExecutor)
+    with pytest.raises(UserError, match="not both"):
+        executor_for(ClusterOptions(workers=1), seq)
