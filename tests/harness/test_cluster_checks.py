@@ -30,6 +30,7 @@ from harness.jobs.cluster import (
     physical_memory_bytes,
 )
 from tests.harness.test_executor import make_certificates
+from tests.harness.test_render_interrupt import _cmdline, _descendants
 from tests.helpers import render_scene
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -168,27 +169,6 @@ def test_good_tls_files_pass_the_checks(pki):
 
 
 # ----------------------------------------------------------------------------------- Ctrl-C with --workers
-
-
-def _descendants(pid: int) -> list[int]:
-    out, todo = [], [pid]
-    while todo:
-        parent = todo.pop()
-        for task in Path(f"/proc/{parent}/task").glob("*"):
-            try:
-                kids = [int(k) for k in (task / "children").read_text().split()]
-            except (FileNotFoundError, ProcessLookupError):
-                continue
-            out += kids
-            todo += kids
-    return out
-
-
-def _cmdline(pid: int) -> str:
-    try:
-        return Path(f"/proc/{pid}/cmdline").read_text().replace("\0", " ")
-    except (FileNotFoundError, ProcessLookupError):
-        return ""
 
 
 @pytest.fixture(scope="module")
