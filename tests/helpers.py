@@ -10,10 +10,13 @@ import signal
 import subprocess
 import sys
 import time
+from dataclasses import fields
 from pathlib import Path
 
 from distributed import Client
 
+from harness.jobs.render import render_frames
+from harness.render.base import RenderSettings
 from harness.render.raycast import render_frame
 from scenes.model import choose_viewpoints
 from scenes.registry import get_scene
@@ -127,3 +130,13 @@ def wait_for_workers(address: str, n: int, security=None) -> list[int]:
                 error = None
             assert time.monotonic() < deadline, f"{n} workers did not all answer: {error}"
             time.sleep(0.2)
+
+
+SETTING_NAMES = frozenset(f.name for f in fields(RenderSettings))
+
+
+def render_scene(scene: str, **kw):
+    """``render_frames(RenderSettings(<the settings among kw>), scene, <the rest of kw>)``: lets a test vary a
+    setting and a job argument the same way (``{**opts, **change}``)."""
+    settings = RenderSettings(**{k: kw.pop(k) for k in list(kw) if k in SETTING_NAMES})
+    return render_frames(settings, scene, **kw)

@@ -5,11 +5,11 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from harness.data.errors import UserError
+from harness.jobs.options import MethodSelection
 from reconstruction.flow.backends import available_flows
 from reconstruction.methods.base import Method
 from reconstruction.methods.flow_pipeline import DEFAULT_FLOW, available_variants
-from reconstruction.methods.registry import DEFAULT_METHOD, default_methods, flow_methods, get_methods
+from reconstruction.methods.registry import DEFAULT_METHOD
 
 __all__ = ["add_method_options", "add_results_options", "selected_methods"]
 
@@ -52,26 +52,19 @@ def add_results_options(parser: argparse.ArgumentParser, what: str) -> None:
 
 
 def selected_methods(args, multiple: bool) -> list[Method]:
-    """The methods the options select (exactly one when ``multiple`` is False).
+    """The methods the options select (exactly one when ``multiple`` is False): :class:`MethodSelection`.
 
     Raises:
         UserError: an unknown method label, flow or variant name, or --method mixed with the shorthands.
     """
     variants = getattr(args, "variants", None) if multiple else (
         [args.variant] if getattr(args, "variant", None) else None)
-    shorthand = args.flow is not None or args.rectify is not None or variants is not None
-    try:
-        if args.method:
-            if shorthand:
-                raise UserError("--method selects methods by label; do not combine it with --flow, --rectify or "
-                                f"--variant{'s' if multiple else ''}")
-            return get_methods(args.method if multiple else [args.method])
-        if not shorthand:
-            return default_methods() if multiple else get_methods([DEFAULT_METHOD])
-        flows = (args.flow if multiple else [args.flow]) if args.flow is not None else [DEFAULT_FLOW]
-        rectify = [True if args.rectify is None else args.rectify]
-        if not multiple and variants is None:
-            variants = ["gradient"]
-        return flow_methods(flows, rectify, variants)
-    except ValueError as exc:
-        raise UserError(str(exc)) from None
+
+    def as_tuple(v):
+        return None if v is None else tuple([v] if isinstance(v, str) else v)
+
+    selection = MethodSelection(method=as_tuple(args.method), flow=as_tuple(args.flow), variants=as_tuple(variants),
+                                rectify=args.rectify)
+    plural = "s" if multiple else ""
+    return selection.methods(single=not multiple,
+                             spell=lambda n: f"--variant{plural}" if n == "variants" else f"--{n}")

@@ -7,7 +7,14 @@ import os
 
 from harness.cli.cluster import add_cluster_arguments, cluster_options
 from harness.cli.suite_options import add_suite_arguments, refuse_with_suite, suite_choice
-from harness.jobs.render import DEFAULT_SCENE, DEFAULTS, MIN_WIDTH, parse_overrides, render_frames
+from harness.jobs.render import (
+    DEFAULT_SCENE,
+    DEFAULTS,
+    MIN_WIDTH,
+    parse_overrides,
+    render_frames,
+    settings_from_options,
+)
 from harness.jobs.suite import render_suite
 from harness.render.registry import available_renderers
 from reconstruction.camera.rig import DEFAULT_BASELINE_M
@@ -70,13 +77,10 @@ def run(args) -> int:
         for d in dirs:
             print(os.fspath(d))
         return 0
-    dirs = render_frames(args.scene, viewpoints=args.viewpoints, out_root=args.out, width=args.width,
-                         samples=args.samples, seed=args.seed, threads=args.threads, baseline=args.baseline,
-                         force=args.force, denoise=not args.no_denoise, max_bounces=args.max_bounces,
-                         light_tree=args.light_tree,
-                         overrides=parse_overrides(args.overrides), progress=not args.quiet,
-                         verbose=args.verbose, renderer=getattr(args, "renderer", None),
-                         cluster=cluster_options(args))
+    dirs = render_frames(settings_from_options(vars(args)), args.scene, viewpoints=args.viewpoints,
+                         out_root=args.out, baseline=args.baseline, overrides=parse_overrides(args.overrides),
+                         renderer=getattr(args, "renderer", None), force=args.force, progress=not args.quiet,
+                         verbose=args.verbose, cluster=cluster_options(args))
     for d in dirs:
         print(os.fspath(d))
     return 0

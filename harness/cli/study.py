@@ -21,11 +21,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "(holding nothing else), never around the study file")
     parser.add_argument("--metric", default=DEFAULT_METRIC, help="results column plotted against each grid key")
     parser.add_argument("--quiet", action="store_true", help="no progress bars")
+    parser.add_argument("--yes", action="store_true",
+                        help="start a study past the size limits (more than 1000 grid points, more than 100 frames "
+                             "to render or about 4 h of rendering), which is otherwise refused after saying its size")
     add_cluster_arguments(parser)
 
 
 def run(args) -> int:
     table = run_study(args.study, args.out, cluster=cluster_options(args), metric=args.metric,
-                      progress=not args.quiet)
+                      progress=not args.quiet, yes=args.yes)
     print(f"{len(table)} rows in {args.out / 'study.csv'}; plots and study.md in {args.out}")
     return 0

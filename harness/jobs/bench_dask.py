@@ -23,6 +23,7 @@ from harness.jobs.bench import goals_status
 from harness.jobs.cluster import ClusterOptions
 from harness.jobs.executor import DaskExecutor
 from harness.jobs.render import RENDER_LOG, render_frames
+from harness.render.base import RenderSettings
 
 __all__ = ["GOAL_SPEEDUP", "time_render", "main"]
 
@@ -34,8 +35,8 @@ def time_render(workers: int, root: Path, scene: str, frames: int, width: int, s
     with DaskExecutor(ClusterOptions(workers=workers, threads_per_worker=1)) as ex:
         ex.client.wait_for_workers(workers, timeout=120)
         t0 = time.perf_counter()
-        render_frames(scene, viewpoints=frames, out_root=root, width=width, samples=samples, threads=threads,
-                      progress=False, cluster=ex)
+        render_frames(RenderSettings(width=width, samples=samples, threads=threads), scene, viewpoints=frames,
+                      out_root=root, progress=False, executor=ex)
         return time.perf_counter() - t0
 
 

@@ -5,11 +5,19 @@ This module is deliberately light (no Dask import): the command line builds a :c
 :mod:`harness.jobs.executor` (and with it Dask) only when a cluster is asked for, the way the Cycles backend
 loads ``bpy`` only in its worker.  ``import harness.cli`` therefore never imports Dask.
 
-An executor runs independent tasks and yields their results as they complete::
+An executor (:class:`Executor`) runs independent tasks and yields their results as they complete::
 
     with open_executor(ClusterOptions(workers=2)) as ex:           # None / ClusterOptions() = in this process
         for key, result in ex.run(fn, {"vp000": (a, b), "vp001": (c, d)}, desc="render", unit="frame"):
             ...
+
+A job takes the options (``cluster=``: it opens and closes its own executor) or an executor that is already open
+(``executor=``, e.g. the one a study opens once for all its renders and evaluations: used and left open); both
+go through :func:`executor_for`.
+
+:meth:`ClusterOptions.check` refuses, before any cluster starts, what cannot work: more ``--workers`` than the
+machine can run (:func:`max_workers`: cores and memory), TLS files that are missing or not PEM (naming which
+of ``--tls-ca/--tls-cert/--tls-key``), a malformed ``--scheduler``.
 
 Every task is a module-level function and its arguments (both pickled to the workers); every key appears
 exactly once in the output, whatever workers were lost on the way (Dask re-runs the tasks of a lost worker).
@@ -19,17 +27,97 @@ from __future__ import annotations
 
 import contextlib
 import importlib
+import os
+import re
+import ssl
 from collections.abc import Callable, Hashable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Protocol, runtime_checkable
 
 from harness.data.errors import UserError
 from harness.jobs.progress import progress_bar
 
-__all__ = ["ClusterOptions", "SequentialExecutor", "open_executor", "EXECUTOR_MODULE"]
+__all__ = ["ClusterOptions", "Executor", "SequentialExecutor", "open_executor", "EXECUTOR_MODULE",
+           "executor_for", "is_distributed", "max_workers", "machine_cores", "physical_memory_bytes", "BASE_BYTES",
+           "MEMORY_SHARE", "WORKERS_PER_CORE"]
 
 EXECUTOR_MODULE = "harness.jobs.executor"
 """The Dask executor module, imported only when a cluster is asked for."""
+BASE_BYTES = 1 << 30
+"""Memory of one process that does not grow with the width (Python, NumPy, OpenCV, Blender: measured about
+0.55 GiB), bytes: also what each task of a ``--workers`` cluster needs at the least."""
+MEMORY_SHARE = 0.8
+"""Share of the physical memory a render, a reconstruction or a local cluster may plan to use (the rest: the
+OS, other programs)."""
+WORKERS_PER_CORE = 2
+"""Tasks at once per CPU core a ``--workers`` cluster may run (a render or a reconstruction keeps a core busy;
+more only wait for the same cores, each costing a process and its memory)."""
+
+
+def machine_cores() -> int:
+    """CPU cores this process may run on (its affinity mask; ``os.cpu_count()`` where there is none)."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not Linux
+        return os.cpu_count() or 1
+
+
+def physical_memory_bytes() -> int:
+    """Physical memory of this machine, bytes (``SC_PHYS_PAGES * SC_PAGE_SIZE``)."""
+    return os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+
+
+def max_workers(threads_per_worker: int = 1, cores: int | None = None, memory_bytes: int | None = None) -> int:
+    """The most ``--workers`` this machine runs usefully: tasks at once (workers x threads) at most
+    :data:`WORKERS_PER_CORE` per core and :data:`BASE_BYTES` each within :data:`MEMORY_SHARE` of the memory
+    (0 when even one worker of ``threads_per_worker`` threads does not fit)."""
+    cores = machine_cores() if cores is None else cores
+    memory = physical_memory_bytes() if memory_bytes is None else memory_bytes
+    tasks = min(WORKERS_PER_CORE * cores, int(MEMORY_SHARE * memory // BASE_BYTES))
+    return tasks // threads_per_worker
+
+
+def _check_pem(path: Path, flag: str) -> None:
+    """Raise UserError naming ``flag`` unless ``path`` is a readable PEM file of the kind the flag needs."""
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise UserError(f"{path}: {flag} file cannot be read ({exc.strerror or exc})") from None
+    if flag == "--tls-key":
+        if not re.search(rb"-----BEGIN (?:[A-Z]+ )?PRIVATE KEY-----", data):
+            raise UserError(f"{path}: {flag} is not a PEM private key (no '-----BEGIN PRIVATE KEY-----' block)")
+        return
+    blocks = re.findall(rb"-----BEGIN CERTIFICATE-----.*?-----END CERTIFICATE-----", data, flags=re.S)
+    if not blocks:
+        raise UserError(f"{path}: {flag} is not a PEM certificate (no '-----BEGIN CERTIFICATE-----' block)")
+    try:
+        for block in blocks:
+            ssl.PEM_cert_to_DER_cert(block.decode("ascii"))
+        if flag == "--tls-ca":
+            ssl.create_default_context(cafile=os.fspath(path))
+    except (ValueError, UnicodeDecodeError, ssl.SSLError) as exc:
+        raise UserError(f"{path}: {flag} is not a valid PEM certificate ({exc})") from None
+
+
+class _Encrypted(Exception):
+    pass
+
+
+def _no_password():
+    raise _Encrypted
+
+
+def _check_key_pair(cert: Path, key: Path) -> None:
+    context = ssl.SSLContext(ssl.PROTOCOL_TLS_CLIENT)
+    try:
+        context.load_cert_chain(os.fspath(cert), os.fspath(key), password=_no_password)
+    except _Encrypted:
+        raise UserError(f"{key}: --tls-key is encrypted; give the key without a passphrase (Dask cannot ask "
+                        "for one)") from None
+    except ssl.SSLError as exc:
+        raise UserError(f"{key}: --tls-key is not the private key of --tls-cert {cert} ({exc.reason or exc})") \
+            from None
 
 
 @dataclass(frozen=True)
@@ -72,6 +160,14 @@ class ClusterOptions:
             raise UserError(f"--workers must be >= 1, got {self.workers}")
         if self.threads_per_worker < 1:
             raise UserError(f"threads per worker must be >= 1, got {self.threads_per_worker}")
+        if self.workers is not None:
+            top = max_workers(self.threads_per_worker)
+            if self.workers > top:
+                cores, memory = machine_cores(), physical_memory_bytes()
+                per = (f"{self.threads_per_worker} threads each, " if self.threads_per_worker > 1 else "")
+                raise UserError(f"--workers {self.workers}: this machine has {cores} core{'s' * (cores != 1)} and "
+                                f"{memory / 2**30:.0f} GiB; at most {top} workers ({per}{WORKERS_PER_CORE} tasks "
+                                f"per core, about {BASE_BYTES / 2**30:.0f} GiB each)")
         if self.tls:
             missing = [f"--tls-{n}" for n in ("ca", "cert", "key") if getattr(self, f"tls_{n}") is None]
             if missing:
@@ -80,6 +176,8 @@ class ClusterOptions:
                 p = Path(getattr(self, f"tls_{n}"))
                 if not p.is_file():
                     raise UserError(f"{p}: --tls-{n} file does not exist")
+                _check_pem(p, f"--tls-{n}")
+            _check_key_pair(Path(self.tls_cert), Path(self.tls_key))
             if self.scheduler is None:
                 raise UserError("--tls-ca/--tls-cert/--tls-key are for --scheduler tls://...; a --workers cluster "
                                 "is reachable from this machine only (127.0.0.1) and needs no certificates")
@@ -90,6 +188,27 @@ class ClusterOptions:
             if "://" not in s and not Path(s).is_file() and ":" not in s:
                 raise UserError(f"--scheduler {s}: neither an address (tcp://HOST:PORT, tls://HOST:PORT) nor an "
                                 "existing scheduler file")
+
+
+@runtime_checkable
+class Executor(Protocol):
+    """Where a job's tasks run: :class:`SequentialExecutor` (here) or ``harness.jobs.executor.DaskExecutor``.
+
+    Attributes:
+        distributed: True when tasks run on other processes (Dask workers): a job then submits everything at
+            once and the workers write their outputs themselves.
+    """
+
+    distributed: bool
+
+    def run(self, fn: Callable, tasks: Mapping[Hashable, tuple], desc: str = "", unit: str = "task",
+            progress: bool = True, names: Mapping[Hashable, str] | None = None) -> Iterator[tuple[Hashable, object]]:
+        """Run ``fn(*args)`` for every ``key: args``; yield each ``(key, result)`` exactly once, as they finish."""
+        ...
+
+    def close(self) -> None:
+        """Cancel what is pending and release the workers (a local cluster is stopped); idempotent."""
+        ...
 
 
 class SequentialExecutor:
@@ -118,15 +237,8 @@ class SequentialExecutor:
 
 
 @contextlib.contextmanager
-def open_executor(options) -> Iterator:
-    """The executor ``options`` ask for (closed, and a local cluster stopped, on exit).
-
-    ``options`` may also be an executor that is already open (anything with ``run``, e.g. the one a study opens
-    once for all its renders and evaluations): it is used as it is and left open.
-    """
-    if hasattr(options, "run"):
-        yield options
-        return
+def open_executor(options: ClusterOptions | None) -> Iterator[Executor]:
+    """The executor ``options`` ask for (closed, and a local cluster stopped, on exit); None: in this process."""
     if options is None or not options.distributed:
         yield SequentialExecutor()
         return
@@ -134,3 +246,23 @@ def open_executor(options) -> Iterator:
     module = importlib.import_module(EXECUTOR_MODULE)  # loads Dask, only now
     with module.DaskExecutor(options) as ex:
         yield ex
+
+
+def executor_for(cluster: ClusterOptions | None = None,
+                 executor: Executor | None = None) -> contextlib.AbstractContextManager[Executor]:
+    """A job's executor: ``executor`` when one is given (open already: used, and left open), else a new one
+    from ``cluster`` (:func:`open_executor`: closed at the end).
+
+    Raises:
+        UserError: both given (a job runs in one place).
+    """
+    if executor is not None:
+        if cluster is not None:
+            raise UserError("give a job either cluster options or an open executor, not both")
+        return contextlib.nullcontext(executor)
+    return open_executor(cluster)
+
+
+def is_distributed(cluster: ClusterOptions | None = None, executor: Executor | None = None) -> bool:
+    """Whether a job given ``cluster`` / ``executor`` (see :func:`executor_for`) runs on Dask workers."""
+    return executor.distributed if executor is not None else (cluster is not None and cluster.distributed)

@@ -41,7 +41,7 @@ from harness.data.names import check_name
 from harness.data.outputs import RESULTS_FORMAT, check_output, mark_output, staged_directory
 from harness.data.provenance import software
 from harness.data.results import map_paths, write_results
-from harness.jobs.cluster import ClusterOptions, open_executor
+from harness.jobs.cluster import ClusterOptions, Executor, executor_for, is_distributed
 from harness.jobs.report import build_report
 from reconstruction.methods.base import Method, MethodOutput, flow_fields, run_methods
 from reconstruction.methods.flow_pipeline import config_label
@@ -239,7 +239,8 @@ def evaluate_task(frame_path: str, methods: Sequence[Method], stage: str) -> dic
 
 def evaluate(data_root: Path, out: Path, methods: Sequence[Method], scenes: Sequence[str] | None = None,
              report: bool = True, progress: bool = True, cluster: ClusterOptions | None = None,
-             inputs: Sequence[Path] = (), suite: dict | None = None) -> pd.DataFrame:
+             inputs: Sequence[Path] = (), suite: dict | None = None,
+             executor: Executor | None = None) -> pd.DataFrame:
     """Run ``methods`` on every frame with ground truth under ``data_root`` and write a results set to ``out``.
 
     Before any method runs: the frames are found and read, every name that becomes a path is checked, every frame
@@ -251,8 +252,9 @@ def evaluate(data_root: Path, out: Path, methods: Sequence[Method], scenes: Sequ
         cluster: run on Dask (``--scheduler`` / ``--workers``), one task per frame x group of methods that share
             work (the variants of one flow configuration); workers write the maps into the staged results
             directory, this process gathers the rows and writes the results files.  None = in this process, one
-            task per frame.  Also accepts an executor that is already open (a study's).  The rows and maps are
-            the same either way (only ``seconds``, each method's wall time, differs from run to run).
+            task per frame.  The rows and maps are the same either way (only ``seconds``, each method's wall
+            time, differs from run to run).
+        executor: instead of ``cluster``, an executor that is already open (a study's); left open.
         suite: the evaluated suite split (``harness.data.suite.Suite.describe``, from ``harness.jobs.suite``, which
             checks the data root first): recorded in ``config.json`` and in every row (``suite_id``, ``split``).
             Every row also names its frame's family and difficulty tags (:func:`frame_labels`).
@@ -264,7 +266,7 @@ def evaluate(data_root: Path, out: Path, methods: Sequence[Method], scenes: Sequ
             unusable output location (all checked before any long work), or a method that fails on a frame.
     """
     started = time.time()
-    if isinstance(cluster, ClusterOptions):
+    if cluster is not None:
         cluster.check()
     refs = select_frames(data_root, scenes)
     labels = [m.label for m in methods]
@@ -276,7 +278,7 @@ def evaluate(data_root: Path, out: Path, methods: Sequence[Method], scenes: Sequ
     check_output(out, "results", [data_root, *(r.path for r in refs), *inputs])
     for ref in refs:  # ground truth of every frame, before the first method runs
         scorable_frame(ref.path)
-    distributed = cluster is not None and getattr(cluster, "distributed", False)
+    distributed = is_distributed(cluster, executor)
     groups = method_groups(methods) if distributed else [list(methods)]
     rows, brows, rrows, frames_index, frames_config = [], [], [], [], []
     with staged_directory(out) as stage:
@@ -286,7 +288,7 @@ def evaluate(data_root: Path, out: Path, methods: Sequence[Method], scenes: Sequ
         names = {(i, g): f"{ref.scene}/{ref.viewpoint} {group_name(group)}"
                  for i, ref in enumerate(refs) for g, group in enumerate(groups)}
         done: dict[tuple[int, int], dict] = {}
-        with open_executor(cluster) as ex:
+        with executor_for(cluster, executor) as ex:
             for key, result in ex.run(evaluate_task, tasks, desc="evaluate", names=names,
                                       unit="frame" if len(groups) == 1 else "task", progress=progress):
                 done[key] = result

@@ -21,24 +21,71 @@ every worker sees at the same path (``docs/scale-out.md``).
 
 from __future__ import annotations
 
+import asyncio
+import contextlib
 import json
 import logging
+import multiprocessing
+import multiprocessing.forkserver
+import signal
+import threading
 import uuid
 from collections.abc import Callable, Hashable, Iterator, Mapping
 from pathlib import Path
 
+import dask
 from distributed import Client, LocalCluster, as_completed
 from distributed.client import FutureCancelledError
+from distributed.comm import connect
 from distributed.scheduler import KilledWorker
 from distributed.security import Security
+from distributed.utils import get_mp_context
 
 from harness.data.errors import UserError
 from harness.jobs.cluster import ClusterOptions
 from harness.jobs.progress import progress_bar
 
-__all__ = ["DaskExecutor", "security_for", "LOOPBACK"]
+__all__ = ["DaskExecutor", "security_for", "probe_scheduler", "LOOPBACK"]
 
 LOOPBACK = "127.0.0.1"
+
+
+async def _identity(address: str, timeout: float, connection_args: dict):
+    comm = await connect(address, timeout=timeout, **connection_args)
+    try:
+        await comm.write({"op": "identity", "reply": True})
+        return await comm.read()
+    finally:
+        comm.abort()
+
+
+def probe_scheduler(address: str, security: Security | None, timeout: float, source: str) -> None:
+    """Ask ``address`` who it is, within ``timeout`` (+ up to 5) seconds in all (Dask's own connect waits for
+    the handshake without a bound, so a port that accepts connections and never answers -- a silent listener,
+    an HTTP server -- would hang the client forever).
+
+    Raises:
+        UserError: no answer in time, an answer that is not Dask's, or a Dask process that is no scheduler
+            (naming ``source``, e.g. the ``--scheduler`` value).
+        OSError, ValueError: nothing listens there, or the TLS handshake failed (as Dask's client raises them).
+    """
+    args = security.get_connection_args("client") if security is not None else {}
+    bound = timeout + min(5.0, timeout)  # past Dask's own connect timeout, which says "cannot connect" itself
+    try:
+        reply = asyncio.run(asyncio.wait_for(_identity(address, timeout, args), bound))
+    except TimeoutError:
+        raise UserError(f"--scheduler {source}: no Dask answer within {bound:.0f} s (something accepts "
+                        "connections there but does not speak Dask's protocol: is this the scheduler's port?)") \
+            from None
+    except (OSError, ValueError):  # refused, unreachable, TLS handshake: the caller says "cannot connect"
+        raise
+    except Exception as exc:  # e.g. msgpack's errors on a reply that is not Dask's framing
+        raise UserError(f"--scheduler {source}: does not answer as a Dask scheduler ({type(exc).__name__})") \
+            from None
+    kind = reply.get("type") if isinstance(reply, dict) else None
+    if kind != "Scheduler":
+        raise UserError(f"--scheduler {source}: answers as {kind or 'something'}, not a Dask scheduler"
+                        + (" (give the scheduler's address, not a worker's)" if kind == "Worker" else ""))
 
 
 def security_for(options: ClusterOptions) -> Security | None:
@@ -47,6 +94,57 @@ def security_for(options: ClusterOptions) -> Security | None:
         return None
     return Security(tls_ca_file=str(options.tls_ca), tls_client_cert=str(options.tls_cert),
                     tls_client_key=str(options.tls_key), require_encryption=True)
+
+
+def _quiet_forkserver() -> bool:
+    """Have multiprocessing's fork server running, started with SIGINT ignored, so that every worker process
+    forked from it -- at start-up and when a lost worker is restarted -- ignores Ctrl-C too; False where that
+    cannot be done (not the main thread, no fork server on this platform).
+
+    A terminal's Ctrl-C goes to every process of the foreground group: each LocalCluster worker printed its own
+    ``KeyboardInterrupt`` traceback (dozens of lines, mid-import or mid-task) while this process was already
+    stopping them.  The workers are stopped by this process (the nannies), never by the signal.  Python's fork
+    server restores, in each child it forks, the SIGINT disposition it started with; SIGINT is ignored here only
+    for the instant of ``ensure_running`` (which starts the server, or again if it died, and otherwise only
+    checks it).  Like Python's resource tracker, the fork server lives as long as this process.
+    """
+    if threading.current_thread() is not threading.main_thread() or \
+            "forkserver" not in multiprocessing.get_all_start_methods():
+        return False
+    with dask.config.set({"distributed.worker.multiprocessing-method": "forkserver"}):
+        get_mp_context()  # sets distributed's preload of the fork server
+    old = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        multiprocessing.forkserver.ensure_running()
+    finally:
+        signal.signal(signal.SIGINT, old)
+    return True
+
+
+@contextlib.contextmanager
+def _ctrl_c_deferred() -> Iterator[None]:
+    """Hold back Ctrl-C (in the main thread) until the block is done, then raise ``KeyboardInterrupt``: a
+    ``LocalCluster`` interrupted half-built cannot be closed (its workers, mid-start, printed tracebacks and
+    Dask's exit hook failed on it); complete, it is closed cleanly in a second or two."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    caught = []
+    old = signal.signal(signal.SIGINT, lambda *_: caught.append(True))
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, old)
+    if caught:
+        raise KeyboardInterrupt
+
+
+def _local_cluster(options: ClusterOptions) -> LocalCluster:
+    """A ``LocalCluster`` on 127.0.0.1 whose worker processes never see Ctrl-C (:func:`_quiet_forkserver`)."""
+    if _quiet_forkserver():
+        dask.config.set({"distributed.worker.multiprocessing-method": "forkserver"})  # restarts too: kept
+    return LocalCluster(n_workers=options.workers, threads_per_worker=options.threads_per_worker,
+                        processes=True, host=LOOPBACK, dashboard_address=None, silence_logs=logging.ERROR)
 
 
 class DaskExecutor:
@@ -65,10 +163,9 @@ class DaskExecutor:
         self.cluster: LocalCluster | None = None
         try:
             if options.workers is not None:
-                self.cluster = LocalCluster(n_workers=options.workers, threads_per_worker=options.threads_per_worker,
-                                            processes=True, host=LOOPBACK, dashboard_address=None,
-                                            silence_logs=logging.ERROR)
-                self.client = Client(self.cluster, timeout=options.connect_timeout_s)
+                with _ctrl_c_deferred():
+                    self.cluster = _local_cluster(options)
+                    self.client = Client(self.cluster, timeout=options.connect_timeout_s)
             else:
                 self.client = self._connect(options)
         except BaseException:
@@ -87,6 +184,7 @@ class DaskExecutor:
                     raise UserError(f"{target}: not a Dask scheduler file ({exc})") from None
             else:
                 address = target
+            probe_scheduler(address, security, options.connect_timeout_s, target)
             return Client(address, security=security, timeout=options.connect_timeout_s)
         except UserError:
             raise

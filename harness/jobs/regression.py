@@ -36,6 +36,7 @@ import pandas as pd
 from harness.data.atomic import atomic_write_text
 from harness.jobs.evaluate import config_keys, evaluate
 from harness.jobs.render import render_frames
+from harness.render.base import RenderSettings
 from reconstruction.methods.registry import DEFAULT_CONFIGS, DEFAULT_METHOD, flow_methods, get_methods
 
 #: panorama width of every regression frame, pixels (height = width / 2)
@@ -71,8 +72,8 @@ def build_dataset(root: Path | str, width: int = REGRESSION_WIDTH, samples: int 
 
     root = Path(root)
     for scene, viewpoints in SCENES:
-        render_frames(scene, viewpoints=viewpoints, out_root=root, width=width, samples=samples, seed=SEED,
-                      threads=threads, progress=progress)
+        render_frames(RenderSettings(width=width, samples=samples, seed=SEED, threads=threads), scene,
+                      viewpoints=viewpoints, out_root=root, progress=progress)
     return root
 
 

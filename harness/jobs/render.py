@@ -3,8 +3,13 @@
 Library use::
 
     >>> from harness.jobs.render import render_frames                                        # doctest: +SKIP
-    >>> dirs = render_frames("classroom:small", viewpoints=2, out_root="data", width=256, samples=8)
-    >>> dirs = render_frames("box_room", out_root="data", width=256, renderer="raycast")
+    >>> from harness.render.base import RenderSettings
+    >>> dirs = render_frames(RenderSettings(width=256, samples=8), "classroom:small", viewpoints=2, out_root="data")
+    >>> dirs = render_frames(RenderSettings(width=256), "box_room", out_root="data", renderer="raycast")
+
+``settings`` (:class:`harness.render.base.RenderSettings`) says how to render, the other arguments what and where;
+:func:`plan_render` checks all of it (types and ranges) and places the rigs without rendering (a study checks
+every grid point with it before the first render).
 
 Frames land in ``<out>/<scene>/vp000``, ``vp001``, ... (``<scene>`` is the family name, or
 ``family-preset`` for a non-default preset).  The renderer is the scene's default (``tri360 scenes``) unless
@@ -17,7 +22,8 @@ behind.  Blender (``bpy``) is loaded only by the Cycles worker process, never by
 they ran); how long it took goes to ``render_log.json`` beside it (:data:`RENDER_LOG`: the renderer's per-stage
 wall times and the host), written after the frame and ignored by every reader.
 
-With ``cluster`` (:class:`harness.jobs.cluster.ClusterOptions`: ``--scheduler`` / ``--workers``) each frame is
+With ``cluster`` (:class:`harness.jobs.cluster.ClusterOptions`: ``--scheduler`` / ``--workers``, or ``executor``:
+an open one) each frame is
 one Dask task: the worker builds the scene, renders the frame and writes it into the data root itself (which must
 be on a file system that every worker sees at the same path); a frame whose worker died is simply rendered again.
 Without it, everything runs in this process with one renderer for all frames, as before.
@@ -31,6 +37,8 @@ import math
 import os
 import platform
 import time
+from collections.abc import Mapping
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -41,13 +49,22 @@ from harness.data.errors import UserError
 from harness.data.frame import Frame, frame_dir, is_complete, write_frame
 from harness.data.names import check_name
 from harness.data.outputs import check_output, ensure_output_dir, mark_output
-from harness.jobs.cluster import ClusterOptions, open_executor
+from harness.jobs.cluster import (
+    BASE_BYTES,
+    MEMORY_SHARE,
+    ClusterOptions,
+    Executor,
+    executor_for,
+    is_distributed,
+    physical_memory_bytes,
+)
+from harness.jobs.options import annotations_of, typed_value
 from harness.jobs.progress import progress_bar
 from harness.render.base import RenderSettings, identity, recorded_identity
 from harness.render.registry import get_renderer
 from reconstruction.camera.rig import CAMERA_NAMES, DEFAULT_BASELINE_M, Rig
 from reconstruction.flow.backends import builtin_flows
-from scenes.model import choose_viewpoints
+from scenes.model import SceneSpec, choose_viewpoints
 from scenes.registry import get_scene
 
 RENDER_LOG = "render_log.json"
@@ -77,15 +94,8 @@ RECONSTRUCT_BYTES_PER_PIXEL = 640
 """Peak memory of reconstructing one frame, bytes per pixel of W x W/2 (measured 632, rounded up)."""
 RENDER_BYTES_PER_PIXEL = 910
 """Peak memory of rendering one frame with Cycles (worker + this process), bytes per pixel (measured 878 + 26)."""
-BASE_BYTES = 1 << 30
-"""Memory that does not grow with the width (Python, NumPy, OpenCV, Blender: measured about 0.55 GiB), bytes."""
-MEMORY_SHARE = 0.8
-"""Share of the physical memory a render or reconstruction may plan to use (the rest: the OS, other programs)."""
-
-
-def physical_memory_bytes() -> int:
-    """Physical memory of this machine, bytes (``SC_PHYS_PAGES * SC_PAGE_SIZE``)."""
-    return os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+# BASE_BYTES (memory that does not grow with the width) and MEMORY_SHARE (the share of the physical memory a
+# render or reconstruction may plan to use) live in harness.jobs.cluster, which bounds --workers by them too.
 
 
 def max_width(memory_bytes: int | None = None) -> int:
@@ -102,18 +112,32 @@ def scene_dir_name(family: str, preset: str, default_preset: str) -> str:
     return family if preset == default_preset else f"{family}-{preset}"
 
 
-def parse_overrides(items: list[str] | None) -> dict:
-    """``["key=value", ...]`` -> dict; values are parsed as JSON when possible, else kept as strings."""
+def parse_overrides(items: list[str] | None, source: str = "--set") -> dict:
+    """``["key=value", ...]`` -> dict; values are parsed as JSON when possible, else kept as strings.
+
+    Raises:
+        UserError: an item that is not a ``KEY=VALUE`` string (naming ``source``).
+    """
     out = {}
     for item in items or []:
-        key, sep, raw = item.partition("=")
+        key, sep, raw = item.partition("=") if isinstance(item, str) else ("", "", "")
         if not sep or not key:
-            raise UserError(f"--set expects KEY=VALUE, got {item!r}")
+            raise UserError(f"{source} expects KEY=VALUE, got {item!r}")
         try:
             out[key] = json.loads(raw)
         except json.JSONDecodeError:
             out[key] = raw
     return out
+
+
+def settings_from_options(options: Mapping[str, object]) -> RenderSettings:
+    """:class:`RenderSettings` from render options by name -- ``tri360 render``'s, dashes as underscores (the
+    command line's parsed arguments, a study's ``[render]``): every field by its own name, and ``no_denoise``
+    for ``denoise``; the fields not given keep their defaults (:data:`DEFAULTS`).  Other names are ignored."""
+    kw = {f.name: options[f.name] for f in dataclasses.fields(RenderSettings) if f.name in options}
+    if "no_denoise" in options:
+        kw["denoise"] = not options["no_denoise"]
+    return dataclasses.replace(DEFAULTS, **kw)
 
 
 def check_width(width: int, memory_bytes: int | None = None) -> None:
@@ -134,19 +158,29 @@ def check_width(width: int, memory_bytes: int | None = None) -> None:
                         f"{memory / 2**30:.1f} GiB; use --width {top} or less")
 
 
-def _check_options(viewpoints: int, width: int, samples: int, threads: int, baseline: float,
-                   max_bounces: int) -> None:
+def check_settings(settings: RenderSettings) -> None:
+    """Raise UserError unless every field of ``settings`` has its annotated type (a bool is no integer, 128.0
+    no width), the width is one the pipeline can use (:func:`check_width`), the options of ``tri360 render`` are
+    in range (named as options) and :meth:`RenderSettings.check` passes."""
+    hints = annotations_of(RenderSettings)
+    for f in dataclasses.fields(RenderSettings):
+        typed_value(getattr(settings, f.name), hints[f.name], f.name)
+    check_width(settings.width)
+    for name, minimum in (("samples", 1), ("threads", 0), ("max_bounces", 0)):
+        if getattr(settings, name) < minimum:
+            raise UserError(f"--{name.replace('_', '-')} must be >= {minimum}"
+                            f"{' (0 = all cores)' if name == 'threads' else ''}, got {getattr(settings, name)}")
+    try:
+        settings.check()  # the other fields
+    except ValueError as exc:
+        raise UserError(str(exc)) from None
+
+
+def _check_options(viewpoints: int, baseline: float) -> None:
     if viewpoints < 1:
         raise UserError(f"--viewpoints must be >= 1, got {viewpoints}")
-    check_width(width)
-    if samples < 1:
-        raise UserError(f"--samples must be >= 1, got {samples}")
-    if threads < 0:
-        raise UserError(f"--threads must be >= 0 (0 = all cores), got {threads}")
     if not (baseline > 0 and baseline < 100):
         raise UserError(f"--baseline must be a positive distance in metres, got {baseline}")
-    if max_bounces < 0:
-        raise UserError(f"--max-bounces must be >= 0, got {max_bounces}")
 
 
 def _short(value) -> str:
@@ -188,92 +222,133 @@ def differences(meta: dict, planned: dict, rig: Rig) -> list[str]:
     return out
 
 
-def render_frames(scene_name: str = DEFAULT_SCENE, viewpoints: int = 1, out_root: Path | str = "data",
-                  width: int = DEFAULTS.width, samples: int = DEFAULTS.samples, seed: int = DEFAULTS.seed,
-                  threads: int = DEFAULTS.threads, baseline: float = DEFAULT_BASELINE_M, force: bool = False,
-                  denoise: bool = DEFAULTS.denoise, max_bounces: int = DEFAULTS.max_bounces,
-                  light_tree: bool = DEFAULTS.light_tree, overrides: dict | None = None, progress: bool = True,
-                  verbose: bool = False, renderer: str | None = None,
-                  cluster: ClusterOptions | None = None) -> list[Path]:
-    """Render ``viewpoints`` rig placements of a scene into ``out_root`` and return the frame directories.
+@dataclass(frozen=True)
+class RenderPlan:
+    """A checked render, before anything is drawn or written (:func:`plan_render`).
 
-    Args:
-        scene_name: ``family`` or ``family:preset`` (see ``tri360 scenes``).
-        viewpoints: number of rig placements, named ``vp000``, ``vp001``, ... (``choose_viewpoints``).
-        out_root: data root; frames go to ``<out_root>/<scene>/<viewpoint>/``.
-        width: panorama width, pixels (height = width / 2); even, within [``MIN_WIDTH``, :func:`max_width`].
-        samples: Cycles samples per pixel.
-        seed: one seed for the scene layout jitter, the viewpoint draw and Cycles' noise pattern.
-        threads: CPU threads for Cycles, 0 = all.
-        baseline: rig baseline C-U and C-R, metres.
-        force: re-render frames that are already complete (whatever they were rendered with).
-        denoise: OpenImageDenoise on Cycles' colour images (distance is never denoised).
-        max_bounces: Cycles light bounces.
-        light_tree: Cycles' light tree (off by default: see ``docs/rendering.md``).
-        overrides: scene parameters overriding the preset's (e.g. ``{"model_path": "chair.glb"}``); each key
-            must be one of the scene's parameters.
-        progress: show progress on stderr per rendered camera view (harness.jobs.progress: a bar or log lines).
-        verbose: let Blender print its own log lines (to stderr).
-        renderer: ``"cycles"`` or ``"raycast"``; None = the scene's default.
-        cluster: run each frame as a Dask task (``--scheduler`` / ``--workers``), or an executor that is already
-            open (``harness.jobs.cluster.open_executor``, e.g. a study's); None = in this process.
-
-    Raises:
-        UserError: bad option, unwritable output, no free viewpoints, a scene the renderer cannot draw, an
-            existing frame rendered with other settings (naming them; use ``force``), or a renderer failure.
-        SceneError: unknown scene, preset or scene parameter, or a scene file that fails.
+    Attributes:
+        renderer: the backend name.
+        spec: the scene.
+        settings: the render settings.
+        scene_dir: the data root's directory of the scene (:func:`scene_dir_name`).
+        viewpoints: the number of viewpoints ``vp000``, ``vp001``...
+        rigs: their rig placements (empty when not placed: :func:`plan_render`).
+        baseline: rig baseline, metres.
+        identity: :func:`harness.render.base.identity` of every frame of the plan (what decides its pixels).
     """
 
-    _check_options(viewpoints, width, samples, threads, baseline, max_bounces)
-    if not isinstance(light_tree, bool):
-        raise UserError(f"light_tree must be true or false, got {light_tree!r}")
-    if isinstance(cluster, ClusterOptions):
-        cluster.check()
-    entry, preset = get_scene(scene_name)
-    spec = entry.build_spec(preset, seed, overrides)
-    renderer = renderer or entry.renderer
+    renderer: str
+    spec: SceneSpec
+    settings: RenderSettings
+    scene_dir: str
+    viewpoints: int
+    rigs: list[Rig]
+    baseline: float
+    identity: dict
+
+
+def plan_render(settings: RenderSettings = DEFAULTS, scene: str = DEFAULT_SCENE, viewpoints: int = 1,
+                baseline: float = DEFAULT_BASELINE_M, overrides: dict | None = None,
+                renderer: str | None = None, place_rigs: bool = True) -> RenderPlan:
+    """Check a render and place its rigs, without drawing or writing anything (see :func:`render_frames`).
+
+    With ``place_rigs=False`` the rigs are not placed (``rigs`` is empty): everything else is checked, in
+    milliseconds, where placing the rigs of a furnished scene takes seconds (``choose_viewpoints``' clearance
+    search: about 10 s for 2 classroom viewpoints on a loaded 2-core machine).
+
+    Raises:
+        UserError: a setting of the wrong type or out of range, an unknown renderer, a scene the renderer
+            cannot draw, no free viewpoints.
+        SceneError: unknown scene, preset or scene parameter, or a scene file that fails.
+    """
+    check_settings(settings)
+    _check_options(typed_value(viewpoints, int, "--viewpoints"), typed_value(baseline, float, "--baseline"))
+    entry, preset = get_scene(typed_value(scene, str, "--scene"))
+    spec = entry.build_spec(preset, settings.seed, overrides)
+    renderer = entry.renderer if renderer is None else typed_value(renderer, str, "--renderer")
     backend = get_renderer(renderer)
     reason = backend.unsupported(spec)
     if reason:
-        raise UserError(f"renderer {renderer!r} cannot draw scene {scene_name!r}: {reason}")
-    settings = RenderSettings(width=width, samples=samples, seed=seed, threads=threads, denoise=denoise,
-                              max_bounces=max_bounces, light_tree=light_tree)
-    scene_dir = scene_dir_name(entry.name, preset, entry.default_preset)
+        raise UserError(f"renderer {renderer!r} cannot draw scene {scene!r}: {reason}")
     try:
-        rigs = choose_viewpoints(spec, viewpoints, seed, baseline_m=baseline)
+        rigs = choose_viewpoints(spec, viewpoints, settings.seed, baseline_m=baseline) if place_rigs else []
     except ValueError as exc:
         raise UserError(str(exc)) from None
-    out_root = check_output(Path(out_root), "data")  # absent, empty or a data root tri360 wrote
-    check_name(scene_dir, "--scene")
-    planned = identity(renderer, backend.pixel_settings, settings, spec, baseline)
+    return RenderPlan(renderer=renderer, spec=spec, settings=settings,
+                      scene_dir=scene_dir_name(entry.name, preset, entry.default_preset), viewpoints=viewpoints,
+                      rigs=list(rigs),
+                      baseline=float(baseline),
+                      identity=identity(renderer, backend.pixel_settings, settings, spec, float(baseline)))
 
+
+class SettingsMismatch(UserError):
+    """A frame directory holds a frame rendered with other settings (attributes ``frame_dir``, ``diffs``)."""
+
+    def __init__(self, frame_dir: Path, diffs: list[str], remedy: str):
+        self.frame_dir, self.diffs = frame_dir, diffs
+        super().__init__(f"{frame_dir} holds a frame rendered with other settings: {'; '.join(diffs)}; {remedy}")
+
+
+def render_frames(settings: RenderSettings = DEFAULTS, scene: str = DEFAULT_SCENE, *, viewpoints: int = 1,
+                  out_root: Path | str = "data", baseline: float = DEFAULT_BASELINE_M, overrides: dict | None = None,
+                  renderer: str | None = None, force: bool = False, progress: bool = True, verbose: bool = False,
+                  cluster: ClusterOptions | None = None, executor: Executor | None = None) -> list[Path]:
+    """Render ``viewpoints`` rig placements of a scene into ``out_root`` and return the frame directories.
+
+    Args:
+        settings: how to render (width, samples, seed, threads, denoise, bounces, light tree...: every field of
+            :class:`harness.render.base.RenderSettings`, checked for type and range); the seed is also the scene
+            layout jitter's and the viewpoint draw's.
+        scene: ``family`` or ``family:preset`` (see ``tri360 scenes``).
+        viewpoints: number of rig placements, named ``vp000``, ``vp001``, ... (``choose_viewpoints``).
+        out_root: data root; frames go to ``<out_root>/<scene>/<viewpoint>/``.
+        baseline: rig baseline C-U and C-R, metres.
+        overrides: scene parameters overriding the preset's (e.g. ``{"model_path": "chair.glb"}``); each key
+            must be one of the scene's parameters.
+        renderer: ``"cycles"`` or ``"raycast"``; None = the scene's default.
+        force: re-render frames that are already complete (whatever they were rendered with).
+        progress: show a progress bar (on stderr) advancing per rendered camera view.
+        verbose: let Blender print its own log lines (to stderr).
+        cluster: run each frame as a Dask task (``--scheduler`` / ``--workers``); None = in this process.
+        executor: instead of ``cluster``, an executor that is already open (e.g. a study's); left open.
+
+    Raises:
+        UserError: bad option, unwritable output, no free viewpoints, a scene the renderer cannot draw, an
+            existing frame rendered with other settings (:class:`SettingsMismatch`, naming them; use ``force``),
+            or a renderer failure.
+        SceneError: unknown scene, preset or scene parameter, or a scene file that fails.
+    """
+    if cluster is not None:
+        cluster.check()
+    plan = plan_render(settings, scene, viewpoints, baseline, overrides, renderer)
+    out_root = check_output(Path(out_root), "data")  # absent, empty or a data root tri360 wrote
+    scene_dir = check_name(plan.scene_dir, "--scene")
     todo = []
-    for i, rig in enumerate(rigs):
+    for i, rig in enumerate(plan.rigs):
         vp = f"vp{i:03d}"
         d = frame_dir(out_root, scene_dir, vp)
         if not force and is_complete(d):
-            diff = differences(json.loads((d / "frame.json").read_text(encoding="utf-8")), planned, rig)
+            diff = differences(json.loads((d / "frame.json").read_text(encoding="utf-8")), plan.identity, rig)
             if diff:
-                raise UserError(f"{d} holds a frame rendered with other settings: {'; '.join(diff)}; "
-                                f"use --force to re-render it or choose another --out")
+                raise SettingsMismatch(d, diff, "use --force to re-render it or choose another --out")
             continue
         todo.append((vp, rig))
-    dirs = [frame_dir(out_root, scene_dir, f"vp{i:03d}") for i in range(len(rigs))]
+    dirs = [frame_dir(out_root, scene_dir, f"vp{i:03d}") for i in range(len(plan.rigs))]
     created = [p for p in (out_root / scene_dir, *(out_root / scene_dir).parents) if not p.exists()]
     ensure_output_dir(out_root / scene_dir)
     clean_stale_partials(out_root / scene_dir)  # hidden half-written frames of killed runs
     if not todo:
         mark_output(out_root, "data")
         return dirs
-    if cluster is not None and getattr(cluster, "distributed", False):
-        _render_distributed(todo, renderer, spec, settings, scene_dir, out_root, cluster, progress, verbose, created)
+    if is_distributed(cluster, executor):
+        _render_distributed(todo, plan, out_root, progress, verbose, created, cluster, executor)
         mark_output(out_root, "data")
         return dirs
 
-    bar = progress_bar(len(todo) * len(CAMERA_NAMES), desc=f"{scene_dir} ({renderer})", unit="view",
+    bar = progress_bar(len(todo) * len(CAMERA_NAMES), desc=f"{scene_dir} ({plan.renderer})", unit="view",
                        enabled=progress)
     try:
-        with backend(spec, settings, verbose=verbose) as drawer:
+        with get_renderer(plan.renderer)(plan.spec, settings, verbose=verbose) as drawer:
             for vp, rig in todo:
                 bar.set_postfix_str(vp)
 
@@ -323,12 +398,13 @@ def render_one(renderer: str, spec, settings: RenderSettings, rig, scene_dir: st
     return {"path": os.fspath(d), "seconds": seconds}
 
 
-def _render_distributed(todo, renderer, spec, settings, scene_dir, out_root: Path, cluster: ClusterOptions,
-                        progress: bool, verbose: bool, created: list[Path]) -> None:
+def _render_distributed(todo, plan: RenderPlan, out_root: Path, progress: bool, verbose: bool, created: list[Path],
+                        cluster: ClusterOptions | None, executor: Executor | None) -> None:
     root = os.fspath(out_root.resolve())  # workers may run elsewhere: give them the absolute path
-    tasks = {vp: (renderer, spec, settings, rig, scene_dir, vp, root, verbose) for vp, rig in todo}
+    scene_dir = plan.scene_dir
+    tasks = {vp: (plan.renderer, plan.spec, plan.settings, rig, scene_dir, vp, root, verbose) for vp, rig in todo}
     try:
-        with open_executor(cluster) as ex:
+        with executor_for(cluster, executor) as ex:
             for _ in ex.run(render_one, tasks, desc="render", unit="frame", progress=progress,
                             names={vp: f"{scene_dir}/{vp}" for vp in tasks}):
                 pass

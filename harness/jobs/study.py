@@ -24,9 +24,15 @@ A study is a TOML file::
 - ``data/r-<hash>/``: the frames of each distinct render setting (a data root), ``results/e-<hash>/``: the results
   set of each distinct (render, evaluate) setting, ``points.json``: which grid point uses which.
 
-Reuse: the hashes are of the settings themselves (and of the render defaults, :func:`point_ids`), so a rerun, or an
+Before any work every key is checked against its option's type (:func:`load_study`; the types come from
+``RenderSettings``, ``plan_render`` and ``MethodSelection``, not from a table here), every grid point as render
+and evaluate would check it (:func:`plan_point`), and the plan's size (:data:`LIMIT_POINTS`, :data:`LIMIT_FRAMES`:
+past them only with ``yes``).
+
+Reuse: the data roots are named by what decides the frames' pixels (:func:`point_ids`), so a rerun, or an
 extended grid, renders only frames that are missing (``render_frames`` is resumable and checks that stored frames
-were rendered with the same settings) and evaluates only points without a complete results set. With a cluster
+were rendered with the same settings), a threads-only change renders nothing, and only points without a complete
+results set are evaluated. With a cluster
 (``--scheduler`` / ``--workers``) one executor serves every render and evaluation of the study, and every grid
 point's frames (then every point's evaluation) are submitted at once (up to ``MAX_PARALLEL_POINTS`` points at a
 time), so the workers are busy even when a point has fewer frames than there are workers. Without one, each point is
@@ -55,47 +61,119 @@ from matplotlib.figure import Figure
 from harness.data import jsonio
 from harness.data.atomic import atomic_write_bytes, atomic_write_text
 from harness.data.errors import UserError
+from harness.data.frame import frame_dir, is_complete
 from harness.data.outputs import check_output, ensure_output_dir, mark_output
-from harness.jobs.cluster import ClusterOptions, open_executor
+from harness.jobs.cluster import ClusterOptions, Executor, open_executor
 from harness.jobs.evaluate import evaluate
+from harness.jobs.options import MethodSelection, annotations_of, typed_value
 from harness.jobs.progress import progress_bar
-from harness.jobs.render import DEFAULTS, RENDER_LOG, render_frames
-from reconstruction.methods.flow_pipeline import DEFAULT_FLOW
-from reconstruction.methods.registry import default_methods, flow_methods, get_methods
+from harness.jobs.render import (
+    RENDER_LOG,
+    RenderPlan,
+    SettingsMismatch,
+    parse_overrides,
+    plan_render,
+    render_frames,
+    settings_from_options,
+)
+from harness.render.base import RenderSettings
 from reports.plots import png_bytes
 from reports.schema import METRIC_COLUMNS
+from scenes.registry import SceneError
 
-__all__ = ["RENDER_KEYS", "EVALUATE_KEYS", "StudySpec", "load_study", "grid_points", "run_study", "plot_metric"]
+__all__ = ["RENDER_KEYS", "EVALUATE_KEYS", "StudySpec", "PointPlan", "load_study", "grid_points", "plan_point",
+           "point_ids", "frame_seconds", "run_study", "plot_metric"]
 
 RENDER_KEYS = ("scene", "renderer", "viewpoints", "width", "samples", "seed", "threads", "baseline", "max_bounces",
                "light_tree", "no_denoise", "set")
 """Keys of ``[render]`` (``tri360 render`` options, dashes as underscores; ``set`` is a table or KEY=VALUE list)."""
-EVALUATE_KEYS = ("method", "flow", "variants", "rectify", "report")
-"""Keys of ``[evaluate]`` (``tri360 evaluate`` options; ``report`` defaults to false in a study)."""
+EVALUATE_KEYS = (*(f.name for f in dataclasses.fields(MethodSelection)), "report")
+"""Keys of ``[evaluate]`` (``tri360 evaluate`` options: :class:`harness.jobs.options.MethodSelection`'s fields and
+``report``, which defaults to false in a study)."""
 DEFAULT_METRIC = "mae_m"
 #: grid points rendered or evaluated at once on a cluster (threads of this process that submit their tasks)
 MAX_PARALLEL_POINTS = 32
 
 
+RENDER_S_FIXED = 4.0
+RENDER_S_PER_MPX_SAMPLE = 6.0
+"""Estimated Cycles wall time of one frame (C, U and R), seconds: ``RENDER_S_FIXED + RENDER_S_PER_MPX_SAMPLE *
+megapixels (W x W/2) * samples``, fitted to the classroom frames measured on 2 cores (``docs/studies.md``: 500 px
+at 4 and 64 samples 7 and 52 s, 1000 px at 20 samples 57 s idle, 2000 px at 20 samples 228 s)."""
+RAYCAST_S_PER_MPX = 140.0
+"""Estimated ray-caster wall time of one frame per megapixel, seconds (synthetic_box on 2 cores shared with other
+jobs: 3.2 s at 200 px, 0.02 Mpx; 11.3 s at 400 px, 0.08 Mpx)."""
+NOTICE_FRAMES = 8
+"""A study that renders more frames than this says so (frames, points, estimated render time) before it starts."""
+LIMIT_FRAMES = 100
+"""A study that renders more frames than this, or whose estimated rendering exceeds :data:`LIMIT_RENDER_S`,
+starts only with ``--yes``."""
+LIMIT_RENDER_S = 4 * 3600.0
+"""Estimated rendering, seconds, past which a study needs ``--yes``."""
+LIMIT_POINTS = 1000
+"""Grid points past which a study needs ``--yes`` before it is even planned (checked from the grid's lengths)."""
+
+
+def _render_hints() -> dict[str, object]:
+    """The type of each ``[render]`` key: a :class:`RenderSettings` field's (``no_denoise``: ``denoise``'s), else
+    the parameter of :func:`harness.jobs.render.plan_render` of that name; ``set`` is a table of scene parameters
+    or a list of KEY=VALUE strings."""
+    settings, plan = annotations_of(RenderSettings), annotations_of(plan_render)
+    out = {}
+    for key in RENDER_KEYS:
+        if key == "set":
+            out[key] = dict | tuple[str, ...]
+        elif key == "no_denoise":
+            out[key] = settings["denoise"]
+        else:
+            out[key] = settings[key] if key in settings else plan[key]
+    return out
+
+
+def _evaluate_hints() -> dict[str, object]:
+    """The type of each ``[evaluate]`` key: a :class:`MethodSelection` field's, and ``report``: the evaluate
+    job's parameter."""
+    return {**annotations_of(MethodSelection), "report": annotations_of(evaluate)["report"]}
+
+
 class StudySpec:
-    """A parsed, checked study file: ``render`` and ``evaluate`` settings and the ``grid`` (key -> values)."""
+    """A parsed, checked study file: ``render`` and ``evaluate`` settings and the ``grid`` (key -> values), as
+    the file gives them (each value checked against its key's type)."""
 
     def __init__(self, path: Path, render: dict, evaluate: dict, grid: dict[str, list], text: str):
         self.path, self.render, self.evaluate, self.grid, self.text = path, render, evaluate, grid, text
 
+    @property
+    def size(self) -> int:
+        """Number of grid points (the product of the grid's lengths), without listing them."""
+        return math.prod(len(v) for v in self.grid.values())
+
+
+def _check_value(key: str, value, source: str):
+    """A ``[render]`` or ``[evaluate]`` value checked against its key's type (``source`` names it in errors);
+    ``set`` as a dict of scene parameters."""
+    hints = _render_hints() if key in RENDER_KEYS else _evaluate_hints()
+    value = typed_value(value, hints[key], source)
+    if key == "set":
+        value = parse_overrides(list(value), source) if isinstance(value, tuple) else value
+    return value
+
 
 def load_study(path: Path) -> StudySpec:
-    """Read and check a study TOML.
+    """Read and check a study TOML: every key of ``[render]`` and ``[evaluate]``, and every value of every
+    ``[grid]`` list, against the type of its option (:func:`harness.jobs.options.typed_value`).
 
     Raises:
-        UserError: unreadable or malformed TOML, an unknown section or key (naming the allowed ones), or a
-            ``[grid]`` entry that is not a non-empty list.
+        UserError: unreadable or malformed TOML, an unknown section or key (naming the allowed ones), a value
+            of the wrong type (naming the key), or a ``[grid]`` entry that is not a non-empty list.
     """
     path = Path(path)
     try:
         text = path.read_text(encoding="utf-8")
     except FileNotFoundError:
         raise UserError(f"{path}: study file does not exist") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise UserError(f"{path}: study file cannot be read ({exc})") from None
     try:
         raw = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
@@ -112,6 +190,8 @@ def load_study(path: Path) -> StudySpec:
         bad = sorted(set(table) - set(allowed))
         if bad:
             raise UserError(f"{path}: [{name}] has unknown key(s) {', '.join(bad)}; allowed: {', '.join(allowed)}")
+        for key, value in table.items():
+            _check_value(key, value, f"{path}: [{name}] {key}")
         sections[name] = dict(table)
     grid = raw.get("grid", {})
     if not isinstance(grid, dict):
@@ -122,6 +202,8 @@ def load_study(path: Path) -> StudySpec:
                             f"{', '.join(RENDER_KEYS + EVALUATE_KEYS)}")
         if not isinstance(values, list) or not values:
             raise UserError(f"{path}: [grid] {key} must be a non-empty list of values, got {values!r}")
+        for i, value in enumerate(values):
+            _check_value(key, value, f"{path}: [grid] {key}[{i}]")
         if len({json.dumps(v, sort_keys=True) for v in values}) != len(values):
             raise UserError(f"{path}: [grid] {key} lists a value twice")
     return StudySpec(path, sections["render"], sections["evaluate"], dict(grid), text)
@@ -138,75 +220,71 @@ def _digest(obj) -> str:
     return hashlib.sha256(json.dumps(obj, sort_keys=True, default=str).encode()).hexdigest()[:12]
 
 
-def point_ids(render: dict, evaluate_: dict, defaults: dict | None = None) -> tuple[str, str]:
+def point_ids(plan: RenderPlan, methods: Sequence, report: bool) -> tuple[str, str]:
     """``("r-<hash>", "e-<hash>")``: the names of a point's data root and results set.
 
-    The render hash covers the point's ``[render]`` settings and the render defaults they leave to tri360
-    (``harness.jobs.render.DEFAULTS``): when a default changes (e.g. the samples), a rerun renders into a new
-    data root instead of failing on frames rendered the old way.
+    The render hash covers what decides the frames' pixels -- the planned frames' identity
+    (:func:`harness.render.base.identity`: renderer, width, baseline, the renderer's pixel settings, scene
+    parameters and code version), the scene directory and the number of viewpoints -- so a change of a setting
+    that changes no pixel (``threads``) reuses the frames, and a change of the render defaults (e.g. the samples)
+    renders into a new data root instead of failing on frames rendered the old way.  The results hash adds the
+    methods' labels and ``report``.
     """
-    key = {"render": render, "defaults": dataclasses.asdict(DEFAULTS) if defaults is None else defaults}
-    return "r-" + _digest(key), "e-" + _digest({**key, "evaluate": evaluate_})
+    key = {"identity": plan.identity, "scene_dir": plan.scene_dir, "viewpoints": plan.viewpoints}
+    return "r-" + _digest(key), "e-" + _digest({**key, "methods": [m.label for m in methods], "report": report})
 
 
-def _overrides(value, where: str) -> dict:
-    if value is None:
-        return {}
-    if isinstance(value, dict):
-        return dict(value)
-    if isinstance(value, list) and all(isinstance(v, str) and "=" in v for v in value):
-        out = {}
-        for item in value:
-            k, _, raw = item.partition("=")
-            try:
-                out[k] = json.loads(raw)
-            except json.JSONDecodeError:
-                out[k] = raw
-        return out
-    raise UserError(f"{where}: 'set' must be a table of scene parameters or a list of \"KEY=VALUE\" strings")
+@dataclasses.dataclass(frozen=True)
+class PointPlan:
+    """One grid point, checked: its render (:class:`harness.jobs.render.RenderPlan`, rigs not yet placed, and
+    the :func:`harness.jobs.render.render_frames` keywords), its methods, and its data root and results set."""
+
+    point: dict
+    render: RenderPlan
+    render_kw: dict
+    methods: list
+    report: bool
+    rid: str
+    eid: str
 
 
-def render_kwargs(settings: dict, where: str) -> dict:
-    """``[render]`` settings -> keyword arguments of :func:`harness.jobs.render.render_frames`."""
-    kw = {}
-    for key, value in settings.items():
-        if key == "scene":
-            kw["scene_name"] = value
-        elif key == "no_denoise":
-            kw["denoise"] = not bool(value)
-        elif key == "set":
-            kw["overrides"] = _overrides(value, where)
-        else:
-            kw[key] = value
-    return kw
+def plan_point(spec: StudySpec, point: dict) -> PointPlan:
+    """Check one grid point as ``render`` and ``evaluate`` would (types, ranges, scene and its parameters,
+    renderer, methods), without rendering.
 
-
-def select_methods(settings: dict, where: str) -> list:
-    """``[evaluate]`` settings -> methods, as ``tri360 evaluate`` selects them."""
-    method, flow = settings.get("method"), settings.get("flow")
-    variants, rectify = settings.get("variants"), settings.get("rectify")
-
-    def as_list(v):
-        return None if v is None else ([v] if isinstance(v, str) else list(v))
-
+    Raises:
+        UserError, SceneError: naming the study file and the point.
+    """
+    where = f"{spec.path} (grid point {point or 'the only one'})"
+    render = {k: _check_value(k, v, f"{where}: {k}") for k, v in {**spec.render, **point}.items()
+              if k in RENDER_KEYS}
+    evaluate_ = {k: v for k, v in {**spec.evaluate, **point}.items() if k in EVALUATE_KEYS}
+    report = _check_value("report", evaluate_.get("report", False), f"{where}: report")
+    kw = {k: render[k] for k in ("scene", "viewpoints", "baseline", "renderer") if k in render}
+    kw["overrides"] = render.get("set")
     try:
-        if method is not None:
-            if flow is not None or variants is not None or rectify is not None:
-                raise UserError(f"{where}: 'method' selects methods by label; do not combine it with flow, "
-                                "variants or rectify")
-            return get_methods(as_list(method))
-        if flow is None and variants is None and rectify is None:
-            return default_methods()
-        return flow_methods(as_list(flow) or [DEFAULT_FLOW], [True if rectify is None else bool(rectify)],
-                            as_list(variants))
-    except ValueError as exc:
-        raise UserError(f"{where}: {exc}") from None
+        plan = plan_render(settings_from_options(render), place_rigs=False, **kw)
+        methods = MethodSelection.from_mapping(evaluate_, where).methods()
+    except UserError as exc:
+        raise UserError(f"{where}: {exc}" if not str(exc).startswith(where) else str(exc)) from None
+    except SceneError as exc:
+        raise SceneError(f"{where}: {exc}") from None
+    rid, eid = point_ids(plan, methods, report)
+    return PointPlan(point, plan, kw, methods, report, rid, eid)
 
 
-def _point_settings(spec: StudySpec, point: dict) -> tuple[dict, dict]:
-    render = {**spec.render, **{k: v for k, v in point.items() if k in RENDER_KEYS}}
-    evaluate_ = {**spec.evaluate, **{k: v for k, v in point.items() if k in EVALUATE_KEYS}}
-    return render, evaluate_
+def frame_seconds(plan: RenderPlan) -> float:
+    """Estimated wall time of rendering one frame of ``plan``, seconds (:data:`RENDER_S_PER_MPX_SAMPLE`,
+    :data:`RAYCAST_S_PER_MPX`; a rough guide on 2 cores, not a promise)."""
+    mpx = plan.settings.width * plan.settings.height / 1e6
+    if plan.renderer == "raycast":
+        return RAYCAST_S_PER_MPX * mpx
+    return RENDER_S_FIXED + RENDER_S_PER_MPX_SAMPLE * mpx * plan.settings.samples
+
+
+def _duration(seconds: float) -> str:
+    return f"{seconds:.0f} s" if seconds < 120 else (f"{seconds / 60:.0f} min" if seconds < 7200 else
+                                                      f"{seconds / 3600:.1f} h")
 
 
 def _render_seconds(frame_path: str) -> float:
@@ -234,47 +312,53 @@ def _cell(value):
 
 
 def run_study(study_path: Path, out: Path, cluster: ClusterOptions | None = None, metric: str = DEFAULT_METRIC,
-              progress: bool = True) -> pd.DataFrame:
+              progress: bool = True, yes: bool = False) -> pd.DataFrame:
     """Run (or resume, or extend) a study; write ``study.csv``, one plot per grid key and ``study.md`` to ``out``.
+
+    Before any work: the study file is checked (:func:`load_study`), its size from the grid's lengths (more than
+    :data:`LIMIT_POINTS` points need ``yes``), then every grid point (:func:`plan_point`); a study that renders
+    more than :data:`NOTICE_FRAMES` frames prints how many and about how long, and past :data:`LIMIT_FRAMES`
+    frames or :data:`LIMIT_RENDER_S` of estimated rendering it needs ``yes``.
 
     Returns:
         The ``study.csv`` table.
     Raises:
-        UserError: a malformed study file, an unknown metric, or anything ``render``/``evaluate`` refuses.
+        UserError: a malformed study file, an unknown metric, a plan too large without ``yes``, or anything
+            ``render``/``evaluate`` refuses.
     """
     started = time.time()
+    if cluster is not None:
+        cluster.check()
     spec = load_study(study_path)
     check_output(Path(out), "study", [study_path])  # absent, empty or a study tri360 wrote; not around the file
     if metric not in METRIC_COLUMNS:
         raise UserError(f"unknown metric {metric!r}; choose one of {', '.join(METRIC_COLUMNS)}")
-    points = grid_points(spec)
-    plan = []
-    for point in points:
-        render, evaluate_ = _point_settings(spec, point)
-        where = f"{spec.path} (grid point {point or 'the only one'})"
-        kw = render_kwargs(render, where)
-        methods = select_methods(evaluate_, where)
-        rid, eid = point_ids(render, evaluate_)
-        plan.append((point, kw, methods, bool(evaluate_.get("report", False)), rid, eid))
-    out = ensure_output_dir(Path(out))
+    if spec.size > LIMIT_POINTS and not yes:
+        lengths = " x ".join(f"{len(v)} {k}" for k, v in spec.grid.items())
+        raise UserError(f"{spec.path}: {spec.size} grid points ({lengths}), more than {LIMIT_POINTS}; check the "
+                        "grid, or pass --yes to plan and run them all")
+    plan = [plan_point(spec, point) for point in grid_points(spec)]
+    out = Path(out)
+    _check_size(spec, plan, out, progress, yes)
+    out = ensure_output_dir(out)
     atomic_write_text(out / "points.json", jsonio.dumps(
-        [{"grid": p, "data": f"data/{rid}", "results": f"results/{eid}"} for p, _, _, _, rid, eid in plan]))
+        [{"grid": p.point, "data": f"data/{p.rid}", "results": f"results/{p.eid}"} for p in plan]))
     with open_executor(cluster) as ex:
         steps = []  # per point: (render job or None, evaluate job or None); a job is (name, callable)
         rendered = set()
-        for point, kw, methods, report, rid, eid in plan:
-            data, results = out / "data" / rid, out / "results" / eid
-            render = None if rid in rendered else (f"render {point or ''} -> {data}",
-                                                   partial(render_frames, out_root=data, cluster=ex, **kw))
-            rendered.add(rid)
+        for p in plan:
+            data, results = out / "data" / p.rid, out / "results" / p.eid
+            render = None if p.rid in rendered else (f"render {p.point or ''} -> {data}",
+                                                     partial(_render_point, p, data, ex))
+            rendered.add(p.rid)
             if _complete(results):
                 if progress:
                     print(f"study: reuse {results}", flush=True)
                 steps.append((render, None))
                 continue
-            steps.append((render, (f"evaluate {point or ''} -> {results}",
-                                   partial(evaluate, data, results, methods, report=report, cluster=ex))))
-        if getattr(ex, "distributed", False):
+            steps.append((render, (f"evaluate {p.point or ''} -> {results}",
+                                   partial(evaluate, data, results, p.methods, report=p.report, executor=ex))))
+        if ex.distributed:
             _run_concurrently([r for r, _ in steps if r], ex, progress, "render")
             _run_concurrently([e for _, e in steps if e], ex, progress, "evaluate")
         else:
@@ -284,8 +368,8 @@ def run_study(study_path: Path, out: Path, cluster: ClusterOptions | None = None
                 job[1](progress=progress)
     tables = []
     colmap = {key: key for key in spec.grid}
-    for point, _kw, _methods, _report, _rid, eid in plan:
-        results = out / "results" / eid
+    for p in plan:
+        results = out / "results" / p.eid
         table = pd.read_csv(results / "results.csv", keep_default_na=False, na_values=[""])
         frames = {(f["scene"], f["viewpoint"]): f["path"]
                   for f in json.loads((results / "frames.json").read_text(encoding="utf-8"))}
@@ -295,7 +379,7 @@ def run_study(study_path: Path, out: Path, cluster: ClusterOptions | None = None
         for key in reversed(list(spec.grid)):
             if colmap[key] in table.columns:  # e.g. width: the results' own column, the same value
                 table = table.drop(columns=colmap[key])
-            table.insert(0, colmap[key], _cell(point[key]))
+            table.insert(0, colmap[key], _cell(p.point[key]))
         tables.append(table)
     study = pd.concat(tables, ignore_index=True)
     csv = study.to_csv(index=False)
@@ -309,6 +393,38 @@ def run_study(study_path: Path, out: Path, cluster: ClusterOptions | None = None
                                                        [colmap[k] for k in spec.grid]))
     mark_output(out, "study")
     return study
+
+
+def _check_size(spec: StudySpec, plan: list[PointPlan], out: Path, progress: bool, yes: bool) -> None:
+    """Count the frames still to render (distinct data roots, frames not complete on disk) and estimate their
+    rendering; say so past :data:`NOTICE_FRAMES`, refuse past the limits without ``yes``."""
+    todo, seconds, roots = 0, 0.0, {}
+    for p in plan:
+        roots.setdefault(p.rid, p.render)
+    for rid, render in roots.items():
+        missing = sum(not is_complete(frame_dir(out / "data" / rid, render.scene_dir, f"vp{i:03d}"))
+                      for i in range(render.viewpoints))
+        todo += missing
+        seconds += missing * frame_seconds(render)
+    evaluations = sum(not _complete(out / "results" / p.eid) for p in plan)
+    what = (f"{spec.path}: {len(plan)} grid point(s), {todo} frame(s) to render (about {_duration(seconds)} "
+            f"on 2 cores), {evaluations} evaluation(s)")
+    if (todo > LIMIT_FRAMES or seconds > LIMIT_RENDER_S) and not yes:
+        raise UserError(f"{what}: more than {LIMIT_FRAMES} frames or {_duration(LIMIT_RENDER_S)} of rendering; "
+                        "pass --yes to start it")
+    if todo > NOTICE_FRAMES:
+        print(f"study: {what.split(': ', 1)[1]}", flush=True)
+
+
+def _render_point(p: PointPlan, data: Path, ex: Executor, progress: bool = True) -> list[Path]:
+    """Render one point's frames into its data root (a study's data roots are named by what decides the frames,
+    so frames there rendered otherwise come from another version of tri360: say what to do, not ``--force``)."""
+    try:
+        return render_frames(p.render.settings, **p.render_kw, out_root=data, progress=progress, executor=ex)
+    except SettingsMismatch as exc:
+        raise UserError(f"{exc.frame_dir} holds a frame rendered with other settings: {'; '.join(exc.diffs)}; "
+                        f"the study's data root {data} was rendered by another version of tri360: remove that "
+                        "directory (tri360 wrote it) to render it again, or choose another --out") from None
 
 
 def _complete(results: Path) -> bool:

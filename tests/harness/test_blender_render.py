@@ -19,7 +19,6 @@ import harness.render.cycles_renderer
 from harness.cli import main
 from harness.data.errors import UserError
 from harness.data.frame import find_frames, read_frame
-from harness.jobs.render import render_frames
 from harness.render.base import RenderSettings
 from harness.render.registry import open_renderer
 from reconstruction.camera.equirect import bearing_grid, project
@@ -27,6 +26,7 @@ from reconstruction.camera.rig import Rig
 from scenes.families.box_room import box_interior_distance
 from scenes.model import Box, Material, ModelFile, SceneSpec, choose_viewpoints
 from scenes.registry import SceneEntry, discover
+from tests.helpers import render_scene
 
 ENTRIES, _ = discover()
 CYCLES_SCENES = sorted(n for n, e in ENTRIES.items() if e.renderer == "cycles")
@@ -46,7 +46,7 @@ def _marker_scene(marker_center, yaw=0.0) -> tuple[SceneSpec, Rig]:
 @pytest.mark.blender
 @pytest.mark.parametrize("name", CYCLES_SCENES)
 def test_every_cycles_scene_renders_a_valid_frame(name, tmp_path):
-    (d,) = render_frames(name, viewpoints=1, out_root=tmp_path, width=64, **FAST)
+    (d,) = render_scene(name, viewpoints=1, out_root=tmp_path, width=64, **FAST)
     frame = read_frame(d)
     assert frame.width == 64 and frame.height == 32 and frame.has_ground_truth
     for cam in "CUR":
@@ -131,9 +131,9 @@ def test_cross_camera_consistency(tmp_path):
     the rig standing in an aisle they stay under 5 % (measured at 1000x500: 96-99 %); the classroom is
     rendered at 512 wide because at 256 the depth edges' share of pixels alone costs ~2 %.
     """
-    (box,) = render_frames("box_room", out_root=tmp_path, width=256, samples=1, threads=2, denoise=False,
+    (box,) = render_scene("box_room", out_root=tmp_path, width=256, samples=1, threads=2, denoise=False,
                            progress=False)
-    (cls,) = render_frames("classroom", out_root=tmp_path, width=512, samples=8, threads=2, progress=False)
+    (cls,) = render_scene("classroom", out_root=tmp_path, width=512, samples=8, threads=2, progress=False)
     fb, fc = read_frame(box), read_frame(cls)
     for k in "UR":
         agree, _, _ = _cross_check(fb, k)
@@ -147,9 +147,9 @@ def test_cross_camera_consistency(tmp_path):
 
 @pytest.mark.blender
 def test_same_seed_same_pixels(tmp_path):
-    a = render_frames("box_room", out_root=tmp_path / "a", width=64, samples=4, threads=2, seed=5, progress=False)
-    b = render_frames("box_room", out_root=tmp_path / "b", width=64, samples=4, threads=2, seed=5, progress=False)
-    c = render_frames("box_room", out_root=tmp_path / "c", width=64, samples=4, threads=2, seed=6, progress=False)
+    a = render_scene("box_room", out_root=tmp_path / "a", width=64, samples=4, threads=2, seed=5, progress=False)
+    b = render_scene("box_room", out_root=tmp_path / "b", width=64, samples=4, threads=2, seed=5, progress=False)
+    c = render_scene("box_room", out_root=tmp_path / "c", width=64, samples=4, threads=2, seed=6, progress=False)
     fa, fb, fc = (read_frame(x[0]) for x in (a, b, c))
     for cam in "CUR":
         assert np.array_equal(fa.images[cam], fb.images[cam])
@@ -160,14 +160,14 @@ def test_same_seed_same_pixels(tmp_path):
 @pytest.mark.blender
 def test_resume_compares_settings_and_interrupted_render_leaves_nothing(tmp_path, monkeypatch):
     opts = dict(viewpoints=2, out_root=tmp_path, width=64, **FAST)
-    first = render_frames("box_room", **opts)
+    first = render_scene("box_room", **opts)
     stamps = [(p / "frame.json").stat().st_mtime_ns for p in first]
 
     def boom(*a, **k):
         raise AssertionError("a complete frame was rendered again")
 
     monkeypatch.setattr(harness.render.cycles_renderer.CyclesRenderer, "render_camera", boom)
-    assert render_frames("box_room", **opts) == first
+    assert render_scene("box_room", **opts) == first
     assert [(p / "frame.json").stat().st_mtime_ns for p in first] == stamps
     # every setting that changes Cycles' pixels is compared (and named), none is silently kept
     for change, named in [({"width": 66}, "width 64 (now 66)"), ({"samples": 3}, "samples 2 (now 3)"),
@@ -176,7 +176,7 @@ def test_resume_compares_settings_and_interrupted_render_leaves_nothing(tmp_path
                           ({"baseline": 0.3}, "baseline_m 0.4 (now 0.3)"),
                           ({"renderer": "raycast"}, "renderer cycles (now raycast)")]:
         with pytest.raises(UserError, match="other settings") as info:
-            render_frames("box_room", **{**opts, **change})
+            render_scene("box_room", **{**opts, **change})
         assert named in str(info.value) and str(first[0]) in str(info.value)
     monkeypatch.undo()
 
@@ -192,10 +192,10 @@ def test_resume_compares_settings_and_interrupted_render_leaves_nothing(tmp_path
     monkeypatch.setattr(harness.render.cycles_renderer.CyclesRenderer, "render_camera", interrupted)
     shutil.rmtree(first[1])
     with pytest.raises(KeyboardInterrupt):
-        render_frames("box_room", **opts)
+        render_scene("box_room", **opts)
     assert [p.name for p in (tmp_path / "box_room").iterdir()] == ["vp000"], "partial files left behind"
     monkeypatch.undo()
-    render_frames("box_room", **opts)
+    render_scene("box_room", **opts)
     assert [p.name for p in find_frames(tmp_path)] == ["vp000", "vp001"]
 
 

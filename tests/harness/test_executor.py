@@ -29,9 +29,9 @@ from harness.data.errors import UserError
 from harness.jobs.cluster import ClusterOptions
 from harness.jobs.evaluate import evaluate
 from harness.jobs.executor import DaskExecutor, security_for
-from harness.jobs.render import RENDER_LOG, render_frames
+from harness.jobs.render import RENDER_LOG
 from reconstruction.methods.registry import get_methods
-from tests.helpers import external_cluster, wait_for_workers
+from tests.helpers import external_cluster, render_scene, wait_for_workers
 
 #: methods whose maps are bit-for-bit the same in a Dask worker as in this process, so results can be compared
 #: exactly: the default method (fused), average and the oracle.  The LM-refined variants on an image flow
@@ -78,7 +78,7 @@ def cluster(dask_cluster):
 def sequential(tmp_path_factory):
     """Frames and results made in this process, the reference for every cluster run."""
     root = tmp_path_factory.mktemp("seq")
-    render_frames("synthetic_box", out_root=root / "data", **{**SYNTH, "viewpoints": 4})
+    render_scene("synthetic_box", out_root=root / "data", **{**SYNTH, "viewpoints": 4})
     evaluate(root / "data", root / "results", get_methods(EXACT_METHODS), report=False, progress=False)
     return root
 
@@ -97,7 +97,7 @@ def test_render_and_evaluate_on_an_external_scheduler_equal_a_sequential_run(clu
     address, worker_pids = cluster
     opts = ClusterOptions(scheduler=address)
     data = tmp_path / "data"
-    dirs = render_frames("synthetic_box", out_root=data, cluster=opts, **{**SYNTH, "viewpoints": 4})
+    dirs = render_scene("synthetic_box", out_root=data, cluster=opts, **{**SYNTH, "viewpoints": 4})
     assert [d.name for d in dirs] == ["vp000", "vp001", "vp002", "vp003"]
     assert frame_files(data) == frame_files(sequential / "data")  # byte-identical, frame.json included
     # the frames were rendered by the two worker processes, not here
@@ -118,7 +118,7 @@ def test_render_and_evaluate_on_an_external_scheduler_equal_a_sequential_run(clu
     assert "tri360_render" in prefixes and "tri360_evaluate" in prefixes
     # resumable: a rerun has nothing to do and changes nothing
     before = {p: p.stat().st_mtime_ns for p in data.rglob("frame.json")}
-    render_frames("synthetic_box", out_root=data, cluster=opts, **{**SYNTH, "viewpoints": 4})
+    render_scene("synthetic_box", out_root=data, cluster=opts, **{**SYNTH, "viewpoints": 4})
     assert {p: p.stat().st_mtime_ns for p in data.rglob("frame.json")} == before
 
 
@@ -152,7 +152,7 @@ def test_a_worker_killed_mid_run_costs_only_a_retry(cluster, sequential, tmp_pat
         c.register_plugin(KillOnce(str(marker), f"tri360_{job}-"), name="kill-once")
         try:
             if job == "render":
-                dirs = render_frames("synthetic_box", out_root=data, cluster=opts, **{**SYNTH, "viewpoints": 4})
+                dirs = render_scene("synthetic_box", out_root=data, cluster=opts, **{**SYNTH, "viewpoints": 4})
                 assert len(dirs) == 4 and len(set(dirs)) == 4
                 assert frame_files(data) == frame_files(sequential / "data")  # all frames, each complete once
                 assert hidden_entries(data) == []  # the killed worker's half-written frame was cleaned up
@@ -179,15 +179,17 @@ def test_local_cluster_listens_on_loopback_only_and_renders_the_same_frames(sequ
     mine_before = {(c.laddr.ip, c.laddr.port) for c in me.net_connections(kind="inet")
                    if c.status == psutil.CONN_LISTEN}
     with DaskExecutor(ClusterOptions(workers=2)) as ex:
+        # Python's resource tracker and fork server (whose children the workers are) live as long as we do
         procs = [p for p in me.children(recursive=True) if p.pid not in before
-                 and "resource_tracker" not in " ".join(p.cmdline())]  # Python's own lives as long as we do
+                 and "resource_tracker" not in " ".join(p.cmdline())
+                 and not (p.ppid() == me.pid and "forkserver" in " ".join(p.cmdline()))]
         assert len(procs) >= 2  # the worker processes (and their nannies' children)
         listening = {(c.laddr.ip, c.laddr.port) for p in [me, *procs] for c in p.net_connections(kind="inet")
                      if c.status == psutil.CONN_LISTEN} - mine_before
         assert listening, "the LocalCluster listens nowhere?"
         assert {ip for ip, _ in listening} == {"127.0.0.1"}, listening
         assert ex.client.scheduler.address.startswith("tcp://127.0.0.1:")
-        render_frames("synthetic_box", out_root=data, cluster=ex, **{**SYNTH, "viewpoints": 2})
+        render_scene("synthetic_box", out_root=data, executor=ex, **{**SYNTH, "viewpoints": 2})
         worker_pids = set(ex.client.run(os.getpid).values())
     assert {json.loads((d / RENDER_LOG).read_text())["pid"] for d in data.glob("*/*")} <= worker_pids
     seq = {k: v for k, v in frame_files(sequential / "data").items() if k.split("/")[1] in ("vp000", "vp001")}
@@ -240,7 +242,7 @@ def test_tls_cluster_accepts_certified_clients_and_refuses_others(sequential, tm
         opts = ClusterOptions(**{**opts.__dict__, "scheduler": address})
         wait_for_workers(address, 1, security=security_for(opts))
         data = tmp_path / "data"
-        render_frames("synthetic_box", out_root=data, cluster=opts, **{**SYNTH, "viewpoints": 1})
+        render_scene("synthetic_box", out_root=data, cluster=opts, **{**SYNTH, "viewpoints": 1})
         seq = {k: v for k, v in frame_files(sequential / "data").items() if k.split("/")[1] == "vp000"}
         assert frame_files(data) == seq
         # no certificate at all: refused by tri360 before connecting, and by the scheduler when forced
@@ -254,7 +256,7 @@ def test_tls_cluster_accepts_certified_clients_and_refuses_others(sequential, tm
         intruder = ClusterOptions(scheduler=address, tls_ca=Path(other["ca"]), tls_cert=Path(other["cert"]),
                                   tls_key=Path(other["key"]), connect_timeout_s=5)
         with pytest.raises(UserError, match="cannot connect to the Dask scheduler"):
-            render_frames("synthetic_box", out_root=tmp_path / "intruder", cluster=intruder,
+            render_scene("synthetic_box", out_root=tmp_path / "intruder", cluster=intruder,
                           **{**SYNTH, "viewpoints": 1})
         assert not (tmp_path / "intruder" / "synthetic_box" / "vp000").exists()
 
@@ -280,7 +282,7 @@ def test_unreachable_scheduler_is_one_clear_error(tmp_path):
         port = s.getsockname()[1]
     opts = ClusterOptions(scheduler=f"tcp://127.0.0.1:{port}", connect_timeout_s=3)
     with pytest.raises(UserError, match="cannot connect to the Dask scheduler"):
-        render_frames("synthetic_box", out_root=tmp_path / "d", cluster=opts, **{**SYNTH, "viewpoints": 1})
+        render_scene("synthetic_box", out_root=tmp_path / "d", cluster=opts, **{**SYNTH, "viewpoints": 1})
     assert not (tmp_path / "d" / "synthetic_box").exists()
 
 
@@ -289,7 +291,7 @@ def test_unreachable_scheduler_is_one_clear_error(tmp_path):
 def test_cycles_renders_on_a_dask_worker_identically(cluster, tmp_path):
     address, worker_pids = cluster
     kw = {"viewpoints": 1, "width": 64, "samples": 2, "threads": 1, "progress": False}
-    render_frames("box_room", out_root=tmp_path / "seq", **kw)
-    (d,) = render_frames("box_room", out_root=tmp_path / "dask", cluster=ClusterOptions(scheduler=address), **kw)
+    render_scene("box_room", out_root=tmp_path / "seq", **kw)
+    (d,) = render_scene("box_room", out_root=tmp_path / "dask", cluster=ClusterOptions(scheduler=address), **kw)
     assert json.loads((d / RENDER_LOG).read_text())["pid"] in worker_pids
     assert frame_files(tmp_path / "dask") == frame_files(tmp_path / "seq")

@@ -20,12 +20,11 @@ import harness.cli
 import harness.render.cycles_renderer
 from harness.cli import main
 from harness.data.errors import UserError
-from harness.jobs.render import render_frames
 from harness.render.base import RenderError, RenderSettings
 from harness.render.registry import open_renderer
 from reconstruction.camera.rig import Rig
 from scenes.model import Box, Material, ModelFile, SceneSpec
-from tests.helpers import sigint_default
+from tests.helpers import render_scene, sigint_default
 
 pytestmark = pytest.mark.blender
 
@@ -179,7 +178,7 @@ def test_worker_survives_sigint_and_renders_several_viewpoints(tmp_path):
 
 
 def test_render_frames_runs_the_renderer_in_a_worker_not_here(tmp_path):
-    render_frames("box_room", out_root=tmp_path, width=64, samples=1, threads=2, progress=False)
+    render_scene("box_room", out_root=tmp_path, width=64, samples=1, threads=2, progress=False)
     assert "bpy" not in sys.modules
 
 

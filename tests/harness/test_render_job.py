@@ -14,13 +14,14 @@ import harness.jobs.render as job
 from harness.cli import build_parser, main
 from harness.data.errors import UserError
 from harness.data.frame import read_frame
-from harness.jobs.render import MIN_WIDTH, differences, max_width, render_frames
+from harness.jobs.render import MIN_WIDTH, differences, max_width
 from harness.render.base import BaseRenderer, Renderer, RenderSettings, identity, srgb_encode
 from harness.render.raycast import RaycastRenderer
 from harness.render.registry import RENDERER_CLASSES, available_renderers, get_renderer, open_renderer
 from reconstruction.camera.rig import Rig
 from scenes.model import Box, Material, ModelFile, SceneSpec
 from scenes.registry import SceneEntry, SceneError, discover
+from tests.helpers import render_scene
 
 W = 64  # >= MIN_WIDTH, tiny
 FAST = {"width": W, "progress": False, "renderer": "raycast"}
@@ -59,7 +60,7 @@ def test_srgb_encode_hand_values():
 
 
 def test_raycast_frame_provenance_layout(tmp_path):
-    (d,) = render_frames("synthetic_box", out_root=tmp_path, **FAST)
+    (d,) = render_scene("synthetic_box", out_root=tmp_path, **FAST)
     r = read_frame(d).renderer
     assert r["renderer"] == "raycast" and r["engine"] == "tri360-raycast"
     assert set(r) == {"renderer", "engine", "versions", "settings", "pixel_settings", "scene", "rig", "details"}
@@ -73,9 +74,9 @@ def test_raycast_frame_provenance_layout(tmp_path):
 
 
 def test_same_settings_skip_and_every_pixel_setting_is_compared(tmp_path):
-    (d,) = render_frames("synthetic_box", out_root=tmp_path, **FAST)
+    (d,) = render_scene("synthetic_box", out_root=tmp_path, **FAST)
     stamp = (d / "frame.json").stat().st_mtime_ns
-    assert render_frames("synthetic_box", out_root=tmp_path, **FAST) == [d]
+    assert render_scene("synthetic_box", out_root=tmp_path, **FAST) == [d]
     assert (d / "frame.json").stat().st_mtime_ns == stamp, "a complete, identical frame was rendered again"
     cases = [({"width": W + 2}, f"width {W} \\(now {W + 2}\\)"),
              ({"baseline": 0.3}, "baseline_m 0.4 \\(now 0.3\\)"),
@@ -83,17 +84,17 @@ def test_same_settings_skip_and_every_pixel_setting_is_compared(tmp_path):
              ({"seed": 1}, "scene parameter seed 0 \\(now 1\\)")]
     for change, message in cases:
         with pytest.raises(UserError, match=f"{d}.*other settings.*{message}.*--force"):
-            render_frames("synthetic_box", out_root=tmp_path, **{**FAST, **change})
+            render_scene("synthetic_box", out_root=tmp_path, **{**FAST, **change})
     assert (d / "frame.json").stat().st_mtime_ns == stamp
     # the ray-caster's pixels do not depend on Cycles' settings: those are not compared for its frames
-    assert render_frames("synthetic_box", out_root=tmp_path, samples=3, denoise=False, **FAST) == [d]
+    assert render_scene("synthetic_box", out_root=tmp_path, samples=3, denoise=False, **FAST) == [d]
     # --force re-renders
-    render_frames("synthetic_box", out_root=tmp_path, force=True, **{**FAST, "width": W + 2})
+    render_scene("synthetic_box", out_root=tmp_path, force=True, **{**FAST, "width": W + 2})
     assert read_frame(d).width == W + 2
 
 
 def test_differences_cover_renderer_cycles_settings_code_version_and_poses(tmp_path):
-    (d,) = render_frames("synthetic_box", out_root=tmp_path, **FAST)
+    (d,) = render_scene("synthetic_box", out_root=tmp_path, **FAST)
     meta = json.loads((d / "frame.json").read_text())
     entry = discover()[0]["synthetic_box"]
     spec = entry.spec("default", 0)
@@ -125,9 +126,9 @@ def test_differences_cover_renderer_cycles_settings_code_version_and_poses(tmp_p
 def test_unknown_scene_parameter_is_named_with_the_known_ones(tmp_path):
     with pytest.raises(SceneError, match="scene 'synthetic_box': unknown parameter 'rooom' \\(known: furniture, "
                                          "jitter_m, light_power, room, size_jitter, weak_contrast\\)"):
-        render_frames("synthetic_box", out_root=tmp_path, overrides={"rooom": [4, 4, 3]}, **FAST)
+        render_scene("synthetic_box", out_root=tmp_path, overrides={"rooom": [4, 4, 3]}, **FAST)
     with pytest.raises(SceneError, match="'seed' is not a scene parameter \\(use --seed\\)"):
-        render_frames("synthetic_box", out_root=tmp_path, overrides={"seed": 3}, **FAST)
+        render_scene("synthetic_box", out_root=tmp_path, overrides={"seed": 3}, **FAST)
     assert not any(tmp_path.iterdir()), "nothing written"
 
 
@@ -195,7 +196,7 @@ def test_classroom_renders_with_the_raycaster(tmp_path, capsys):
 ])
 def test_width_below_the_flow_minimum_is_refused(width, message, tmp_path):
     with pytest.raises(UserError, match=message):
-        render_frames("synthetic_box", out_root=tmp_path, **{**FAST, "width": width})
+        render_scene("synthetic_box", out_root=tmp_path, **{**FAST, "width": width})
 
 
 def test_width_above_memory_is_refused(monkeypatch, tmp_path):
@@ -209,7 +210,7 @@ def test_width_above_memory_is_refused(monkeypatch, tmp_path):
     monkeypatch.setattr(job, "physical_memory_bytes", lambda: four_gib)
     with pytest.raises(UserError, match=f"--width {top + 2} needs about .* GiB .* more than 80% of this machine's "
                                         f"4.0 GiB; use --width {top} or less"):
-        render_frames("synthetic_box", out_root=tmp_path, **{**FAST, "width": top + 2})
+        render_scene("synthetic_box", out_root=tmp_path, **{**FAST, "width": top + 2})
 
 
 def test_backends_satisfy_the_protocol():

@@ -16,8 +16,10 @@ from distributed.diagnostics.plugin import WorkerPlugin
 
 from harness.cli import main
 from harness.data.errors import UserError
+from harness.jobs.render import plan_render
 from harness.jobs.study import grid_points, load_study, point_ids, run_study
 from harness.render.base import RenderSettings
+from reconstruction.methods.registry import get_methods
 from tests.helpers import wait_for_workers
 
 PNG = b"\x89PNG\r\n\x1a\n"
@@ -129,14 +131,22 @@ def test_study_on_a_scheduler_writes_csv_plot_and_summary(scheduler, tmp_path, c
 
 
 def test_a_change_of_render_defaults_gives_new_data_roots():
-    """Frames rendered under other defaults are never reused (nor refused): the point gets a new data root."""
-    render, evaluate_ = {"scene": "classroom", "width": 500}, {"method": ["fused"]}
-    rid, eid = point_ids(render, evaluate_)
-    assert rid.startswith("r-") and eid.startswith("e-") and point_ids(render, evaluate_) == (rid, eid)
-    old = {**dataclasses.asdict(RenderSettings()), "samples": 12, "light_tree": True}
-    assert point_ids(render, evaluate_, old)[0] != rid and point_ids(render, evaluate_, old)[1] != eid
-    assert point_ids(render, {"method": ["sweep"]})[0] == rid  # the evaluate settings do not change the frames
-    assert point_ids({**render, "width": 1000}, evaluate_)[0] != rid
+    """Frames rendered under other defaults are never reused (nor refused): the point gets a new data root; a
+    setting that changes no pixel (threads) keeps the data root."""
+    methods = get_methods(["fused"])
+
+    def ids(settings, methods=methods, **kw):
+        return point_ids(plan_render(settings, "classroom", place_rigs=False, **kw), methods, False)
+
+    rid, eid = ids(RenderSettings(width=500))
+    assert rid.startswith("r-") and eid.startswith("e-") and ids(RenderSettings(width=500)) == (rid, eid)
+    old = dataclasses.replace(RenderSettings(width=500), samples=12, light_tree=True)
+    assert ids(old)[0] != rid and ids(old)[1] != eid
+    assert ids(RenderSettings(width=500), get_methods(["sweep"]))[0] == rid  # the methods do not change frames
+    assert ids(RenderSettings(width=500), get_methods(["sweep"]))[1] != eid
+    assert ids(RenderSettings(width=1000))[0] != rid
+    assert ids(RenderSettings(width=500, threads=1)) == (rid, eid)  # threads change no pixel
+    assert ids(RenderSettings(width=500), viewpoints=2)[0] != rid
 
 
 def test_two_grid_keys_run_the_full_product(tmp_path):

@@ -23,12 +23,13 @@ from harness.data.predictions import write_prediction
 from harness.data.results import read_results
 from harness.data.suite import load_suite, suite_id
 from harness.jobs import bench_suite as bench
-from harness.jobs.render import DEFAULTS, render_frames
+from harness.jobs.render import DEFAULTS
 from harness.jobs.suite import check_suite_data, evaluate_suite, load, plan, render_suite
 from reconstruction.camera.equirect import bearing_grid, project
 from reconstruction.methods.registry import get_methods
 from reports.tables import leaderboard_markdown, leaderboard_table
 from scenes.registry import discover
+from tests.helpers import render_scene
 
 DEFAULTS_DICT = dataclasses.asdict(DEFAULTS)
 
@@ -222,7 +223,7 @@ def test_evaluate_suite_refuses_a_missing_frame(rendered, tmp_path, capsys):
 
 def test_evaluate_suite_refuses_an_extra_frame(rendered, tmp_path, capsys):
     root = _copy(rendered, tmp_path)
-    render_frames("synthetic_box", out_root=root, width=64, progress=False)
+    render_scene("synthetic_box", out_root=root, width=64, progress=False)
     err = _refused(capsys, ["evaluate", str(root), "--suite", str(rendered[0]), "--split", "dev", "--out",
                             str(tmp_path / "res"), "--method", "dis-rect:average", "--quiet"])
     assert "synthetic_box/vp000: frame synthetic_box/vp000 is not in suite mini split dev" in err
