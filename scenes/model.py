@@ -26,6 +26,9 @@ from reconstruction.camera.rig import Rig, yaw_rotation
 MATERIAL_KINDS = ("paint", "wood", "tiles", "board", "fabric", "metal", "plastic", "glass", "emission", "noise")
 LIGHT_KINDS = ("area", "point", "sun")
 DIFFICULTY_TAGS = ("weak_texture", "reflective", "repetitive", "far", "thin", "cluttered")
+"""What a scene family is hard for (``SceneEntry.tags``): plain walls and ceilings, polished or glossy surfaces,
+repeated structures, distances past 15 m, thin structures (legs, railings), clutter."""
+CYLINDER_AXES = ("x", "y", "z")
 MODEL_SUFFIXES = (".blend", ".glb", ".gltf", ".obj")
 
 
@@ -91,6 +94,70 @@ class Box:
         return np.all(np.abs(local) <= half, axis=1)
 
 
+def _margins(margin) -> np.ndarray:
+    """A scalar or (3,) margin (metres, per world axis x, y, z) -> (3,) float array."""
+    return np.broadcast_to(np.asarray(margin, dtype=np.float64), (3,))
+
+
+@dataclass(frozen=True)
+class Cylinder:
+    """A closed (capped) circular cylinder.
+
+    Attributes:
+        center: (x, y, z) centre of the axis segment, metres.
+        radius: metres.
+        length: extent along the axis, metres.
+        material: key into ``SceneSpec.materials``.
+        axis: "x", "y" or "z": the object axis the cylinder runs along, before ``yaw``.
+        yaw: rotation about +Z, radians.
+        name: optional object name (shows in Blender).
+    """
+
+    center: tuple[float, float, float]
+    radius: float
+    length: float
+    material: str
+    axis: str = "z"
+    yaw: float = 0.0
+    name: str = ""
+
+    def frame(self) -> np.ndarray:
+        """(3, 3) world-from-local rotation whose third column is the cylinder's axis (unit, world)."""
+        rot = yaw_rotation(self.yaw)
+        k = CYLINDER_AXES.index(self.axis)
+        return rot[:, [(k + 1) % 3, (k + 2) % 3, k]]
+
+    def contains(self, points: np.ndarray, margin=0.0) -> np.ndarray:
+        """Boolean (N,) mask of points (N, 3) inside the cylinder grown by ``margin`` metres (a scalar, or (3,)
+        per world axis: a vertical cylinder grows by the x/y margin radially and the z margin along its axis;
+        a horizontal one by the largest margin radially and the largest horizontal one along its axis, which is
+        conservative)."""
+        m = _margins(margin)
+        if self.axis == "z":
+            m_axial, m_radial = m[2], max(m[0], m[1])
+        else:
+            m_axial, m_radial = max(m[0], m[1]), float(m.max())
+        local = (np.asarray(points, dtype=np.float64) - np.asarray(self.center)) @ self.frame()
+        radial = np.hypot(local[:, 0], local[:, 1])
+        return (np.abs(local[:, 2]) <= self.length / 2.0 + m_axial) & (radial <= self.radius + m_radial)
+
+
+@dataclass(frozen=True)
+class Sphere:
+    """A sphere: ``center`` (x, y, z) and ``radius``, metres; ``material`` a key into ``SceneSpec.materials``."""
+
+    center: tuple[float, float, float]
+    radius: float
+    material: str
+    name: str = ""
+
+    def contains(self, points: np.ndarray, margin=0.0) -> np.ndarray:
+        """Boolean (N,) mask of points (N, 3) inside the sphere grown by ``margin`` metres (a scalar, or (3,)
+        per world axis, of which the largest is used: conservative)."""
+        rel = np.asarray(points, dtype=np.float64) - np.asarray(self.center)
+        return np.einsum("ij,ij->i", rel, rel) <= (self.radius + float(_margins(margin).max())) ** 2
+
+
 @dataclass(frozen=True)
 class Light:
     """A light source.
@@ -129,6 +196,8 @@ class SceneSpec:
         params: the parameters it was built from (recorded in frame provenance).
         materials: by name.
         boxes: geometry; the room shell (``inward=True``) included.
+        cylinders: capped cylinders (round tables, legs, pipes, lamps).
+        spheres: spheres (lamps, plants, balls).
         lights: light sources.
         models: external model files (the Cycles renderer only; the ray-caster refuses them).
         bounds: ((xmin, ymin, zmin), (xmax, ymax, zmax)) of the free interior, metres; viewpoints are drawn here.
@@ -143,6 +212,8 @@ class SceneSpec:
     params: dict = field(default_factory=dict)
     materials: dict[str, Material] = field(default_factory=dict)
     boxes: list[Box] = field(default_factory=list)
+    cylinders: list[Cylinder] = field(default_factory=list)
+    spheres: list[Sphere] = field(default_factory=list)
     lights: list[Light] = field(default_factory=list)
     models: list[ModelFile] = field(default_factory=list)
     bounds: tuple[tuple[float, float, float], tuple[float, float, float]] = ((-2, -2, 0), (2, 2, 3))
@@ -155,15 +226,32 @@ class SceneSpec:
         self.materials[material.name] = material
         return material.name
 
+    def shapes(self) -> list:
+        """Every shape: boxes (the room shell included), then cylinders, then spheres (the renderers' order)."""
+        return [*self.boxes, *self.cylinders, *self.spheres]
+
+    def solids(self) -> list:
+        """Every shape that is not a room shell: boxes with ``inward=False``, cylinders and spheres."""
+        return [b for b in self.boxes if not b.inward] + [*self.cylinders, *self.spheres]
+
     def validate(self) -> None:
-        """Raise ValueError naming the culprit if a box names an unknown material, a size is not positive, a
-        light is of an unknown kind, or a model file is missing or of an unsupported format."""
-        for box in self.boxes:
-            if box.material not in self.materials:
-                raise ValueError(f"scene {self.name!r}: box {box.name or box.center} uses unknown material "
-                                 f"{box.material!r}")
-            if min(box.size) <= 0:
-                raise ValueError(f"scene {self.name!r}: box {box.name or box.center} has size {box.size}")
+        """Raise ValueError naming the culprit if a shape names an unknown material, a size is not positive or
+        finite, a cylinder axis is unknown, a light is of an unknown kind, or a model file is missing or of an
+        unsupported format."""
+        for shape in self.shapes():
+            kind = type(shape).__name__.lower()
+            label = f"{kind} {shape.name or shape.center}"
+            if shape.material not in self.materials:
+                raise ValueError(f"scene {self.name!r}: {label} uses unknown material {shape.material!r}")
+            sizes = (shape.size if isinstance(shape, Box) else
+                     (shape.radius, shape.length) if isinstance(shape, Cylinder) else (shape.radius,))
+            if not all(np.isfinite(v) and v > 0 for v in sizes):
+                raise ValueError(f"scene {self.name!r}: {label} has non-positive size {tuple(sizes)}")
+            if not np.all(np.isfinite(shape.center)):
+                raise ValueError(f"scene {self.name!r}: {label} has a non-finite centre")
+            if isinstance(shape, Cylinder) and shape.axis not in CYLINDER_AXES:
+                raise ValueError(f"scene {self.name!r}: {label} has unknown axis {shape.axis!r} "
+                                 f"(known: {', '.join(CYLINDER_AXES)})")
         for i, light in enumerate(self.lights):
             if light.kind not in LIGHT_KINDS:
                 raise ValueError(f"scene {self.name!r}: light {i} has unknown kind {light.kind!r} "
@@ -220,7 +308,7 @@ def choose_viewpoints(spec: SceneSpec, n: int, seed: int, baseline_m: float = 0.
 
     rng = np.random.default_rng(seed)
     lo, hi = np.asarray(spec.bounds[0], float), np.asarray(spec.bounds[1], float)
-    solids = [b for b in spec.boxes if not b.inward]
+    solids = spec.solids()
 
     def free(rig: Rig) -> bool:
         pts = np.array([p.position for p in rig.poses().values()])
@@ -260,6 +348,8 @@ def choose_viewpoints(spec: SceneSpec, n: int, seed: int, baseline_m: float = 0.
     return rigs[:n]
 
 
+SHARED_SOURCES = (Path(__file__), Path(__file__).with_name("families") / "_kit.py")
+"""Source files every family's ``code_version`` includes (the scene model and the shared randomisation kit)."""
 RENDERERS = ("cycles", "raycast")
 """Renderer names a scene may name as its default (``harness.render.registry`` implements them)."""
 RESERVED_PARAMETERS = ("preset", "seed")
@@ -286,6 +376,7 @@ class SceneEntry:
         renderer: the default renderer, "cycles" (Blender) or "raycast" (the numpy ray-caster, boxes only,
             no Blender needed); ``tri360 render --renderer`` picks another.
         source: where it was found (file or entry point), for error messages.
+        tags: what the family is hard for, each one of ``DIFFICULTY_TAGS``.
     """
 
     name: str
@@ -303,6 +394,12 @@ class SceneEntry:
             raise SceneError(f"scene {self.name!r}: renderer must be one of {RENDERERS}, got {self.renderer!r}")
         if self.default_preset not in self.presets:
             raise SceneError(f"scene {self.name!r}: default preset {self.default_preset!r} not in presets")
+        if isinstance(self.tags, str) or not all(isinstance(t, str) for t in self.tags):
+            raise SceneError(f"scene {self.name!r}: tags must be a tuple of strings, got {self.tags!r}")
+        unknown = sorted(set(self.tags) - set(DIFFICULTY_TAGS))
+        if unknown:
+            raise SceneError(f"scene {self.name!r}: unknown tag(s) {', '.join(unknown)} "
+                             f"(known: {', '.join(DIFFICULTY_TAGS)})")
         reserved = sorted(set(self.parameters) & set(RESERVED_PARAMETERS))
         if reserved:
             raise SceneError(f"scene {self.name!r}: parameter name(s) {reserved} are reserved")
@@ -323,7 +420,9 @@ class SceneEntry:
     @property
     def code_version(self) -> str:
         """``"sha256:<16 hex>"`` of the source file defining ``build`` (of its source code when the file
-        cannot be read; ``""`` if neither can): changes whenever the scene family's code is edited."""
+        cannot be read; ``""`` if neither can) together with the shared code every family builds with (this
+        file, ``scenes/model.py``, and the randomisation kit ``scenes/families/_kit.py``): changes whenever the
+        family's code or the shared scene code is edited."""
         try:
             data = Path(inspect.getsourcefile(self.build) or "").read_bytes()
         except (OSError, TypeError):
@@ -331,7 +430,11 @@ class SceneEntry:
                 data = inspect.getsource(self.build).encode("utf-8")
             except (OSError, TypeError):
                 return ""
-        return "sha256:" + hashlib.sha256(data).hexdigest()[:16]
+        h = hashlib.sha256(data)
+        for path in SHARED_SOURCES:
+            h.update(b"\0" + path.name.encode() + b"\0")
+            h.update(path.read_bytes() if path.is_file() else b"")
+        return "sha256:" + h.hexdigest()[:16]
 
     def spec(self, preset: str | None = None, seed: int = 0, **overrides) -> SceneSpec:
         """Build the scene for a preset (default if None), with parameter ``overrides`` (see :meth:`build_spec`)."""

@@ -1,5 +1,6 @@
 """Shared test helpers: exact synthetic frames made by the numpy ray-caster (no Blender); children that a test
-sends Ctrl-C; Dask clusters started outside tri360 (only for tests marked ``cluster``)."""
+sends Ctrl-C; Dask clusters started outside tri360 (only for tests marked ``cluster``); the ground-truth
+consistency check of a rendered frame across its cameras."""
 
 from __future__ import annotations
 
@@ -13,11 +14,14 @@ import time
 from dataclasses import fields
 from pathlib import Path
 
+import cv2
+import numpy as np
 from distributed import Client
 
 from harness.jobs.render import render_frames
 from harness.render.base import RenderSettings
 from harness.render.raycast import render_frame
+from reconstruction.camera.equirect import bearing_grid, project
 from scenes.model import choose_viewpoints
 from scenes.registry import get_scene
 
@@ -140,3 +144,32 @@ def render_scene(scene: str, **kw):
     setting and a job argument the same way (``{**opts, **change}``)."""
     settings = RenderSettings(**{k: kw.pop(k) for k in list(kw) if k in SETTING_NAMES})
     return render_frames(settings, scene, **kw)
+
+
+def sample_equirect(img: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Bilinear sample of an equirect image (H, W[, C]) at continuous pixel coordinates u, v (pixel centres at
+    integers, as ``reconstruction.camera.equirect``), wrapping around in longitude."""
+    big = np.concatenate([img[:, -1:], img, img[:, :1]], axis=1).astype(np.float32)
+    return cv2.remap(big, (u + 1).astype(np.float32), v.astype(np.float32), cv2.INTER_LINEAR,
+                     borderMode=cv2.BORDER_REPLICATE)
+
+
+def cross_camera_consistency(frame, k: str, rel_tol: float = 0.02):
+    """Ground-truth consistency of camera ``k`` (U or R) with C: project C's ground-truth points into ``k``.
+
+    Returns ``(agree, occluded, grey_diff)``, each (H, W) over C's pixels: ``agree`` where ``k``'s own distance
+    at the projection matches the point's distance from ``k`` within ``rel_tol`` (relative); ``occluded`` where a
+    nearer surface within a pixel hides the point from ``k`` (0.4 m parallax around furniture), so it cannot
+    agree; ``grey_diff`` the |grey level difference| (0-255) between C's pixel and ``k`` at the projection.
+    """
+    W, H = frame.width, frame.height
+    c, pk = frame.cameras["C"], frame.cameras[k]
+    X = c.position + frame.distance["C"][..., None] * bearing_grid(W, H, c.rotation)
+    u, v = project(X, pk.position, pk.rotation, W, H)
+    expected = np.linalg.norm(X - pk.position, axis=-1)
+    agree = np.abs(sample_equirect(frame.distance[k], u, v) - expected) < rel_tol * expected
+    nearest3x3 = cv2.erode(frame.distance[k].astype(np.float32), np.ones((3, 3), np.uint8),
+                           borderType=cv2.BORDER_REPLICATE)
+    occluded = sample_equirect(nearest3x3, u, v) < (1.0 - rel_tol) * expected
+    grey = {n: cv2.cvtColor(frame.images[n], cv2.COLOR_RGB2GRAY).astype(np.float32) for n in ("C", k)}
+    return agree, occluded, np.abs(sample_equirect(grey[k], u, v) - grey["C"])

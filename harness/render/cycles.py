@@ -38,7 +38,7 @@ import numpy as np
 from harness.data.exr import distance_map, float_channel, read_exr_channels
 from harness.render.base import RenderSettings, srgb_encode
 from reconstruction.camera.rig import CAMERA_NAMES, CameraPose
-from scenes.model import Box, Light, Material, ModelFile, SceneSpec
+from scenes.model import CYLINDER_AXES, Box, Cylinder, Light, Material, ModelFile, SceneSpec, Sphere
 
 DEPTH_CHANNEL = "ViewLayer.Depth.Z"
 COMBINED_LAYER = "ViewLayer.Combined"
@@ -202,6 +202,79 @@ def _build_box(box: Box, index: int, materials: dict, collection) -> None:
     collection.objects.link(ob)
 
 
+TESSELLATION_TOL_M = 2.5e-4
+"""Largest distance between a round shape's mesh and the analytic surface, metres.  The Depth pass is the
+distance to the mesh, so this bounds how far Cycles' ground truth is from the analytic shape (and from the
+ray-caster): vertices sit slightly outside the surface so the mesh straddles it (out at the vertices, in at
+the middle of each face), the segment count grows with the square root of the radius."""
+MIN_SEGMENTS, MAX_SEGMENTS = 16, 512
+
+
+def round_segments(radius: float, kind: str) -> int:
+    """Segments around a cylinder (``kind="cylinder"``) or a UV sphere (``"sphere"``, even) of ``radius`` m so that
+    the straddling mesh deviates from the surface by at most ``TESSELLATION_TOL_M``.
+
+    A straddling polygon of N sides deviates by about r (pi/N)^2 / 4; a UV sphere's quad by about r (pi/N)^2 / 2.
+    """
+    k = 4.0 if kind == "cylinder" else 2.0
+    n = int(np.ceil(np.pi * np.sqrt(radius / (k * TESSELLATION_TOL_M))))
+    n = int(np.clip(n, MIN_SEGMENTS, MAX_SEGMENTS))
+    return n + (n % 2) if kind == "sphere" else n
+
+
+def cylinder_mesh(cyl: Cylinder) -> tuple[np.ndarray, list]:
+    """Vertices (2N, 3) in the cylinder's yaw frame (metres, centred) and faces (N side quads, 2 caps, outward)."""
+    n = round_segments(cyl.radius, "cylinder")
+    rv = 2.0 * cyl.radius / (1.0 + np.cos(np.pi / n))  # vertex radius: the polygon straddles the circle
+    a = 2.0 * np.pi * np.arange(n) / n
+    u, v = rv * np.cos(a), rv * np.sin(a)
+    h = cyl.length / 2.0
+    uvw = np.concatenate([np.column_stack([u, v, np.full(n, -h)]), np.column_stack([u, v, np.full(n, h)])])
+    k = CYLINDER_AXES.index(cyl.axis)
+    verts = np.empty_like(uvw)
+    verts[:, (k + 1) % 3], verts[:, (k + 2) % 3], verts[:, k] = uvw[:, 0], uvw[:, 1], uvw[:, 2]
+    faces = [(i, (i + 1) % n, n + (i + 1) % n, n + i) for i in range(n)]
+    faces += [tuple(range(n - 1, -1, -1)), tuple(range(n, 2 * n))]
+    return verts, faces
+
+
+def sphere_mesh(sph: Sphere) -> tuple[np.ndarray, list]:
+    """UV-sphere vertices (centred, metres) and faces (outward), straddling the sphere (see ``round_segments``)."""
+    n = round_segments(sph.radius, "sphere")
+    m = n // 2
+    c = np.cos(np.pi / n)
+    rv = 2.0 * sph.radius / (1.0 + c * c)
+    polar = np.pi * np.arange(1, m) / m
+    az = 2.0 * np.pi * np.arange(n) / n
+    ring = np.stack([np.outer(np.sin(polar), np.cos(az)), np.outer(np.sin(polar), np.sin(az)),
+                     np.outer(np.cos(polar), np.ones(n))], axis=-1).reshape(-1, 3)
+    verts = rv * np.concatenate([[(0.0, 0.0, 1.0)], ring, [(0.0, 0.0, -1.0)]])
+    top, bottom = 0, 1 + (m - 1) * n
+
+    def idx(j, i):  # ring j (0 = nearest the top), azimuth i
+        return 1 + j * n + i % n
+
+    faces = [(top, idx(0, i), idx(0, i + 1)) for i in range(n)]
+    faces += [(idx(j, i), idx(j + 1, i), idx(j + 1, i + 1), idx(j, i + 1)) for j in range(m - 2) for i in range(n)]
+    faces += [(bottom, idx(m - 2, i + 1), idx(m - 2, i)) for i in range(n)]
+    return verts, faces
+
+
+def _build_round(shape, index: int, materials: dict, collection) -> None:
+    verts, faces = cylinder_mesh(shape) if isinstance(shape, Cylinder) else sphere_mesh(shape)
+    name = shape.name or f"{type(shape).__name__.lower()}{index:04d}"
+    me = bpy.data.meshes.new(name)
+    me.from_pydata(verts.tolist(), [], faces)
+    smooth = [len(f) <= 4 for f in faces]  # shaded round; a cylinder's caps (n-gons) stay flat
+    me.polygons.foreach_set("use_smooth", smooth)
+    me.update()
+    me.materials.append(materials[shape.material])
+    ob = bpy.data.objects.new(name, me)
+    ob.location = shape.center
+    ob.rotation_euler = (0.0, 0.0, float(getattr(shape, "yaw", 0.0)))
+    collection.objects.link(ob)
+
+
 def _build_light(light: Light, index: int, collection) -> None:
     kind = {"area": "AREA", "point": "POINT", "sun": "SUN"}.get(light.kind)
     if kind is None:
@@ -295,6 +368,8 @@ class SceneRenderer:
         mats = {name: _build_material(m) for name, m in spec.materials.items()}
         for i, box in enumerate(spec.boxes):
             _build_box(box, i, mats, coll)
+        for i, shape in enumerate([*spec.cylinders, *spec.spheres]):
+            _build_round(shape, i, mats, coll)
         for i, light in enumerate(spec.lights):
             _build_light(light, i, coll)
         for model in spec.models:
@@ -410,4 +485,5 @@ class SceneRenderer:
         return srgb_encode(rgb), distance
 
 
-__all__ = ["RenderSettings", "SceneRenderer", "blender_camera_matrix", "DEPTH_CHANNEL"]
+__all__ = ["RenderSettings", "SceneRenderer", "blender_camera_matrix", "DEPTH_CHANNEL", "TESSELLATION_TOL_M",
+           "round_segments", "cylinder_mesh", "sphere_mesh"]

@@ -1,7 +1,8 @@
-"""Exact synthetic frames without Blender: a vectorised numpy ray-caster for box scenes.
+"""Exact synthetic frames without Blender: a vectorised numpy ray-caster for box, cylinder and sphere scenes.
 
-A :class:`scenes.model.SceneSpec` made of boxes (each oriented by a yaw about +Z) is intersected
-analytically, so the distance maps are exact up to float64 rounding (then stored as float32, like Cycles).
+A :class:`scenes.model.SceneSpec` made of boxes (each oriented by a yaw about +Z), capped cylinders and spheres
+is intersected analytically, so the distance maps are exact up to float64 rounding (then stored as float32,
+like Cycles).
 The room shell (``Box.inward=True``) is an ordinary closed box whose faces are seen from inside; solid
 boxes occlude.  The first surface along a ray wins, whichever side of it the ray comes from.
 
@@ -32,7 +33,7 @@ from harness.data.frame import Frame
 from harness.render.base import BaseRenderer, RenderSettings, srgb_encode
 from reconstruction.camera.equirect import bearing_grid, pixel_to_bearing
 from reconstruction.camera.rig import CameraPose, Rig, yaw_rotation
-from scenes.model import Box, Material, SceneSpec
+from scenes.model import Box, Cylinder, Material, SceneSpec, Sphere
 
 __all__ = ["ENGINE", "AMBIENT", "RaycastRenderer", "raycast", "shade", "render_camera", "render_frame",
            "value_noise", "fbm", "TEXTURES"]
@@ -123,20 +124,98 @@ def _safe_inv(v: np.ndarray) -> np.ndarray:
     return 1.0 / np.where(v == 0.0, 1e-300, v)
 
 
+def _first_root(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Both roots of ``a t^2 + 2 b t + c = 0`` (N,) each, (+inf, +inf) where there is none (or a == 0)."""
+    disc = b * b - a * c
+    ok = (disc >= 0.0) & (a > 0.0)
+    sq = np.sqrt(np.where(ok, disc, 0.0))
+    a_safe = np.where(ok, a, 1.0)
+    t1 = np.where(ok, (-b - sq) / a_safe, np.inf)
+    t2 = np.where(ok, (-b + sq) / a_safe, np.inf)
+    return t1, t2
+
+
+def _nearest(*candidates: np.ndarray) -> np.ndarray:
+    """Element-wise smallest candidate parameter above ``_T_EPS`` (+inf if none): (N,)."""
+    best = np.full(candidates[0].shape, np.inf)
+    for t in candidates:
+        good = (t > _T_EPS) & (t < best)
+        best[good] = t[good]
+    return best
+
+
+def _sphere_t(sph: Sphere, o: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """First hit parameter (N,) of rays o + t d (o (3,) or (N, 3), d (N, 3)) with a sphere (either side)."""
+    oc = o - np.asarray(sph.center, np.float64)
+    a = np.einsum("ij,ij->i", d, d)
+    b = (d @ oc) if oc.ndim == 1 else np.einsum("ij,ij->i", d, oc)
+    c = (np.dot(oc, oc) if oc.ndim == 1 else np.einsum("ij,ij->i", oc, oc)) - sph.radius ** 2
+    return _nearest(*_first_root(a, b, np.broadcast_to(c, a.shape)))
+
+
+def _cylinder_t(cyl: Cylinder, o: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """First hit parameter (N,) of rays with a capped cylinder (its side or either cap, from either side)."""
+    frame = cyl.frame()
+    lo = (o - np.asarray(cyl.center, np.float64)) @ frame  # local: axis = third coordinate
+    ld = d @ frame
+    lo = np.broadcast_to(lo, ld.shape)
+    half, r2 = cyl.length / 2.0, cyl.radius ** 2
+    a = ld[:, 0] ** 2 + ld[:, 1] ** 2
+    b = lo[:, 0] * ld[:, 0] + lo[:, 1] * ld[:, 1]
+    c = lo[:, 0] ** 2 + lo[:, 1] ** 2 - r2
+    out = []
+    for t in _first_root(a, b, c):
+        z = lo[:, 2] + np.where(np.isfinite(t), t, 0.0) * ld[:, 2]
+        out.append(np.where(np.abs(z) <= half, t, np.inf))
+    inv = _safe_inv(ld[:, 2])
+    with np.errstate(over="ignore", invalid="ignore"):  # rays parallel to the caps: huge t, never a hit
+        for zc in (-half, half):
+            t = (zc - lo[:, 2]) * inv
+            x, y = lo[:, 0] + t * ld[:, 0], lo[:, 1] + t * ld[:, 1]
+            out.append(np.where((x * x + y * y <= r2) & np.isfinite(t), t, np.inf))
+    return _nearest(*out)
+
+
+def _round_face(shape, points: np.ndarray) -> np.ndarray:
+    """Face index (N,) int8 of points on a cylinder (0 side, 1 the -axis cap, 2 the +axis cap) or sphere (0)."""
+    if isinstance(shape, Sphere):
+        return np.zeros(len(points), np.int8)
+    local = (points - np.asarray(shape.center)) @ shape.frame()
+    on_cap = np.abs(local[:, 2]) / (shape.length / 2.0) > np.hypot(local[:, 0], local[:, 1]) / shape.radius
+    return np.where(on_cap, np.where(local[:, 2] > 0, 2, 1), 0).astype(np.int8)
+
+
+def _round_normals(shape, points: np.ndarray, face: np.ndarray) -> np.ndarray:
+    """Outward unit world normals (N, 3) at points on a cylinder or sphere (faces from :func:`_round_face`)."""
+    rel = points - np.asarray(shape.center)
+    if isinstance(shape, Sphere):
+        return rel / np.maximum(np.linalg.norm(rel, axis=1, keepdims=True), 1e-12)
+    frame = shape.frame()
+    local = rel @ frame
+    n = np.zeros_like(local)
+    side = face == 0
+    rad = np.maximum(np.hypot(local[side, 0], local[side, 1]), 1e-12)
+    n[side, 0], n[side, 1] = local[side, 0] / rad, local[side, 1] / rad
+    n[~side, 2] = np.where(face[~side] == 2, 1.0, -1.0)
+    return n @ frame.T
+
+
 def raycast(spec: SceneSpec, origins, directions, chunk: int = CHUNK_RAYS):
-    """Intersect rays with every box of ``spec`` and return the first hit.
+    """Intersect rays with every shape of ``spec`` and return the first hit.
 
     Args:
-        spec: the scene (only ``spec.boxes`` is used).
+        spec: the scene (its boxes, cylinders and spheres: ``spec.shapes()``).
         origins: (3,) (one origin for all rays, the fast path) or (N, 3) ray origins, world metres.
         directions: (N, 3) ray directions, world; need not be unit.
         chunk: rays processed at once.
     Returns:
         ``(t, box_index, face_index, points)``:
         ``t`` (N,) float64 ray parameter of the first hit (the distance in metres when the directions are
-        unit; +inf where nothing is hit); ``box_index`` (N,) int32 index into ``spec.boxes`` (-1: no hit);
-        ``face_index`` (N,) int8 ``2 * axis + side`` in the box's local frame (axis 0 = x, 1 = y, 2 = z;
-        side 1 = the + face), -1 for no hit; ``points`` (N, 3) float64 world hit points (NaN for no hit).
+        unit; +inf where nothing is hit); ``box_index`` (N,) int32 index into ``spec.shapes()`` (boxes first,
+        so for a box scene an index into ``spec.boxes``; -1: no hit); ``face_index`` (N,) int8: for a box
+        ``2 * axis + side`` in the box's local frame (axis 0 = x, 1 = y, 2 = z; side 1 = the + face), for a
+        cylinder 0 (side), 1 (cap at -axis), 2 (cap at +axis), for a sphere 0; -1 for no hit; ``points``
+        (N, 3) float64 world hit points (NaN for no hit).
     """
     d = np.asarray(directions, dtype=np.float64).reshape(-1, 3)
     o = np.asarray(origins, dtype=np.float64)
@@ -145,6 +224,7 @@ def raycast(spec: SceneSpec, origins, directions, chunk: int = CHUNK_RAYS):
         o = np.broadcast_to(o.reshape(-1, 3), d.shape)
     n = len(d)
     geoms = [_BoxGeom.of(b) for b in spec.boxes]
+    round_shapes = [*spec.cylinders, *spec.spheres]
     t_all = np.full(n, np.inf)
     box_all = np.full(n, -1, dtype=np.int32)
     face_all = np.full(n, -1, dtype=np.int8)
@@ -171,13 +251,22 @@ def raycast(spec: SceneSpec, origins, directions, chunk: int = CHUNK_RAYS):
             closer = t < t_best
             t_best[closer] = t[closer]
             box_best[closer] = k
+        for k, shape in enumerate(round_shapes, start=len(geoms)):
+            t = (_sphere_t if isinstance(shape, Sphere) else _cylinder_t)(shape, oc, dc)
+            closer = t < t_best
+            t_best[closer] = t[closer]
+            box_best[closer] = k
     points = np.full((n, 3), np.nan)
     hit = box_all >= 0
     points[hit] = (o if single else o[hit]) + t_all[hit, None] * d[hit]
-    for k, g in enumerate(geoms):  # the face of the winning box, from the hit point
+    for k, g in enumerate(geoms):  # the face of the winning shape, from the hit point
         sel = np.flatnonzero(box_all == k)
         if len(sel):
             face_all[sel] = _face_of(g, points[sel])
+    for k, shape in enumerate(round_shapes, start=len(geoms)):
+        sel = np.flatnonzero(box_all == k)
+        if len(sel):
+            face_all[sel] = _round_face(shape, points[sel])
     return t_all, box_all, face_all, points
 
 
@@ -414,7 +503,8 @@ def shade(spec: SceneSpec, points: np.ndarray, box_index: np.ndarray, face_index
     """View-independent linear RGB radiance at ray hits.
 
     Args:
-        points: (N, 3) world hit points, metres; box_index, face_index: (N,) from :func:`raycast`.
+        points: (N, 3) world hit points, metres; box_index, face_index: (N,) from :func:`raycast` (indices into
+            ``spec.shapes()``).
     Returns:
         (N, 3) float32 linear RGB (``spec.background`` where nothing is hit).  Depends only on the hit point
         and its face, never on the ray, so every camera sees the same colour at the same surface point.
@@ -437,6 +527,19 @@ def shade(spec: SceneSpec, points: np.ndarray, box_index: np.ndarray, face_index
         n_local = np.zeros((len(sel), 3))
         n_local[np.arange(len(sel)), axis] = np.where(side == 1, 1.0, -1.0) * g.normal_sign
         out[sel] = a * _irradiance(spec, p, g.to_world(n_local))
+    for k, shape in enumerate([*spec.cylinders, *spec.spheres], start=len(spec.boxes)):
+        sel = np.flatnonzero(box_index == k)
+        if not len(sel):
+            continue
+        p = points[sel]
+        normals = _round_normals(shape, p, face_index[sel])
+        rot = yaw_rotation(getattr(shape, "yaw", 0.0))
+        q = (p - np.asarray(shape.center)) @ rot + np.asarray(shape.center)  # the shape's own (yaw) axes
+        axis = np.argmax(np.abs(normals @ rot), axis=1)
+        mat = spec.materials[shape.material]
+        a = albedo(mat, SurfacePoints(q=q, face_axis=axis))
+        out[sel] = (a * np.float32(max(mat.emission, 1.0)) if mat.kind == "emission"
+                    else a * _irradiance(spec, p, normals))
     return out
 
 
@@ -496,13 +599,15 @@ def _bearings(w: int, h: int, rot: np.ndarray, r0: int, r1: int, sub: np.ndarray
 
 
 class RaycastRenderer(BaseRenderer):
-    """The numpy ray-caster as a :class:`harness.render.base.BaseRenderer` (boxes only, exact distance).
+    """The numpy ray-caster as a :class:`harness.render.base.BaseRenderer` (boxes, cylinders, spheres; exact
+    distance).
 
     Uses ``settings.width`` and ``settings.supersample``; the Cycles settings do not apply.
     """
 
     name = "raycast"
-    description = "numpy ray-caster: boxes only, exact distance, simple view-independent shading, no Blender"
+    description = ("numpy ray-caster: boxes, cylinders, spheres; exact distance, simple view-independent shading, "
+                   "no Blender")
     pixel_settings = ("width", "supersample")
 
     @classmethod
@@ -510,8 +615,8 @@ class RaycastRenderer(BaseRenderer):
         if spec.models:
             names = ", ".join(str(m.path) for m in spec.models)
             return (f"it places {len(spec.models)} external model file(s) ({names}) and the ray-caster draws "
-                    "boxes only (use --renderer cycles)")
-        used = {b.material for b in spec.boxes}
+                    "boxes only, plus cylinders and spheres (use --renderer cycles)")
+        used = {s.material for s in spec.shapes()}
         glass = sorted(n for n, m in spec.materials.items() if m.kind == "glass" and n in used)
         if glass:
             return (f"material(s) {', '.join(glass)} are transparent glass, which the ray-caster cannot draw "
@@ -525,7 +630,8 @@ class RaycastRenderer(BaseRenderer):
     def engine(self) -> dict:
         return {"engine": ENGINE, "ambient": AMBIENT,
                 "shading": "Lambertian irradiance from every light (no shadows) + ambient; emission self-lit",
-                "distance": "analytic ray-box intersection through the pixel centre (float64, stored float32)"}
+                "distance": ("analytic ray-box/cylinder/sphere intersection through the pixel centre (float64, "
+                             "stored float32)")}
 
 
 def render_frame(spec: SceneSpec, rig: Rig, width: int, scene_name: str, viewpoint: str,
@@ -544,7 +650,7 @@ def render_frame(spec: SceneSpec, rig: Rig, width: int, scene_name: str, viewpoi
         A frame with images (H, W, 3) uint8 sRGB, distance (H, W) float32 metres (+inf: no hit), poses,
         and ``renderer`` provenance (:func:`harness.render.base.provenance`).
     Raises:
-        UserError: the spec places model files or glass (boxes only here).
+        UserError: the spec places model files or glass (scene-model shapes only here).
         ValueError: the spec or the settings are invalid.
     """
     with RaycastRenderer(spec, RenderSettings(width=int(width), supersample=int(supersample))) as renderer:

@@ -22,6 +22,7 @@ from harness.render.raycast import (
     AMBIENT,
     ENGINE,
     TEXTURES,
+    RaycastRenderer,
     SurfacePoints,
     albedo,
     fbm,
@@ -32,7 +33,7 @@ from harness.render.raycast import (
 )
 from reconstruction.camera.equirect import bearing_grid, pixel_to_bearing, project
 from reconstruction.camera.rig import CAMERA_NAMES, Rig, yaw_rotation
-from scenes.model import Box, Light, Material, SceneSpec, choose_viewpoints
+from scenes.model import Box, Cylinder, Light, Material, SceneSpec, Sphere, choose_viewpoints
 from scenes.registry import get_scene
 
 F32_ULP = 2.0 ** -23
@@ -350,3 +351,57 @@ def test_synthetic_box_presets_build_and_have_free_viewpoints(preset):
     other = entry.spec(preset, seed=1)
     assert [b.center for b in other.boxes] != [b.center for b in spec.boxes]
     assert [b.center for b in entry.spec(preset, seed=0).boxes] == [b.center for b in spec.boxes]
+
+
+# ------------------------------------------------------------------------------------ cylinders and spheres
+
+
+def _round_spec() -> SceneSpec:
+    spec = room_spec()
+    spec.cylinders.append(Cylinder((1.5, 1.0, 0.5), radius=0.4, length=1.0, material="solid", name="table"))
+    spec.cylinders.append(Cylinder((-1.0, 1.5, 2.0), radius=0.1, length=2.0, material="solid", axis="x", yaw=0.7))
+    spec.spheres.append(Sphere((-1.5, -1.0, 1.0), radius=0.5, material="solid", name="ball"))
+    return spec
+
+
+def test_round_shapes_exact_hits_on_known_rays():
+    spec = _round_spec()
+    o = np.array([0.0, 1.0, 0.5])
+    # straight at the table's side; straight down onto its top; at the ball's centre
+    t, idx, face, pts = raycast(spec, o, np.array([[1.0, 0.0, 0.0]]))
+    assert idx[0] == 1 and face[0] == 0 and abs(t[0] - 1.1) < 1e-12
+    t, idx, face, _ = raycast(spec, np.array([1.6, 1.1, 2.5]), np.array([[0.0, 0.0, -1.0]]))
+    assert idx[0] == 1 and face[0] == 2 and abs(t[0] - 1.5) < 1e-12
+    d = np.array([-1.5, -1.0, 1.0]) - o
+    t, idx, face, _ = raycast(spec, o, (d / np.linalg.norm(d))[None])
+    assert idx[0] == 3 and face[0] == 0 and abs(t[0] - (np.linalg.norm(d) - 0.5)) < 1e-12
+
+
+def test_round_shape_hits_lie_on_the_surface_with_nothing_in_front():
+    spec = _round_spec()
+    o = np.array([0.1, -0.2, 1.3])
+    dirs = bearing_grid(96, 48, yaw_rotation(0.3)).reshape(-1, 3)
+    t, idx, face, pts = raycast(spec, o, dirs)
+    assert np.isfinite(t).all()
+    cyl, pipe, ball = spec.cylinders[0], spec.cylinders[1], spec.spheres[0]
+    assert {1, 2, 3} <= set(idx.tolist())
+    for k, shape in ((1, cyl), (2, pipe)):
+        local = (pts[idx == k] - shape.center) @ shape.frame()
+        radial, axial = np.hypot(local[:, 0], local[:, 1]), np.abs(local[:, 2])
+        on_side = np.abs(radial - shape.radius) < 1e-12
+        on_cap = (np.abs(axial - shape.length / 2) < 1e-12) & (radial <= shape.radius + 1e-12)
+        assert np.all(on_side | on_cap) and np.array_equal(on_side & ~on_cap, face[idx == k] == 0)
+    assert np.allclose(np.linalg.norm(pts[idx == 3] - ball.center, axis=1), ball.radius, atol=1e-12)
+    # march along every ray up to 1 mm before its hit: never inside a round shape
+    for s in np.linspace(0.02, 0.999, 40):
+        p = o + (s * t - 1e-3 * (s == 0.999))[:, None] * dirs
+        assert not any(shape.contains(p).any() for shape in (cyl, pipe, ball))
+
+
+def test_round_shapes_are_shaded_and_glass_on_them_is_refused():
+    spec = _round_spec()
+    image, distance = render_camera(spec, (0.0, 0.0, 1.3), np.eye(3), 64)
+    assert np.isfinite(distance).all() and image.mean() > 5
+    spec.add_material(Material("pane", kind="glass"))
+    spec.spheres.append(Sphere((0.0, -1.5, 1.0), 0.2, "pane"))
+    assert "pane" in RaycastRenderer.unsupported(spec)

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 import scenes.families
+import scenes.model
 from scenes.families import classroom
 from scenes.families.box_room import box_interior_distance
 from scenes.model import Box, Light, Material, ModelFile, SceneSpec, choose_viewpoints
@@ -35,7 +36,7 @@ def test_scene_builds_and_has_free_viewpoints(name, preset):
     assert spec.params["preset"] == preset and spec.params["seed"] == 0
     rigs = choose_viewpoints(spec, 3, seed=1)
     assert len(rigs) == 3
-    solids = [b for b in spec.boxes if not b.inward]
+    solids = spec.solids()
     lo, hi = np.asarray(spec.bounds[0]), np.asarray(spec.bounds[1])
     for rig in rigs:
         pts = np.array([p.position for p in rig.poses().values()])
@@ -113,9 +114,15 @@ def test_scene_file_that_fails_to_import_is_reported(monkeypatch, tmp_path):
         get_scene("nope")
 
 
-def test_code_version_hashes_the_family_source_file(tmp_path, monkeypatch):
-    data = Path(classroom.__file__).read_bytes()
-    assert ENTRIES["classroom"].code_version == "sha256:" + hashlib.sha256(data).hexdigest()[:16]
+def test_code_version_hashes_the_family_source_file_and_the_shared_scene_code(tmp_path, monkeypatch):
+    h = hashlib.sha256(Path(classroom.__file__).read_bytes())
+    for path in (Path(scenes.model.__file__), Path(scenes.families.__file__).with_name("_kit.py")):
+        h.update(b"\0" + path.name.encode() + b"\0" + path.read_bytes())
+    assert ENTRIES["classroom"].code_version == "sha256:" + h.hexdigest()[:16]
+    # an edited kit or model changes every family's version
+    monkeypatch.setattr(scenes.model, "SHARED_SOURCES", (*scenes.model.SHARED_SOURCES, Path(classroom.__file__)))
+    assert ENTRIES["classroom"].code_version != "sha256:" + h.hexdigest()[:16]
+    monkeypatch.undo()
     assert ENTRIES["classroom"].spec("small", 0).code_version == ENTRIES["classroom"].code_version
     # an edited family file gets another version
     mod = tmp_path / "tri360_tmp_family.py"
