@@ -226,7 +226,7 @@ def test_cli_unwritable_output_and_failing_scene(tmp_path, capsys, monkeypatch):
     blocker.write_text("x")
     assert main(["render", "--scene", "box_room", "--out", str(blocker / "sub"), "--quiet"]) == 2
     err = capsys.readouterr().err.strip()
-    assert len(err.splitlines()) == 1 and "not writable" in err
+    assert len(err.splitlines()) == 1 and "exists and is not a directory" in err
 
     def broken(params, seed):
         raise ZeroDivisionError("bad layout")
