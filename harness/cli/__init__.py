@@ -12,13 +12,13 @@ import argparse
 import sys
 
 from harness import __version__
-from harness.cli import evaluate, reconstruct, render, report, score, study
+from harness.cli import evaluate, import_, perturb, reconstruct, render, report, score, study
 from harness.cli import scenes as scenes_cmd
 from harness.data.errors import UserError
 from scenes.registry import SceneError
 
 COMMANDS = {"render": render, "scenes": scenes_cmd, "reconstruct": reconstruct, "evaluate": evaluate,
-            "score": score, "report": report, "study": study}
+            "score": score, "report": report, "study": study, "perturb": perturb, "import": import_}
 EXIT_USAGE = 2
 EXIT_INTERRUPTED = 130
 
