@@ -67,13 +67,14 @@ def perturb_frame(frame: Frame, applies: list[tuple[str, float | int]], seed: in
 
     Args:
         frame: the source frame.
-        applies: ``(kind, level)`` pairs as :func:`parse_applies` returns them.
+        applies: ``(kind, level)`` pairs (:func:`parse_applies`), applied in :data:`perturbations.ORDER`.
         seed: the random seed (each kind and camera has its own stream, :func:`perturbations.generator`).
         source: what the record says of the source (``path``, ``sha256``).
     Raises:
         FrameError: the told rig would be impossible (e.g. a translation so large that ``|U - C|`` and ``|R - C|``
             no longer agree on one baseline).
     """
+    applies = sorted(applies, key=lambda a: P.ORDER.index(a[0]))  # the fixed physical order, whatever the caller's
     cameras = dict(frame.cameras)
     images = {n: frame.images[n].copy() for n in CAMERA_NAMES}
     baseline = frame.baseline_m

@@ -4,6 +4,7 @@ Writes under ``out`` (each file atomically)::
 
     <out>/<scene>/<viewpoint>/distance.exr     camera C's distance, metres
     <out>/<scene>/<viewpoint>/confidence.exr   if the method gives a confidence
+    <out>/<scene>/<viewpoint>/cloud.ply        camera C's points coloured by C's image (binary PLY)
     <out>/<scene>/<viewpoint>/quality.exr      ground-truth-free quality maps (reconstruction.quality.assess)
     <out>/<scene>/<viewpoint>/reconstruction.json   seconds, method details, quality, metrics when the frame has GT
     <out>/method.json                          the method's name and full configuration
@@ -38,6 +39,7 @@ from harness.data.provenance import software
 from reconstruction.methods.base import Method, MethodOutput, run_methods
 from reconstruction.quality import assess
 from reports.metrics import summary
+from reports.pointcloud import point_grid, write_ply
 
 __all__ = ["run_with_progress", "reconstruct_to", "check_one_method"]
 
@@ -126,6 +128,10 @@ def reconstruct_to(frame_dir: Path, out: Path, method: Method, progress: bool = 
     write_method_info(out, method_info)
     write_prediction(out, frame.scene, frame.viewpoint, output.distance, output.confidence)
     write_exr_channels(prediction_dir(out, frame.scene, frame.viewpoint) / "quality.exr", quality_maps)
+    c = frame.cameras["C"]
+    info["cloud_points"] = write_ply(prediction_dir(out, frame.scene, frame.viewpoint) / "cloud.ply",
+                                     point_grid(output.distance, c.position, c.rotation), frame.images["C"],
+                                     comment=f"tri360 {method.label} {frame.scene}/{frame.viewpoint} camera C")
     atomic_write_text(prediction_dir(out, frame.scene, frame.viewpoint) / "reconstruction.json",
                       jsonio.dumps(info, indent=2))
     mark_output(out, "predictions")
