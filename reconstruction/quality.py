@@ -97,7 +97,7 @@ def _residuals(frame, distance, cameras=None, window: int = WINDOW) -> dict[str,
     out = {}
     for k in ("U", "R"):
         wk = warped_grey(pts, grey(frame.images[k]), cams[k].position, cams[k].rotation)
-        out[k] = _box(_matched_abs_diff(gc, wk, valid), valid, window)
+        out[k] = np.where(valid, _box(_matched_abs_diff(gc, wk, valid), valid, window), np.nan).astype(np.float32)
     return out
 
 
