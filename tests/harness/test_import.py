@@ -68,3 +68,13 @@ def test_bad_inputs_are_one_line_exit_2(jpegs, tmp_path, capsys):
         err = capsys.readouterr().err.strip()
         assert len(err.splitlines()) == 1 and culprit in err, err
     assert not (tmp_path / "d" / "s" / "v").exists()
+
+
+def test_evaluate_says_no_ground_truth_in_one_line(jpegs, tmp_path, capsys):
+    out = tmp_path / "real" / "hall" / "pos1"
+    assert main(["import", *jpegs, "--rig", str(RIG), "--out", str(out)]) == 0
+    capsys.readouterr()
+    assert main(["evaluate", str(tmp_path / "real"), "--out", str(tmp_path / "res"), "--quiet"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "no ground-truth" in err and "reconstruct" in err
+    assert not (tmp_path / "res").exists()
