@@ -18,7 +18,7 @@ import hashlib
 from pathlib import Path
 
 from harness.data.errors import FrameError, UserError
-from harness.data.frame import Frame, find_frames, read_frame, write_frame
+from harness.data.frame import Frame, find_frames, read_frame, validate_metadata, write_frame
 from harness.data.names import check_name
 from harness.data.outputs import check_output, mark_output
 from harness.data.provenance import software
@@ -70,9 +70,9 @@ def perturb_frame(frame: Frame, applies: list[tuple[str, float | int]], seed: in
         applies: ``(kind, level)`` pairs (:func:`parse_applies`), applied in :data:`perturbations.ORDER`.
         seed: the random seed (each kind and camera has its own stream, :func:`perturbations.generator`).
         source: what the record says of the source (``path``, ``sha256``).
-    Raises:
-        FrameError: the told rig would be impossible (e.g. a translation so large that ``|U - C|`` and ``|R - C|``
-            no longer agree on one baseline).
+
+    The result is not validated: a large translation can make ``|U - C|`` and ``|R - C|`` disagree on one baseline
+    (:func:`perturb_root` checks every derived frame before writing any).
     """
     applies = sorted(applies, key=lambda a: P.ORDER.index(a[0]))  # the fixed physical order, whatever the caller's
     cameras = dict(frame.cameras)
@@ -142,10 +142,13 @@ def perturb_root(data: Path, out: Path, applies: list[tuple[str, float | int]], 
     derived = []
     for d, frame in frames:
         source = {"path": str(d.resolve()), "sha256": frame_hash(d)}
-        try:
-            derived.append(perturb_frame(frame, applies, seed, source))
+        new = perturb_frame(frame, applies, seed, source)
+        try:  # every derived frame checked before the first is written
+            validate_metadata(new.metadata(), out / new.scene / new.viewpoint / "frame.json")
         except FrameError as exc:
-            raise UserError(f"{d}: the perturbed frame would be invalid: {exc}") from None
+            told = ", ".join(f"{k}={v}" for k, v in applies if k in ("rotation", "translation"))
+            raise UserError(f"--apply {told}: the told rig of {d} would be impossible ({exc})") from None
+        derived.append(new)
     written = []
     for new in derived:
         try:

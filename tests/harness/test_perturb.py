@@ -105,3 +105,11 @@ def test_kind_twice_and_output_into_input_refused(source, tmp_path, capsys):
     assert "twice" in capsys.readouterr().err
     assert main(["perturb", str(root), "--out", str(root / "x"), "--apply", "noise=1"]) == 2
     assert len(capsys.readouterr().err.strip().splitlines()) == 1
+
+
+def test_impossible_told_rig_refused_before_writing(source, tmp_path, capsys):
+    root, _ = source
+    assert main(["perturb", str(root), "--out", str(tmp_path / "o"), "--apply", "translation=200"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "--apply translation=200" in err and "impossible rig" in err
+    assert not (tmp_path / "o").exists()
