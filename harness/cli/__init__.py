@@ -48,13 +48,13 @@ _UNGUARD = _guard_startup()
 import argparse
 
 from harness import __version__
-from harness.cli import evaluate, reconstruct, render, report, score, study
+from harness.cli import evaluate, import_, perturb, reconstruct, render, report, score, study
 from harness.cli import scenes as scenes_cmd
 from harness.data.errors import UserError
 from scenes.registry import SceneError
 
 COMMANDS = {"render": render, "scenes": scenes_cmd, "reconstruct": reconstruct, "evaluate": evaluate,
-            "score": score, "report": report, "study": study}
+            "score": score, "report": report, "study": study, "perturb": perturb, "import": import_}
 
 
 class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):

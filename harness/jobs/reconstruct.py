@@ -4,7 +4,9 @@ Writes under ``out`` (each file atomically)::
 
     <out>/<scene>/<viewpoint>/distance.exr     camera C's distance, metres
     <out>/<scene>/<viewpoint>/confidence.exr   if the method gives a confidence
-    <out>/<scene>/<viewpoint>/reconstruction.json   seconds, method details, metrics when the frame has GT
+    <out>/<scene>/<viewpoint>/cloud.ply        camera C's points coloured by C's image (binary PLY)
+    <out>/<scene>/<viewpoint>/quality.exr      ground-truth-free quality maps (reconstruction.quality.assess)
+    <out>/<scene>/<viewpoint>/reconstruction.json   seconds, method details, quality, metrics when the frame has GT
     <out>/method.json                          the method's name and full configuration
 
 so ``out`` can be handed to ``tri360 score`` like any outside method's predictions.  ``out`` must be absent, empty
@@ -21,6 +23,7 @@ from pathlib import Path
 from harness.data import jsonio
 from harness.data.atomic import atomic_write_text
 from harness.data.errors import UserError
+from harness.data.exr import write_exr_channels
 from harness.data.frame import read_frame
 from harness.data.names import check_name
 from harness.data.outputs import check_output, mark_output
@@ -33,7 +36,9 @@ from harness.data.predictions import (
 from harness.data.provenance import software
 from harness.jobs.progress import progress_bar
 from reconstruction.methods.base import Method, MethodOutput, run_methods
+from reconstruction.quality import assess
 from reports.metrics import summary
+from reports.pointcloud import point_grid, write_ply
 
 __all__ = ["run_with_progress", "reconstruct_to", "check_one_method"]
 
@@ -115,11 +120,17 @@ def reconstruct_to(frame_dir: Path, out: Path, method: Method, progress: bool = 
     info = {"frame": str(Path(frame_dir).resolve()), "scene": frame.scene, "viewpoint": frame.viewpoint,
             "method": method.label, "config": method.config(), "seconds": output.seconds, "info": output.info,
             "software": software()}
+    quality_maps, info["quality"] = assess(frame, output.distance)
     if frame.has_ground_truth:
         info["metrics"] = summary(output.distance, frame.distance["C"], output.confidence)
     method_info = _method_info(method)
     write_method_info(out, method_info)
     write_prediction(out, frame.scene, frame.viewpoint, output.distance, output.confidence)
+    write_exr_channels(prediction_dir(out, frame.scene, frame.viewpoint) / "quality.exr", quality_maps)
+    c = frame.cameras["C"]
+    info["cloud_points"] = write_ply(prediction_dir(out, frame.scene, frame.viewpoint) / "cloud.ply",
+                                     point_grid(output.distance, c.position, c.rotation), frame.images["C"],
+                                     comment=f"tri360 {method.label} {frame.scene}/{frame.viewpoint} camera C")
     atomic_write_text(prediction_dir(out, frame.scene, frame.viewpoint) / "reconstruction.json",
                       jsonio.dumps(info, indent=2))
     mark_output(out, "predictions")

@@ -1,0 +1,159 @@
+"""The perturb job: derived frames with calibration error and imaging defects (:mod:`harness.jobs.perturbations`).
+
+For every frame under a data root, writes ``<out>/<scene>/<viewpoint>/`` with the perturbed images and told poses,
+the source's ground-truth distance maps unchanged, and in ``frame.json``'s ``renderer`` a ``perturbation`` record:
+the source frame (its real path and a SHA-256 over its files), the seed, every perturbation applied (in
+:data:`~harness.jobs.perturbations.ORDER`) with its level and what was drawn per camera, and -- when poses were
+perturbed -- the true poses of U and R.
+
+Pose perturbations change only what the method is *told* (the poses in ``frame.json``); the images keep the true
+poses.  C's pose is never perturbed (U and R are calibrated relative to C), so C's distance map -- the one scored --
+stays exact.  U's and R's distance maps stay those of their *true* poses (``perturbation.true_cameras``), not of
+the told ones.  Deterministic: the same source, perturbations and seed give byte-identical frames.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from pathlib import Path
+
+from harness.data.errors import FrameError, UserError
+from harness.data.frame import Frame, find_frames, read_frame, validate_metadata, write_frame
+from harness.data.names import check_name
+from harness.data.outputs import check_output, mark_output
+from harness.data.provenance import software
+from harness.jobs import perturbations as P
+from reconstruction.camera.rig import CAMERA_NAMES
+
+__all__ = ["parse_applies", "perturb_frame", "perturb_root", "frame_hash"]
+
+
+def parse_applies(items: list[str], option: str = "--apply") -> list[tuple[str, float | int]]:
+    """``["noise=2", "jpeg=80"]`` -> ``[(kind, level), ...]`` in application order.
+
+    Raises:
+        UserError: naming ``option``: not KIND=LEVEL, an unknown kind, a bad level, a kind given twice, none given.
+    """
+    if not items:
+        raise UserError(f"{option}: give at least one KIND=LEVEL (kinds: {', '.join(P.ORDER)})")
+    found: dict[str, float | int] = {}
+    for item in items:
+        kind, sep, text = item.partition("=")
+        if not sep:
+            raise UserError(f"{option} {item!r}: expected KIND=LEVEL (kinds: {', '.join(P.ORDER)})")
+        kind = kind.strip()
+        try:
+            level = P.parse_level(kind, text.strip())
+        except ValueError as exc:
+            raise UserError(f"{option} {item!r}: {exc}") from None
+        if kind in found:
+            raise UserError(f"{option} {item!r}: {kind} is given twice")
+        found[kind] = level
+    return [(k, found[k]) for k in P.ORDER if k in found]
+
+
+def frame_hash(directory: Path) -> str:
+    """SHA-256 (hex) over the names and bytes of a frame directory's files, in name order."""
+    h = hashlib.sha256()
+    for p in sorted(Path(directory).iterdir()):
+        if p.is_file() and not p.name.startswith("."):
+            h.update(p.name.encode() + b"\0")
+            h.update(p.read_bytes())
+    return h.hexdigest()
+
+
+def perturb_frame(frame: Frame, applies: list[tuple[str, float | int]], seed: int, source: dict) -> Frame:
+    """A new :class:`Frame`: ``frame`` with ``applies`` done to it (see the module doc); ``frame`` is unchanged.
+
+    Args:
+        frame: the source frame.
+        applies: ``(kind, level)`` pairs (:func:`parse_applies`), applied in :data:`perturbations.ORDER`.
+        seed: the random seed (each kind and camera has its own stream, :func:`perturbations.generator`).
+        source: what the record says of the source (``path``, ``sha256``).
+
+    The result is not validated: a large translation can make ``|U - C|`` and ``|R - C|`` disagree on one baseline
+    (:func:`perturb_root` checks every derived frame before writing any).
+    """
+    applies = sorted(applies, key=lambda a: P.ORDER.index(a[0]))  # the fixed physical order, whatever the caller's
+    cameras = dict(frame.cameras)
+    images = {n: frame.images[n].copy() for n in CAMERA_NAMES}
+    baseline = frame.baseline_m
+    records = []
+    glare_source = None
+    for kind, level in applies:
+        drawn = {}
+        for name in CAMERA_NAMES:
+            rng = P.generator(seed, kind, name)
+            if kind in ("rotation", "translation"):
+                if name == "C":
+                    continue
+                fn = P.perturb_pose_rotation if kind == "rotation" else P.perturb_pose_translation
+                cameras[name], drawn[name] = fn(cameras[name], level, rng)
+            elif kind == "glare":
+                if glare_source is None:
+                    glare_source = P.brightest_bearing(frame.images["C"], frame.cameras["C"])
+                images[name], drawn[name] = P.glare(images[name], level, frame.cameras[name], glare_source)
+            else:
+                images[name], drawn[name] = P.IMAGE_OPS[kind](images[name], level, rng)
+        if kind == "translation":
+            told = [float(((cameras[k].position - cameras["C"].position) ** 2).sum() ** 0.5) for k in ("U", "R")]
+            baseline = sum(told) / 2.0
+            drawn["baseline_m"] = baseline
+        records.append({"kind": kind, "level": level, "unit": P.KINDS[kind], "seed": int(seed), "drawn": drawn})
+    record = {"source": dict(source), "seed": int(seed), "applied": records, "software": software()}
+    if any(k in ("rotation", "translation") for k, _ in applies):
+        record["true_cameras"] = {n: frame.cameras[n].to_json() for n in ("U", "R")}
+        record["true_baseline_m"] = float(frame.baseline_m)
+    if "perturbation" in frame.renderer:
+        record["source"]["perturbation"] = frame.renderer["perturbation"]
+    renderer = {k: v for k, v in frame.renderer.items() if k != "perturbation"}
+    renderer["perturbation"] = record
+    return Frame(scene=frame.scene, viewpoint=frame.viewpoint, width=frame.width, height=frame.height,
+                 baseline_m=baseline, cameras=cameras, images=images, distance=dict(frame.distance),
+                 renderer=renderer)
+
+
+def perturb_root(data: Path, out: Path, applies: list[tuple[str, float | int]], seed: int) -> list[Path]:
+    """Perturb every frame under data root (or frame directory) ``data`` into data root ``out``.
+
+    Every source frame is read and checked before anything is written; each derived frame is written atomically.
+
+    Returns:
+        The frame directories written.
+    Raises:
+        UserError: no frames under ``data``, a malformed frame (named), an unsafe name, an unusable ``out``
+            (:func:`check_output`), or a perturbed rig that would be impossible (named).
+    """
+    data, out = Path(data), Path(out)
+    if not data.is_dir():
+        raise UserError(f"{data}: no such data root (a directory of <scene>/<viewpoint>/ frames)")
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise UserError(f"--seed must be a non-negative integer, got {seed!r}")
+    dirs = find_frames(data)
+    if not dirs:
+        raise UserError(f"{data}: no frames found (no <scene>/<viewpoint>/frame.json under it)")
+    check_output(out, "data", [data, *dirs])
+    frames = []
+    for d in dirs:
+        frame = read_frame(d)
+        check_name(frame.scene, f"{d / 'frame.json'} (scene)")
+        check_name(frame.viewpoint, f"{d / 'frame.json'} (viewpoint)")
+        frames.append((d, frame))
+    derived = []
+    for d, frame in frames:
+        source = {"path": str(d.resolve()), "sha256": frame_hash(d)}
+        new = perturb_frame(frame, applies, seed, source)
+        try:  # every derived frame checked before the first is written
+            validate_metadata(new.metadata(), out / new.scene / new.viewpoint / "frame.json")
+        except FrameError as exc:
+            told = ", ".join(f"{k}={v}" for k, v in applies if k in ("rotation", "translation"))
+            raise UserError(f"--apply {told}: the told rig of {d} would be impossible ({exc})") from None
+        derived.append(new)
+    written = []
+    for new in derived:
+        try:
+            written.append(write_frame(new, out))
+        except FrameError as exc:
+            raise UserError(f"perturbed frame {new.scene}/{new.viewpoint} is invalid: {exc}") from None
+        mark_output(out, "data")
+    return written

@@ -1,0 +1,226 @@
+"""Quality without ground truth: how far to trust a distance map of camera C, from the images and poses alone.
+
+The measures, all from C's predicted distance ``d`` and the frame's images and *told* poses:
+
+- **photometric residual** (per pixel, grey levels): each C pixel's point ``C + d * bearing`` is projected into U
+  and R, their grey images (sRGB luminance, 0..255) are sampled there and -- after a least-squares gain and
+  offset that cancels exposure and white-balance differences -- compared with C's; the absolute difference is
+  averaged over a ``window`` x ``window`` box.  The per-pixel value is the *smaller* of the U and R residuals
+  (a point occluded in one camera is usually seen by the other).  About 0 at the true distance on an exact frame.
+- **distance residual** (per pixel, metres): the photometric residual divided by how fast the reprojected grey
+  level changes with C's distance -- the distance change that would explain it (:func:`distance_residual`).
+- **uncertainty** (per pixel): the geometric mean of the two residuals, the map to rank pixels by.
+- **pair agreement** (per pixel, unitless): no built-in method hands back its C-U and C-R distances separately,
+  so this is a reprojection proxy: along each C ray, the distance in ``d * (1 + s)``, ``s`` in
+  :data:`SEARCH_STEPS`, that minimises the residual of U alone and that of R alone are found; the measure is
+  ``|log(d_U / d_R)|`` (0 = both pairs agree; large = the two baselines see different surfaces there).
+- **calibration score** (per frame, unitless): a small pose search.  The told rotation of U (and of R) is turned
+  by +-:data:`CALIBRATION_STEP_DEG` about each of the three axes; the score is the largest relative drop of the
+  mean residual over textured pixels, ``(r_told - min r_turned) / r_told``, over U and R.  An exact rig sits at the
+  bottom of the residual valley (score ~0); a rig whose told rotation is off lies on its slope and a step lowers
+  the residual (score > 0).  :data:`CALIBRATION_THRESHOLD` flags a frame.
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+from reconstruction.camera.equirect import bearing_grid, project, project_with_derivative
+from reconstruction.camera.resample import sample_equirect
+
+__all__ = ["SEARCH_STEPS", "CALIBRATION_STEP_DEG", "CALIBRATION_THRESHOLD", "grey", "warped_grey",
+           "photometric_residual", "distance_residual", "pair_agreement", "uncertainty", "calibration_score", "assess"]
+
+SEARCH_STEPS = (-0.08, -0.04, -0.02, -0.01, 0.0, 0.01, 0.02, 0.04, 0.08)
+"""Relative distance steps of the pair-agreement search along each ray."""
+CALIBRATION_STEP_DEG = 0.25
+"""Rotation step of the calibration check's pose search, degrees."""
+CALIBRATION_THRESHOLD = 0.02
+"""A calibration score above this flags the frame's told poses as off (chosen on synthetic_box frames,
+docs/real-captures.md)."""
+WINDOW = 5
+_LUMA = np.array([0.299, 0.587, 0.114], dtype=np.float32)
+
+
+def grey(image: np.ndarray) -> np.ndarray:
+    """(H, W, 3) uint8 sRGB -> (H, W) float32 grey levels 0..255 (Rec. 601 luma of the sRGB values)."""
+    return np.asarray(image, dtype=np.float32) @ _LUMA
+
+
+def _points(cam_c, distance: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """World points (H, W, 3) of C's distance map and the (H, W) mask of valid distances."""
+    d = np.asarray(distance, dtype=np.float64)
+    valid = np.isfinite(d) & (d > 0)
+    h, w = d.shape
+    b = bearing_grid(w, h, rotation=cam_c.rotation)
+    return np.asarray(cam_c.position, dtype=np.float64) + np.where(valid, d, 0.0)[..., None] * b, valid
+
+
+def warped_grey(points: np.ndarray, grey_image: np.ndarray, position, rotation) -> np.ndarray:
+    """Grey image of a camera at (position, rotation) sampled where ``points`` (H, W, 3) project: (H, W) float32."""
+    h, w = grey_image.shape
+    u, v = project(points, position, rotation, w, h)
+    return sample_equirect(grey_image, u, v)
+
+
+def _matched_abs_diff(gc: np.ndarray, gk: np.ndarray, valid: np.ndarray) -> np.ndarray:
+    """``|gc - (a * gk + b)|`` with the gain/offset (a, b) fitted by least squares over ``valid``."""
+    x, y = gk[valid].astype(np.float64), gc[valid].astype(np.float64)
+    if x.size < 2 or x.std() < 1e-6:
+        a, b = 1.0, 0.0
+    else:
+        a = float(np.cov(x, y, bias=True)[0, 1] / x.var())
+        b = float(y.mean() - a * x.mean())
+    return np.abs(gc - (a * gk + b)).astype(np.float32)
+
+
+def _box(x: np.ndarray, valid: np.ndarray, window: int) -> np.ndarray:
+    """Mean of ``x`` over the valid pixels of each ``window`` box (wrapping across the seam); NaN where none."""
+    pad = window // 2
+    xs = np.where(valid, x, 0).astype(np.float32)
+    ws = valid.astype(np.float32)
+    if pad:
+        xs = np.concatenate([xs[:, -pad:], xs, xs[:, :pad]], axis=1)
+        ws = np.concatenate([ws[:, -pad:], ws, ws[:, :pad]], axis=1)
+    k = (window, window)
+    num = cv2.boxFilter(xs, -1, k, normalize=False, borderType=cv2.BORDER_REPLICATE)
+    den = cv2.boxFilter(ws, -1, k, normalize=False, borderType=cv2.BORDER_REPLICATE)
+    if pad:
+        num, den = num[:, pad:-pad], den[:, pad:-pad]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(den > 0, num / np.maximum(den, 1e-12), np.nan).astype(np.float32)
+
+
+def _residuals(frame, distance, cameras=None, window: int = WINDOW) -> dict[str, np.ndarray]:
+    """Box-averaged matched residual of U and of R (grey levels, (H, W) each, NaN where ``distance`` is invalid)."""
+    cams = dict(frame.cameras) if cameras is None else cameras
+    pts, valid = _points(frame.cameras["C"], distance)
+    gc = grey(frame.images["C"])
+    out = {}
+    for k in ("U", "R"):
+        wk = warped_grey(pts, grey(frame.images[k]), cams[k].position, cams[k].rotation)
+        out[k] = np.where(valid, _box(_matched_abs_diff(gc, wk, valid), valid, window), np.nan).astype(np.float32)
+    return out
+
+
+def distance_residual(frame, distance: np.ndarray, window: int = WINDOW) -> np.ndarray:
+    """The photometric residual turned into metres: per camera k, ``box(|r_k|) / box(|dI_k/dd|)``, where
+    ``dI_k/dd`` (grey levels per metre) is camera k's image gradient at the reprojected point times the
+    derivative of the reprojected pixel with respect to C's distance (:func:`project_with_derivative`): the
+    distance change that would explain the residual.  Textureless pixels and pixels looking along a baseline
+    (no parallax) get large values, as they should.  (H, W) float32 metres, the smaller over U and R; NaN where
+    ``distance`` is invalid."""
+    cam_c = frame.cameras["C"]
+    d = np.asarray(distance, dtype=np.float64)
+    valid = np.isfinite(d) & (d > 0)
+    h, w = d.shape
+    b = bearing_grid(w, h, rotation=cam_c.rotation)
+    dd = np.where(valid, d, 1.0)
+    gc = grey(frame.images["C"])
+    best = np.full((h, w), np.inf, np.float32)
+    for k in ("U", "R"):
+        cam = frame.cameras[k]
+        gk = grey(frame.images[k])
+        gx = cv2.Sobel(gk, cv2.CV_32F, 1, 0, borderType=cv2.BORDER_REPLICATE) / 8.0
+        gy = cv2.Sobel(gk, cv2.CV_32F, 0, 1, borderType=cv2.BORDER_REPLICATE) / 8.0
+        u, v, du, dv = project_with_derivative(cam_c.position, b, dd, cam.position, cam.rotation, w, h)
+        wk = sample_equirect(gk, u, v)
+        slope = np.abs(sample_equirect(gx, u, v) * du + sample_equirect(gy, u, v) * dv).astype(np.float32)
+        res = _box(_matched_abs_diff(gc, wk, valid), valid, window)
+        sens = _box(slope, valid, window)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            e = res / np.maximum(sens, 1e-3)
+        best = np.fmin(best, np.where(np.isfinite(e), e, np.inf).astype(np.float32))
+    return np.where(valid, best, np.nan).astype(np.float32)
+
+
+def photometric_residual(frame, distance: np.ndarray, window: int = WINDOW) -> np.ndarray:
+    """Per-pixel photometric residual of C's ``distance`` (H, W) in U and R: (H, W) float32 grey levels, the
+    smaller of the two cameras' box-averaged residuals; NaN where ``distance`` is invalid (NaN, inf, <= 0)."""
+    r = _residuals(frame, distance, window=window)
+    return np.fmin(r["U"], r["R"])
+
+
+def pair_agreement(frame, distance: np.ndarray, window: int = WINDOW) -> np.ndarray:
+    """Disagreement of the C-U and C-R pairs around C's ``distance``: (H, W) float32 ``|log(d_U / d_R)|``
+    (:data:`SEARCH_STEPS` along each ray), NaN where ``distance`` is invalid."""
+    d = np.asarray(distance, dtype=np.float64)
+    valid = np.isfinite(d) & (d > 0)
+    stacks = {"U": [], "R": []}
+    for s in SEARCH_STEPS:
+        r = _residuals(frame, np.where(valid, d * (1.0 + s), np.nan), window=window)
+        for k in stacks:
+            stacks[k].append(np.where(np.isfinite(r[k]), r[k], np.inf))
+    steps = np.log1p(np.asarray(SEARCH_STEPS))
+    best = {k: steps[np.argmin(np.stack(v), axis=0)] for k, v in stacks.items()}
+    return np.where(valid, np.abs(best["U"] - best["R"]), np.nan).astype(np.float32)
+
+
+def _axis_rotation(axis: int, angle_rad: float) -> np.ndarray:
+    c, s = np.cos(angle_rad), np.sin(angle_rad)
+    i, j = [(1, 2), (2, 0), (0, 1)][axis]
+    m = np.eye(3)
+    m[i, i], m[i, j], m[j, i], m[j, j] = c, -s, s, c
+    return m
+
+
+def calibration_score(frame, distance: np.ndarray, step_deg: float = CALIBRATION_STEP_DEG) -> dict:
+    """The pose-search calibration check (module doc).
+
+    Args:
+        frame: frame-like (``cameras``, ``images``) with the *told* poses.
+        distance: (H, W) C's predicted distance, metres.
+        step_deg: rotation step, degrees.
+    Returns:
+        ``{"score": float, "U": {...}, "R": {...}}`` -- per camera the told residual (grey levels), the best turned
+        one and its relative drop; ``score`` is the larger drop (NaN when no pixel is textured and valid).
+    """
+    pts, valid = _points(frame.cameras["C"], distance)
+    gc = grey(frame.images["C"])
+    grad = np.hypot(cv2.Sobel(gc, cv2.CV_32F, 1, 0), cv2.Sobel(gc, cv2.CV_32F, 0, 1))
+    textured = valid & (grad > np.median(grad[valid])) if valid.any() else valid
+    out: dict = {}
+    drops = []
+    for k in ("U", "R"):
+        cam = frame.cameras[k]
+        gk = grey(frame.images[k])
+
+        def mean_residual(rot, cam=cam, gk=gk):
+            wk = warped_grey(pts, gk, cam.position, rot)
+            return float(np.mean(_matched_abs_diff(gc, wk, textured)[textured])) if textured.any() else np.nan
+
+        told = mean_residual(cam.rotation)
+        turned = [mean_residual(_axis_rotation(a, sgn * np.radians(step_deg)) @ cam.rotation)
+                  for a in range(3) for sgn in (-1.0, 1.0)]
+        best = float(np.nanmin(turned)) if np.isfinite(turned).any() else np.nan
+        drop = (told - best) / told if told > 0 else np.nan
+        out[k] = {"told_residual": told, "best_turned_residual": best, "drop": float(drop)}
+        drops.append(drop)
+    out["score"] = float(np.nanmax(drops)) if np.isfinite(drops).any() else float("nan")
+    return out
+
+
+def uncertainty(residual: np.ndarray, distance_residual_m: np.ndarray) -> np.ndarray:
+    """The per-pixel quality measure to rank pixels by (higher = less trustworthy): the geometric mean
+    ``sqrt(photometric_residual * distance_residual_m)`` of :func:`photometric_residual` (grey levels) and
+    :func:`distance_residual` (metres); it ranked pixels by true error better than either alone on classroom
+    frames (docs/real-captures.md).  (H, W) float32, NaN where either is NaN."""
+    return np.sqrt(np.asarray(residual, np.float32) * np.asarray(distance_residual_m, np.float32))
+
+
+def assess(frame, distance: np.ndarray) -> tuple[dict[str, np.ndarray], dict]:
+    """All measures of one prediction -> (per-pixel maps ``photometric_residual``, ``distance_residual_m``,
+    ``pair_agreement``, ``uncertainty`` (:func:`uncertainty`); per-frame
+    summary: their medians over valid pixels, ``calibration_score``, ``calibration_flagged`` and the details)."""
+    maps = {"photometric_residual": photometric_residual(frame, distance),
+            "distance_residual_m": distance_residual(frame, distance),
+            "pair_agreement": pair_agreement(frame, distance)}
+    maps["uncertainty"] = uncertainty(maps["photometric_residual"], maps["distance_residual_m"])
+    calib = calibration_score(frame, distance)
+    summary = {f"{k}_median": (float(np.nanmedian(v)) if np.isfinite(v).any() else float("nan"))
+               for k, v in maps.items()}
+    summary["calibration_score"] = calib["score"]
+    summary["calibration_flagged"] = bool(calib["score"] > CALIBRATION_THRESHOLD)
+    summary["calibration"] = {k: calib[k] for k in ("U", "R")}
+    return maps, summary

@@ -1,0 +1,115 @@
+"""tri360 perturb: every kind changes what it should (images or told poses), provenance, determinism, bad input."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from harness.cli import main
+from harness.data.frame import read_frame, write_frame
+from harness.jobs.perturb import frame_hash, perturb_root
+from harness.jobs.perturbations import ORDER, noise_parameters, srgb_to_linear
+from tests.helpers import make_synthetic_frame
+
+LEVELS = {"rotation": 0.5, "translation": 2.0, "exposure": 0.5, "white_balance": 0.1, "noise": 3.0, "jpeg": 60,
+          "vignetting": 0.3, "soiling": 6, "glare": 0.5}
+
+
+@pytest.fixture(scope="module")
+def source(tmp_path_factory):
+    root = tmp_path_factory.mktemp("src")
+    d = write_frame(make_synthetic_frame(width=120), root)
+    return root, d
+
+
+def _angle_deg(a, b):
+    return float(np.degrees(np.arccos(np.clip((np.trace(a.T @ b) - 1) / 2, -1, 1))))
+
+
+@pytest.mark.parametrize("kind", ORDER)
+def test_each_kind_changes_what_it_should(source, tmp_path, kind):
+    root, d = source
+    (out,) = perturb_root(root, tmp_path / "out", [(kind, LEVELS[kind])], seed=4)
+    src, new = read_frame(d), read_frame(out)
+    for n in "CUR":  # ground truth copied unchanged
+        np.testing.assert_array_equal(new.distance[n], src.distance[n])
+    if kind in ("rotation", "translation"):
+        for n in "CUR":
+            np.testing.assert_array_equal(new.images[n], src.images[n])
+        np.testing.assert_array_equal(new.cameras["C"].position, src.cameras["C"].position)
+        np.testing.assert_array_equal(new.cameras["C"].rotation, src.cameras["C"].rotation)
+        for n in "UR":
+            if kind == "rotation":
+                assert _angle_deg(new.cameras[n].rotation, src.cameras[n].rotation) == pytest.approx(0.5, abs=1e-6)
+                np.testing.assert_array_equal(new.cameras[n].position, src.cameras[n].position)
+            else:
+                moved = np.linalg.norm(new.cameras[n].position - src.cameras[n].position)
+                assert moved == pytest.approx(0.002, abs=1e-9)
+                np.testing.assert_allclose(new.cameras[n].rotation, src.cameras[n].rotation, atol=1e-12)
+        rec = new.renderer["perturbation"]
+        assert rec["true_cameras"]["U"] == src.cameras["U"].to_json()
+    else:
+        for n in "CUR":
+            np.testing.assert_allclose(new.cameras[n].position, src.cameras[n].position, atol=0)
+            np.testing.assert_allclose(new.cameras[n].rotation, src.cameras[n].rotation, atol=0)
+        changed = [n for n in "CUR" if not np.array_equal(new.images[n], src.images[n])]
+        assert changed == ["C", "U", "R"]
+
+
+def test_provenance_names_source_and_perturbations(source, tmp_path):
+    root, d = source
+    (out,) = perturb_root(root, tmp_path / "out", [("noise", 2.0), ("rotation", 0.25)], seed=9)
+    rec = json.loads((out / "frame.json").read_text())["renderer"]["perturbation"]
+    assert rec["source"] == {"path": str(d.resolve()), "sha256": frame_hash(d)}
+    assert rec["seed"] == 9
+    assert [(a["kind"], a["level"], a["seed"]) for a in rec["applied"]] == [("rotation", 0.25, 9), ("noise", 2.0, 9)]
+
+
+def test_rerun_with_same_seed_is_byte_identical(source, tmp_path):
+    root, _ = source
+    applies = [(k, LEVELS[k]) for k in ORDER]
+    (a,) = perturb_root(root, tmp_path / "a", applies, seed=1)
+    (b,) = perturb_root(root, tmp_path / "b", applies, seed=1)
+    (c,) = perturb_root(root, tmp_path / "c", applies, seed=2)
+    names = sorted(p.name for p in a.iterdir())
+    assert names == sorted(p.name for p in b.iterdir())
+    for n in names:
+        assert (a / n).read_bytes() == (b / n).read_bytes(), n
+    assert (a / "C.png").read_bytes() != (c / "C.png").read_bytes()
+
+
+def test_noise_level_is_grey_levels_at_mid_grey():
+    a, b = noise_parameters(4.0)
+    x = float(srgb_to_linear(np.array([128], np.uint8))[0])
+    rng = np.random.default_rng(0)
+    lin = x + np.sqrt(a * x + b) * rng.standard_normal(200_000)
+    s = np.where(lin <= 0.0031308, 12.92 * lin, 1.055 * np.abs(lin) ** (1 / 2.4) - 0.055) * 255
+    assert float(np.std(s)) == pytest.approx(4.0, rel=0.03)
+
+
+@pytest.mark.parametrize("apply", ["foo=1", "noise", "noise=x", "noise=-1", "jpeg=0", "jpeg=2.5", "soiling=0",
+                                   "vignetting=1", "rotation=nan"])
+def test_bad_kind_or_level_is_one_line_exit_2(source, tmp_path, capsys, apply):
+    root, _ = source
+    assert main(["perturb", str(root), "--out", str(tmp_path / "o"), "--apply", apply]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "--apply" in err
+    assert not (tmp_path / "o").exists()
+
+
+def test_kind_twice_and_output_into_input_refused(source, tmp_path, capsys):
+    root, _ = source
+    assert main(["perturb", str(root), "--out", str(tmp_path / "o"), "--apply", "noise=1", "--apply", "noise=2"]) == 2
+    assert "twice" in capsys.readouterr().err
+    assert main(["perturb", str(root), "--out", str(root / "x"), "--apply", "noise=1"]) == 2
+    assert len(capsys.readouterr().err.strip().splitlines()) == 1
+
+
+def test_impossible_told_rig_refused_before_writing(source, tmp_path, capsys):
+    root, _ = source
+    assert main(["perturb", str(root), "--out", str(tmp_path / "o"), "--apply", "translation=200"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "--apply translation=200" in err and "impossible rig" in err
+    assert not (tmp_path / "o").exists()
