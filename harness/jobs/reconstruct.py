@@ -21,7 +21,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from harness.data import jsonio
-from harness.data.atomic import atomic_write_text
+from harness.data.atomic import atomic_write_bytes, atomic_write_text
 from harness.data.errors import UserError
 from harness.data.exr import write_exr_channels
 from harness.data.frame import read_frame
@@ -38,7 +38,7 @@ from harness.jobs.progress import progress_bar
 from reconstruction.methods.base import Method, MethodOutput, run_methods
 from reconstruction.quality import assess
 from reports.metrics import summary
-from reports.pointcloud import point_grid, write_ply
+from reports.pointcloud import ply_bytes, point_grid
 
 __all__ = ["run_with_progress", "reconstruct_to", "check_one_method"]
 
@@ -128,9 +128,9 @@ def reconstruct_to(frame_dir: Path, out: Path, method: Method, progress: bool = 
     write_prediction(out, frame.scene, frame.viewpoint, output.distance, output.confidence)
     write_exr_channels(prediction_dir(out, frame.scene, frame.viewpoint) / "quality.exr", quality_maps)
     c = frame.cameras["C"]
-    info["cloud_points"] = write_ply(prediction_dir(out, frame.scene, frame.viewpoint) / "cloud.ply",
-                                     point_grid(output.distance, c.position, c.rotation), frame.images["C"],
-                                     comment=f"tri360 {method.label} {frame.scene}/{frame.viewpoint} camera C")
+    cloud, info["cloud_points"] = ply_bytes(point_grid(output.distance, c.position, c.rotation), frame.images["C"],
+                                            comment=f"tri360 {method.label} {frame.scene}/{frame.viewpoint} camera C")
+    atomic_write_bytes(prediction_dir(out, frame.scene, frame.viewpoint) / "cloud.ply", cloud)
     atomic_write_text(prediction_dir(out, frame.scene, frame.viewpoint) / "reconstruction.json",
                       jsonio.dumps(info, indent=2))
     mark_output(out, "predictions")

@@ -11,7 +11,7 @@ import pytest
 
 from harness.cli import main
 from harness.data.frame import read_frame, write_frame
-from reports.pointcloud import read_ply
+from reports.pointcloud import parse_ply
 from tests.helpers import make_synthetic_frame
 
 RIG = Path(__file__).resolve().parents[2] / "examples" / "rig_paper_L_0.4m.json"
@@ -43,7 +43,7 @@ def test_import_then_reconstruct_gives_cloud_and_no_scores(jpegs, tmp_path, caps
     assert "metrics" not in info and "MAE" not in capsys.readouterr().out
     assert set(info["quality"]) >= {"photometric_residual_median", "calibration_score", "calibration_flagged"}
     assert {"distance.exr", "confidence.exr", "quality.exr", "cloud.ply"} <= {p.name for p in d.iterdir()}
-    points, colors = read_ply(d / "cloud.ply")
+    points, colors = parse_ply((d / "cloud.ply").read_bytes())
     assert len(points) == info["cloud_points"] > 0.5 * 120 * 60
 
 
