@@ -16,8 +16,9 @@ Quasi-dense correspondences between two images from a hierarchical, correlationa
    subsampling by 2: the max-pool lets every child move by one cell of its level (the deformable part).
    Responses are kept *in displacement coordinates*, where the children's shifts by their offsets cancel
    (a child at ``p + o`` whose parent moves by ``delta`` is expected at ``p + o + delta``: the same
-   displacement), so the aggregation is pool, subsample, average, power.  Levels are built while the patch
-   grid is at least one patch.
+   displacement), so the aggregation is pool, subsample, average, power.  Every level keeps the atomic grid
+   (step 8), so every patch of a level is a child of up to four parents of the next one; levels are built while
+   the parent patch (32, 64, 128, ... working pixels) fits in the image.
 4. **Top-down backtracking**: from every local maximum (3 x 3) of every patch's response map at every level >= 2
    the argmax of each child's pooling window is followed down to level 1; an atomic patch reached along a path
    scores the sum of the responses on that path and keeps its best-scoring match.
@@ -174,11 +175,29 @@ def _level1(d0, d1, cell, step, ndy, ndx, ky, kx, circ, wrapc):
     out = np.zeros((ph * pw, ndy, ndx), np.float32)
     half = cell // 2
     scale = 1.0 / (PATCH_CELLS * PATCH_CELLS)
+    # the cell rows / columns of every patch (centre row j * step: cells 2j - 2 .. 2j + 1, clamped or wrapped)
+    crow = np.empty((ph, PATCH_CELLS), np.int64)
+    for j in range(ph):
+        for u in range(PATCH_CELLS):
+            crow[j, u] = min(max(2 * j - 2 + u, 0), ch - 1)
+    ccol = np.empty((pw, PATCH_CELLS), np.int64)
+    for i in range(pw):
+        for v in range(PATCH_CELLS):
+            n = 2 * i - 2 + v
+            ccol[i, v] = n % cw if wrapc else min(max(n, 0), cw - 1)
     for a in numba.prange(ndy):
         dy = a - ky
         s = np.zeros((ch, cw), np.float32)
+        rs = np.zeros((ch, pw), np.float32)
+        xi = np.empty(cw, np.int64)
         for b in range(ndx):
             dx = b - kx
+            for n in range(cw):
+                x1 = n * cell + half + dx
+                if circ or wrapc:
+                    xi[n] = x1 % w
+                else:
+                    xi[n] = x1 if 0 <= x1 < w else -1
             for m in range(ch):
                 y0 = m * cell + half
                 y1 = y0 + dy
@@ -187,36 +206,22 @@ def _level1(d0, d1, cell, step, ndy, ndx, ky, kx, circ, wrapc):
                         s[m, n] = 0.0
                     continue
                 for n in range(cw):
-                    x0 = n * cell + half
-                    x1 = x0 + dx
-                    if circ or wrapc:
-                        x1 = x1 % w
-                    elif x1 < 0 or x1 >= w:
+                    x1 = xi[n]
+                    if x1 < 0:
                         s[m, n] = 0.0
                         continue
+                    x0 = n * cell + half
                     acc = 0.0
                     for k in range(c):
                         acc += d0[y0, x0, k] * d1[y1, x1, k]
                     s[m, n] = acc
-            for j in range(ph):
+            for m in range(ch):  # separable 4 x 4 cell sums: along columns, then rows
                 for i in range(pw):
-                    acc = 0.0
-                    for u in range(PATCH_CELLS):
-                        m = 2 * j - 2 + u  # cell rows of patch j: centre row j * step, offsets -1.5..1.5 cells
-                        if m < 0:
-                            m = 0
-                        if m >= ch:
-                            m = ch - 1
-                        for v in range(PATCH_CELLS):
-                            n = 2 * i - 2 + v
-                            if wrapc:
-                                n = n % cw
-                            elif n < 0:
-                                n = 0
-                            elif n >= cw:
-                                n = cw - 1
-                            acc += s[m, n]
-                    out[j * pw + i, a, b] = acc * scale
+                    rs[m, i] = s[m, ccol[i, 0]] + s[m, ccol[i, 1]] + s[m, ccol[i, 2]] + s[m, ccol[i, 3]]
+            for j in range(ph):
+                r0, r1, r2, r3 = crow[j, 0], crow[j, 1], crow[j, 2], crow[j, 3]
+                for i in range(pw):
+                    out[j * pw + i, a, b] = (rs[r0, i] + rs[r1, i] + rs[r2, i] + rs[r3, i]) * scale
     return out
 
 
