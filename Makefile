@@ -45,6 +45,7 @@ bench: $(STAMP) ## timings and peak memory: flow pipeline stages (+ LM vs scipy)
 	$(PY) -m harness.jobs.bench_sweep --method fused
 	$(PY) -m harness.jobs.bench_render
 	$(PY) -m harness.jobs.bench_dask
+	$(PY) -m harness.jobs.bench_flow
 
 regress-update: $(STAMP) ## rewrite the CI regression bounds (tests/regression_bounds.json) from a fresh run
 	$(PY) -m harness.jobs.regression --update

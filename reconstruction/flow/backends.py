@@ -177,13 +177,13 @@ def builtin_flows() -> list[FlowBackend]:
     # RLOF below 60 (it tries to allocate gigabytes)
     out = [
         FlowBackend("deepflow", _deepflow, "DeepFlow with DeepMatching (Weinzaepfel et al. 2013), the paper's flow",
-                    params={"downscale": 1, "ngh_rad_x": 0, "ngh_rad_y": 0, "wrap": True}, min_width=128,
+                    params={"downscale": 1, "ngh_rad_x": 0, "ngh_rad_y": 0, "wrap": True}, min_width=60,
                     wraps=True),
         FlowBackend("cvdeepflow", _cvdeepflow, "OpenCV DeepFlow: the variational part only, no matching term",
                     min_width=8),
         FlowBackend("epicflow", _epicflow, "DeepMatching + OpenCV edge-aware interpolation + variational refinement",
                     params={"downscale": 1, "ngh_rad_x": 0, "ngh_rad_y": 0, "wrap": True, "pad": 32},
-                    min_width=128, wraps=True),
+                    min_width=60, wraps=True),
         FlowBackend("dis", _dis, "OpenCV DIS, medium preset, stride 3, variational refinement",
                     params={"preset": "medium", "finest_scale": 0, "patch_size": 8, "patch_stride": 3,
                             "gd_iterations": 25, "var_iterations": 10, "var_alpha": 10.0,
