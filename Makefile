@@ -46,6 +46,7 @@ bench: $(STAMP) ## timings and peak memory: flow pipeline stages (+ LM vs scipy)
 	$(PY) -m harness.jobs.bench_render
 	$(PY) -m harness.jobs.bench_dask
 	$(PY) -m harness.jobs.bench_suite
+	$(PY) -m harness.jobs.bench_flow
 
 regress-update: $(STAMP) ## rewrite the CI regression bounds (tests/regression_bounds.json) from a fresh run
 	$(PY) -m harness.jobs.regression --bounds tests/regression_bounds.json --update

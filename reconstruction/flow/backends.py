@@ -5,6 +5,9 @@ from image 0 to image 1).  Equirect images wrap around: :func:`equirect_flow` pa
 columns copied from the opposite edge before calling the backend, so correspondences that cross the
 left/right seam are found, then crops the result back to ``W`` columns.
 
+A backend that handles the wrap itself (``wraps=True``: its solver treats columns as periodic, e.g. the
+faithful ``deepflowdm``) gets the images unpadded.
+
 ``oracle`` is not an image backend: it is the exact correspondence from ground-truth distance and lives in
 :mod:`reconstruction.flow.matching`.  Outside packages add backends through the entry-point group
 ``tri360.flows`` (an entry point loads to a :class:`FlowBackend` or a list of them); :func:`discover_flows`
@@ -13,12 +16,15 @@ finds them.
 
 from __future__ import annotations
 
+import hashlib
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
 
+from reconstruction.flow.deepflow import DeepFlowParams, deep_flow
+from reconstruction.flow.deepmatching import DeepMatchingParams, Matches, deep_matching_both
 from reconstruction.plugins import merge_registry, unknown_name_message
 
 __all__ = ["FlowBackend", "ORACLE", "builtin_flows", "discover_flows", "get_flow", "available_flows", "equirect_flow"]
@@ -38,6 +44,7 @@ class FlowBackend:
         description: one line for ``--help`` and reports.
         params: keyword parameters passed to ``compute`` (recorded in ``config.json``).
         min_width: the smallest equirect width, pixels, the backend was measured to work at.
+        wraps: the backend treats columns as periodic itself (:func:`equirect_flow` then does not pad).
     """
 
     name: str
@@ -45,6 +52,7 @@ class FlowBackend:
     description: str = ""
     params: dict = field(default_factory=dict)
     min_width: int = 16
+    wraps: bool = False
 
     def __call__(self, img0: np.ndarray, img1: np.ndarray) -> np.ndarray:
         return self.compute(img0, img1, **self.params)
@@ -58,9 +66,70 @@ def _gray(img: np.ndarray) -> np.ndarray:
     return img if img.ndim == 2 else cv2.cvtColor(img, cv2.COLOR_RGB2GRAY)
 
 
-def _deepflow(img0, img1):
-    """OpenCV's DeepFlow (the variational part of Weinzaepfel et al. 2013), the paper's method."""
+def _cvdeepflow(img0, img1):
+    """OpenCV's DeepFlow: only the variational part of Weinzaepfel et al. 2013 (no matching term)."""
     return cv2.optflow.createOptFlow_DeepFlow().calc(_gray(img0), _gray(img1), None)
+
+
+_MATCH_CACHE: dict[bytes, Matches] = {}
+
+
+def _digest(*arrays, extra: str = "") -> bytes:
+    h = hashlib.blake2b(extra.encode(), digest_size=16)
+    for a in arrays:
+        h.update(str(a.shape).encode())
+        h.update(np.ascontiguousarray(a).tobytes())
+    return h.digest()
+
+
+def cached_matches(img0: np.ndarray, img1: np.ndarray, params: DeepMatchingParams) -> Matches:
+    """DeepMatching from img0 to img1; the reverse direction, computed with it, is kept for the next call
+    (the pipeline asks for the forward then the backward flow of each pair: one matching serves both)."""
+    key = _digest(img0, img1, extra=repr(params))
+    if key in _MATCH_CACHE:
+        return _MATCH_CACHE.pop(key)
+    fwd, bwd = deep_matching_both(img0, img1, params)
+    _MATCH_CACHE.clear()
+    _MATCH_CACHE[_digest(img1, img0, extra=repr(params))] = bwd
+    return fwd
+
+
+def _dm_params(downscale, ngh_rad_x, ngh_rad_y, wrap) -> DeepMatchingParams:
+    return DeepMatchingParams(downscale=int(downscale), ngh_rad_x=int(ngh_rad_x), ngh_rad_y=int(ngh_rad_y),
+                              wrap=bool(wrap))
+
+
+def _deepflow(img0, img1, downscale=1, ngh_rad_x=0, ngh_rad_y=0, wrap=True):
+    """Faithful DeepFlow (Weinzaepfel et al. 2013): DeepMatching + variational energy with matching term."""
+    dm = _dm_params(downscale, ngh_rad_x, ngh_rad_y, wrap)
+    matches = cached_matches(img0, img1, dm)
+    return deep_flow(img0, img1, DeepFlowParams(wrap=bool(wrap), matching=dm), matches=matches)
+
+
+def _epicflow(img0, img1, downscale=1, ngh_rad_x=0, ngh_rad_y=0, wrap=True, pad=32):
+    """EpicFlow route: DeepMatching matches, OpenCV's edge-aware interpolation, OpenCV variational refinement.
+
+    OpenCV's interpolator and refinement know no periodic boundary, so the matched images are padded by ``pad``
+    columns from the opposite edge for those two steps.
+    """
+    dm = _dm_params(downscale, ngh_rad_x, ngh_rad_y, wrap)
+    m = cached_matches(img0, img1, dm)
+    h, w = img0.shape[:2]
+    pad = int(min(pad, w)) if wrap else 0
+
+    def padded(img):
+        return np.ascontiguousarray(np.concatenate([img[:, w - pad:], img, img[:, :pad]], axis=1)) if pad else img
+
+    a, b = padded(np.ascontiguousarray(img0)), padded(np.ascontiguousarray(img1))
+    if m.x0.size < 4:
+        return np.zeros((h, w, 2), np.float32)
+    p0 = np.stack([m.x0 + pad, m.y0], axis=1).astype(np.float32)
+    p1 = np.stack([m.x1 + pad, m.y1], axis=1).astype(np.float32)
+    interp = cv2.ximgproc.createEdgeAwareInterpolator()
+    dense = interp.interpolate(a, p0.reshape(-1, 1, 2), b, p1.reshape(-1, 1, 2))
+    ref = cv2.VariationalRefinement_create()
+    dense = ref.calc(_gray(a), _gray(b), dense)
+    return np.ascontiguousarray(dense[:, pad:pad + w], np.float32)
 
 
 _DIS_PRESETS = {"ultrafast": cv2.DISOPTICAL_FLOW_PRESET_ULTRAFAST, "fast": cv2.DISOPTICAL_FLOW_PRESET_FAST,
@@ -107,7 +176,14 @@ def builtin_flows() -> list[FlowBackend]:
     # plain) runs with finite output, measured on synthetic frames: DIS fails below 16 ("Incorrect size of input"),
     # RLOF below 60 (it tries to allocate gigabytes)
     out = [
-        FlowBackend("deepflow", _deepflow, "OpenCV DeepFlow (variational), the paper's flow", min_width=8),
+        FlowBackend("deepflowdm", _deepflow, "DeepFlow with DeepMatching (Weinzaepfel et al. 2013), as published",
+                    params={"downscale": 1, "ngh_rad_x": 0, "ngh_rad_y": 0, "wrap": True}, min_width=60,
+                    wraps=True),
+        FlowBackend("deepflow", _cvdeepflow, "OpenCV DeepFlow (variational part only), the paper's flow so far",
+                    min_width=8),
+        FlowBackend("epicflow", _epicflow, "DeepMatching + OpenCV edge-aware interpolation + variational refinement",
+                    params={"downscale": 1, "ngh_rad_x": 0, "ngh_rad_y": 0, "wrap": True, "pad": 32},
+                    min_width=60, wraps=True),
         FlowBackend("dis", _dis, "OpenCV DIS, medium preset, stride 3, variational refinement",
                     params={"preset": "medium", "finest_scale": 0, "patch_size": 8, "patch_stride": 3,
                             "gd_iterations": 25, "var_iterations": 10, "var_alpha": 10.0,
@@ -152,12 +228,13 @@ def equirect_flow(backend: FlowBackend, img0: np.ndarray, img1: np.ndarray, pad:
         backend: the flow method.
         img0, img1: (H, W, 3) uint8 RGB.
         pad: columns copied from the opposite edge on both sides (0 <= pad <= W); the flow of a pixel
-            whose match lies up to ``pad`` columns past the seam is then found directly.
+            whose match lies up to ``pad`` columns past the seam is then found directly.  Ignored (no padding)
+            for a backend with ``wraps=True``, which handles the seam itself.
     Returns:
         (H, W, 2) float32 flow of img0's pixels; targets may lie outside [0, W) (the caller wraps them).
     """
     w = img0.shape[1]
-    pad = int(min(max(pad, 0), w))
+    pad = 0 if backend.wraps else int(min(max(pad, 0), w))
 
     def wrap(img):
         return np.ascontiguousarray(np.concatenate([img[:, w - pad:], img, img[:, :pad]], axis=1)) if pad else img

@@ -24,6 +24,8 @@ from reconstruction.refine.lm import (
     discover_variants,
     get_variant,
     levenberg_marquardt,
+    patch_offsets,
+    patch_reference,
 )
 from reconstruction.refine.triangulate import PairGeometry, TriangulationLimits, pair_geometry, triangulate_sines
 from reconstruction.refine.weights import (
@@ -148,7 +150,9 @@ def _color_terms(frame, config: RefineConfig, bearings: np.ndarray) -> list[Colo
             x = x if x.ndim == 3 else x[..., None]
         return x.astype(np.float64)
 
-    ref = prep(frame.images["C"]).reshape(-1, 3 if config.color_rgb else 1)
+    offsets = patch_offsets(config.color_patch) if config.color_patch > 1 else None
+    ref_img = prep(frame.images["C"])
+    ref = ref_img.reshape(-1, ref_img.shape[2]) if offsets is None else patch_reference(ref_img, offsets)
     origin = np.asarray(frame.cameras["C"].position, np.float64)
     terms = []
     for k in PAIRS:
@@ -156,7 +160,7 @@ def _color_terms(frame, config: RefineConfig, bearings: np.ndarray) -> list[Colo
         rot = np.asarray(cam.rotation, np.float64)
         terms.append(ColorTerm(image=prep(frame.images[k]), ref=ref,
                                start=(origin - np.asarray(cam.position, np.float64)) @ rot,
-                               direction=bearings @ rot))
+                               direction=bearings @ rot, offsets=offsets))
     return terms
 
 

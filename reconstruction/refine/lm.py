@@ -9,7 +9,10 @@ Residuals, all in *pixel equivalents* (radians x H / pi: one row of a rectified 
   error of X = C + d a into camera k along its epipolar curve (see :mod:`reconstruction.refine.triangulate`);
 * colour (``color_weight > 0``), per pair: ``sqrt(color_weight) * s * tanh((I_k(x_k(d)) - I_C(p)) / s)``,
   the intensity difference between C's pixel and camera k's image at the projection x_k(d), with
-  intensities in [0, 1] and the saturation ``s`` making it robust to occlusions (paper eq. 2).
+  intensities in [0, 1] and the saturation ``s`` making it robust to occlusions (paper eq. 2).  The paper's
+  next steps: ``color-rgb`` compares the three RGB channels instead of grey, ``color-patch`` compares a small
+  patch (``color_patch`` x ``color_patch`` pixels around the pixel and around its projection) instead of one
+  pixel ("taking into account the surrounding information").
 
 Weights ``w_k`` (:mod:`reconstruction.refine.weights`): ``angle`` = sin(alpha_k)^p (Yin et al. 2019: trust a pair
 less near its epipoles), ``gradient`` = angle weight x the image gradient along pair k's epipolar
@@ -28,7 +31,7 @@ from reconstruction.plugins import merge_registry, unknown_name_message
 from reconstruction.refine.triangulate import PairGeometry, beta_of_distance
 
 __all__ = ["RefineConfig", "builtin_variants", "discover_variants", "get_variant", "RefineProblem",
-           "levenberg_marquardt", "ColorTerm"]
+           "levenberg_marquardt", "ColorTerm", "patch_offsets", "patch_reference"]
 
 
 @dataclass(frozen=True)
@@ -48,6 +51,9 @@ class RefineConfig:
             (occlusions, specularities).
         color_blur_px: Gaussian sigma, pixels, applied to the images used by the colour term.
         color_rgb: use the three RGB channels instead of grayscale (the paper's future work).
+        color_patch: side, pixels (odd), of the patch compared by the colour term: the residual of every pixel
+            offset in the patch, taken at the same offset around C's pixel and around its projection in camera k
+            (1: the pixel alone, the paper's eq. 2).
         color_iters: LM iterations of the colour stage, which starts from the converged geometric solution
             (the colour cost is non-convex: it refines locally, it does not search).
         color_min_gradient: the colour stage refines only pixels whose blurred image gradient in C exceeds
@@ -77,6 +83,7 @@ class RefineConfig:
     color_saturation: float = 0.1
     color_blur_px: float = 1.0
     color_rgb: bool = False
+    color_patch: int = 1
     color_iters: int = 6
     color_min_gradient: float = 0.01
     lateral_px: float = 1.0
@@ -105,6 +112,12 @@ def builtin_variants() -> list[RefineConfig]:
         RefineConfig("gradient", gradient=True, description="LM, angle x epipolar-gradient weights (paper eq. 1)"),
         RefineConfig("color", color_weight=30.0,
                      description="LM, angle weights + grayscale intensity consistency (paper eq. 2)"),
+        # the paper's next steps; the weight per residual is divided by the residual count, so that a difference
+        # shared by every channel / patch pixel pulls as hard as one grey difference under ``color``
+        RefineConfig("color-rgb", color_weight=10.0, color_rgb=True,
+                     description="LM, angle weights + RGB colour consistency (the paper's future work)"),
+        RefineConfig("color-patch", color_weight=30.0 / 9.0, color_patch=3,
+                     description="LM, angle weights + grey consistency over a 3x3 patch (the paper's future work)"),
     ]
 
 
@@ -135,15 +148,38 @@ class ColorTerm:
     Attributes:
         image: (H, W, c) float64 intensities of camera k in [0, 1] (sampled with exact bilinear
             interpolation, whose own derivatives give the Jacobian).
-        ref: (N, c) C's intensities at the refined pixels.
+        ref: (N, P c) C's intensities at the refined pixels, offset by each of the P ``offsets`` (channels fastest).
         start: (3,) C's centre relative to camera k's centre, in camera k's frame, metres.
         direction: (N, 3) the pixels' bearings in camera k's frame.
+        offsets: (P, 2) pixel offsets (du, dv) of the compared patch (None: the pixel alone, P = 1).
     """
 
     image: np.ndarray
     ref: np.ndarray
     start: np.ndarray
     direction: np.ndarray
+    offsets: np.ndarray | None = None
+
+
+def patch_offsets(size: int) -> np.ndarray:
+    """(size * size, 2) float64 pixel offsets (du, dv) of a square patch centred on 0 (``size`` odd, >= 1)."""
+    if size < 1 or size % 2 == 0:
+        raise ValueError(f"color_patch must be odd and >= 1, got {size}")
+    r = np.arange(size) - size // 2
+    dv, du = np.meshgrid(r, r, indexing="ij")
+    return np.stack([du.ravel(), dv.ravel()], axis=1).astype(np.float64)
+
+
+def patch_reference(image: np.ndarray, offsets: np.ndarray) -> np.ndarray:
+    """C's intensities around every pixel: (H, W, c) equirect image -> (H W, P c) values at each integer offset
+    (columns wrap, rows are clamped at the poles), channels fastest."""
+    h, w, c = image.shape
+    out = []
+    rows = np.arange(h)
+    for du, dv in offsets.astype(int):
+        shifted = np.roll(image, -du, axis=1)[np.clip(rows + dv, 0, h - 1)]
+        out.append(shifted.reshape(h * w, c))
+    return np.concatenate(out, axis=1)
 
 
 @dataclass
@@ -198,12 +234,15 @@ class RefineProblem:
             lam = np.sqrt(self.color_weight)
             for term in self.color:
                 u, v, du, dv = project_rays_camera(term.start, term.direction[sel], d, self.width, self.height)
-                val, gu, gv = bilinear_with_gradient(term.image, u, v)
-                e = val - term.ref[sel]
-                de = gu * du[:, None] + gv * dv[:, None]
-                th = np.tanh(e / s)
-                rs.extend((lam * s * th).T)
-                js.extend((lam * (1.0 - th * th) * de).T)
+                offsets = np.zeros((1, 2)) if term.offsets is None else term.offsets
+                c = term.image.shape[2]
+                for k, (ou, ov) in enumerate(offsets):
+                    val, gu, gv = bilinear_with_gradient(term.image, u + ou, v + ov)
+                    e = val - term.ref[sel][:, k * c:(k + 1) * c]
+                    de = gu * du[:, None] + gv * dv[:, None]
+                    th = np.tanh(e / s)
+                    rs.extend((lam * s * th).T)
+                    js.extend((lam * (1.0 - th * th) * de).T)
         return np.stack(rs, axis=1), np.stack(js, axis=1)
 
 

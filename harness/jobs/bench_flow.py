@@ -1,0 +1,108 @@
+"""Benchmark of DeepMatching and the faithful DeepFlow at 1000x500: time and peak memory per pair and per frame.
+
+Run as ``python -m harness.jobs.bench_flow`` (``make bench``).  On a frame (``--frame DIR``, or a synthetic_box
+frame rendered by the numpy ray-caster) it runs, each in a fresh child process so that its peak RSS is its own:
+
+1. DeepMatching of the plain equirect C-R pair, both directions with the reciprocal check
+   (:func:`reconstruction.flow.deepmatching.deep_matching_both`);
+2. DeepFlow's variational part for that pair, given those matches (:func:`reconstruction.flow.deepflow.deep_flow`);
+3. the whole ``deepflowdm`` flow stage of a frame as the paper's set-up runs it: both pairs (C-U, C-R), forward and
+   backward flow, plain equirect (:func:`reconstruction.flow.matching.match_pair`).
+
+It prints each figure (wall and CPU seconds: on a shared machine the CPU time over the core count is the better
+estimate of the time on free cores) and the goals -- a frame's ``deepflowdm`` flow stage within ``--max-seconds`` (60) and
+``--max-gb`` (4 GB) -- and exits with status 1 when a goal fails.  Times are wall-clock on a possibly shared
+machine: upper bounds.  The first run also compiles the numba kernels (cached on disk afterwards); a warm-up on a
+small frame in each child keeps compilation out of the figures.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import multiprocessing as mp
+import resource
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from harness.jobs.bench import load_or_render_frame
+from reconstruction.flow.deepflow import DeepFlowParams, deep_flow
+from reconstruction.flow.deepmatching import DeepMatchingParams, deep_matching_both
+from reconstruction.flow.matching import match_pair
+
+PAIRS = ("U", "R")
+
+
+def _child(stage: str, frame_dir: str, width: int, queue) -> None:
+    frame, _ = load_or_render_frame(Path(frame_dir), width)
+    a, b = frame.images["C"], frame.images["R"]
+    small = (a[::8, ::8].copy(), b[::8, ::8].copy())  # warm-up: numba compiles (or loads its cache) here
+    m_small = deep_matching_both(*small, DeepMatchingParams())[0]
+    deep_flow(*small, DeepFlowParams(), matches=m_small)
+    base = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024 ** 2
+    start, cpu = time.perf_counter(), time.process_time()
+    if stage == "deepmatching":
+        fwd, bwd = deep_matching_both(a, b, DeepMatchingParams())
+        info = {"matches": int(fwd.x0.size), "matches_back": int(bwd.x0.size)}
+    elif stage == "deepflow":
+        m = deep_matching_both(a, b, DeepMatchingParams())[0]
+        start, cpu = time.perf_counter(), time.process_time()  # the variational part alone
+        deep_flow(a, b, DeepFlowParams(), matches=m)
+        info = {}
+    else:
+        info = {k: match_pair(frame, k, "deepflowdm", rectify=False).seconds for k in PAIRS}
+    seconds, cpu_s = time.perf_counter() - start, time.process_time() - cpu
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024 ** 2  # KiB on Linux -> GB
+    queue.put({"seconds": seconds, "cpu_s": cpu_s, "peak_gb": peak, "warmup_peak_gb": base, **info})
+
+
+def run_stage(stage: str, frame_dir: Path, width: int) -> dict:
+    """One stage in a fresh process; returns its seconds and peak RSS (GB)."""
+    ctx = mp.get_context("spawn")
+    q = ctx.Queue()
+    proc = ctx.Process(target=_child, args=(stage, str(frame_dir), width, q))
+    proc.start()
+    result = q.get()
+    proc.join()
+    if proc.exitcode != 0:
+        raise SystemExit(f"error: bench_flow stage {stage} failed (exit {proc.exitcode})")
+    return result
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--frame", type=Path, default=None,
+                    help="a frame directory or a cache root holding one of --width (default: render a synthetic_box "
+                         "frame into a temporary directory)")
+    ap.add_argument("--width", type=int, default=1000, help="frame width, pixels (default 1000)")
+    ap.add_argument("--max-seconds", type=float, default=60.0, help="goal: a frame's deepflow flow stage, s (60)")
+    ap.add_argument("--max-gb", type=float, default=4.0, help="goal: its peak memory, GB (4)")
+    args = ap.parse_args(argv)
+    with tempfile.TemporaryDirectory(prefix="tri360-bench-flow-") as tmp:
+        return _run(args, Path(tmp) if args.frame is None else args.frame)
+
+
+def _run(args, root: Path) -> int:
+    frame, how = load_or_render_frame(root, args.width)  # renders once; the children reuse it
+    frame_dir = frame.path
+    print(f"tri360 bench_flow: {frame.scene}/{frame.viewpoint} {frame.width}x{frame.height} ({how})", flush=True)
+    res = {}
+    for stage in ("deepmatching", "deepflow", "frame"):
+        res[stage] = run_stage(stage, frame_dir, args.width)
+        r = res[stage]
+        extra = {k: v for k, v in r.items() if k not in ("seconds", "cpu_s", "peak_gb", "warmup_peak_gb")}
+        print(f"  {stage:<13s} {r['seconds']:8.2f} s wall, {r['cpu_s']:8.2f} s CPU (all threads), peak RSS "
+              f"{r['peak_gb']:.2f} GB  {json.dumps(extra)}", flush=True)
+    fr = res["frame"]
+    goals = [(fr["seconds"] <= args.max_seconds, f"frame deepflow flow (2 pairs, both ways) {fr['seconds']:.1f} s "
+                                                 f"<= {args.max_seconds:g} s"),
+             (fr["peak_gb"] <= args.max_gb, f"its peak RSS {fr['peak_gb']:.2f} GB <= {args.max_gb:g} GB")]
+    for ok, text in goals:
+        print(f"  [{'PASS' if ok else 'FAIL'}] {text}")
+    return 0 if all(ok for ok, _ in goals) else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,408 @@
+"""DeepFlow (Weinzaepfel, Revaud, Harchaoui & Schmid, ICCV 2013): variational flow with a matching term.
+
+The flow ``w = (u, v)`` from image 1 to image 2 minimises
+
+    E(w) = integral of  delta Psi(sum_c |I2_c(x + w) - I1_c(x)|^2 / n_c)                (colour constancy)
+                      + gamma Psi(sum_c |grad I2_c(x + w) - grad I1_c(x)|^2 / n'_c)     (gradient constancy)
+                      + alpha Psi(|grad u|^2 + |grad v|^2)                               (smoothness)
+                      + beta_k phi(x) Psi(|w - w_match|^2)                                (matching term)
+
+with the robust penaliser ``Psi(s^2) = sqrt(s^2 + eps^2)`` (eps = 1e-3), the per-channel normalisations
+``n = |grad I|^2 + 0.1^2`` of Zimmer et al. (images in 0..255), and the matching term fed by
+:func:`reconstruction.flow.deepmatching.deep_matching`: ``w_match`` is the matches' flow splatted over each
+match's cell, ``phi`` its score divided by the largest score (in (0, 1]; 0 where no match).  The energy is
+minimised coarse to fine (pyramid factor ``eta`` = 0.95 down to ``min_size`` = 25 pixels); at each level, ``n_inner``
+fixed-point iterations linearise the data terms around the current flow (the second image warped by it) and
+solve the linear system of the increment with ``n_solver`` coupled red-black SOR sweeps (relaxation ``omega``);
+the matching weight decays from the coarsest level to the finest as ``beta_k = beta (k / (L - 1))^bk``.
+
+Parameters are the defaults of the authors' code (``optical_flow_params_default`` of DeepFlow 2): alpha 6,
+beta 390, gamma 5, delta 0.5, sigma 0.6 (presmoothing, pixels), bk 1, eta 0.95, min_size 25, 5 inner
+iterations, 25 SOR sweeps, omega 1.6.
+
+Equirect images wrap in longitude (``wrap=True``): columns are periodic in the warp, the derivatives, the
+smoothness term and the solver, so the flow crosses the seam with no padding.
+
+OpenCV pieces: image resizing and blurring only.  ``cv2.optflow.createOptFlow_DeepFlow`` (the variational part
+with the same defaults' family) and ``cv2.VariationalRefinement`` have no matching term and no periodic
+boundary, so the whole solver is here (numba for the warp and SOR, numpy for the rest).
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+
+import cv2
+import numba
+import numpy as np
+
+from reconstruction.flow.deepmatching import DeepMatchingParams, Matches, deep_matching
+
+__all__ = ["DeepFlowParams", "deep_flow", "match_field"]
+
+DATANORM = 0.1 * 0.1  # squared normalisation added to |grad I|^2 (grey levels^2 per pixel^2)
+EPS2 = 0.001 * 0.001  # squared epsilon of the robust penaliser
+
+
+@dataclass(frozen=True)
+class DeepFlowParams:
+    """DeepFlow's parameters (the authors' code defaults).
+
+    Attributes:
+        alpha: smoothness weight (dimensionless; data terms are normalised).
+        beta: matching-term weight.
+        gamma: gradient-constancy weight.
+        delta: colour-constancy weight.
+        sigma: Gaussian presmoothing of both images, pixels.
+        bk: decay exponent of the matching weight over the levels (0: constant).
+        eta: pyramid scale factor between consecutive levels.
+        min_size: the coarsest level is the last whose width and height are at least this, pixels.
+        n_inner: fixed-point (warping) iterations per level.
+        n_solver: SOR sweeps per fixed-point iteration.
+        sor_omega: SOR relaxation factor.
+        wrap: columns are periodic (equirect longitude).
+        matching: DeepMatching's parameters (its ``wrap`` is set to this ``wrap``).
+    """
+
+    alpha: float = 6.0
+    beta: float = 390.0
+    gamma: float = 5.0
+    delta: float = 0.5
+    sigma: float = 0.6
+    bk: float = 1.0
+    eta: float = 0.95
+    min_size: int = 25
+    n_inner: int = 5
+    n_solver: int = 25
+    sor_omega: float = 1.6
+    wrap: bool = True
+    matching: DeepMatchingParams = field(default_factory=DeepMatchingParams)
+
+    def config(self) -> dict:
+        return asdict(self)
+
+
+def match_field(m: Matches, h: int, w: int, wrap: bool = True):
+    """Splat matches into dense maps: each match's flow over its cell (``m.cell`` pixels square).
+
+    Returns:
+        ``(mu, mv, mw)``, each (H, W) float32: the matches' flow (pixels) and weight phi = score / max score
+        (0 where no match; where cells overlap the better-scored match wins).
+    """
+    mu = np.zeros((h, w), np.float32)
+    mv = np.zeros((h, w), np.float32)
+    mw = np.zeros((h, w), np.float32)
+    if m.x0.size == 0:
+        return mu, mv, mw
+    phi = (m.score / max(float(m.score.max()), 1e-12)).astype(np.float32)
+    half = 0.5 * m.cell
+    order = np.argsort(phi, kind="stable")  # ascending: later (better) matches overwrite
+    for k in order:
+        x0, y0 = m.x0[k], m.y0[k]
+        r0, r1 = max(0, int(np.ceil(y0 - half))), min(h, int(np.ceil(y0 + half)))
+        c0, c1 = int(np.ceil(x0 - half)), int(np.ceil(x0 + half))
+        cols = np.arange(c0, c1)
+        cols = cols % w if wrap else cols[(cols >= 0) & (cols < w)]
+        if r1 <= r0 or cols.size == 0:
+            continue
+        mu[r0:r1, cols] = m.x1[k] - x0
+        mv[r0:r1, cols] = m.y1[k] - y0
+        mw[r0:r1, cols] = phi[k]
+    return mu, mv, mw
+
+
+@numba.njit(parallel=True, cache=True)
+def _warp(img, u, v, wrap):
+    """Bilinear sample of (h, w, c) ``img`` at x + u, y + v; mask 0 where the target leaves the rows (or, without
+    wrapping, the columns)."""
+    h, w, c = img.shape
+    out = np.empty_like(img)
+    mask = np.empty((h, w), np.float32)
+    for i in numba.prange(h):
+        for j in range(w):
+            xx = j + u[i, j]
+            yy = i + v[i, j]
+            inside = yy >= 0 and yy <= h - 1 and (wrap or (xx >= 0 and xx <= w - 1))
+            mask[i, j] = 1.0 if inside else 0.0
+            x0 = int(np.floor(xx))
+            y0 = int(np.floor(yy))
+            dx = xx - x0
+            dy = yy - y0
+            if wrap:
+                xa, xb = x0 % w, (x0 + 1) % w
+            else:
+                xa, xb = min(max(x0, 0), w - 1), min(max(x0 + 1, 0), w - 1)
+            ya, yb = min(max(y0, 0), h - 1), min(max(y0 + 1, 0), h - 1)
+            for k in range(c):
+                out[i, j, k] = ((1 - dx) * (1 - dy) * img[ya, xa, k] + dx * (1 - dy) * img[ya, xb, k]
+                                + (1 - dx) * dy * img[yb, xa, k] + dx * dy * img[yb, xb, k])
+    return out, mask
+
+
+@numba.njit(parallel=True, cache=True)
+def _sor(du, dv, a11, a12, a22, b1, b2, hx, hy, iters, omega, wrap):
+    """Coupled red-black SOR for the increment (du, dv) of one fixed-point iteration (in place).
+
+    The system per pixel: (a + sum h) d - sum_nb h d_nb = b, with hx[i, j] the weight between (i, j) and
+    (i, j + 1) (the last column links to the first when wrapping) and hy[i, j] between rows i and i + 1.
+    """
+    h, w = du.shape
+    for _ in range(iters):
+        for colour in range(2):
+            for i in numba.prange(h):
+                start = (i + colour) % 2
+                for j in range(start, w, 2):
+                    jl = j - 1
+                    jr = j + 1
+                    sh = 0.0
+                    su = 0.0
+                    sv = 0.0
+                    if jl >= 0 or wrap:
+                        jl = jl % w
+                        wt = hx[i, jl]
+                        sh += wt
+                        su += wt * du[i, jl]
+                        sv += wt * dv[i, jl]
+                    if jr < w or wrap:
+                        jr = jr % w
+                        wt = hx[i, j]
+                        sh += wt
+                        su += wt * du[i, jr]
+                        sv += wt * dv[i, jr]
+                    if i > 0:
+                        wt = hy[i - 1, j]
+                        sh += wt
+                        su += wt * du[i - 1, j]
+                        sv += wt * dv[i - 1, j]
+                    if i < h - 1:
+                        wt = hy[i, j]
+                        sh += wt
+                        su += wt * du[i + 1, j]
+                        sv += wt * dv[i + 1, j]
+                    m11 = a11[i, j] + sh + 1e-12
+                    m22 = a22[i, j] + sh + 1e-12
+                    nu = (1.0 - omega) * du[i, j] + omega * (b1[i, j] + su - a12[i, j] * dv[i, j]) / m11
+                    du[i, j] = nu
+                    dv[i, j] = (1.0 - omega) * dv[i, j] + omega * (b2[i, j] + sv - a12[i, j] * nu) / m22
+
+
+@numba.njit(parallel=True, cache=True, fastmath=True)
+def _data_terms(ix, iy, iz, ixx, ixy, iyy, ixz, iyz, du, dv, mask, w_u, w_v, mu, mv, mw, hd, hg, half_beta):
+    """The linearised data and matching terms of one fixed-point iteration: per pixel the 2 x 2 system
+    ``[[a11, a12], [a12, a22]] (du, dv) = (b1, b2)`` (before smoothness), robust weights from the current
+    increment (du, dv).  Derivative arrays are (h, w, c); the others (h, w)."""
+    h, w, c = ix.shape
+    a11 = np.zeros((h, w), np.float32)
+    a12 = np.zeros((h, w), np.float32)
+    a22 = np.zeros((h, w), np.float32)
+    b1 = np.zeros((h, w), np.float32)
+    b2 = np.zeros((h, w), np.float32)
+    for i in numba.prange(h):
+        for j in range(w):
+            x11 = 0.0
+            x12 = 0.0
+            x22 = 0.0
+            y1 = 0.0
+            y2 = 0.0
+            u = du[i, j]
+            v = dv[i, j]
+            if hd > 0:
+                e = 0.0
+                for k in range(c):
+                    t = iz[i, j, k] + ix[i, j, k] * u + iy[i, j, k] * v
+                    e += t * t / (ix[i, j, k] ** 2 + iy[i, j, k] ** 2 + DATANORM)
+                psi = mask[i, j] * hd / np.sqrt(e + EPS2)
+                for k in range(c):
+                    q = psi / (ix[i, j, k] ** 2 + iy[i, j, k] ** 2 + DATANORM)
+                    x11 += q * ix[i, j, k] * ix[i, j, k]
+                    x12 += q * ix[i, j, k] * iy[i, j, k]
+                    x22 += q * iy[i, j, k] * iy[i, j, k]
+                    y1 -= q * iz[i, j, k] * ix[i, j, k]
+                    y2 -= q * iz[i, j, k] * iy[i, j, k]
+            if hg > 0:
+                e = 0.0
+                for k in range(c):
+                    nx = ixx[i, j, k] ** 2 + ixy[i, j, k] ** 2 + DATANORM
+                    ny = iyy[i, j, k] ** 2 + ixy[i, j, k] ** 2 + DATANORM
+                    tx = ixz[i, j, k] + ixx[i, j, k] * u + ixy[i, j, k] * v
+                    ty = iyz[i, j, k] + ixy[i, j, k] * u + iyy[i, j, k] * v
+                    e += tx * tx / nx + ty * ty / ny
+                psi = mask[i, j] * hg / np.sqrt(e + EPS2)
+                for k in range(c):
+                    qx = psi / (ixx[i, j, k] ** 2 + ixy[i, j, k] ** 2 + DATANORM)
+                    qy = psi / (iyy[i, j, k] ** 2 + ixy[i, j, k] ** 2 + DATANORM)
+                    gxx, gxy, gyy = ixx[i, j, k], ixy[i, j, k], iyy[i, j, k]
+                    x11 += qx * gxx * gxx + qy * gxy * gxy
+                    x12 += qx * gxx * gxy + qy * gxy * gyy
+                    x22 += qx * gxy * gxy + qy * gyy * gyy
+                    y1 -= qx * gxx * ixz[i, j, k] + qy * gxy * iyz[i, j, k]
+                    y2 -= qx * gxy * ixz[i, j, k] + qy * gyy * iyz[i, j, k]
+            if half_beta > 0 and mw[i, j] > 0:
+                eu = w_u[i, j] + u - mu[i, j]
+                ev = w_v[i, j] + v - mv[i, j]
+                psi = half_beta * mw[i, j] / np.sqrt(eu * eu + ev * ev + EPS2)
+                x11 += psi
+                x22 += psi
+                y1 -= psi * (w_u[i, j] - mu[i, j])
+                y2 -= psi * (w_v[i, j] - mv[i, j])
+            a11[i, j] = x11
+            a12[i, j] = x12
+            a22[i, j] = x22
+            b1[i, j] = y1
+            b2[i, j] = y2
+    return a11, a12, a22, b1, b2
+
+
+def _dx5(x: np.ndarray, wrap: bool) -> np.ndarray:
+    """Five-point derivative (1, -8, 0, 8, -1) / 12 along columns (axis 1)."""
+    if wrap:
+        r = lambda k: np.roll(x, -k, axis=1)  # noqa: E731 -- x[j + k]
+    else:
+        xp = np.concatenate([x[:, :1], x[:, :1], x, x[:, -1:], x[:, -1:]], axis=1)
+        r = lambda k: xp[:, 2 + k: xp.shape[1] - 2 + k]  # noqa: E731
+    return (-r(2) + 8.0 * r(1) - 8.0 * r(-1) + r(-2)) / 12.0
+
+
+def _dy5(x: np.ndarray) -> np.ndarray:
+    """Five-point derivative along rows (axis 0), edge rows replicated."""
+    xp = np.concatenate([x[:1], x[:1], x, x[-1:], x[-1:]], axis=0)
+    r = lambda k: xp[2 + k: xp.shape[0] - 2 + k]  # noqa: E731
+    return (-r(2) + 8.0 * r(1) - 8.0 * r(-1) + r(-2)) / 12.0
+
+
+def _neighbour_x(x: np.ndarray, wrap: bool) -> np.ndarray:
+    """x[:, j + 1] (the last column: the first if wrapping, else itself)."""
+    return np.roll(x, -1, axis=1) if wrap else np.concatenate([x[:, 1:], x[:, -1:]], axis=1)
+
+
+def _smoothness(u, v, quarter_alpha: float, wrap: bool):
+    """Diffusivities hx (between (i, j) and (i, j+1)) and hy (between rows i and i+1), (h, w) each."""
+    def cdx(a):
+        return 0.5 * (_neighbour_x(a, wrap) - (np.roll(a, 1, axis=1) if wrap else
+                                               np.concatenate([a[:, :1], a[:, :-1]], axis=1)))
+
+    def cdy(a):
+        ap = np.concatenate([a[:1], a, a[-1:]], axis=0)
+        return 0.5 * (ap[2:] - ap[:-2])
+
+    ux2, vx2, uy2, vy2 = cdx(u), cdx(v), cdy(u), cdy(v)
+    ux1, vx1 = _neighbour_x(u, wrap) - u, _neighbour_x(v, wrap) - v
+    t1 = 0.5 * (uy2 + _neighbour_x(uy2, wrap))
+    t2 = 0.5 * (vy2 + _neighbour_x(vy2, wrap))
+    hx = quarter_alpha / np.sqrt(ux1 * ux1 + t1 * t1 + vx1 * vx1 + t2 * t2 + EPS2)
+    if not wrap:
+        hx[:, -1] = 0.0
+    uy1 = np.zeros_like(u)
+    vy1 = np.zeros_like(v)
+    uy1[:-1], vy1[:-1] = u[1:] - u[:-1], v[1:] - v[:-1]
+    s1 = np.zeros_like(u)
+    s2 = np.zeros_like(v)
+    s1[:-1], s2[:-1] = 0.5 * (ux2[:-1] + ux2[1:]), 0.5 * (vx2[:-1] + vx2[1:])
+    hy = quarter_alpha / np.sqrt(uy1 * uy1 + s1 * s1 + vy1 * vy1 + s2 * s2 + EPS2)
+    hy[-1] = 0.0
+    return np.ascontiguousarray(hx, np.float32), np.ascontiguousarray(hy, np.float32)
+
+
+def _laplacian_rhs(w0, hx, hy, wrap: bool) -> np.ndarray:
+    """sum over neighbours of h (w0_nb - w0): the smoothness of the current flow moved to the right-hand side."""
+    fx = hx * (_neighbour_x(w0, wrap) - w0)  # flux between j and j+1
+    out = fx - (np.roll(fx, 1, axis=1) if wrap else np.concatenate([np.zeros_like(fx[:, :1]), fx[:, :-1]], axis=1))
+    fy = np.zeros_like(w0)
+    fy[:-1] = hy[:-1] * (w0[1:] - w0[:-1])
+    out = out + fy
+    out[1:] -= fy[:-1]
+    return out
+
+
+def _one_level(w_u, w_v, im1, im2, mu, mv, mw, half_beta, p: DeepFlowParams):
+    """Fixed-point iterations at one pyramid level; returns the refined flow (u, v)."""
+    wrap = p.wrap
+    im2w, mask = _warp(im2, w_u, w_v, wrap)
+    mean = 0.5 * (im1 + im2w)
+    iz = im2w - im1
+    ix = _dx5(mean, wrap)
+    iy = _dy5(mean)
+    ixx, ixy, iyy = _dx5(ix, wrap), _dy5(ix), _dy5(iy)
+    ixz, iyz = _dx5(iz, wrap), _dy5(iz)
+    hd, hg, qa = p.delta * 0.5 / 3.0, p.gamma * 0.5 / 3.0, 0.25 * p.alpha
+    f32 = lambda a: np.ascontiguousarray(a, np.float32)  # noqa: E731
+    ix, iy, iz, ixx, ixy, iyy, ixz, iyz = (f32(a) for a in (ix, iy, iz, ixx, ixy, iyy, ixz, iyz))
+    mask = f32(mask)
+    du = np.zeros_like(w_u)
+    dv = np.zeros_like(w_v)
+    for _ in range(int(p.n_inner)):
+        hx, hy = _smoothness(w_u + du, w_v + dv, qa, wrap)
+        a11, a12, a22, b1, b2 = _data_terms(ix, iy, iz, ixx, ixy, iyy, ixz, iyz, du, dv, mask, w_u, w_v, mu, mv,
+                                            mw, hd, hg, float(half_beta))
+        b1 += _laplacian_rhs(w_u, hx, hy, wrap)
+        b2 += _laplacian_rhs(w_v, hx, hy, wrap)
+        _sor(du, dv, a11, a12, a22, f32(b1), f32(b2), hx, hy, int(p.n_solver), float(p.sor_omega), wrap)
+    return w_u + du, w_v + dv
+
+
+def _resize(x: np.ndarray, w: int, h: int, interp=cv2.INTER_AREA) -> np.ndarray:
+    out = cv2.resize(x, (w, h), interpolation=interp)
+    return out if out.ndim == x.ndim else out[..., None]
+
+
+def deep_flow(img0: np.ndarray, img1: np.ndarray, params: DeepFlowParams | None = None,
+              matches: Matches | None = None) -> np.ndarray:
+    """DeepFlow from ``img0`` to ``img1``.
+
+    Args:
+        img0, img1: (H, W, 3) uint8 RGB (or (H, W) grey) images of the same size.
+        params: :class:`DeepFlowParams` (default: the authors' defaults, equirect wrapping).
+        matches: DeepMatching's matches from img0 to img1 (computed if None).
+    Returns:
+        (H, W, 2) float32 flow (du, dv) in pixels.
+    """
+    p = params or DeepFlowParams()
+    if img0.shape != img1.shape:
+        raise ValueError(f"deep_flow: images differ in size ({img0.shape} vs {img1.shape})")
+    h, w = img0.shape[:2]
+    if matches is None:
+        mp = p.matching if p.matching.wrap == p.wrap else DeepMatchingParams(**{**asdict(p.matching), "wrap": p.wrap})
+        matches = deep_matching(img0, img1, mp)
+    mu, mv, mw = match_field(matches, h, w, p.wrap)
+
+    def prep(img):
+        x = img.astype(np.float32)
+        x = x[..., None] if x.ndim == 2 else x
+        if p.sigma > 0:
+            x = cv2.GaussianBlur(x, (0, 0), p.sigma, borderType=cv2.BORDER_REPLICATE)
+        return x if x.ndim == 3 else x[..., None]
+
+    s1, s2 = prep(img0), prep(img1)
+    sizes = []
+    k = 0
+    while True:
+        f = p.eta ** k
+        lw, lh = int(round(w * f)), int(round(h * f))
+        if min(lw, lh) < p.min_size and k > 0:
+            break
+        sizes.append((lw, lh))
+        k += 1
+        if min(lw, lh) <= p.min_size:
+            break
+    n_lev = len(sizes)
+    wmu, wmv = mw * mu, mw * mv
+    u = v = None
+    for k in range(n_lev - 1, -1, -1):
+        lw, lh = sizes[k]
+        im1 = np.ascontiguousarray(_resize(s1, lw, lh), np.float32)
+        im2 = np.ascontiguousarray(_resize(s2, lw, lh), np.float32)
+        if u is None:
+            u = np.zeros((lh, lw), np.float32)
+            v = np.zeros((lh, lw), np.float32)
+        else:
+            ph, pw = u.shape
+            u = cv2.resize(u, (lw, lh), interpolation=cv2.INTER_LINEAR) * (lw / pw)
+            v = cv2.resize(v, (lw, lh), interpolation=cv2.INTER_LINEAR) * (lh / ph)
+        lmw = cv2.resize(mw, (lw, lh), interpolation=cv2.INTER_AREA)
+        safe = np.maximum(lmw, 1e-6)
+        lmu = np.where(lmw > 1e-6, cv2.resize(wmu, (lw, lh), interpolation=cv2.INTER_AREA) / safe, 0.0) * (lw / w)
+        lmv = np.where(lmw > 1e-6, cv2.resize(wmv, (lw, lh), interpolation=cv2.INTER_AREA) / safe, 0.0) * (lh / h)
+        half_beta = 0.5 * p.beta * ((k / (n_lev - 1)) ** p.bk if (p.bk > 0 and n_lev > 1) else 1.0)
+        u, v = _one_level(u.astype(np.float32), v.astype(np.float32), im1, im2, lmu.astype(np.float32),
+                          lmv.astype(np.float32), lmw.astype(np.float32), half_beta, p)
+    return np.ascontiguousarray(np.dstack([u, v]), np.float32)
