@@ -177,7 +177,7 @@ def ceiling_panels(spec: SceneSpec, rng: np.random.Generator, area: tuple[float,
 def add_window(spec: SceneSpec, rng: np.random.Generator, wall: str, room: tuple[float, float, float],
                along: float, width: float, height: float, sill: float, *, frame: str,
                strength: Range = (0.8, 1.6), kelvin: Range = (5500.0, 9000.0), fill_power: Range = (20.0, 60.0),
-               name: str = "window") -> None:
+               sky: str | None = None, sill_material: str | None = None, name: str = "window") -> None:
     """Daylight through a window: a frame and an emissive, sky-coloured pane set into ``wall`` plus an invisible
     point light 0.6 m inside the window's upper part (the light the window throws into the room).
 
@@ -187,15 +187,21 @@ def add_window(spec: SceneSpec, rng: np.random.Generator, wall: str, room: tuple
         along: the window centre's coordinate along the wall, metres.
         width, height, sill: window size and the sill height above the floor, metres.
         frame: material of the frame.
-        strength: pane emission; kelvin: sky colour temperature; fill_power: the fill light's watts.
+        strength: pane emission; kelvin: sky colour temperature; fill_power: the fill light's watts (0: no fill
+            light, the pane alone lights the room).
+        sky: an existing emission material for the pane (several windows of a room share one sky); by default
+            one is drawn from ``strength`` and ``kelvin``.
+        sill_material: the sill's material (default: ``frame``).
     """
     W, D, _ = room
     axis, sign = ("x" if "x" in wall else "y"), (1.0 if wall[0] == "+" else -1.0)
     half = (W if axis == "x" else D) / 2.0
     zc = sill + height / 2.0
-    color = draw_light_color(rng, kelvin)
-    pane = spec.add_material(Material(f"{name}.sky", kind="emission", color=color, color2=(1.0, 1.0, 1.0),
-                                      scale=0.8, contrast=0.25, emission=uniform(rng, strength)))
+    if sky is None:
+        sky = spec.add_material(Material(f"{name}.sky", kind="emission", color=draw_light_color(rng, kelvin),
+                                         color2=(1.0, 1.0, 1.0), scale=0.8, contrast=0.25,
+                                         emission=uniform(rng, strength)))
+    pane, color = sky, spec.materials[sky].color
 
     def at(depth: float, along_: float, z: float, thick: float, w: float, h: float, mat: str, part: str):
         c = sign * (half - depth)
@@ -204,10 +210,12 @@ def add_window(spec: SceneSpec, rng: np.random.Generator, wall: str, room: tuple
 
     at(0.015, along, zc, 0.03, width + 0.1, height + 0.1, frame, "frame")
     at(0.02, along, zc, 0.04, width, height, pane, "pane")
-    at(0.08, along, sill - 0.02, 0.16, width + 0.2, 0.04, frame, "sill")
-    inside = sign * (half - 0.6)
-    pos = (inside, along, sill + 0.8 * height) if axis == "x" else (along, inside, sill + 0.8 * height)
-    spec.lights.append(Light("point", position=pos, power=uniform(rng, fill_power), color=color))
+    at(0.08, along, sill - 0.02, 0.16, width + 0.2, 0.04, sill_material or frame, "sill")
+    watts = uniform(rng, fill_power)
+    if watts > 0:
+        inside = sign * (half - 0.6)
+        pos = (inside, along, sill + 0.8 * height) if axis == "x" else (along, inside, sill + 0.8 * height)
+        spec.lights.append(Light("point", position=pos, power=watts, color=color))
 
 
 # ------------------------------------------------------------------------------------------------- geometry

@@ -6,17 +6,22 @@ the scene stays renderer-agnostic.  Coordinates: room centred on x = y = 0, floo
 (boards) is at +y, the windows on the -x wall, the door on the +x wall, the lockers on the back (-y) wall.
 Students face +y.
 
-The ``seed`` jitters the layout (desk and chair positions and angles, empty seats, books); presets change
-the room size and furnishing.  Weak-texture surfaces on purpose: the ceiling (uniform), the whiteboard
+The ``seed`` jitters the layout (desk and chair positions and angles, empty seats, books) and, through the
+shared kit (``scenes/families/_kit.py``) on a stream of its own, the look: every material's colour, texture
+contrast and roughness around its preset look, the ceiling panels' power and colour temperature, the sky's
+colour and brightness in the windows (``look_variation`` scales all of it; 0 gives the fixed look).  Presets
+change the room size and furnishing.  Weak-texture surfaces on purpose: the ceiling (uniform), the whiteboard
 (uniform), the window panes (nearly uniform, bright) and the lockers (faint).
 """
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
-from reconstruction.camera.rig import yaw_rotation
-from scenes.model import Box, Light, Material, ModelFile, SceneEntry, SceneSpec
+from scenes.families import _kit as kit
+from scenes.model import Box, Material, ModelFile, SceneEntry, SceneSpec
 
 MATERIALS = [
     Material("floor", kind="tiles", color=(0.55, 0.52, 0.46), color2=(0.32, 0.30, 0.27), scale=0.3,
@@ -44,7 +49,6 @@ MATERIALS = [
              contrast=0.6, roughness=0.5),
     Material("locker", kind="metal", color=(0.30, 0.40, 0.48), color2=(0.22, 0.30, 0.36), scale=0.3,
              contrast=0.15, roughness=0.5),
-    Material("lamp", kind="emission", color=(1.0, 0.97, 0.92), contrast=0.0, emission=6.0),
     Material("monitor", kind="plastic", color=(0.03, 0.03, 0.035), contrast=0.2, roughness=0.3),
     Material("poster_a", kind="noise", color=(0.8, 0.3, 0.1), color2=(0.1, 0.3, 0.7), scale=0.08, contrast=1.0),
     Material("poster_b", kind="noise", color=(0.9, 0.85, 0.2), color2=(0.1, 0.5, 0.2), scale=0.05,
@@ -57,35 +61,15 @@ MATERIALS = [
 BOOKS = ("book_a", "book_b", "book_c", "book_d")
 
 
-def _place(boxes: list, name: str, x: float, y: float, yaw: float, parts) -> None:
-    """Add boxes given in a local frame (dx, dy, z centre, size, material) rotated by ``yaw`` about (x, y)."""
-    rot = yaw_rotation(yaw)[:2, :2]
-    for k, (dx, dy, z, size, mat) in enumerate(parts):
-        ox, oy = rot @ (dx, dy)
-        boxes.append(Box(center=(x + ox, y + oy, z), size=size, material=mat, yaw=yaw, name=f"{name}.{k}"))
-
-
-def _table_parts(w: float, d: float, h: float, top: str, legs: str, leg=0.035, thick=0.03):
-    parts = [(0.0, 0.0, h - thick / 2, (w, d, thick), top)]
-    ix, iy = w / 2 - leg, d / 2 - leg
-    for sx in (-1, 1):
-        for sy in (-1, 1):
-            parts.append((sx * ix, sy * iy, (h - thick) / 2, (leg, leg, h - thick), legs))
-    return parts
+def _place(spec: SceneSpec, name: str, x: float, y: float, yaw: float, parts) -> None:
+    """Add parts given as (dx, dy, z centre, size, material) boxes or kit parts, rotated by ``yaw`` about (x, y)."""
+    kit.place(spec, name, x, y, yaw, [p if not isinstance(p, tuple) else
+                                      Box((p[0], p[1], p[2]), p[3], p[4]) for p in parts])
 
 
 def _chair_parts(seat_h=0.45, w=0.40, d=0.40, back_h=0.38):
     """A chair facing +y (its back at -y)."""
-    leg = 0.025
-    parts = [(0.0, 0.0, seat_h - 0.015, (w, d, 0.03), "seat"),
-             (0.0, -d / 2 + 0.015, seat_h + 0.08 + back_h / 2, (w, 0.025, back_h), "seat")]
-    for sx in (-1, 1):
-        for sy in (-1, 1):
-            parts.append((sx * (w / 2 - leg), sy * (d / 2 - leg), (seat_h - 0.03) / 2,
-                          (leg, leg, seat_h - 0.03), "leg_metal"))
-    for sx in (-1, 1):  # back posts
-        parts.append((sx * (w / 2 - leg), -d / 2 + 0.015, seat_h + 0.04, (leg, leg, 0.08), "leg_metal"))
-    return parts
+    return kit.chair_parts("seat", "leg_metal", seat_h=seat_h, w=w, d=d, back_h=back_h)
 
 
 PARAMETERS = {
@@ -99,6 +83,7 @@ PARAMETERS = {
     "light_power": "power per ceiling area light, watts (default 35)",
     "jitter": "layout jitter amplitude, metres; angles get jitter / 1 m radians (default 0.05)",
     "empty_seat_rate": "share of desks without a chair, in [0, 1] (default 0.15)",
+    "look_variation": "amplitude of the seed's material and lighting randomisation, 0 = the fixed look (default 1)",
     "model_path": "an external model file (.blend, .glb, .gltf, .obj) to place; Cycles only (default none)",
     "model_location": "(x, y, z) of the model, metres (default [0, 0, 0])",
     "model_rotation": "(rx, ry, rz) Euler XYZ rotation of the model, radians (default [0, 0, 0])",
@@ -108,27 +93,26 @@ PARAMETERS = {
 
 def build(params: dict, seed: int) -> SceneSpec:
     """Build a classroom (parameters: ``PARAMETERS``, all optional)."""
-    rng = np.random.default_rng(seed)
+    rng = np.random.default_rng(seed)  # the layout stream (as before the look was randomised)
+    look = kit.streams(seed)[1]
+    amount = float(params.get("look_variation", 1.0))
     W, D, H = (float(v) for v in params.get("size", (8.0, 7.0, 3.0)))
     rows, cols = int(params.get("rows", 5)), int(params.get("cols", 6))
     jitter = float(params.get("jitter", 0.05))
     spec = SceneSpec(name="classroom", bounds=((-W / 2, -D / 2, 0.0), (W / 2, D / 2, H)),
                      rig_height=(1.1, min(1.5, H - 0.9)), background=(0.0, 0.0, 0.0))
     for m in MATERIALS:
+        if m.name == "window" and amount > 0:  # daylight: sky colour temperature (7000-11500 K), brightness
+            kelvin = 9000.0 + amount * look.uniform(-2000.0, 2500.0)
+            gain = 1.0 + 0.25 * amount * look.uniform(-1, 1)
+            m = replace(m, color=kit.kelvin_to_rgb(kelvin), emission=m.emission * gain)
+        elif m.kind != "emission":
+            m = kit.vary_material(look, m, amount)
         spec.add_material(m)
     b = spec.boxes
 
-    # shell: walls (inward box), tiled floor slab and ceiling slab (different materials)
-    t = 0.05
-    b.append(Box((0.0, 0.0, H / 2), (W, D, H + 2 * t), "walls", name="shell", inward=True))
-    b.append(Box((0.0, 0.0, -t / 2), (W, D, t), "floor", name="floor"))
-    b.append(Box((0.0, 0.0, H + t / 2), (W, D, t), "ceiling", name="ceiling"))
-    # baseboards
-    bb, bh = 0.015, 0.08
-    b.append(Box((0.0, D / 2 - bb / 2, bh / 2), (W, bb, bh), "baseboard", name="baseboard.front"))
-    b.append(Box((0.0, -D / 2 + bb / 2, bh / 2), (W, bb, bh), "baseboard", name="baseboard.back"))
-    b.append(Box((-W / 2 + bb / 2, 0.0, bh / 2), (bb, D - 2 * bb, bh), "baseboard", name="baseboard.left"))
-    b.append(Box((W / 2 - bb / 2, 0.0, bh / 2), (bb, D - 2 * bb, bh), "baseboard", name="baseboard.right"))
+    # shell: walls (inward box), tiled floor slab and ceiling slab (different materials), baseboards
+    kit.room_shell(spec, (W, D, H), "walls", "floor", "ceiling", baseboard="baseboard")
 
     # front wall: chalkboard with frame and chalk tray, whiteboard beside it, a clock
     fy = D / 2
@@ -157,11 +141,11 @@ def build(params: dict, seed: int) -> SceneSpec:
     # teacher's desk (with a drawer block and a monitor) and chair
     tx, ty = 0.25 * W + rng.uniform(-jitter, jitter), D / 2 - 1.4
     tyaw = np.pi + rng.uniform(-jitter, jitter)
-    _place(b, "teacher_desk", tx, ty, tyaw, _table_parts(1.4, 0.7, 0.76, "dark_wood", "dark_wood", leg=0.05))
-    _place(b, "teacher_desk.drawers", tx, ty, tyaw, [(0.45, 0.0, 0.36, (0.4, 0.6, 0.7), "dark_wood")])
-    _place(b, "monitor", tx, ty, tyaw, [(-0.2, 0.15, 0.76 + 0.22, (0.5, 0.03, 0.32), "monitor"),
-                                        (-0.2, 0.15, 0.76 + 0.03, (0.2, 0.15, 0.06), "monitor")])
-    _place(b, "teacher_chair", tx - 0.2 * np.cos(tyaw), ty + 0.6, tyaw + rng.uniform(-0.3, 0.3),
+    _place(spec, "teacher_desk", tx, ty, tyaw, kit.table_parts(1.4, 0.7, 0.76, "dark_wood", "dark_wood", leg=0.05))
+    _place(spec, "teacher_desk.drawers", tx, ty, tyaw, [(0.45, 0.0, 0.36, (0.4, 0.6, 0.7), "dark_wood")])
+    _place(spec, "monitor", tx, ty, tyaw, [(-0.2, 0.15, 0.76 + 0.22, (0.5, 0.03, 0.32), "monitor"),
+                                           (-0.2, 0.15, 0.76 + 0.03, (0.2, 0.15, 0.06), "monitor")])
+    _place(spec, "teacher_chair", tx - 0.2 * np.cos(tyaw), ty + 0.6, tyaw + rng.uniform(-0.3, 0.3),
            _chair_parts(0.48, 0.46, 0.44, 0.45))
 
     # student desks and chairs
@@ -174,11 +158,12 @@ def build(params: dict, seed: int) -> SceneSpec:
             x = (x0 + x1) / 2 if cols == 1 else x0 + (x1 - x0) * c / (cols - 1)
             jx, jy = rng.uniform(-jitter, jitter, 2)
             yaw = rng.uniform(-jitter, jitter)
-            _place(b, f"desk{r}_{c}", x + jx, y + jy, yaw, _table_parts(0.65, 0.45, 0.72, "desk_wood", "leg_metal"))
+            _place(spec, f"desk{r}_{c}", x + jx, y + jy, yaw,
+                   kit.table_parts(0.65, 0.45, 0.72, "desk_wood", "leg_metal"))
             if rng.uniform() >= empty_rate:
                 off = rng.uniform(0.35, 0.55)
                 cyaw = yaw + rng.uniform(-4 * jitter, 4 * jitter)
-                _place(b, f"chair{r}_{c}", x + jx + rng.uniform(-jitter, jitter), y + jy - off, cyaw,
+                _place(spec, f"chair{r}_{c}", x + jx + rng.uniform(-jitter, jitter), y + jy - off, cyaw,
                        _chair_parts())
 
     # lockers on the back wall
@@ -214,13 +199,11 @@ def build(params: dict, seed: int) -> SceneSpec:
                 yb += bw_ + 0.003
 
     # ceiling light panels (visible emitters) with area lights just below them (invisible to cameras)
-    nx, ny = (int(v) for v in params.get("lights", (2, 3)))
-    power = float(params.get("light_power", 35.0))
-    for i in range(nx):
-        for j in range(ny):
-            x, y = -W / 2 + W * (i + 0.5) / nx, -D / 2 + D * (j + 0.5) / ny
-            b.append(Box((x, y, H - 0.02), (1.2, 0.3, 0.04), "lamp", name=f"lamp{i}_{j}"))
-            spec.lights.append(Light("area", position=(x, y, H - 0.05), size=(1.2, 0.3), power=power))
+    # (one power and colour temperature per room, drawn around the preset's: +-25 %, 3300-6000 K)
+    power = float(params.get("light_power", 35.0)) * (1.0 + 0.25 * amount * look.uniform(-1, 1))
+    kelvin = 4500.0 + amount * look.uniform(-1200.0, 1500.0)
+    kit.ceiling_panels(spec, look, (-W / 2, -D / 2, W / 2, D / 2), H, params.get("lights", (2, 3)), power=power,
+                       kelvin=kelvin, panel=(1.2, 0.3), emission=6.0, name="lamp")
 
     if params.get("model_path"):
         spec.models.append(ModelFile(path=params["model_path"],
@@ -243,4 +226,4 @@ PRESETS = {
 
 SCENES = [SceneEntry(name="classroom", build=build, presets=PRESETS, default_preset="standard",
                      description="classroom (8 x 7 x 3 m standard): desks, chairs, boards, windows, lockers",
-                     parameters=PARAMETERS, renderer="cycles")]
+                     parameters=PARAMETERS, renderer="cycles", tags=("repetitive", "thin"))]

@@ -11,7 +11,6 @@ import shutil
 import subprocess
 import sys
 
-import cv2
 import numpy as np
 import pytest
 
@@ -22,11 +21,12 @@ from harness.data.frame import find_frames, read_frame
 from harness.jobs.render import render_frames
 from harness.render.base import RenderSettings
 from harness.render.registry import open_renderer
-from reconstruction.camera.equirect import bearing_grid, project
+from reconstruction.camera.equirect import bearing_grid
 from reconstruction.camera.rig import Rig
 from scenes.families.box_room import box_interior_distance
 from scenes.model import Box, Material, ModelFile, SceneSpec, choose_viewpoints
 from scenes.registry import SceneEntry, discover
+from tests.helpers import cross_camera_consistency
 
 ENTRIES, _ = discover()
 CYCLES_SCENES = sorted(n for n, e in ENTRIES.items() if e.renderer == "cycles")
@@ -100,26 +100,9 @@ def test_camera_convention(yaw, marker, where):
         assert abs(u.mean() + 0.5 - expect) < 1.5 and abs(v.mean() + 0.5 - 16) < 1.5
 
 
-def _sample(img, u, v):
-    """Bilinear sample (H, W[, C]) at continuous pixel coords (reconstruction.camera.equirect: centres at integers)."""
-    big = np.concatenate([img[:, -1:], img, img[:, :1]], axis=1).astype(np.float32)
-    return cv2.remap(big, (u + 1).astype(np.float32), v.astype(np.float32), cv2.INTER_LINEAR,
-                     borderMode=cv2.BORDER_REPLICATE)
-
-
 def _cross_check(f, k):
     """Project C's ground truth into camera k -> (agree within 2 %, occluded in k, |grey diff| /255)."""
-    W, H = f.width, f.height
-    c, pk = f.cameras["C"], f.cameras[k]
-    X = c.position + f.distance["C"][..., None] * bearing_grid(W, H, c.rotation)
-    u, v = project(X, pk.position, pk.rotation, W, H)
-    expected = np.linalg.norm(X - pk.position, axis=-1)
-    agree = np.abs(_sample(f.distance[k], u, v) - expected) < 0.02 * expected
-    nearest3x3 = cv2.erode(f.distance[k].astype(np.float32), np.ones((3, 3), np.uint8),
-                           borderType=cv2.BORDER_REPLICATE)
-    occluded = _sample(nearest3x3, u, v) < 0.98 * expected  # a nearer surface hides the point from k
-    grey = {n: cv2.cvtColor(f.images[n], cv2.COLOR_RGB2GRAY).astype(np.float32) for n in ("C", k)}
-    return agree, occluded, np.abs(_sample(grey[k], u, v) - grey["C"])
+    return cross_camera_consistency(f, k)
 
 
 @pytest.mark.blender
