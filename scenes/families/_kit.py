@@ -323,10 +323,12 @@ def chair_parts(seat: str, legs: str, seat_h: float = 0.45, w: float = 0.40, d: 
 
 def round_table_parts(radius: float, h: float, top: str, stand: str, thick: float = 0.04,
                       column: float = 0.05) -> list:
-    """A round table: a disc top of ``radius`` at height ``h``, a central column of radius ``column`` and a
-    round foot (cylinders)."""
+    """A round table: a disc top of ``radius`` at height ``h`` with an 8 cm apron under its rim, a central column
+    of radius ``column`` and a round foot (cylinders).  (Top and apron together are 12 cm tall, so that the
+    rig-placement check, which samples the column under each camera every 10 cm, cannot miss the table.)"""
     foot = min(0.6 * radius, 0.4)
     return [Cylinder((0.0, 0.0, h - thick / 2), radius, thick, top, name="top"),
+            Cylinder((0.0, 0.0, h - thick - 0.04), radius - 0.05, 0.08, top, name="apron"),
             Cylinder((0.0, 0.0, (h - thick) / 2), column, h - thick - 0.02, stand, name="column"),
             Cylinder((0.0, 0.0, 0.01), foot, 0.02, stand, name="foot")]
 

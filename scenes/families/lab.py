@@ -115,7 +115,8 @@ def build(params: dict, seed: int) -> SceneSpec:
         for s in (-1, 1):  # cabinet bodies at the ends, a knee space in the middle
             b.append(Box((xb + s * (length / 2 - 0.45), yb, 0.435), (0.88, 0.86, 0.87), "bench_body",
                          name=f"bench{r_}.body{s:+d}"))
-        b.append(Box((xb, yb, 0.08), (length - 1.8, 0.05, 0.16), "bench_body", name=f"bench{r_}.kick"))
+        # a service spine under the middle (0.2 m deep: no rig is placed hovering over the bench's knee space)
+        b.append(Box((xb, yb, 0.4), (length - 1.8, 0.2, 0.8), "bench_body", name=f"bench{r_}.spine"))
         # a shelf of reagents on steel posts above the bench
         for s in (-1, 1):
             spec.cylinders.append(Cylinder((xb + s * (length / 2 - 0.1), yb, 1.25), 0.015, 0.7, "steel",
