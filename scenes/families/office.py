@@ -33,7 +33,8 @@ PARAMETERS = {
     "kelvin": "(min, max) colour temperature of the ceiling lights, kelvin (default [3500, 6000])",
 }
 
-DESK_W, DESK_D, DESK_H = 1.4, 0.75, 0.74  # one desk, metres
+DESK_W, DESK_D, DESK_H = 1.4, 0.75, 0.76  # one desk, metres (the top, 0.735-0.76 m, spans a 0.75 m sample of the
+# rig-placement check, which tests the column under each camera every 10 cm from 0.05 m: no rig hovers over a desk)
 CHAIR_OUT = 0.7  # how far a chair (and the person's room) reaches behind the desk edge, metres
 
 
