@@ -10,7 +10,8 @@ frame rendered by the numpy ray-caster) it runs, each in a fresh child process s
    backward flow, plain equirect (:func:`reconstruction.flow.matching.match_pair`).
 
 It prints each figure (wall and CPU seconds: on a shared machine the CPU time over the core count is the better
-estimate of the time on free cores) and the goals -- a frame's ``deepflowdm`` flow stage within ``--max-seconds`` (60) and
+estimate of the time on free cores) and the goals -- a frame's ``deepflowdm`` flow stage within
+``--max-seconds`` (60) and
 ``--max-gb`` (4 GB) -- and exits with status 1 when a goal fails.  Times are wall-clock on a possibly shared
 machine: upper bounds.  The first run also compiles the numba kernels (cached on disk afterwards); a warm-up on a
 small frame in each child keeps compilation out of the figures.
