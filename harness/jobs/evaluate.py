@@ -43,7 +43,7 @@ from harness.data.provenance import software
 from harness.data.results import map_paths, write_results
 from harness.jobs.cluster import ClusterOptions, Executor, executor_for, is_distributed
 from harness.jobs.report import build_report
-from reconstruction.methods.base import Method, MethodOutput, flow_fields, run_methods
+from reconstruction.methods.base import Method, MethodOutput, flow_fields, method_groups, run_methods
 from reconstruction.methods.flow_pipeline import config_label
 from reports.metrics import breakdown
 from reports.regions import region_summaries, regions
@@ -190,16 +190,6 @@ def _score_rows(frame, method: Method, output: MethodOutput, masks: dict) -> tup
            **{k: v for k, v in overall.items() if k not in key and k != "region"},
            "seconds": round(output.total_seconds, 4)}
     return row, [{**key, **b} for b in breakdown(frame, pred)], region_rows
-
-
-def method_groups(methods: Sequence[Method]) -> list[list[Method]]:
-    """``methods`` split into the groups that share work (same ``group_key``, as ``run_methods`` runs them),
-    in order of first appearance; a method without a ``group_key`` is a group of its own."""
-    groups: dict = {}
-    for i, m in enumerate(methods):
-        key = getattr(m, "group_key", None)
-        groups.setdefault(("group", key) if key is not None else ("single", i), []).append(m)
-    return list(groups.values())
 
 
 def evaluate_task(frame_path: str, methods: Sequence[Method], stage: str) -> dict:

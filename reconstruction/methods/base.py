@@ -18,7 +18,7 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
-__all__ = ["Method", "MethodOutput", "run_methods", "flow_fields"]
+__all__ = ["Method", "MethodOutput", "method_groups", "run_methods", "flow_fields"]
 
 
 @dataclass
@@ -69,6 +69,17 @@ def flow_fields(method) -> dict[str, Any]:
             "variant": getattr(method, "variant", "")}
 
 
+def method_groups(methods: Sequence[Method]) -> list[list[Method]]:
+    """``methods`` split into the groups that share work (same ``group_key``), in order of first appearance; a
+    method without a ``group_key`` is a group of its own.  :func:`run_methods` runs each group once; a distributed
+    evaluation makes one task per frame and group."""
+    groups: dict[Hashable, list] = {}
+    for i, m in enumerate(methods):
+        key = getattr(m, "group_key", None)
+        groups.setdefault(("group", key) if key is not None else ("single", i), []).append(m)
+    return list(groups.values())
+
+
 def run_methods(frame, methods: Sequence[Method],
                 on_stage: Callable[[str], None] | None = None) -> dict[str, MethodOutput]:
     """Run every method on one frame, each group of methods that share work once.
@@ -80,12 +91,8 @@ def run_methods(frame, methods: Sequence[Method],
     Returns:
         Outputs by method label, in the order of ``methods``.
     """
-    groups: dict[Hashable, list] = {}
-    for i, m in enumerate(methods):
-        key = getattr(m, "group_key", None)
-        groups.setdefault(("group", key) if key is not None else ("single", i), []).append(m)
     outs: dict[str, MethodOutput] = {}
-    for members in groups.values():
+    for members in method_groups(methods):
         head = members[0]
         if hasattr(head, "run_group"):
             outs.update(head.run_group(frame, members, on_stage=on_stage))
