@@ -144,7 +144,7 @@ def _local_cluster(options: ClusterOptions) -> LocalCluster:
     if _quiet_forkserver():
         dask.config.set({"distributed.worker.multiprocessing-method": "forkserver"})  # restarts too: kept
     return LocalCluster(n_workers=options.workers, threads_per_worker=options.threads_per_worker,
-                        processes=True, host=LOOPBACK, dashboard_address=None, silence_logs=logging.ERROR)
+                        processes=True, host=LOOPBACK, dashboard_address=None, silence_logs=logging.CRITICAL)
 
 
 class DaskExecutor:

@@ -37,7 +37,7 @@ from harness.data.atomic import atomic_write_text
 from harness.jobs.evaluate import config_keys, evaluate
 from harness.jobs.render import render_frames
 from harness.render.base import RenderSettings
-from reconstruction.methods.registry import DEFAULT_CONFIGS, DEFAULT_METHOD, flow_methods, get_methods
+from reconstruction.methods.registry import DEFAULT_CONFIGS, DEFAULT_METHOD, DEFAULT_VARIANTS, flow_methods, get_methods
 
 #: panorama width of every regression frame, pixels (height = width / 2)
 REGRESSION_WIDTH = 400
@@ -82,14 +82,15 @@ def run_regression(workdir: Path | str, data: Path | str | None = None, width: i
     """Build the data set (into ``data``, default ``<workdir>/data``) and evaluate it into ``<workdir>/results``.
 
     Returns:
-        The results table (``harness.jobs.evaluate`` schema): the default method and every variant of every
-        regression configuration.
+        The results table (``harness.jobs.evaluate`` schema): the default method and the default variants
+        (``DEFAULT_VARIANTS``) of every regression configuration.
     """
 
     workdir = Path(workdir)
     root = build_dataset(Path(data) if data is not None else workdir / "data", width, samples, threads, progress)
+    variants = list(DEFAULT_VARIANTS)
     methods = [*get_methods([DEFAULT_METHOD]),
-               *(m for flow, rect in regression_configs() for m in flow_methods([flow], [rect]))]
+               *(m for flow, rect in regression_configs() for m in flow_methods([flow], [rect], variants))]
     return evaluate(root, workdir / "results", methods, scenes=[s for s, _ in SCENES], report=False,
                     progress=progress)
 

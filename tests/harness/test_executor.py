@@ -26,6 +26,7 @@ from distributed.diagnostics.plugin import WorkerPlugin
 
 from harness.cli import main
 from harness.data.errors import UserError
+from harness.data.outputs import MARKER
 from harness.jobs.cluster import ClusterOptions
 from harness.jobs.evaluate import evaluate
 from harness.jobs.executor import DaskExecutor, security_for
@@ -44,13 +45,15 @@ EXACT_METHODS = ["fused", "dis-rect:average", "oracle-rect:gradient", "oracle-re
 
 
 def frame_files(root: Path) -> dict[str, bytes]:
-    """Every file under a data root except the render logs (wall times), by relative path."""
+    """Every file of the frames under a data root except the render logs (wall times), by relative path (the data
+    root's own output marker is not a frame's)."""
     return {str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*"))
-            if p.is_file() and p.name != RENDER_LOG}
+            if p.is_file() and p.name != RENDER_LOG and p != root / MARKER}
 
 
 def hidden_entries(root: Path) -> list[Path]:
-    return [p for p in root.rglob(".*")]
+    """Hidden leftovers under a data root (staging directories of killed writes); its output marker is not one."""
+    return [p for p in root.rglob(".*") if p != root / MARKER]
 
 
 def results_without_seconds(out: Path) -> pd.DataFrame:
