@@ -21,7 +21,8 @@ def add_method_options(parser: argparse.ArgumentParser, multiple: bool) -> None:
     if multiple:
         parser.add_argument("--method", nargs="+", default=None, metavar="LABEL",
                             help="methods by label, e.g. dis-rect:gradient deepflow-plain:average, or outside methods' "
-                                 "labels (default: tri360's flow pipeline and the paper's set-up, every variant)")
+                                 "labels (default: fused, then tri360's flow pipeline and the paper's set-up with the "
+                                 "paper's variants average, angle, gradient, color)")
         parser.add_argument("--flow", nargs="+", default=None, metavar="NAME",
                             help=f"instead of --method: flow-pipeline methods with these flows ({flows})")
         parser.add_argument("--variants", nargs="+", default=None, metavar="NAME",

@@ -63,6 +63,7 @@ from harness.data.atomic import atomic_write_bytes, atomic_write_text
 from harness.data.errors import UserError
 from harness.data.frame import frame_dir, is_complete
 from harness.data.outputs import check_output, ensure_output_dir, mark_output
+from harness.data.results import read_frames, read_results
 from harness.jobs.cluster import ClusterOptions, Executor, open_executor
 from harness.jobs.evaluate import evaluate
 from harness.jobs.options import MethodSelection, annotations_of, typed_value
@@ -370,9 +371,8 @@ def run_study(study_path: Path, out: Path, cluster: ClusterOptions | None = None
     colmap = {key: key for key in spec.grid}
     for p in plan:
         results = out / "results" / p.eid
-        table = pd.read_csv(results / "results.csv", keep_default_na=False, na_values=[""])
-        frames = {(f["scene"], f["viewpoint"]): f["path"]
-                  for f in json.loads((results / "frames.json").read_text(encoding="utf-8"))}
+        table = read_results(results)
+        frames = {(f["scene"], f["viewpoint"]): f["path"] for f in read_frames(results) or []}
         table = table.assign(render_s=[_render_seconds(frames.get((s, v), ""))
                                        for s, v in zip(table.scene, table.viewpoint, strict=True)])
         colmap = {key: grid_column(key, table.columns) for key in spec.grid}

@@ -17,6 +17,7 @@ finds them.
 from __future__ import annotations
 
 import hashlib
+import threading
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -71,7 +72,8 @@ def _cvdeepflow(img0, img1):
     return cv2.optflow.createOptFlow_DeepFlow().calc(_gray(img0), _gray(img1), None)
 
 
-_MATCH_CACHE: dict[bytes, Matches] = {}
+_MATCH_CACHE = threading.local()
+"""Per thread (Dask workers run tasks on several threads): ``.pending`` holds the one reverse matching kept."""
 
 
 def _digest(*arrays, extra: str = "") -> bytes:
@@ -86,11 +88,12 @@ def cached_matches(img0: np.ndarray, img1: np.ndarray, params: DeepMatchingParam
     """DeepMatching from img0 to img1; the reverse direction, computed with it, is kept for the next call
     (the pipeline asks for the forward then the backward flow of each pair: one matching serves both)."""
     key = _digest(img0, img1, extra=repr(params))
-    if key in _MATCH_CACHE:
-        return _MATCH_CACHE.pop(key)
+    pending = getattr(_MATCH_CACHE, "pending", None)
+    _MATCH_CACHE.pending = None
+    if pending is not None and pending[0] == key:
+        return pending[1]
     fwd, bwd = deep_matching_both(img0, img1, params)
-    _MATCH_CACHE.clear()
-    _MATCH_CACHE[_digest(img1, img0, extra=repr(params))] = bwd
+    _MATCH_CACHE.pending = (_digest(img1, img0, extra=repr(params)), bwd)
     return fwd
 
 
