@@ -35,6 +35,7 @@ from collections.abc import Callable
 import cv2
 import numpy as np
 
+from harness.render.base import srgb_encode
 from reconstruction.camera.equirect import bearing_grid, pixel_to_bearing
 from reconstruction.camera.rig import CameraPose
 
@@ -99,10 +100,9 @@ def srgb_to_linear(img: np.ndarray) -> np.ndarray:
 
 
 def linear_to_srgb(lin: np.ndarray) -> np.ndarray:
-    """float linear light (clipped to [0, 1]) -> uint8 sRGB, rounded to nearest."""
-    x = np.clip(np.asarray(lin, dtype=np.float64), 0.0, 1.0)
-    s = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1.0 / 2.4) - 0.055)
-    return np.clip(np.rint(s * 255.0), 0, 255).astype(np.uint8)
+    """float linear light (clipped to [0, 1]) -> uint8 sRGB: the renderers' one encoder,
+    :func:`harness.render.base.srgb_encode`, so a perturbed image is encoded exactly as a rendered one."""
+    return srgb_encode(lin)
 
 
 # -------------------------------------------------------------------------------------------------- poses
