@@ -38,7 +38,7 @@ from reconstruction.refine.weights import (
 
 __all__ = ["DEFAULT_FLOW", "PAIRS", "Reconstruction", "reconstruct", "available_variants", "fuse_average",
            "fill_invalid", "fill_edge_aware", "Prepared", "prepare", "variant_problem", "refine_variant", "FlowMethod",
-           "config_label", "flow_confidence"]
+           "config_label", "flow_confidence", "run_flow_group"]
 
 DEFAULT_FLOW = "dis"  # chosen by measurement, see docs/refinement.md
 PAIRS = ("U", "R")
@@ -428,11 +428,14 @@ class FlowMethod:
     def run(self, frame) -> MethodOutput:
         return self.run_group(frame, [self])[self.label]
 
-    def run_group(self, frame, members: Sequence[FlowMethod],
+    def run_group(self, frame, members: Sequence,
                   on_stage: Callable[[str], None] | None = None) -> dict[str, MethodOutput]:
-        """Run several variants of this flow configuration at once (flow and triangulation computed once)."""
-        wanted = [m.refine if m.refine is not None else "average" for m in members]
-        result = reconstruct(frame, self.flow, self.rectify, wanted, self.limits, on_stage)
+        """Run several variants of this flow configuration at once (flow and triangulation computed once), and
+        the methods built on them (:func:`run_flow_group`)."""
+        return run_flow_group(frame, members, on_stage)
+
+    def outputs(self, result: Reconstruction, members: Sequence[FlowMethod]) -> dict[str, MethodOutput]:
+        """The outputs of ``members`` (variants of this configuration) from one :func:`reconstruct` result."""
         shared = {k: result.seconds[k] for k in ("flow_U", "flow_R", "triangulate", "average")}
         outs = {}
         for m in members:
@@ -443,3 +446,37 @@ class FlowMethod:
             outs[m.label] = MethodOutput(distance=result.distance[m.variant], confidence=result.confidence[m.variant],
                                          seconds=seconds, info=info)
         return outs
+
+
+def run_flow_group(frame, members: Sequence,
+                   on_stage: Callable[[str], None] | None = None) -> dict[str, MethodOutput]:
+    """Run methods that share one flow configuration (one ``group_key``), the flow and triangulation once.
+
+    ``members`` are :class:`FlowMethod` variants of the configuration and methods built on one of them (such as
+    ``fused``): those have ``flow`` (their :class:`FlowMethod`), the same ``group_key`` and a
+    ``run_on_flows(frame, members, flow_outputs, on_stage)`` that runs all members of their own type given the
+    flow outputs by label.  The flow variants they use are computed along with the members' own.
+
+    Returns:
+        Outputs by member label.
+    """
+    own = [m for m in members if isinstance(m, FlowMethod)]
+    users = [m for m in members if not isinstance(m, FlowMethod)]
+    needed = {m.label: m for m in own}
+    for u in users:
+        needed.setdefault(u.flow.label, u.flow)
+    flows = list(needed.values())
+    head = flows[0]
+    if any(m.group_key != head.group_key for m in [*flows, *users]):
+        raise ValueError("methods of different flow configurations in one group: "
+                         + ", ".join(m.label for m in members))
+    wanted = [m.refine if m.refine is not None else "average" for m in flows]
+    result = reconstruct(frame, head.flow, head.rectify, wanted, head.limits, on_stage)
+    flow_outs = head.outputs(result, flows)
+    outs = {m.label: flow_outs[m.label] for m in own}
+    by_type: dict[type, list] = {}
+    for u in users:
+        by_type.setdefault(type(u), []).append(u)
+    for kind in by_type.values():
+        outs.update(kind[0].run_on_flows(frame, kind, flow_outs, on_stage))
+    return {m.label: outs[m.label] for m in members}

@@ -7,21 +7,28 @@ sees texture.  ``fused`` adds the flow's evidence to the sweep's cost volume bef
 ``i`` of pixel p costs ``weight * min(|i - l_flow(p)|, truncate_levels)`` more (``l_flow`` = the flow distance's
 fractional label), then the plane labels, SGM, winner, confidence and median run as in ``sweep``.  Measured in
 docs/matching.md.
+
+The weight can follow where the flow is trustworthy instead of being one constant (:class:`PriorParams`): scaled
+by the flow's confidence (pair support) and gated by the local contrast of C's image, so that on plain walls and
+ceilings, where the flow has no evidence either, the sweep's own aggregation decides.  ``fused`` shares the flow
+with the flow-pipeline methods of its configuration (one ``group_key``), and several fused methods of one sweep
+configuration share the room-bound pass and the cost volume (:func:`reconstruction.methods.sweep.sweep_distances`).
 """
 
 from __future__ import annotations
 
-import time
+from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
 
+import cv2
 import numpy as np
 
 from reconstruction.methods.base import MethodOutput
-from reconstruction.methods.flow_pipeline import FlowMethod
-from reconstruction.methods.sweep import SgmParams, SweepMethod, sweep_distance
-from reconstruction.sweep.cost import CostParams
+from reconstruction.methods.flow_pipeline import FlowMethod, run_flow_group
+from reconstruction.methods.sweep import SgmParams, SweepMethod, sweep_distances
+from reconstruction.sweep.cost import CostParams, gray_float
 
-__all__ = ["PriorParams", "FusedMethod", "fused_sweep"]
+__all__ = ["PriorParams", "FusedMethod", "fused_sweep", "local_contrast", "prior_weight"]
 
 
 def fused_sweep() -> SweepMethod:
@@ -34,7 +41,12 @@ def fused_sweep() -> SweepMethod:
 
 @dataclass(frozen=True)
 class PriorParams:
-    """How strongly the flow distance pulls the sweep's labels.
+    """How strongly the flow distance pulls the sweep's labels, per pixel.
+
+    The weight of pixel p is ``weight * conf(p) * gate(p)``: ``conf`` the flow's confidence when
+    ``use_confidence`` (else 1), ``gate`` a ramp of C's local contrast ``c(p)`` (:func:`local_contrast`) from 0 at
+    ``contrast_low`` to 1 at ``contrast_high`` when ``contrast_high > 0`` (else 1).  The defaults are ``fused``'s
+    one constant.
 
     Attributes:
         weight: cost units (see ``CostParams.scale``: 8 per gray level) per sphere label between a hypothesis and
@@ -42,11 +54,59 @@ class PriorParams:
         truncate_levels: label distance beyond which the prior cost stops growing, labels (robust: a wrong flow
             distance costs at most ``weight * truncate_levels``).
         use_confidence: scale the weight per pixel by the flow's confidence (``flow_confidence``) instead of 1.
+        contrast_low, contrast_high: local contrast (gray levels, 0-255 scale) below which the prior is off and
+            above which it has its full weight; ``contrast_high`` 0 = no gate.
+        contrast_sigma_px: Gaussian window of the local contrast, pixels.
     """
 
     weight: float = 16.0
     truncate_levels: float = 16.0
     use_confidence: bool = False
+    contrast_low: float = 0.0
+    contrast_high: float = 0.0
+    contrast_sigma_px: float = 3.0
+
+    def __post_init__(self):
+        if self.contrast_high > 0 and not self.contrast_low < self.contrast_high:
+            raise ValueError(f"contrast_low {self.contrast_low} must be below contrast_high {self.contrast_high}")
+
+
+def local_contrast(gray: np.ndarray, sigma_px: float) -> np.ndarray:
+    """Local standard deviation of intensity in a Gaussian window (wrapping in longitude).
+
+    Args:
+        gray: (H, W) float32 gray, 0-255.
+        sigma_px: window sigma, pixels (> 0).
+    Returns:
+        (H, W) float32 contrast, gray levels.
+    """
+    pad = int(np.ceil(3 * sigma_px))
+    g = np.concatenate([gray[:, -pad:], gray, gray[:, :pad]], axis=1).astype(np.float64)
+    g -= g.mean()  # float64 and centred: E[x^2] - E[x]^2 without cancellation
+
+    def blur(x):
+        return cv2.GaussianBlur(x, (0, 0), sigma_px, borderType=cv2.BORDER_REFLECT)[:, pad:-pad]
+
+    mean = blur(g)
+    var = blur(g * g) - mean * mean
+    return np.sqrt(np.maximum(var, 0.0)).astype(np.float32)
+
+
+def prior_weight(params: PriorParams, image: np.ndarray, confidence: np.ndarray | None) -> np.ndarray:
+    """The prior's per-pixel weight (:class:`PriorParams`).
+
+    Args:
+        image: (H, W, 3) uint8 image of C; confidence: (H, W) flow confidence in [0, 1], or None.
+    Returns:
+        (H, W) float32 cost units per label.
+    """
+    w = np.full(image.shape[:2], params.weight, np.float32)
+    if params.use_confidence and confidence is not None:
+        w *= np.asarray(confidence, np.float32)
+    if params.contrast_high > 0:
+        c = local_contrast(gray_float(image, 0.0), params.contrast_sigma_px)
+        w *= np.clip((c - params.contrast_low) / (params.contrast_high - params.contrast_low), 0.0, 1.0)
+    return w
 
 
 @dataclass(frozen=True)
@@ -65,28 +125,49 @@ class FusedMethod:
     prior: PriorParams = field(default_factory=PriorParams)
     label: str = "fused"
 
+    @property
+    def group_key(self) -> tuple:
+        """The flow configuration's key: the default ``evaluate`` computes the flow, triangulation and LM variant
+        once for this method and the flow-pipeline methods of the same configuration."""
+        return self.flow.group_key
+
     def config(self) -> dict:
         return {"kind": "fused", "label": self.label, "flow": self.flow.config(), "sweep": self.sweep.config(),
                 "prior": asdict(self.prior)}
 
     def run(self, frame) -> MethodOutput:
-        """Run the flow method, then the sweep with its distance as prior; seconds per stage of both (wall),
-        ``info["cpu_seconds"]`` the process CPU time of the sweep's stages and of the flow (all threads)."""
-        t, c = time.perf_counter(), time.process_time()
-        flow = self.flow.run(frame)
-        flow_wall, flow_cpu = time.perf_counter() - t, time.process_time() - c
-        d_flow = flow.distance
-        if self.prior.use_confidence and flow.confidence is not None:
-            weight = self.prior.weight * flow.confidence
-        else:
-            weight = np.full(d_flow.shape, self.prior.weight, np.float32)
-        s = self.sweep
-        d, conf, seconds, info = sweep_distance(frame, s.cost, s.planes, s.sgm, s.post, s.pairs,
-                                                prior=(d_flow, weight.astype(np.float32), self.prior.truncate_levels))
-        seconds = {"flow": flow_wall, **{k: v for k, v in seconds.items() if k != "total"}}
-        seconds["total"] = sum(seconds.values())
-        cpu = dict(info.get("cpu_seconds", {}))
-        cpu["flow"] = flow_cpu
-        cpu["total"] = cpu.get("total", 0.0) + flow_cpu
-        info = {**info, "cpu_seconds": cpu, "flow_label": self.flow.label}
-        return MethodOutput(distance=d, confidence=conf, seconds=seconds, info=info)
+        """Run the flow method, then the sweep with its distance as prior; seconds per stage of both (wall; the
+        flow's stages summed as ``flow``), ``info["cpu_seconds"]`` the process CPU time of the sweep's stages
+        (all threads)."""
+        return self.run_group(frame, [self])[self.label]
+
+    def run_group(self, frame, members: Sequence,
+                  on_stage: Callable[[str], None] | None = None) -> dict[str, MethodOutput]:
+        """Run this method with others of its flow configuration (:func:`run_flow_group`)."""
+        return run_flow_group(frame, members, on_stage)
+
+    def run_on_flows(self, frame, members: Sequence[FusedMethod], flow_outputs: dict[str, MethodOutput],
+                     on_stage: Callable[[str], None] | None = None) -> dict[str, MethodOutput]:
+        """Run fused ``members`` given their flows' outputs (by flow label); members of one sweep configuration
+        share the room-bound pass and the cost volume."""
+        by_sweep: dict[str, list[FusedMethod]] = {}
+        for m in members:
+            by_sweep.setdefault(repr(m.sweep), []).append(m)
+        outs = {}
+        for batch in by_sweep.values():
+            if on_stage is not None:
+                on_stage(", ".join(m.label for m in batch))
+            priors = []
+            for m in batch:
+                flow = flow_outputs[m.flow.label]
+                weight = prior_weight(m.prior, frame.images["C"], flow.confidence)
+                priors.append((flow.distance, weight, m.prior.truncate_levels))
+            s = batch[0].sweep
+            results = sweep_distances(frame, s.cost, s.planes, s.sgm, s.post, s.pairs, priors)
+            for m, (d, conf, seconds, info) in zip(batch, results, strict=True):
+                flow = flow_outputs[m.flow.label]
+                seconds = {"flow": flow.total_seconds, **{k: v for k, v in seconds.items() if k != "total"}}
+                seconds["total"] = sum(seconds.values())
+                outs[m.label] = MethodOutput(distance=d, confidence=conf, seconds=seconds,
+                                             info={**info, "flow_label": m.flow.label})
+        return outs

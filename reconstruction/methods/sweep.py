@@ -28,7 +28,8 @@ from reconstruction.sweep.planes import (
 )
 from reconstruction.sweep.sgm import aggregate, winner_take_all
 
-__all__ = ["SgmParams", "PostParams", "SweepMethod", "labels_to_distance", "sweep_distance"]
+__all__ = ["SgmParams", "PostParams", "SweepMethod", "labels_to_distance", "sweep_distance",
+           "sweep_distances"]
 
 
 @dataclass(frozen=True)
@@ -126,23 +127,34 @@ def _coarse_frame(frame, factor: int):
     return SimpleNamespace(width=w, height=h, cameras=frame.cameras, images=images)
 
 
-def _labels(frame, cost_params: CostParams, plane_params: PlaneParams, sgm: SgmParams, pairs, seconds,
-            bounds=(-np.inf, np.inf), prefix="", prior=None):
-    """Cost volume, plane labels, (room bound), SGM and winner-take-all on one frame.
+def _sphere_costs(frame, cost_params: CostParams, plane_params: PlaneParams, pairs, seconds, prefix=""):
+    """The sphere cost volume with room for the plane labels (stage ``cost``).
 
     Returns:
-        ``(label, conf, a_z, heights, inv_d)``: (H, W) fractional labels and confidence, (H, W) world Z of C's
-        bearings, plane heights (metres) and sphere inverse distances (1/m).
+        ``(cost, heights, inv_d)``: (H, W, levels + P) uint16 costs (plane labels not yet filled), plane heights
+        (metres) and sphere inverse distances (1/m).
     """
     t = _clock()
     heights = plane_heights(plane_params)
-    n_d = cost_params.levels
     cost, _ = build_cost_volume(frame, cost_params, extra_labels=heights.size, pairs=pairs)
-    inv_d = inverse_distances(cost_params)
+    _lap(seconds, prefix + "cost", t)
+    return cost, heights, inverse_distances(cost_params)
+
+
+def _aggregate(frame, cost, heights, inv_d, cost_params: CostParams, plane_params: PlaneParams, sgm: SgmParams,
+               seconds, bounds=(-np.inf, np.inf), prefix="", prior=None):
+    """Prior, plane labels, (room bound), SGM and winner-take-all on a sphere cost volume (consumed: changed in
+    place and freed).
+
+    Returns:
+        ``(label, conf, a_z)``: (H, W) fractional labels and confidence, (H, W) world Z of C's bearings.
+    """
+    n_d = cost_params.levels
+    t = _clock()
     if prior is not None:
         add_prior(cost, n_d, inv_d, prior[0], prior[1], prior[2], cost_params.max_cost())
-    _lap(seconds, prefix + "cost", t)
-    t = _clock()
+        _lap(seconds, prefix + "prior", t)
+        t = _clock()
     a_z = bearing_grid(frame.width, frame.height, frame.cameras["C"].rotation)[..., 2]
     bias = plane_params.bias if heights.size else 0
     max_cost = cost_params.max_cost()
@@ -160,52 +172,79 @@ def _labels(frame, cost_params: CostParams, plane_params: PlaneParams, sgm: SgmP
     t = _clock()
     label, conf = winner_take_all(agg, family)
     _lap(seconds, prefix + "wta", t)
-    return label, conf, a_z, heights, inv_d
+    return label, conf, a_z
 
 
 def room_bounds(frame, cost_params: CostParams, plane_params: PlaneParams, sgm: SgmParams, pairs, seconds):
     """Floor and ceiling heights relative to C (metres, -inf / inf if not found) from a coarse pass, widened
     by ``bound_margin``."""
     coarse = _coarse_frame(frame, plane_params.coarse_factor)
-    label, _, _, heights, _ = _labels(coarse, cost_params, plane_params, sgm, pairs, seconds, prefix="coarse_")
+    cost, heights, inv_d = _sphere_costs(coarse, cost_params, plane_params, pairs, seconds, prefix="coarse_")
+    label, _, _ = _aggregate(coarse, cost, heights, inv_d, cost_params, plane_params, sgm, seconds,
+                             prefix="coarse_")
     z_floor, z_ceil = dominant_planes(label, cost_params.levels, heights, plane_params.bound_min_share)
     m = 1.0 + plane_params.bound_margin
     return z_floor * m, z_ceil * m
 
 
-def sweep_distance(frame, cost_params: CostParams, plane_params: PlaneParams, sgm: SgmParams,
-                   post: PostParams, pairs=("U", "R"), prior=None):
-    """Run the sweep on a frame.
+def sweep_distances(frame, cost_params: CostParams, plane_params: PlaneParams, sgm: SgmParams,
+                    post: PostParams, pairs=("U", "R"), priors=(None,)):
+    """Run the sweep on a frame once per prior, sharing the room-bound pass and the sphere cost volume.
 
     Args:
-        prior: optional ``(distance, weight, truncate_levels)``: (H, W) prior distances of C (metres; e.g. the
-            flow pipeline's), (H, W) float32 weight in cost units per label and the truncation in labels, added
-            to the sphere labels before aggregation (:func:`reconstruction.sweep.planes.add_prior`; not used in
-            the coarse room-bound pass).  None = the plain sweep.
+        priors: each None (the plain sweep) or ``(distance, weight, truncate_levels)``: (H, W) prior distances of C
+            (metres; e.g. the flow pipeline's), (H, W) float32 weight in cost units per label and the truncation
+            in labels, added to the sphere labels before aggregation
+            (:func:`reconstruction.sweep.planes.add_prior`; not used in the coarse room-bound pass).
+    Returns:
+        One ``(distance, confidence, seconds, info)`` per prior: (H, W) float32 metres, (H, W) float32 in [0, 1],
+        wall time per stage (the shared ``coarse_*`` and ``cost`` stages in every one, as they would take alone),
+        details (plane share, room bounds, ``cpu_seconds``: process CPU time per stage).
+    """
+    shared = {}
+    bounds = (-np.inf, np.inf)
+    if plane_params.room_bound and plane_params.per_side > 0:
+        bounds = room_bounds(frame, cost_params, plane_params, sgm, pairs, shared)
+    cost, heights, inv_d = _sphere_costs(frame, cost_params, plane_params, pairs, shared)
+    out = []
+    for i, prior in enumerate(priors):
+        seconds = dict(shared)
+        if i < len(priors) - 1:
+            t = _clock()
+            work = cost.copy()
+            _lap(seconds, "copy", t)
+        else:  # the last prior consumes the shared volume itself
+            work, cost = cost, None
+        label, conf, a_z = _aggregate(frame, work, heights, inv_d, cost_params, plane_params, sgm, seconds,
+                                      bounds, prior=prior)
+        del work
+        t = _clock()
+        d = labels_to_distance(label, inv_d, heights, a_z, cost_params.d_min_m, cost_params.d_max_m)
+        if post.min_confidence > 0:
+            ok = conf >= post.min_confidence
+            if ok.any() and not ok.all():
+                d = np.where(ok, d, fill_edge_aware(d, ok, frame.images["C"], post.fill_lambda,
+                                                    post.fill_sigma_color))
+        d = _median_wrap(d, post.median_px)
+        _lap(seconds, "post", t)
+        cpu = {k[:-4]: seconds.pop(k) for k in [k for k in seconds if k.endswith("_cpu")]}
+        seconds["total"] = sum(seconds.values())
+        cpu["total"] = sum(cpu.values())
+        info = {"plane_share": float((label >= cost_params.levels - 0.5).mean()),
+                "floor_m": float(bounds[0]), "ceiling_m": float(bounds[1]), "cpu_seconds": cpu}
+        out.append((d.astype(np.float32), np.clip(conf, 0.0, 1.0).astype(np.float32), seconds, info))
+    return out
+
+
+def sweep_distance(frame, cost_params: CostParams, plane_params: PlaneParams, sgm: SgmParams,
+                   post: PostParams, pairs=("U", "R"), prior=None):
+    """Run the sweep on a frame (:func:`sweep_distances` with one prior; None = the plain sweep).
+
     Returns:
         ``(distance, confidence, seconds, info)``: (H, W) float32 metres, (H, W) float32 in [0, 1], wall time
         per stage, details (plane share, room bounds).
     """
-    seconds = {}
-    bounds = (-np.inf, np.inf)
-    if plane_params.room_bound and plane_params.per_side > 0:
-        bounds = room_bounds(frame, cost_params, plane_params, sgm, pairs, seconds)
-    label, conf, a_z, heights, inv_d = _labels(frame, cost_params, plane_params, sgm, pairs, seconds, bounds,
-                                               prior=prior)
-    t = _clock()
-    d = labels_to_distance(label, inv_d, heights, a_z, cost_params.d_min_m, cost_params.d_max_m)
-    if post.min_confidence > 0:
-        ok = conf >= post.min_confidence
-        if ok.any() and not ok.all():
-            d = np.where(ok, d, fill_edge_aware(d, ok, frame.images["C"], post.fill_lambda, post.fill_sigma_color))
-    d = _median_wrap(d, post.median_px)
-    _lap(seconds, "post", t)
-    cpu = {k[:-4]: seconds.pop(k) for k in [k for k in seconds if k.endswith("_cpu")]}
-    seconds["total"] = sum(seconds.values())
-    cpu["total"] = sum(cpu.values())
-    info = {"plane_share": float((label >= cost_params.levels - 0.5).mean()),
-            "floor_m": float(bounds[0]), "ceiling_m": float(bounds[1]), "cpu_seconds": cpu}
-    return d.astype(np.float32), np.clip(conf, 0.0, 1.0).astype(np.float32), seconds, info
+    return sweep_distances(frame, cost_params, plane_params, sgm, post, pairs, [prior])[0]
 
 
 @dataclass(frozen=True)

@@ -8,9 +8,12 @@ import json
 import numpy as np
 import pytest
 
+import reconstruction.methods.flow_pipeline as pipeline
+from reconstruction.methods.base import method_groups, run_methods
 from reconstruction.methods.flow_pipeline import flow_confidence, prepare, refine_variant
-from reconstruction.methods.fused import FusedMethod, PriorParams
-from reconstruction.methods.registry import fused_method
+from reconstruction.methods.fused import FusedMethod, PriorParams, local_contrast, prior_weight
+from reconstruction.methods.registry import default_methods, flow_methods, fused_method
+from reconstruction.methods.sweep import sweep_distance, sweep_distances
 from reconstruction.refine.lm import get_variant
 from reconstruction.sweep.planes import add_prior
 from tests.helpers import make_synthetic_frame
@@ -81,3 +84,84 @@ def test_fused_on_tilted_yawed_rig_with_rotated_r():
     gt = f.distance["C"]
     ok = np.isfinite(gt)
     assert np.abs(out.distance[ok] - gt[ok]).mean() <= 0.02 * gt[ok].mean()
+
+
+def test_local_contrast_is_the_windowed_standard_deviation_and_wraps_in_longitude():
+    h, w = 64, 128
+    flat = np.full((h, w), 100.0, np.float32)
+    np.testing.assert_allclose(local_contrast(flat, 3.0), 0.0, atol=1e-3)
+    # a fine checkerboard of +-a has standard deviation a in any window much wider than its period
+    yy, xx = np.mgrid[0:h, 0:w]
+    board = (100.0 + 10.0 * np.where((yy + xx) % 2 == 0, 1.0, -1.0)).astype(np.float32)
+    np.testing.assert_allclose(local_contrast(board, 3.0)[8:-8], 10.0, rtol=0.02)
+    # a step at the seam (column 0 | W-1) looks like the same step in the middle of the image
+    step = np.where(xx < w // 2, 0.0, 50.0).astype(np.float32)
+    c = local_contrast(step, 3.0)
+    np.testing.assert_allclose(c[:, 0], c[:, w // 2], atol=1e-3)
+    assert c[:, 0].min() > 20.0 and c[:, w // 4].max() < 1e-2
+
+
+def test_prior_weight_defaults_to_one_constant_and_gates_by_contrast_and_confidence():
+    rng = np.random.default_rng(0)
+    image = np.zeros((40, 80, 3), np.uint8)
+    image[:, 40:] = rng.integers(0, 256, (40, 40, 3), dtype=np.uint8)  # left half plain, right half textured
+    conf = np.full((40, 80), 0.5, np.float32)
+    np.testing.assert_array_equal(prior_weight(PriorParams(), image, conf), np.full((40, 80), 16.0, np.float32))
+    gated = prior_weight(PriorParams(contrast_low=1.0, contrast_high=4.0), image, None)
+    assert gated[:, 12:28].max() == 0.0 and gated[:, 52:68].min() == 16.0  # 3 sigma from the seam and the edge
+    both = prior_weight(PriorParams(use_confidence=True, contrast_low=1.0, contrast_high=4.0), image, conf)
+    np.testing.assert_allclose(both, 0.5 * gated, atol=1e-6)
+    with pytest.raises(ValueError, match="contrast_low 4.0 must be below contrast_high 2.0"):
+        PriorParams(contrast_low=4.0, contrast_high=2.0)
+
+
+def test_one_cost_volume_for_several_priors_gives_each_prior_its_own_sweep():
+    """``sweep_distances`` shares the room-bound pass and the cost volume: each result equals the sweep run alone
+    with that prior (within 1 micrometre)."""
+    f = make_synthetic_frame(120)
+    s = fused_method().sweep
+    prior_d = f.distance["C"] * 1.1
+    priors = [None, (prior_d, np.full(prior_d.shape, 16.0, np.float32), 16.0),
+              (prior_d, np.full(prior_d.shape, 64.0, np.float32), 16.0)]
+    shared = sweep_distances(f, s.cost, s.planes, s.sgm, s.post, s.pairs, priors)
+    assert len(shared) == 3 and "copy" in shared[0][2] and "copy" not in shared[2][2]
+    for prior, (d, conf, _seconds, _info) in zip(priors, shared, strict=True):
+        alone = sweep_distance(f, s.cost, s.planes, s.sgm, s.post, s.pairs, prior=prior)
+        np.testing.assert_allclose(d, alone[0], rtol=0, atol=1e-6)
+        np.testing.assert_allclose(conf, alone[1], rtol=0, atol=1e-6)
+    assert not np.array_equal(shared[0][0], shared[2][0])  # the strong prior changed the result
+
+
+def test_default_evaluate_computes_the_flow_once_for_fused_and_the_flow_methods(monkeypatch):
+    """``fused`` declares the work it shares: with the default methods, the dis-rect flow, triangulation and LM run
+    once per frame (one ``reconstruct`` call for fused and the four dis-rect variants), and fused's result is the
+    same as alone (within 1 micrometre)."""
+    f = make_synthetic_frame(120)
+    methods = [m for m in default_methods() if m.label == "fused" or m.label.startswith("dis-rect:")]
+    extra = FusedMethod(flow=methods[0].flow, prior=PriorParams(use_confidence=True), label="fused-conf")
+    methods.append(extra)
+    assert len(method_groups(methods)) == 1
+    calls = []
+    real = pipeline.reconstruct
+
+    def counting(frame, *args, **kwargs):
+        calls.append(args)
+        return real(frame, *args, **kwargs)
+
+    monkeypatch.setattr(pipeline, "reconstruct", counting)
+    outs = run_methods(f, methods)
+    assert len(calls) == 1
+    assert list(outs) == [m.label for m in methods]
+    alone = fused_method().run(f)
+    np.testing.assert_allclose(outs["fused"].distance, alone.distance, rtol=0, atol=1e-6)
+    assert outs["fused"].seconds["flow"] == pytest.approx(outs["dis-rect:gradient"].total_seconds)
+    np.testing.assert_allclose(outs["dis-rect:gradient"].distance,
+                               flow_methods(["dis"], [True], ["gradient"])[0].run(f).distance, rtol=0, atol=1e-6)
+    assert not np.array_equal(outs["fused-conf"].distance, outs["fused"].distance)
+
+
+def test_a_group_of_two_flow_configurations_is_refused():
+    f = make_synthetic_frame(120)
+    other = FusedMethod(flow=flow_methods(["farneback"], [True], ["gradient"])[0], label="fused-farneback")
+    with pytest.raises(ValueError, match="different flow configurations.*fused-farneback"):
+        fused_method().run_group(f, [fused_method(), other])
