@@ -1,0 +1,156 @@
+"""Choose the default matching method on a suite split: run every candidate, tabulate MAE per family, apply the rule.
+
+Run as::
+
+    python -m harness.jobs.select_matching DATA_ROOT --out DIR [--suite suites/tri360-v1.toml] [--split dev]
+
+``DATA_ROOT`` must hold exactly the split's frames (``tri360 render --suite ... --split dev``; checked as for
+``tri360 evaluate --suite``).  Every candidate of :func:`candidate_methods` runs on every frame, ``sweep`` and
+``fused`` among them, the flow computed once per frame and the room-bound pass and cost volume once per frame for
+all fused candidates (one group of shared work).  ``DIR`` becomes a results set (``results.csv``, leaderboard,
+``config.json`` with the suite id and split) plus ``selection.md`` and ``selection.json``: the method x family
+table (MAE and solid-angle-weighted MAE, pooled over each family's scored pixels as in the leaderboard) and the
+choice.
+
+The rule (:func:`choose`): a candidate is *eligible* when on every family its MAE is at most ``1 + TOLERANCE``
+times the better of ``sweep`` and ``fused`` there; the choice is the eligible candidate with the lowest pooled MAE
+over the split (when none is eligible: the one whose worst family ratio is lowest, and the table says so).  Choose
+on ``dev`` only; run ``--split test`` once, with the chosen method among the candidates, to report it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from harness.data import jsonio
+from harness.data.atomic import atomic_write_text
+from harness.data.errors import UserError
+from harness.data.outputs import mark_output
+from harness.jobs.suite import evaluate_suite
+from reconstruction.methods.base import Method
+from reconstruction.methods.fused import FusedMethod, PriorParams
+from reconstruction.methods.registry import fused_method
+from reconstruction.methods.sweep import SweepMethod
+from reports.tables import leaderboard_table
+
+__all__ = ["TOLERANCE", "BASELINES", "CANDIDATE_PRIORS", "candidate_methods", "family_table", "choose", "main"]
+
+TOLERANCE = 0.05
+BASELINES = ("sweep", "fused")
+DEFAULT_SUITE = Path("suites/tri360-v1.toml")
+
+#: the candidates besides ``sweep`` and ``fused``: the fused sweep with a per-pixel prior weight
+#: (:class:`reconstruction.methods.fused.PriorParams`), labelled by what differs from ``fused``
+CANDIDATE_PRIORS: dict[str, PriorParams] = {
+    "fused-c0.25-1": PriorParams(contrast_low=0.25, contrast_high=1.0),
+    "fused-c0.5-2": PriorParams(contrast_low=0.5, contrast_high=2.0),
+    "fused-c1-4": PriorParams(contrast_low=1.0, contrast_high=4.0),
+    "fused-conf": PriorParams(use_confidence=True),
+    "fused-conf-w32": PriorParams(weight=32.0, use_confidence=True),
+    "fused-conf-c0.5-2": PriorParams(use_confidence=True, contrast_low=0.5, contrast_high=2.0),
+}
+
+
+def candidate_methods() -> list[Method]:
+    """``sweep``, ``fused`` and one fused method per :data:`CANDIDATE_PRIORS` entry (same flow and sweep as
+    ``fused``)."""
+    base = fused_method()
+    return [SweepMethod(), base, *(FusedMethod(flow=base.flow, sweep=base.sweep, prior=p, label=label)
+                                   for label, p in CANDIDATE_PRIORS.items())]
+
+
+def family_table(results: pd.DataFrame) -> pd.DataFrame:
+    """Per method: pooled ``mae_m`` and ``mae_sw_m`` over the split and ``mae_family:<f>`` / ``mae_sw_family:<f>``
+    per family (metres), as the leaderboard pools them; one row per method, index ``method``."""
+    board = leaderboard_table(results)
+    board = board[board["source"] == "tri360"].set_index("method")
+    cols = ["frames", "mae_m", "mae_sw_m", *sorted(c for c in board.columns if c.startswith("mae_family:")),
+            *sorted(c for c in board.columns if c.startswith("mae_sw_family:"))]
+    return board[cols]
+
+
+def choose(table: pd.DataFrame, tolerance: float = TOLERANCE) -> tuple[str, bool, pd.Series]:
+    """Apply the selection rule to a :func:`family_table`.
+
+    Returns:
+        ``(label, eligible, worst)``: the chosen method, whether it meets the bound on every family, and per
+        method the worst ratio of its family MAE to the better of the baselines' (dimensionless).
+    Raises:
+        UserError: a baseline is missing from the table.
+    """
+    missing = [b for b in BASELINES if b not in table.index]
+    if missing:
+        raise UserError(f"selection needs the baselines {', '.join(missing)} in the results")
+    fams = [c for c in table.columns if c.startswith("mae_family:")]
+    best = table.loc[list(BASELINES), fams].min(axis=0)
+    worst = (table[fams] / best).max(axis=1)
+    eligible = worst <= 1.0 + tolerance
+    pool = table[eligible] if eligible.any() else table.loc[[worst.idxmin()]]
+    label = str(pool["mae_m"].idxmin())
+    return label, bool(eligible[label]), worst
+
+
+def selection_markdown(table: pd.DataFrame, label: str, eligible: bool, worst: pd.Series, suite: str,
+                       split: str, tolerance: float = TOLERANCE) -> str:
+    """The selection as Markdown: the method x family MAE table (plain, then solid-angle weighted) and the choice."""
+    fams = [c.split(":", 1)[1] for c in table.columns if c.startswith("mae_family:")]
+
+    def fmt(x) -> str:
+        return f"{x:.3f}" if np.isfinite(x) else "-"
+
+    lines = [f"# Matching selection on {suite}, split {split}", "",
+             f"Rule: eligible = MAE on every family at most {1 + tolerance:.2f} x the better of "
+             f"{' and '.join(BASELINES)}; choice = the eligible method with the lowest pooled MAE.", ""]
+    for title, prefix, pooled in (("MAE (m)", "mae_family:", "mae_m"),
+                                  ("solid-angle-weighted MAE (m)", "mae_sw_family:", "mae_sw_m")):
+        lines += [f"## {title}", "", "| method | all | " + " | ".join(fams) + " | worst ratio |",
+                  "|---|" + "---:|" * (len(fams) + 2)]
+        for m, row in table.sort_values(pooled).iterrows():
+            cells = [fmt(row[pooled]), *(fmt(row[prefix + f]) for f in fams), f"{worst[m]:.2f}"]
+            lines.append(f"| {'**' + m + '**' if m == label else m} | " + " | ".join(cells) + " |")
+        lines.append("")
+    verdict = "meets the bound on every family" if eligible else "meets the bound on no family set: none does"
+    lines.append(f"Chosen: `{label}` ({verdict}; pooled MAE {table.loc[label, 'mae_m']:.4f} m).")
+    return "\n".join(lines) + "\n"
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m harness.jobs.select_matching",
+                                     description=__doc__.splitlines()[0])
+    parser.add_argument("data_root", type=Path, metavar="DATA_ROOT")
+    parser.add_argument("--out", type=Path, required=True, help="results set to write (with selection.md/json)")
+    parser.add_argument("--suite", type=Path, default=DEFAULT_SUITE, help="suite file")
+    parser.add_argument("--split", choices=("dev", "test"), default="dev", help="suite split")
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    args = parser.parse_args(argv)
+    try:
+        results = evaluate_suite(args.data_root, args.suite, args.split, args.out, candidate_methods(),
+                                 report=False, progress=not args.quiet)
+        table = family_table(results)
+        label, eligible, worst = choose(table)
+        suite_id = str(results["suite_id"].iloc[0])
+        text = selection_markdown(table, label, eligible, worst, f"{args.suite.name} ({suite_id})", args.split)
+        atomic_write_text(args.out / "selection.md", text)
+        payload = {"suite": str(args.suite), "suite_id": suite_id, "split": args.split, "tolerance": TOLERANCE,
+                   "chosen": label, "eligible": eligible, "worst_ratio": {k: float(v) for k, v in worst.items()},
+                   "table": {m: {k: float(v) for k, v in row.items()} for m, row in table.iterrows()}}
+        atomic_write_text(args.out / "selection.json", jsonio.dumps(payload))
+        mark_output(args.out, "results")
+    except UserError as exc:
+        print(f"select_matching: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("select_matching: interrupted", file=sys.stderr)
+        return 130
+    print(text)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

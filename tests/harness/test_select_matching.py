@@ -1,0 +1,71 @@
+"""The matching selection job: its rule on hand-made tables, and a run on a tiny suite split end to end."""
+
+from __future__ import annotations
+
+import json
+
+import pandas as pd
+import pytest
+
+from harness.data.outputs import read_marker
+from harness.jobs import select_matching as sel
+from harness.jobs.suite import render_suite
+from tests.harness.test_suite import MINI, write
+
+
+def table(rows: dict[str, tuple[float, float, float]]) -> pd.DataFrame:
+    """method -> (pooled MAE, MAE on family a, MAE on family b), as :func:`sel.family_table` gives them."""
+    return pd.DataFrame([{"method": m, "frames": 2, "mae_m": p, "mae_sw_m": p, "mae_family:a": a,
+                          "mae_family:b": b, "mae_sw_family:a": a, "mae_sw_family:b": b}
+                         for m, (p, a, b) in rows.items()]).set_index("method")
+
+
+def test_the_rule_takes_the_lowest_pooled_mae_among_methods_never_worse_than_the_better_baseline():
+    t = table({"sweep": (0.20, 0.10, 0.30), "fused": (0.18, 0.20, 0.16),
+               "good": (0.13, 0.104, 0.16),     # within 5 % of the better baseline on both families
+               "better_pooled": (0.11, 0.12, 0.10),  # best overall but 20 % worse than sweep on a
+               })
+    label, eligible, worst = sel.choose(t)
+    assert (label, eligible) == ("good", True)
+    assert worst["better_pooled"] == pytest.approx(1.2, abs=1e-9)
+    assert worst["sweep"] == pytest.approx(0.30 / 0.16, abs=1e-9)
+
+
+def test_the_rule_says_when_no_method_meets_the_bound():
+    t = table({"sweep": (0.20, 0.10, 0.30), "fused": (0.18, 0.30, 0.10), "x": (0.15, 0.12, 0.12)})
+    label, eligible, worst = sel.choose(t)
+    assert (label, eligible) == ("x", False)  # the lowest worst ratio (1.2 against 3.0 of both baselines)
+    with pytest.raises(Exception, match="baselines fused"):
+        sel.choose(t.drop(index="fused"))
+
+
+def test_candidates_are_sweep_fused_and_the_fused_variants_sharing_one_flow():
+    methods = sel.candidate_methods()
+    labels = [m.label for m in methods]
+    assert labels[:2] == ["sweep", "fused"] and len(set(labels)) == len(labels)
+    keys = {m.group_key for m in methods[1:]}
+    assert len(keys) == 1  # one group: the flow once per frame for every fused candidate
+
+
+def test_select_on_a_tiny_suite_split_writes_the_results_and_the_choice(tmp_path, capsys):
+    suite = write(tmp_path, MINI.format(width=64))
+    root = tmp_path / "data"
+    render_suite(suite, "dev", root, progress=False)
+    out = tmp_path / "sel"
+    assert sel.main([str(root), "--suite", str(suite), "--out", str(out), "--quiet"]) == 0
+    printed = capsys.readouterr().out
+    chosen = json.loads((out / "selection.json").read_text())
+    assert chosen["split"] == "dev" and chosen["suite_id"].startswith("sha256:")
+    assert chosen["chosen"] in [m.label for m in sel.candidate_methods()]
+    assert set(chosen["table"]) == {m.label for m in sel.candidate_methods()}
+    assert f"**{chosen['chosen']}**" in (out / "selection.md").read_text() and "Chosen:" in printed
+    assert {"selection.md", "selection.json", "results.csv"} <= set(read_marker(out)["entries"])
+    # a rerun into its own output is accepted; a directory of someone else's is refused with status 2
+    assert sel.main([str(root), "--suite", str(suite), "--out", str(out), "--quiet"]) == 0
+    other = tmp_path / "mine"
+    other.mkdir()
+    (other / "notes.txt").write_text("keep")
+    capsys.readouterr()
+    assert sel.main([str(root), "--suite", str(suite), "--out", str(other), "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "notes.txt" in err[0] and (other / "notes.txt").read_text() == "keep"
