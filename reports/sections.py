@@ -55,12 +55,14 @@ from reports.tables import (
     LEADERBOARD_OVERALL,
     config_order,
     config_title,
+    group_columns,
     leaderboard_display,
     leaderboard_markdown,
     leaderboard_table,
     mae_display,
     mae_markdown,
     method_order,
+    suite_text,
     variant_mae_table,
     variant_order,
 )
@@ -361,8 +363,12 @@ def _header_html(source: str, generated: str, results: pd.DataFrame, order: list
 def _leaderboard_html(board: pd.DataFrame, have_regions: bool) -> str:
     view = leaderboard_display(board)
     n_overall = len(LEADERBOARD_OVERALL)
-    n_regions = len(view["columns"]) - 3 - n_overall
-    groups = [("", 3), ("overall (shares in %)", n_overall), ("MAE per region (m)", n_regions)]
+    n_groups = len(group_columns(board))
+    n_regions = len(view["columns"]) - 3 - n_overall - n_groups
+    groups = [("", 3), ("overall (shares in %)", n_overall),
+              *([("MAE per family and difficulty tag (m; sw = solid-angle weighted)", n_groups)] if n_groups else []),
+              ("MAE per region (m)", n_regions)]
+    suite = suite_text(board)
     note = ('<p class="note">Every method of these results on camera C\'s distance. Each number is pooled over the '
             "method's frames, each frame weighted by its scored pixels (per region: the region's pixels): exact over "
             "all pixels for the MAEs and shares, the pixel-weighted mean of the per-frame values for median, p90 "
@@ -373,7 +379,7 @@ def _leaderboard_html(board: pd.DataFrame, have_regions: bool) -> str:
             "tri360</strong>. Regions: docs/metrics.md" + ("" if have_regions else " (no regions.csv: empty)")
             + ". Also as " + H.link("leaderboard.csv", "leaderboard.csv") + " and "
             + H.link("leaderboard.md", "leaderboard.md") + ".</p>")
-    return ("<h2>Leaderboard</h2>" + note
+    return ("<h2>Leaderboard</h2>" + (f'<p class="suite">{H.esc(suite)}</p>' if suite else "") + note
             + H.sortable_table(view["display"], view["keys"], view["better"], table_id="leaderboard",
                                text_columns=2, best=view["best"], row_classes=view["row_classes"], groups=groups,
                                data_keys=view["columns"]))

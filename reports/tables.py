@@ -16,6 +16,7 @@ from reconstruction.methods.flow_pipeline import config_label
 from reports.regions import REGION_NAMES
 
 __all__ = [
+    "suite_text",
     "PAPER_MAE_M",
     "PAPER_LABEL",
     "config_title",
@@ -437,14 +438,20 @@ def leaderboard_markdown(table: pd.DataFrame) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _suite_lines(table: pd.DataFrame) -> list[str]:
-    """The leaderboard's line naming the suite split it was measured on (none outside a suite)."""
+def suite_text(table: pd.DataFrame) -> str:
+    """The sentence naming the suite split a leaderboard was measured on ("" outside a suite)."""
     if "suite_id" not in table.columns:
-        return []
+        return ""
     ours = table[table["source"] == "tri360"]
     ids = sorted({str(x) for x in ours["suite_id"]} - {""})
     splits = sorted({str(x) for x in ours["split"]} - {""})
     if not ids:
-        return []
-    return [f"Measured on suite {', '.join(ids)}, split {', '.join(splits) or '?'} (the suite id names the exact "
-            "frames: docs/suites.md).", ""]
+        return ""
+    return (f"Measured on suite {', '.join(ids)}, split {', '.join(splits) or '?'} (the suite id names the exact "
+            "frames: docs/suites.md).")
+
+
+def _suite_lines(table: pd.DataFrame) -> list[str]:
+    """The leaderboard markdown's suite line and a blank line (none outside a suite)."""
+    text = suite_text(table)
+    return [text, ""] if text else []

@@ -255,7 +255,7 @@ def test_evaluate_suite_records_the_suite_and_the_leaderboard_has_family_and_tag
     suite = load(path)
     assert [r.scene for r in check_suite_data(suite, "dev", root)] == ["synthetic_box-s11"] * 2 + ["box_room-s12"]
     out = tmp_path / "res"
-    table = evaluate_suite(root, path, "dev", out, get_methods(["dis-rect:average"]), report=False, progress=False)
+    table = evaluate_suite(root, path, "dev", out, get_methods(["dis-rect:average"]), progress=False)
     assert set(table["suite_id"]) == {suite.id} and set(table["split"]) == {"dev"}
     assert list(table["family"]) == ["box_room", "synthetic_box", "synthetic_box"]
     assert list(table["tags"]) == ["weak_texture", "far;thin", "far;thin"]
@@ -273,6 +273,9 @@ def test_evaluate_suite_records_the_suite_and_the_leaderboard_has_family_and_tag
     assert row["mae_sw_family:box_room"] == pytest.approx(float(box["mae_sw_m"].iloc[0]), abs=1e-12)
     text = leaderboard_markdown(leaderboard_table(results))
     assert f"Measured on suite {suite.id}, split dev" in text and "| box_room | synthetic_box |" in text
+    html = (out / "report.html").read_text(encoding="utf-8")
+    assert f"Measured on suite {suite.id}, split dev" in html
+    assert "MAE per family and difficulty tag" in html and "MAE per region (m)" in html
 
 
 def test_leaderboard_pools_families_and_tags_by_pixels_and_solid_angle():
