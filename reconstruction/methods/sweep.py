@@ -22,7 +22,9 @@ from reconstruction.sweep.planes import (
     PlaneParams,
     add_prior,
     bound_costs,
+    bound_wall_costs,
     dominant_planes,
+    dominant_walls,
     fill_plane_costs,
     plane_heights,
 )
@@ -79,26 +81,55 @@ def _lap(seconds: dict, key: str, start: tuple[float, float]) -> None:
     seconds[key + "_cpu"] = time.process_time() - start[1]
 
 
+def _family_distance(p: np.ndarray, offsets: np.ndarray, axis: np.ndarray, d_max_m: float) -> np.ndarray:
+    """Distance of fractional labels ``p`` (0 .. 2 per - 1) of one plane family with ``offsets`` (metres; one side,
+    ascending |o|, then the other, as :func:`plane_heights`) along bearing components ``axis``; ``d_max_m`` where
+    the plane is not in front."""
+    per = offsets.size // 2
+    side = (p >= per - 0.5).astype(np.int64)  # 0: negative side, 1: positive side
+    local = np.clip(p - side * per, 0.0, per - 1.0)
+    log_mag = np.log(np.abs(offsets[:per]))
+    idx = np.arange(per, dtype=np.float64)
+    o = np.exp(np.interp(local, idx, log_mag)) * np.where(side == 1, 1.0, -1.0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        dp = o / axis
+    return np.where(np.isfinite(dp) & (dp > 0), dp, d_max_m)
+
+
+def _wall_distance(p: np.ndarray, offsets: np.ndarray, axis: np.ndarray, d_max_m: float) -> np.ndarray:
+    """Distance of fractional labels ``p`` (0 .. Q - 1) of one wall family with signed ``offsets`` (metres, one
+    side, ascending |o|) along bearing components ``axis``; ``d_max_m`` where the wall is not in front."""
+    idx = np.arange(offsets.size, dtype=np.float64)
+    o = np.exp(np.interp(np.clip(p, 0.0, offsets.size - 1.0), idx, np.log(np.abs(offsets)))) * np.sign(offsets[0])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        dp = o / axis
+    return np.where(np.isfinite(dp) & (dp > 0), dp, d_max_m)
+
+
 def labels_to_distance(label: np.ndarray, inv_d: np.ndarray, heights: np.ndarray, a_z: np.ndarray,
-                       d_min_m: float, d_max_m: float) -> np.ndarray:
+                       d_min_m: float, d_max_m: float, walls: list[tuple[np.ndarray, np.ndarray]] = ()
+                       ) -> np.ndarray:
     """Fractional labels -> distance, metres.
 
     Args:
-        label: (H, W) fractional label (sphere labels ``0..D-1``, then plane labels).
+        label: (H, W) fractional label (sphere labels ``0..D-1``, then plane labels, then each wall's labels).
         inv_d: (D,) uniform inverse distances of the sphere labels, 1/m.
         heights: (P,) plane heights relative to C, metres (below first, ascending |h|, then above).
         a_z: (H, W) world Z of C's unit bearings.
         d_min_m, d_max_m: clamp, metres.
+        walls: per wall family ``(a_n, offsets)``: (H, W) bearing components along its normal and its (Q,) signed
+            offsets, metres (:func:`reconstruction.sweep.planes.dominant_walls`).
     Returns:
         (H, W) float64 distance, metres.
     """
     n_d = inv_d.size
-    sphere = label < n_d - 0.5 + 1e-9
     q = inv_d[0] + np.clip(label, 0, n_d - 1) * (inv_d[1] - inv_d[0])
     d = 1.0 / np.maximum(q, 1e-9)
+    first = n_d
     if heights.size:
         per = heights.size // 2
-        p = np.clip(label - n_d, 0.0, heights.size - 1.0)
+        inside = (label >= first - 0.5 + 1e-9) & (label < first + heights.size - 0.5 + 1e-9)
+        p = np.clip(label - first, 0.0, heights.size - 1.0)
         side = (p >= per - 0.5).astype(np.int64)  # 0: below, 1: above
         local = np.clip(p - side * per, 0.0, per - 1.0)
         log_mag = np.log(np.abs(heights[:per]))
@@ -107,7 +138,12 @@ def labels_to_distance(label: np.ndarray, inv_d: np.ndarray, heights: np.ndarray
         with np.errstate(divide="ignore", invalid="ignore"):
             dp = h / a_z
         dp = np.where(np.isfinite(dp) & (dp > 0), dp, d_max_m)
-        d = np.where(sphere, d, dp)
+        d = np.where(inside, dp, d)
+        first += heights.size
+    for a_n, offsets in walls:
+        inside = (label >= first - 0.5 + 1e-9) & (label < first + offsets.size - 0.5 + 1e-9)
+        d = np.where(inside, _wall_distance(label - first, offsets, a_n, d_max_m), d)
+        first += offsets.size
     return np.clip(d, d_min_m, d_max_m)
 
 
@@ -127,27 +163,32 @@ def _coarse_frame(frame, factor: int):
     return SimpleNamespace(width=w, height=h, cameras=frame.cameras, images=images)
 
 
-def _sphere_costs(frame, cost_params: CostParams, plane_params: PlaneParams, pairs, seconds, prefix=""):
-    """The sphere cost volume with room for the plane labels (stage ``cost``).
+def _sphere_costs(frame, cost_params: CostParams, plane_params: PlaneParams, pairs, seconds, prefix="",
+                  wall_labels: int = 0):
+    """The sphere cost volume with room for the plane family and ``wall_labels`` wall labels (stage ``cost``).
 
     Returns:
-        ``(cost, heights, inv_d)``: (H, W, levels + P) uint16 costs (plane labels not yet filled), plane heights
-        (metres) and sphere inverse distances (1/m).
+        ``(cost, heights, inv_d)``: (H, W, levels + P + wall_labels) uint16 costs (plane labels not yet filled),
+        plane heights (metres) and sphere inverse distances (1/m).
     """
     t = _clock()
     heights = plane_heights(plane_params)
-    cost, _ = build_cost_volume(frame, cost_params, extra_labels=heights.size, pairs=pairs)
+    cost, _ = build_cost_volume(frame, cost_params, extra_labels=heights.size + wall_labels, pairs=pairs)
     _lap(seconds, prefix + "cost", t)
     return cost, heights, inverse_distances(cost_params)
 
 
 def _aggregate(frame, cost, heights, inv_d, cost_params: CostParams, plane_params: PlaneParams, sgm: SgmParams,
-               seconds, bounds=(-np.inf, np.inf), prefix="", prior=None):
-    """Prior, plane labels, (room bound), SGM and winner-take-all on a sphere cost volume (consumed: changed in
-    place and freed).
+               seconds, bounds=(-np.inf, np.inf), prefix="", prior=None, walls=()):
+    """Prior, plane and wall labels, (room bound), SGM and winner-take-all on a sphere cost volume (consumed:
+    changed in place and freed).
 
+    Args:
+        walls: per wall ``(normal, offsets)`` (:func:`reconstruction.sweep.planes.dominant_walls`); the volume
+            must have room for their labels.
     Returns:
-        ``(label, conf, a_z)``: (H, W) fractional labels and confidence, (H, W) world Z of C's bearings.
+        ``(label, conf, a_z, wall_families)``: (H, W) fractional labels and confidence, (H, W) world Z of C's
+        bearings, and per wall ``(a_n, offsets)`` (its normal's bearing components, (H, W)).
     """
     n_d = cost_params.levels
     t = _clock()
@@ -155,14 +196,21 @@ def _aggregate(frame, cost, heights, inv_d, cost_params: CostParams, plane_param
         add_prior(cost, n_d, inv_d, prior[0], prior[1], prior[2], cost_params.max_cost())
         _lap(seconds, prefix + "prior", t)
         t = _clock()
-    a_z = bearing_grid(frame.width, frame.height, frame.cameras["C"].rotation)[..., 2]
-    bias = plane_params.bias if heights.size else 0
+    bearings = bearing_grid(frame.width, frame.height, frame.cameras["C"].rotation)
+    a_z = bearings[..., 2]
+    families = [(bearings @ normal, offsets) for normal, offsets in walls]
+    bias = plane_params.bias if heights.size or families else 0
     max_cost = cost_params.max_cost()
-    fill_plane_costs(cost, n_d, a_z, heights, inv_d, max_cost, bias)
+    fill_plane_costs(cost, n_d, a_z, heights, inv_d, max_cost, bias, families)
     max_cost += bias
     if np.isfinite(bounds[0]) or np.isfinite(bounds[1]):
         bound_costs(cost, n_d, a_z, inv_d, heights, bounds[0], bounds[1], max_cost)
-    family = np.concatenate([np.zeros(n_d, np.int64), np.ones(heights.size, np.int64)])
+        first = n_d + heights.size
+        for a_n, offsets in families:
+            bound_wall_costs(cost, first, a_z, a_n, offsets, bounds[0], bounds[1], max_cost)
+            first += offsets.size
+    family = np.concatenate([np.zeros(n_d, np.int64), np.ones(heights.size, np.int64),
+                             *(np.full(o.size, 2 + k, np.int64) for k, (_, o) in enumerate(families))])
     _lap(seconds, prefix + "planes", t)
     t = _clock()
     gray = gray_float(frame.images["C"], 0.0)
@@ -172,19 +220,27 @@ def _aggregate(frame, cost, heights, inv_d, cost_params: CostParams, plane_param
     t = _clock()
     label, conf = winner_take_all(agg, family)
     _lap(seconds, prefix + "wta", t)
-    return label, conf, a_z
+    return label, conf, a_z, families
 
 
 def room_bounds(frame, cost_params: CostParams, plane_params: PlaneParams, sgm: SgmParams, pairs, seconds):
-    """Floor and ceiling heights relative to C (metres, -inf / inf if not found) from a coarse pass, widened
-    by ``bound_margin``."""
+    """From a coarse pass: floor and ceiling heights relative to C (metres, -inf / inf if not found or without
+    ``room_bound``; widened by ``bound_margin``), the walls' yaw (radians or None) and the walls found
+    (:func:`reconstruction.sweep.planes.dominant_walls`; none without ``wall_labels``)."""
     coarse = _coarse_frame(frame, plane_params.coarse_factor)
     cost, heights, inv_d = _sphere_costs(coarse, cost_params, plane_params, pairs, seconds, prefix="coarse_")
-    label, _, _ = _aggregate(coarse, cost, heights, inv_d, cost_params, plane_params, sgm, seconds,
-                             prefix="coarse_")
+    label, _, a_z, _ = _aggregate(coarse, cost, heights, inv_d, cost_params, plane_params, sgm, seconds,
+                                  prefix="coarse_")
     z_floor, z_ceil = dominant_planes(label, cost_params.levels, heights, plane_params.bound_min_share)
+    yaw, walls = None, []
+    if plane_params.wall_labels > 0:
+        d = labels_to_distance(label, inv_d, heights, a_z, cost_params.d_min_m, cost_params.d_max_m)
+        bearings = bearing_grid(coarse.width, coarse.height, coarse.cameras["C"].rotation)
+        yaw, walls = dominant_walls(d[..., None] * bearings, plane_params)
     m = 1.0 + plane_params.bound_margin
-    return z_floor * m, z_ceil * m
+    if not plane_params.room_bound:
+        z_floor, z_ceil, m = -np.inf, np.inf, 1.0
+    return z_floor * m, z_ceil * m, yaw, walls
 
 
 def sweep_distances(frame, cost_params: CostParams, plane_params: PlaneParams, sgm: SgmParams,
@@ -202,10 +258,12 @@ def sweep_distances(frame, cost_params: CostParams, plane_params: PlaneParams, s
         details (plane share, room bounds, ``cpu_seconds``: process CPU time per stage).
     """
     shared = {}
-    bounds = (-np.inf, np.inf)
-    if plane_params.room_bound and plane_params.per_side > 0:
-        bounds = room_bounds(frame, cost_params, plane_params, sgm, pairs, shared)
-    cost, heights, inv_d = _sphere_costs(frame, cost_params, plane_params, pairs, shared)
+    bounds, yaw, walls = (-np.inf, np.inf), None, []
+    if (plane_params.room_bound or plane_params.wall_labels > 0) and plane_params.per_side > 0:
+        z_floor, z_ceil, yaw, walls = room_bounds(frame, cost_params, plane_params, sgm, pairs, shared)
+        bounds = (z_floor, z_ceil)
+    cost, heights, inv_d = _sphere_costs(frame, cost_params, plane_params, pairs, shared,
+                                         wall_labels=sum(o.size for _, o in walls))
     out = []
     for i, prior in enumerate(priors):
         seconds = dict(shared)
@@ -215,11 +273,11 @@ def sweep_distances(frame, cost_params: CostParams, plane_params: PlaneParams, s
             _lap(seconds, "copy", t)
         else:  # the last prior consumes the shared volume itself
             work, cost = cost, None
-        label, conf, a_z = _aggregate(frame, work, heights, inv_d, cost_params, plane_params, sgm, seconds,
-                                      bounds, prior=prior)
+        label, conf, a_z, families = _aggregate(frame, work, heights, inv_d, cost_params, plane_params, sgm,
+                                                seconds, bounds, prior=prior, walls=walls)
         del work
         t = _clock()
-        d = labels_to_distance(label, inv_d, heights, a_z, cost_params.d_min_m, cost_params.d_max_m)
+        d = labels_to_distance(label, inv_d, heights, a_z, cost_params.d_min_m, cost_params.d_max_m, families)
         if post.min_confidence > 0:
             ok = conf >= post.min_confidence
             if ok.any() and not ok.all():
@@ -230,7 +288,11 @@ def sweep_distances(frame, cost_params: CostParams, plane_params: PlaneParams, s
         cpu = {k[:-4]: seconds.pop(k) for k in [k for k in seconds if k.endswith("_cpu")]}
         seconds["total"] = sum(seconds.values())
         cpu["total"] = sum(cpu.values())
-        info = {"plane_share": float((label >= cost_params.levels - 0.5).mean()),
+        n_h = cost_params.levels + heights.size
+        info = {"plane_share": float(((label >= cost_params.levels - 0.5) & (label < n_h - 0.5)).mean()),
+                "wall_share": float((label >= n_h - 0.5).mean()),
+                "wall_yaw_deg": None if yaw is None else float(np.degrees(yaw)),
+                "walls_m": [float(np.median(o)) for _, o in walls],
                 "floor_m": float(bounds[0]), "ceiling_m": float(bounds[1]), "cpu_seconds": cpu}
         out.append((d.astype(np.float32), np.clip(conf, 0.0, 1.0).astype(np.float32), seconds, info))
     return out

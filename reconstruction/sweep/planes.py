@@ -15,7 +15,7 @@ import numba
 import numpy as np
 
 __all__ = ["add_prior", "PlaneParams", "plane_heights", "fill_plane_costs", "plane_inverse_distance", "bound_costs",
-           "dominant_planes"]
+           "dominant_planes", "wall_normals", "dominant_wall_yaw", "dominant_walls", "bound_wall_costs"]
 
 
 @dataclass(frozen=True)
@@ -32,6 +32,13 @@ class PlaneParams:
         bound_margin: tolerance of the room bound, as a fraction of the floor's / ceiling's |height|.
         bound_min_share: share of pixels the floor (ceiling) plane must win in the coarse pass to be used.
         coarse_factor: the coarse pass runs on images this many times smaller.
+        wall_labels: labels per wall (0 = no walls).  The coarse pass finds the room's two wall directions (at
+            right angles) and, along each, the dominant wall on either side of C; each wall found becomes a label
+            family of ``wall_labels`` parallel planes spanning its offset +- ``wall_spread``, so that a plain wall
+            is one constant label, as a floor is.
+        wall_spread: relative half-width of a wall's family (0.1 = offsets from 0.9 to 1.1 times the wall's).
+        wall_min_share: share of the coarse pass's pixels a wall must cover to be used (and the wall direction's
+            votes within 3 degrees must reach).
     """
 
     per_side: int = 32
@@ -42,6 +49,9 @@ class PlaneParams:
     bound_margin: float = 0.25
     bound_min_share: float = 0.03
     coarse_factor: int = 2
+    wall_labels: int = 0
+    wall_spread: float = 0.1
+    wall_min_share: float = 0.01
 
 
 def plane_heights(params: PlaneParams) -> np.ndarray:
@@ -50,6 +60,106 @@ def plane_heights(params: PlaneParams) -> np.ndarray:
         return np.zeros(0)
     mag = np.geomspace(params.h_min_m, params.h_max_m, params.per_side)
     return np.concatenate([-mag, mag])
+
+
+def wall_normals(yaw_rad: float) -> np.ndarray:
+    """(2, 3) the two horizontal unit normals of walls at yaw ``yaw_rad`` and ``yaw_rad + 90 deg`` (world)."""
+    c, s = np.cos(yaw_rad), np.sin(yaw_rad)
+    return np.array([[c, s, 0.0], [-s, c, 0.0]])
+
+
+def dominant_wall_yaw(points: np.ndarray, min_share: float, max_tilt_rad: float = 0.2,
+                      step_px: int = 4) -> float | None:
+    """The yaw of the room's walls (modulo 90 degrees) from a distance map's 3D points.
+
+    Surface normals come from the points ``step_px`` pixels away in the equirect grid (wrapping in longitude;
+    wide steps average out the stair steps of a label map); the normals
+    within ``max_tilt_rad`` of horizontal vote for their yaw modulo 90 degrees (0.5-degree bins, weighted by
+    their horizontality); the mode is refined by the circular mean of the votes within 3 degrees.
+
+    Args:
+        points: (H, W, 3) world points relative to C, metres (non-finite = none).
+        min_share: the mode (within 3 degrees) must hold at least this share of the H*W pixels.
+        max_tilt_rad: largest angle of a wall normal out of the horizontal plane, radians.
+        step_px: half the baseline of the finite differences, pixels.
+    Returns:
+        The yaw in radians in [0, pi/2), or None when no wall direction is dominant.
+    """
+    p = np.asarray(points, np.float64)
+    k = int(step_px)
+    du = np.roll(p, -k, axis=1) - np.roll(p, k, axis=1)
+    dv = np.zeros_like(p)
+    dv[k:-k] = p[2 * k:] - p[:-2 * k]
+    n = np.cross(du, dv)
+    norm = np.linalg.norm(n, axis=-1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        n = n / norm[..., None]
+    tilt = np.abs(n[..., 2])
+    ok = np.isfinite(tilt) & (norm > 0) & (tilt < np.sin(max_tilt_rad))
+    if not ok.any():
+        return None
+    quarter = np.mod(np.arctan2(n[..., 1][ok], n[..., 0][ok]), np.pi / 2)
+    weight = 1.0 - tilt[ok]
+    bins = 180
+    hist = np.bincount(np.minimum((quarter / (np.pi / 2) * bins).astype(np.int64), bins - 1), weight, bins)
+    window = 6  # 3 degrees either side, circular
+    smooth = sum(np.roll(hist, k) for k in range(-window, window + 1))
+    mode = (np.argmax(smooth) + 0.5) * (np.pi / 2) / bins
+    diff = np.angle(np.exp(4j * (quarter - mode))) / 4  # circular difference modulo 90 degrees
+    near = np.abs(diff) <= np.radians(3.0)
+    if near.sum() < min_share * points.shape[0] * points.shape[1]:
+        return None
+    return float(np.mod(mode + np.average(diff[near], weights=weight[near]), np.pi / 2))
+
+
+def dominant_walls(points: np.ndarray, params: PlaneParams) -> tuple[float | None, list[tuple[np.ndarray, np.ndarray]]]:
+    """The room's dominant walls from a distance map's 3D points, as label families.
+
+    The walls' yaw comes from :func:`dominant_wall_yaw`; along each of the two wall normals, the points whose own
+    normal lies within 10 degrees of it give their offsets (``point . normal``); on each side of C the mode of
+    those offsets (2 % bins of log |offset|, refined by the median within 4 %) is a wall if it holds at least
+    ``wall_min_share`` of the pixels.
+
+    Args:
+        points: (H, W, 3) world points relative to C, metres (non-finite = none).
+        params: ``wall_labels``, ``wall_spread``, ``wall_min_share``.
+    Returns:
+        ``(yaw, walls)``: the yaw (radians, None if no wall direction is dominant) and per wall found
+        ``(normal, offsets)``: (3,) world unit normal and (wall_labels,) signed offsets along it, metres,
+        ascending |offset| (``|o| * geomspace(1 - spread, 1 + spread)``).
+    """
+    if params.wall_labels <= 0:
+        return None, []
+    yaw = dominant_wall_yaw(points, params.wall_min_share)
+    if yaw is None:
+        return None, []
+    p = np.asarray(points, np.float64)
+    k = 4
+    du = np.roll(p, -k, axis=1) - np.roll(p, k, axis=1)
+    dv = np.zeros_like(p)
+    dv[k:-k] = p[2 * k:] - p[:-2 * k]
+    n = np.cross(du, dv)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        n = n / np.linalg.norm(n, axis=-1)[..., None]
+    walls = []
+    scale = np.geomspace(1.0 - params.wall_spread, 1.0 + params.wall_spread, params.wall_labels)
+    for normal in wall_normals(yaw):
+        aligned = np.abs(n @ normal) > np.cos(np.radians(10.0))
+        o = (p @ normal)[aligned & np.isfinite(p).all(axis=-1)]
+        for sign in (-1.0, 1.0):
+            side = np.abs(o[(o * sign) > 0.05])
+            if side.size < params.wall_min_share * p.shape[0] * p.shape[1]:
+                continue
+            logs = np.log(side)
+            edges = np.arange(logs.min(), logs.max() + 0.04, 0.02)
+            hist, edges = np.histogram(logs, bins=edges)
+            smooth = np.convolve(hist, np.ones(3), mode="same")
+            mode = 0.5 * (edges[np.argmax(smooth)] + edges[np.argmax(smooth) + 1])
+            near = np.abs(logs - mode) <= 0.04
+            if near.sum() < params.wall_min_share * p.shape[0] * p.shape[1]:
+                continue
+            walls.append((normal, sign * float(np.exp(np.median(logs[near]))) * scale))
+    return yaw, walls
 
 
 def plane_inverse_distance(a_z: np.ndarray, heights: np.ndarray) -> np.ndarray:
@@ -64,7 +174,7 @@ def plane_inverse_distance(a_z: np.ndarray, heights: np.ndarray) -> np.ndarray:
 
 
 @numba.njit(parallel=True, cache=True)
-def _fill(cost, levels, a_z, heights, q0, dq, max_cost):
+def _fill(cost, levels, first, a_z, heights, q0, dq, max_cost):
     h, w, _ = cost.shape
     n_p = heights.shape[0]
     for y in numba.prange(h):
@@ -73,12 +183,12 @@ def _fill(cost, levels, a_z, heights, q0, dq, max_cost):
             for p in range(n_p):
                 f = (az / heights[p] - q0) / dq
                 if f < 0.0 or f > levels - 1:
-                    cost[y, x, levels + p] = max_cost
+                    cost[y, x, first + p] = max_cost
                 else:
                     i0 = min(int(f), levels - 2)
                     t = f - i0
                     c = (1.0 - t) * cost[y, x, i0] + t * cost[y, x, i0 + 1]
-                    cost[y, x, levels + p] = np.uint16(c + 0.5)
+                    cost[y, x, first + p] = np.uint16(c + 0.5)
 
 
 @numba.njit(parallel=True, cache=True)
@@ -92,23 +202,30 @@ def _add_bias(cost, levels, bias, cap):
 
 
 def fill_plane_costs(cost: np.ndarray, levels: int, a_z: np.ndarray, heights: np.ndarray, inv_d: np.ndarray,
-                     max_cost: int, bias: int) -> None:
+                     max_cost: int, bias: int, walls: list[tuple[np.ndarray, np.ndarray]] = ()) -> None:
     """Fill the plane labels ``cost[..., levels:]`` in place from the sphere labels, then add the plane bias.
 
     Args:
-        cost: (H, W, levels + P) uint16 cost volume with the sphere labels filled.
+        cost: (H, W, levels + P + sum Q_k) uint16 cost volume with the sphere labels filled.
         levels: number of sphere labels; a_z: (H, W) world Z of C's bearings; heights: (P,) metres.
         inv_d: (levels,) inverse distances of the sphere labels (uniform), 1/m.
         max_cost: cost of a plane label that does not apply at a pixel, uint16 units.
         bias: added to every sphere label (capped at 65535), uint16 units.
+        walls: per wall family ``(a_n, offsets)``: (H, W) component of C's world bearings along the wall's normal
+            and its (Q_k,) signed offsets, metres (:func:`dominant_walls`); their labels follow the horizontal
+            planes, in this order.
     """
-    if heights.size:
-        q0 = float(inv_d[0])
-        dq = float(inv_d[1] - inv_d[0])
-        _fill(cost, levels, np.ascontiguousarray(a_z, np.float64), heights.astype(np.float64), q0, dq,
+    q0 = float(inv_d[0])
+    dq = float(inv_d[1] - inv_d[0])
+    families = [(np.asarray(a_z), np.asarray(heights))] if heights.size else []
+    families += [(a_n, np.asarray(offsets)) for a_n, offsets in walls]
+    first = levels
+    for axis, offsets in families:
+        _fill(cost, levels, first, np.ascontiguousarray(axis, np.float64), offsets.astype(np.float64), q0, dq,
               np.uint16(max_cost))
-        if bias > 0:
-            _add_bias(cost, levels, int(bias), 65535)
+        first += offsets.size
+    if families and bias > 0:
+        _add_bias(cost, levels, int(bias), 65535)
 
 
 @numba.njit(parallel=True, cache=True)
@@ -141,6 +258,36 @@ def bound_costs(cost: np.ndarray, levels: int, a_z: np.ndarray, inv_d: np.ndarra
     """
     _bound(cost, levels, np.ascontiguousarray(a_z, np.float64), inv_d.astype(np.float64),
            heights.astype(np.float64), float(z_low), float(z_high), np.uint16(max_cost))
+
+
+@numba.njit(parallel=True, cache=True)
+def _bound_walls(cost, first, a_z, a_n, offsets, z_low, z_high, max_cost):
+    h, w, _ = cost.shape
+    n_p = offsets.shape[0]
+    for y in numba.prange(h):
+        for x in range(w):
+            az = a_z[y, x]
+            an = a_n[y, x]
+            for p in range(n_p):
+                d = offsets[p] / an if an != 0.0 else -1.0
+                if d > 0.0:
+                    z = az * d
+                    if z < z_low or z > z_high:
+                        cost[y, x, first + p] = max_cost
+
+
+def bound_wall_costs(cost: np.ndarray, first: int, a_z: np.ndarray, a_n: np.ndarray, offsets: np.ndarray,
+                     z_low: float, z_high: float, max_cost: int) -> None:
+    """The room bound for one wall family: forbid each wall label whose point lies below ``z_low`` or above
+    ``z_high`` (a wall's mirror image in a glossy floor lies below it).
+
+    Args:
+        cost: (H, W, L) uint16, modified in place; first: index of the family's first label.
+        a_z, a_n: (H, W) world Z and wall-normal components of C's unit bearings; offsets: (Q,) metres.
+        z_low, z_high: heights relative to C's centre, metres.
+    """
+    _bound_walls(cost, int(first), np.ascontiguousarray(a_z, np.float64), np.ascontiguousarray(a_n, np.float64),
+                 offsets.astype(np.float64), float(z_low), float(z_high), np.uint16(max_cost))
 
 
 def dominant_planes(label: np.ndarray, levels: int, heights: np.ndarray, min_share: float):
