@@ -21,6 +21,7 @@ on ``dev`` only; run ``--split test`` once, with the chosen method among the can
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -37,6 +38,7 @@ from reconstruction.methods.base import Method
 from reconstruction.methods.fused import FusedMethod, PriorParams
 from reconstruction.methods.registry import fused_method
 from reconstruction.methods.sweep import SweepMethod
+from reconstruction.sweep.planes import PlaneParams
 from reports.tables import leaderboard_table
 
 __all__ = ["TOLERANCE", "BASELINES", "CANDIDATE_PRIORS", "candidate_methods", "family_table", "choose", "main"]
@@ -45,24 +47,32 @@ TOLERANCE = 0.05
 BASELINES = ("sweep", "fused")
 DEFAULT_SUITE = Path("suites/tri360-v1.toml")
 
-#: the candidates besides ``sweep`` and ``fused``: the fused sweep with a per-pixel prior weight
-#: (:class:`reconstruction.methods.fused.PriorParams`), labelled by what differs from ``fused``
-CANDIDATE_PRIORS: dict[str, PriorParams] = {
-    "fused-c0.25-1": PriorParams(contrast_low=0.25, contrast_high=1.0),
-    "fused-c0.5-2": PriorParams(contrast_low=0.5, contrast_high=2.0),
-    "fused-c1-4": PriorParams(contrast_low=1.0, contrast_high=4.0),
-    "fused-conf": PriorParams(use_confidence=True),
-    "fused-conf-w32": PriorParams(weight=32.0, use_confidence=True),
-    "fused-conf-c0.5-2": PriorParams(use_confidence=True, contrast_low=0.5, contrast_high=2.0),
+_WALLS = PlaneParams(wall_labels=9)
+
+#: the fused candidates: label -> (wall families?, prior weight per pixel), all on ``fused``'s flow and sweep
+#: (:class:`reconstruction.methods.fused.PriorParams`, :class:`reconstruction.sweep.planes.PlaneParams`)
+CANDIDATE_PRIORS: dict[str, tuple[bool, PriorParams]] = {
+    "fused-conf": (False, PriorParams(use_confidence=True)),
+    "fused-c0.5-2": (False, PriorParams(contrast_low=0.5, contrast_high=2.0)),
+    "fused-walls": (True, PriorParams()),
+    "fused-walls-k1": (True, PriorParams(sweep_confidence_power=1.0)),
+    "fused-walls-f0.4-0.6": (True, PriorParams(frame_agreement_low=0.4, frame_agreement_high=0.6)),
+    "fused-walls-f0.5-0.7": (True, PriorParams(frame_agreement_low=0.5, frame_agreement_high=0.7)),
+    "fused-walls-f0.6-0.8": (True, PriorParams(frame_agreement_low=0.6, frame_agreement_high=0.8)),
+    "fused-walls-k1-f0.5-0.7": (True, PriorParams(sweep_confidence_power=1.0, frame_agreement_low=0.5,
+                                                  frame_agreement_high=0.7)),
 }
 
 
 def candidate_methods() -> list[Method]:
-    """``sweep``, ``fused`` and one fused method per :data:`CANDIDATE_PRIORS` entry (same flow and sweep as
-    ``fused``)."""
+    """``sweep``, ``fused``, the sweep with wall families (``sweep-walls``) and one fused method per
+    :data:`CANDIDATE_PRIORS` entry (``fused``'s flow; its sweep, with wall families where the entry says so)."""
     base = fused_method()
-    return [SweepMethod(), base, *(FusedMethod(flow=base.flow, sweep=base.sweep, prior=p, label=label)
-                                   for label, p in CANDIDATE_PRIORS.items())]
+    walls = dataclasses.replace(base.sweep, planes=_WALLS)
+    out: list[Method] = [SweepMethod(), base, SweepMethod(planes=_WALLS, label="sweep-walls")]
+    for label, (with_walls, prior) in CANDIDATE_PRIORS.items():
+        out.append(FusedMethod(flow=base.flow, sweep=walls if with_walls else base.sweep, prior=prior, label=label))
+    return out
 
 
 def family_table(results: pd.DataFrame) -> pd.DataFrame:

@@ -28,7 +28,7 @@ from reconstruction.methods.flow_pipeline import FlowMethod, run_flow_group
 from reconstruction.methods.sweep import SgmParams, SweepMethod, sweep_distances
 from reconstruction.sweep.cost import CostParams, gray_float
 
-__all__ = ["PriorParams", "FusedMethod", "fused_sweep", "local_contrast", "prior_weight"]
+__all__ = ["PriorParams", "FusedMethod", "fused_sweep", "local_contrast", "prior_weight", "sweep_gate"]
 
 
 def fused_sweep() -> SweepMethod:
@@ -57,6 +57,14 @@ class PriorParams:
         contrast_low, contrast_high: local contrast (gray levels, 0-255 scale) below which the prior is off and
             above which it has its full weight; ``contrast_high`` 0 = no gate.
         contrast_sigma_px: Gaussian window of the local contrast, pixels.
+        sweep_confidence_power: k > 0: where the flow and the plain sweep (the coarse room-bound pass, no prior,
+            upsampled: no extra aggregation) disagree by more than ``agree_tolerance`` (relative), the weight is
+            scaled by ``(1 - c_sweep)^k``, ``c_sweep`` the plain sweep's confidence: a confident sweep keeps its
+            answer, an ambiguous one takes the flow's; 0 = off.
+        agree_tolerance: relative difference (|ln(d_flow / d_sweep)|) below which flow and sweep agree.
+        frame_agreement_low, frame_agreement_high: the frame's share of pixels where flow and plain sweep agree
+            scales the whole prior, from 0 at ``low`` to 1 at ``high`` (a frame whose flow disagrees with the
+            sweep almost everywhere gets no prior); ``high`` 0 = off.
     """
 
     weight: float = 16.0
@@ -65,10 +73,21 @@ class PriorParams:
     contrast_low: float = 0.0
     contrast_high: float = 0.0
     contrast_sigma_px: float = 3.0
+    sweep_confidence_power: float = 0.0
+    agree_tolerance: float = 0.05
+    frame_agreement_low: float = 0.0
+    frame_agreement_high: float = 0.0
 
     def __post_init__(self):
-        if self.contrast_high > 0 and not self.contrast_low < self.contrast_high:
-            raise ValueError(f"contrast_low {self.contrast_low} must be below contrast_high {self.contrast_high}")
+        for low, high in (("contrast_low", "contrast_high"), ("frame_agreement_low", "frame_agreement_high")):
+            lo, hi = getattr(self, low), getattr(self, high)
+            if hi > 0 and not lo < hi:
+                raise ValueError(f"{low} {lo} must be below {high} {hi}")
+
+    @property
+    def needs_plain_sweep(self) -> bool:
+        """Whether the weight depends on the plain sweep's result (the coarse pass's, upsampled)."""
+        return self.sweep_confidence_power > 0 or self.frame_agreement_high > 0
 
 
 def local_contrast(gray: np.ndarray, sigma_px: float) -> np.ndarray:
@@ -107,6 +126,28 @@ def prior_weight(params: PriorParams, image: np.ndarray, confidence: np.ndarray 
         c = local_contrast(gray_float(image, 0.0), params.contrast_sigma_px)
         w *= np.clip((c - params.contrast_low) / (params.contrast_high - params.contrast_low), 0.0, 1.0)
     return w
+
+
+def sweep_gate(params: PriorParams, flow_m: np.ndarray, sweep_m: np.ndarray, sweep_conf: np.ndarray) -> np.ndarray:
+    """The factor of the prior's weight that depends on the plain sweep (:class:`PriorParams`).
+
+    Args:
+        flow_m, sweep_m: (H, W) flow and plain-sweep distances, metres; sweep_conf: (H, W) sweep confidence in
+            [0, 1].
+    Returns:
+        (H, W) float32 in [0, 1].
+    """
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rel = np.abs(np.log(np.asarray(flow_m, np.float64) / np.asarray(sweep_m, np.float64)))
+    agree = np.isfinite(rel) & (rel < params.agree_tolerance)
+    g = np.ones(agree.shape, np.float32)
+    if params.sweep_confidence_power > 0:
+        ambiguous = np.power(1.0 - np.clip(sweep_conf, 0.0, 1.0), params.sweep_confidence_power)
+        g = np.where(agree, 1.0, ambiguous).astype(np.float32)
+    if params.frame_agreement_high > 0:
+        lo, hi = params.frame_agreement_low, params.frame_agreement_high
+        g *= np.float32(np.clip((agree.mean() - lo) / (hi - lo), 0.0, 1.0))
+    return g
 
 
 @dataclass(frozen=True)
@@ -161,7 +202,11 @@ class FusedMethod:
             for m in batch:
                 flow = flow_outputs[m.flow.label]
                 weight = prior_weight(m.prior, frame.images["C"], flow.confidence)
-                priors.append((flow.distance, weight, m.prior.truncate_levels))
+                if m.prior.needs_plain_sweep:
+                    priors.append(lambda d_s, c_s, m=m, d=flow.distance, w=weight:
+                                  (d, w * sweep_gate(m.prior, d, d_s, c_s), m.prior.truncate_levels))
+                else:
+                    priors.append((flow.distance, weight, m.prior.truncate_levels))
             s = batch[0].sweep
             results = sweep_distances(frame, s.cost, s.planes, s.sgm, s.post, s.pairs, priors)
             for m, (d, conf, seconds, info) in zip(batch, results, strict=True):

@@ -224,23 +224,24 @@ def _aggregate(frame, cost, heights, inv_d, cost_params: CostParams, plane_param
 
 
 def room_bounds(frame, cost_params: CostParams, plane_params: PlaneParams, sgm: SgmParams, pairs, seconds):
-    """From a coarse pass: floor and ceiling heights relative to C (metres, -inf / inf if not found or without
-    ``room_bound``; widened by ``bound_margin``), the walls' yaw (radians or None) and the walls found
-    (:func:`reconstruction.sweep.planes.dominant_walls`; none without ``wall_labels``)."""
+    """From a coarse pass (the plain sweep on images ``coarse_factor`` times smaller): floor and ceiling heights
+    relative to C (metres, -inf / inf if not found or without ``room_bound``; widened by ``bound_margin``), the
+    walls' yaw (radians or None), the walls found (:func:`reconstruction.sweep.planes.dominant_walls`; none
+    without ``wall_labels``) and the coarse pass's (distance (m), confidence) maps."""
     coarse = _coarse_frame(frame, plane_params.coarse_factor)
     cost, heights, inv_d = _sphere_costs(coarse, cost_params, plane_params, pairs, seconds, prefix="coarse_")
-    label, _, a_z, _ = _aggregate(coarse, cost, heights, inv_d, cost_params, plane_params, sgm, seconds,
-                                  prefix="coarse_")
+    label, conf, a_z, _ = _aggregate(coarse, cost, heights, inv_d, cost_params, plane_params, sgm, seconds,
+                                     prefix="coarse_")
     z_floor, z_ceil = dominant_planes(label, cost_params.levels, heights, plane_params.bound_min_share)
+    d = labels_to_distance(label, inv_d, heights, a_z, cost_params.d_min_m, cost_params.d_max_m)
     yaw, walls = None, []
     if plane_params.wall_labels > 0:
-        d = labels_to_distance(label, inv_d, heights, a_z, cost_params.d_min_m, cost_params.d_max_m)
         bearings = bearing_grid(coarse.width, coarse.height, coarse.cameras["C"].rotation)
         yaw, walls = dominant_walls(d[..., None] * bearings, plane_params)
     m = 1.0 + plane_params.bound_margin
     if not plane_params.room_bound:
         z_floor, z_ceil, m = -np.inf, np.inf, 1.0
-    return z_floor * m, z_ceil * m, yaw, walls
+    return z_floor * m, z_ceil * m, yaw, walls, (d, conf)
 
 
 def sweep_distances(frame, cost_params: CostParams, plane_params: PlaneParams, sgm: SgmParams,
@@ -251,17 +252,22 @@ def sweep_distances(frame, cost_params: CostParams, plane_params: PlaneParams, s
         priors: each None (the plain sweep) or ``(distance, weight, truncate_levels)``: (H, W) prior distances of C
             (metres; e.g. the flow pipeline's), (H, W) float32 weight in cost units per label and the truncation
             in labels, added to the sphere labels before aggregation
-            (:func:`reconstruction.sweep.planes.add_prior`; not used in the coarse room-bound pass).
+            (:func:`reconstruction.sweep.planes.add_prior`; not used in the coarse room-bound pass); or a function
+            of the coarse pass's (distance, confidence), (H, W) float32 each (upsampled), that returns one: a prior
+            that depends on the plain sweep, at no extra aggregation.
     Returns:
         One ``(distance, confidence, seconds, info)`` per prior: (H, W) float32 metres, (H, W) float32 in [0, 1],
         wall time per stage (the shared ``coarse_*`` and ``cost`` stages in every one, as they would take alone),
         details (plane share, room bounds, ``cpu_seconds``: process CPU time per stage).
     """
     shared = {}
-    bounds, yaw, walls = (-np.inf, np.inf), None, []
-    if (plane_params.room_bound or plane_params.wall_labels > 0) and plane_params.per_side > 0:
-        z_floor, z_ceil, yaw, walls = room_bounds(frame, cost_params, plane_params, sgm, pairs, shared)
+    bounds, yaw, walls, coarse = (-np.inf, np.inf), None, [], None
+    if (plane_params.room_bound or plane_params.wall_labels > 0 or any(callable(p) for p in priors)) \
+            and plane_params.per_side > 0:
+        z_floor, z_ceil, yaw, walls, coarse = room_bounds(frame, cost_params, plane_params, sgm, pairs, shared)
         bounds = (z_floor, z_ceil)
+        size = (frame.width, frame.height)
+        coarse = tuple(cv2.resize(np.asarray(a, np.float32), size, interpolation=cv2.INTER_LINEAR) for a in coarse)
     cost, heights, inv_d = _sphere_costs(frame, cost_params, plane_params, pairs, shared,
                                          wall_labels=sum(o.size for _, o in walls))
     out = []
@@ -273,6 +279,10 @@ def sweep_distances(frame, cost_params: CostParams, plane_params: PlaneParams, s
             _lap(seconds, "copy", t)
         else:  # the last prior consumes the shared volume itself
             work, cost = cost, None
+        if callable(prior):
+            if coarse is None:
+                raise ValueError("a prior that depends on the coarse pass needs the plane family (per_side > 0)")
+            prior = prior(*coarse)
         label, conf, a_z, families = _aggregate(frame, work, heights, inv_d, cost_params, plane_params, sgm,
                                                 seconds, bounds, prior=prior, walls=walls)
         del work

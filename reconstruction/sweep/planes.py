@@ -115,10 +115,11 @@ def dominant_wall_yaw(points: np.ndarray, min_share: float, max_tilt_rad: float 
 def dominant_walls(points: np.ndarray, params: PlaneParams) -> tuple[float | None, list[tuple[np.ndarray, np.ndarray]]]:
     """The room's dominant walls from a distance map's 3D points, as label families.
 
-    The walls' yaw comes from :func:`dominant_wall_yaw`; along each of the two wall normals, the points whose own
-    normal lies within 10 degrees of it give their offsets (``point . normal``); on each side of C the mode of
-    those offsets (2 % bins of log |offset|, refined by the median within 4 %) is a wall if it holds at least
-    ``wall_min_share`` of the pixels.
+    The walls' yaw comes from :func:`dominant_wall_yaw`; along each of the two wall normals every point has an
+    offset (``point . normal``), and the points of a wall share theirs, however plain the wall (where the points
+    are noisy, their normals are useless but their offsets still cluster); on each side of C the mode of the
+    offsets beyond 0.3 m (2 % bins of log |offset|, refined by the median within 4 %) is a wall if it holds at
+    least ``wall_min_share`` of the pixels.
 
     Args:
         points: (H, W, 3) world points relative to C, metres (non-finite = none).
@@ -134,29 +135,22 @@ def dominant_walls(points: np.ndarray, params: PlaneParams) -> tuple[float | Non
     if yaw is None:
         return None, []
     p = np.asarray(points, np.float64)
-    k = 4
-    du = np.roll(p, -k, axis=1) - np.roll(p, k, axis=1)
-    dv = np.zeros_like(p)
-    dv[k:-k] = p[2 * k:] - p[:-2 * k]
-    n = np.cross(du, dv)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        n = n / np.linalg.norm(n, axis=-1)[..., None]
+    finite = np.isfinite(p).all(axis=-1)
     walls = []
     scale = np.geomspace(1.0 - params.wall_spread, 1.0 + params.wall_spread, params.wall_labels)
+    need = params.wall_min_share * p.shape[0] * p.shape[1]
     for normal in wall_normals(yaw):
-        aligned = np.abs(n @ normal) > np.cos(np.radians(10.0))
-        o = (p @ normal)[aligned & np.isfinite(p).all(axis=-1)]
+        o = (p @ normal)[finite]
         for sign in (-1.0, 1.0):
-            side = np.abs(o[(o * sign) > 0.05])
-            if side.size < params.wall_min_share * p.shape[0] * p.shape[1]:
+            side = o[(o * sign) > 0.3] * sign
+            if side.size < need:
                 continue
             logs = np.log(side)
-            edges = np.arange(logs.min(), logs.max() + 0.04, 0.02)
-            hist, edges = np.histogram(logs, bins=edges)
+            hist, edges = np.histogram(logs, bins=np.arange(logs.min(), logs.max() + 0.04, 0.02))
             smooth = np.convolve(hist, np.ones(3), mode="same")
             mode = 0.5 * (edges[np.argmax(smooth)] + edges[np.argmax(smooth) + 1])
             near = np.abs(logs - mode) <= 0.04
-            if near.sum() < params.wall_min_share * p.shape[0] * p.shape[1]:
+            if near.sum() < need:
                 continue
             walls.append((normal, sign * float(np.exp(np.median(logs[near]))) * scale))
     return yaw, walls

@@ -165,3 +165,33 @@ def test_a_group_of_two_flow_configurations_is_refused():
     other = FusedMethod(flow=flow_methods(["farneback"], [True], ["gradient"])[0], label="fused-farneback")
     with pytest.raises(ValueError, match="different flow configurations.*fused-farneback"):
         fused_method().run_group(f, [fused_method(), other])
+
+
+def test_sweep_gate_keeps_a_confident_sweep_and_scales_by_the_frames_agreement():
+    from reconstruction.methods.fused import sweep_gate
+
+    flow = np.full((2, 4), 2.0)
+    sweep = np.array([[2.0, 2.05, 3.0, 3.0], [2.0, 2.0, 3.0, 3.0]])  # 4 of 8 agree within 5 %
+    conf = np.array([[0.0, 0.0, 1.0, 0.5], [1.0, 1.0, 0.0, 0.5]])
+    g = sweep_gate(PriorParams(sweep_confidence_power=2.0), flow, sweep, conf)
+    np.testing.assert_allclose(g, [[1, 1, 0, 0.25], [1, 1, 1, 0.25]], atol=1e-6)
+    g = sweep_gate(PriorParams(frame_agreement_low=0.4, frame_agreement_high=0.6), flow, sweep, conf)
+    np.testing.assert_allclose(g, 0.5, atol=1e-6)  # agreement 0.5: half way up the ramp
+    g = sweep_gate(PriorParams(frame_agreement_low=0.6, frame_agreement_high=0.8), flow, sweep, conf)
+    np.testing.assert_allclose(g, 0.0, atol=1e-6)
+    with pytest.raises(ValueError, match="frame_agreement_low 0.8 must be below frame_agreement_high 0.6"):
+        PriorParams(frame_agreement_low=0.8, frame_agreement_high=0.6)
+
+
+def test_a_frame_whose_flow_disagrees_with_the_coarse_sweep_gets_the_plain_sweep():
+    """The gate uses the coarse room-bound pass (no extra aggregation); when the frame's agreement is below the
+    ramp the prior is off and fused gives exactly the plain sweep; a gate that always passes gives fused."""
+    f = make_synthetic_frame(120)
+    m = fused_method()
+    never = FusedMethod(flow=m.flow, prior=PriorParams(frame_agreement_low=0.9995, frame_agreement_high=0.9999),
+                        label="never")
+    always = FusedMethod(flow=m.flow, prior=PriorParams(frame_agreement_low=-2.0, frame_agreement_high=-1.0),
+                         label="always")
+    outs = run_methods(f, [m, never, always])
+    np.testing.assert_allclose(outs["never"].distance, m.sweep.run(f).distance, rtol=0, atol=1e-6)
+    np.testing.assert_allclose(outs["always"].distance, outs["fused"].distance, rtol=0, atol=1e-6)
