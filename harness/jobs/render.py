@@ -345,26 +345,70 @@ def render_frames(settings: RenderSettings = DEFAULTS, scene: str = DEFAULT_SCEN
         mark_output(out_root, "data")
         return dirs
 
-    bar = progress_bar(len(todo) * len(CAMERA_NAMES), desc=f"{scene_dir} ({plan.renderer})", unit="view",
-                       enabled=progress)
+    items = [RenderItem(plan.renderer, plan.spec, settings, rig, scene_dir, vp) for vp, rig in todo]
     try:
-        with get_renderer(plan.renderer)(plan.spec, settings, verbose=verbose) as drawer:
-            for vp, rig in todo:
-                bar.set_postfix_str(vp)
-
-                def on_camera(name, seconds, vp=vp):
-                    bar.set_postfix_str(f"{vp}/{name} {seconds:.1f}s")
-                    bar.update(1)
-
-                write_rendered_frame(drawer.render(rig, scene=scene_dir, viewpoint=vp, on_camera=on_camera),
-                                     out_root)
+        render_items(items, out_root, f"{scene_dir} ({plan.renderer})", progress, verbose)
     except BaseException:
         _remove_if_empty(created)  # an interrupted first render leaves no empty directories behind
         raise
-    finally:
-        bar.close()
     mark_output(out_root, "data")
     return dirs
+
+
+@dataclass(frozen=True)
+class RenderItem:
+    """One frame to render: with which renderer, scene, settings and rig, and where (``<scene_dir>/<viewpoint>``)."""
+
+    renderer: str
+    spec: SceneSpec
+    settings: RenderSettings
+    rig: Rig
+    scene_dir: str
+    viewpoint: str
+
+
+def render_items(items: list[RenderItem], out_root: Path, desc: str, progress: bool, verbose: bool,
+                 cluster: ClusterOptions | None = None, executor: Executor | None = None) -> None:
+    """Render frames into ``out_root`` and write each atomically as it is done (the one render loop of ``render``,
+    ``render --suite`` and ``study``).
+
+    In this process, consecutive items of one scene directory share one opened renderer (the scene is built once)
+    and a progress bar advances per camera view; distributed (``cluster`` / ``executor``), each frame is one
+    task (:func:`render_one`) and the hidden half-frames of workers lost mid-write are cleaned afterwards.
+    """
+    if is_distributed(cluster, executor):
+        root = os.fspath(out_root.resolve())  # workers may run elsewhere: give them the absolute path
+        tasks = {f"{it.scene_dir}/{it.viewpoint}": (it.renderer, it.spec, it.settings, it.rig, it.scene_dir,
+                                                    it.viewpoint, root, verbose) for it in items}
+        with executor_for(cluster, executor) as ex:
+            for _ in ex.run(render_one, tasks, desc="render", unit="frame", progress=progress,
+                            names={k: k for k in tasks}):
+                pass
+        for scene in dict.fromkeys(it.scene_dir for it in items):
+            clean_stale_partials(out_root / scene)
+        return
+    bar = progress_bar(len(items) * len(CAMERA_NAMES), desc=desc, unit="view", enabled=progress)
+    try:
+        start = 0
+        while start < len(items):
+            first = items[start]
+            end = start
+            while end < len(items) and items[end].scene_dir == first.scene_dir:
+                end += 1
+            with get_renderer(first.renderer)(first.spec, first.settings, verbose=verbose) as drawer:
+                for it in items[start:end]:
+                    label = f"{it.scene_dir}/{it.viewpoint}"
+                    bar.set_postfix_str(label)
+
+                    def on_camera(name, seconds, label=label):
+                        bar.set_postfix_str(f"{label}/{name} {seconds:.1f}s")
+                        bar.update(1)
+
+                    write_rendered_frame(drawer.render(it.rig, scene=it.scene_dir, viewpoint=it.viewpoint,
+                                                       on_camera=on_camera), out_root)
+            start = end
+    finally:
+        bar.close()
 
 
 def write_rendered_frame(frame: Frame, out_root: Path) -> Path:
@@ -400,18 +444,12 @@ def render_one(renderer: str, spec, settings: RenderSettings, rig, scene_dir: st
 
 def _render_distributed(todo, plan: RenderPlan, out_root: Path, progress: bool, verbose: bool, created: list[Path],
                         cluster: ClusterOptions | None, executor: Executor | None) -> None:
-    root = os.fspath(out_root.resolve())  # workers may run elsewhere: give them the absolute path
-    scene_dir = plan.scene_dir
-    tasks = {vp: (plan.renderer, plan.spec, plan.settings, rig, scene_dir, vp, root, verbose) for vp, rig in todo}
+    items = [RenderItem(plan.renderer, plan.spec, plan.settings, rig, plan.scene_dir, vp) for vp, rig in todo]
     try:
-        with executor_for(cluster, executor) as ex:
-            for _ in ex.run(render_one, tasks, desc="render", unit="frame", progress=progress,
-                            names={vp: f"{scene_dir}/{vp}" for vp in tasks}):
-                pass
+        render_items(items, out_root, "render", progress, verbose, cluster, executor)
     except BaseException:
         _remove_if_empty(created)
         raise
-    clean_stale_partials(out_root / scene_dir)  # hidden half-frames of workers lost mid-write
 
 
 def _remove_if_empty(directories: list[Path]) -> None:

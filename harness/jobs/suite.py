@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import os
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -30,14 +29,13 @@ from harness.data.errors import UserError
 from harness.data.frame import frame_dir, is_complete
 from harness.data.outputs import check_output, ensure_output_dir, mark_output
 from harness.data.suite import Suite, SuiteFrame, load_suite
-from harness.jobs.cluster import ClusterOptions, open_executor
+from harness.jobs.cluster import ClusterOptions
 from harness.jobs.evaluate import FrameRef, evaluate, select_frames
-from harness.jobs.progress import progress_bar
-from harness.jobs.render import DEFAULTS, check_width, differences, render_one, write_rendered_frame
+from harness.jobs.render import DEFAULTS, RenderItem, check_width, differences, render_items
 from harness.jobs.score import score
 from harness.render.base import RenderSettings, identity
 from harness.render.registry import get_renderer
-from reconstruction.camera.rig import CAMERA_NAMES, Rig
+from reconstruction.camera.rig import Rig
 from reconstruction.methods.base import Method
 from scenes.model import SceneSpec, choose_viewpoints
 from scenes.registry import discover
@@ -170,35 +168,8 @@ def render_suite(path: Path, split: str, out_root: Path, threads: int = DEFAULTS
 
 def _render(suite: Suite, split: str, todo: list[PlannedFrame], out_root: Path, progress: bool, verbose: bool,
             cluster) -> None:
-    if cluster is not None and getattr(cluster, "distributed", False):
-        root = os.fspath(out_root.resolve())
-        tasks = {p.frame.label: (p.renderer, p.spec, p.settings, p.rig, p.frame.scene, p.frame.viewpoint, root,
-                                 verbose) for p in todo}
-        with open_executor(cluster) as ex:
-            for _ in ex.run(render_one, tasks, desc="render", unit="frame", progress=progress,
-                            names={k: k for k in tasks}):
-                pass
-        for scene in dict.fromkeys(p.frame.scene for p in todo):
-            clean_stale_partials(out_root / scene)  # hidden half-frames of workers lost mid-write
-        return
-    bar = progress_bar(len(todo) * len(CAMERA_NAMES), desc=f"{suite.name} {split}", unit="view", enabled=progress)
-    try:
-        groups: dict = {}
-        for p in todo:
-            groups.setdefault(p.frame.scene, []).append(p)
-        for group in groups.values():
-            first = group[0]
-            with get_renderer(first.renderer)(first.spec, first.settings, verbose=verbose) as drawer:
-                for p in group:
-                    def on_camera(name, seconds, label=p.frame.label):
-                        bar.set_postfix_str(f"{label}/{name} {seconds:.1f}s")
-                        bar.update(1)
-
-                    frame = drawer.render(p.rig, scene=p.frame.scene, viewpoint=p.frame.viewpoint,
-                                          on_camera=on_camera)
-                    write_rendered_frame(frame, out_root)
-    finally:
-        bar.close()
+    items = [RenderItem(p.renderer, p.spec, p.settings, p.rig, p.frame.scene, p.frame.viewpoint) for p in todo]
+    render_items(items, out_root, f"{suite.name} {split}", progress, verbose, cluster)
 
 
 def check_suite_data(suite: Suite, split: str, data_root: Path) -> list[FrameRef]:
