@@ -9,8 +9,10 @@ fractional label), then the plane labels, SGM, winner, confidence and median run
 docs/matching.md.
 
 The weight can follow where the flow is trustworthy instead of being one constant (:class:`PriorParams`): scaled
-by the flow's confidence (pair support) and gated by the local contrast of C's image, so that on plain walls and
-ceilings, where the flow has no evidence either, the sweep's own aggregation decides.  ``fused`` shares the flow
+by the flow's confidence (pair support), gated by the local contrast of C's image, by the plain sweep's confidence
+where it disagrees with the flow, and per frame by how much of the frame flow and sweep agree on (the plain sweep
+being the coarse room-bound pass, which runs anyway), so that in rooms and regions where the flow has no evidence
+the sweep's own aggregation decides.  ``fused`` shares the flow
 with the flow-pipeline methods of its configuration (one ``group_key``), and several fused methods of one sweep
 configuration share the room-bound pass and the cost volume (:func:`reconstruction.methods.sweep.sweep_distances`).
 """
@@ -43,10 +45,11 @@ def fused_sweep() -> SweepMethod:
 class PriorParams:
     """How strongly the flow distance pulls the sweep's labels, per pixel.
 
-    The weight of pixel p is ``weight * conf(p) * gate(p)``: ``conf`` the flow's confidence when
+    The weight of pixel p is ``weight * conf(p) * gate(p) * sweep(p)``: ``conf`` the flow's confidence when
     ``use_confidence`` (else 1), ``gate`` a ramp of C's local contrast ``c(p)`` (:func:`local_contrast`) from 0 at
-    ``contrast_low`` to 1 at ``contrast_high`` when ``contrast_high > 0`` (else 1).  The defaults are ``fused``'s
-    one constant.
+    ``contrast_low`` to 1 at ``contrast_high`` when ``contrast_high > 0`` (else 1), ``sweep`` the factor from the
+    plain sweep's agreement with the flow and its confidence (:func:`sweep_gate`; 1 when both of its options are
+    off).  The defaults are ``fused``'s one constant.
 
     Attributes:
         weight: cost units (see ``CostParams.scale``: 8 per gray level) per sphere label between a hypothesis and
