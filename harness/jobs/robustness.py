@@ -53,7 +53,7 @@ from harness.jobs import perturbations as P
 from harness.jobs.cluster import ClusterOptions, open_executor
 from harness.jobs.evaluate import evaluate, scorable_frame, select_frames
 from harness.jobs.options import MethodSelection, annotations_of, typed_value
-from harness.jobs.perturb import frame_hash, parse_applies, perturb_root
+from harness.jobs.perturb import checked_perturbation, frame_hash, parse_applies, perturb_root
 from reports.robustness import NONE_KIND, format_level, kind_table, level_plot, pooled_mae, robustness_markdown
 
 __all__ = ["KIND", "KEYS", "DEFAULT_METHODS", "ORIGINS", "RobustnessSpec", "Point", "is_robustness_study",
@@ -233,6 +233,17 @@ def _select(spec: RobustnessSpec):
     return refs
 
 
+def _check_told_rigs(spec: RobustnessSpec, refs, points: list[Point], out: Path) -> None:
+    """Every calibration-error point gives every frame a told rig the frame format accepts (a ``translation``
+    too large for the baseline's tolerance would otherwise stop the study hours in): checked before any work."""
+    pose = [p for p in points if p.kind in ("rotation", "translation")]
+    for r in refs if pose else ():
+        frame = read_frame(r.path)
+        for p in pose:
+            checked_perturbation(r.path, frame, p.applies, spec.seed, out / "data" / p.name,
+                                 option=f"{spec.path}: [levels] {p.kind} = {format_level(p.level)} (seed {spec.seed}):")
+
+
 def _results_reusable(results: Path, labels: tuple[str, ...], expected: dict[tuple[str, str], str], seed: int,
                       point: Point) -> bool:
     """A complete results set of exactly ``labels`` on exactly the expected frames, whose provenance matches."""
@@ -282,6 +293,7 @@ def run_robustness(study_path: Path, out: Path, cluster: ClusterOptions | None =
         if extra:
             raise UserError(f"{extra[0]}: a frame the study file no longer chooses is in the study's data root "
                             f"{out / 'data' / p.name}; remove that directory (tri360 wrote it) or choose another --out")
+    _check_told_rigs(spec, refs, points, out)
     out = ensure_output_dir(out)
     atomic_write_text(out / "points.json", jsonio.dumps(
         [{"kind": p.kind, "level": p.level, "data": f"data/{p.name}", "results": f"results/{p.name}"}

@@ -149,6 +149,8 @@ def test_a_changed_seed_perturbs_and_evaluates_again_but_not_level_0(source, tmp
     ('frames = ["synthetic_box/vp009"]\n[levels]\nnoise = [2]\n', "frames: 'synthetic_box/vp009' is not a frame"),
     ('frames = ["vp000"]\n[levels]\nnoise = [2]\n', "frames: 'vp000' is not a <scene>/<viewpoint> label"),
     ('', "[levels]: missing"),
+    ('[levels]\nnoise = [2]\ntranslation = [1, 200]\n', "[levels] translation = 200 (seed 0): translation=200.0: the "
+                                                        "told rig of"),
 ])
 def test_bad_files_are_one_line_exit_2_and_write_nothing(source, tmp_path, capsys, body, message):
     path = tmp_path / "bad.toml"
