@@ -4,8 +4,10 @@ evaluation, reruns reuse everything, bad files are one line; the doubling level'
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -13,12 +15,16 @@ import pytest
 
 import harness.jobs.robustness as rob
 from harness.cli import main
-from harness.data.frame import write_frame
+from harness.data.frame import validate_metadata, write_frame
 from harness.jobs.evaluate import evaluate
+from harness.jobs.perturb import perturb_frame
+from harness.jobs.perturbations import rotation_about
+from harness.jobs.suite import load as load_suite
+from reconstruction.camera.rig import CameraPose
 from reconstruction.methods.registry import get_methods
 from reports.robustness import doubling_level, kind_table, pooled_mae
 from reports.tables import pixel_weighted
-from tests.helpers import make_synthetic_frame
+from tests.helpers import ROOT, make_synthetic_frame
 
 PNG = b"\x89PNG\r\n\x1a\n"
 METHOD = "dis-rect:average"
@@ -212,3 +218,24 @@ def test_kind_table_on_a_hand_made_table():
     assert table.loc["a", "0.5"] == pytest.approx(0.7, abs=1e-12)
     assert table.loc["a", "doubles_at"] == pytest.approx(0.5 * 0.325 / 0.375, abs=1e-12)
     assert math.isnan(table.loc["b", "doubles_at"])
+
+
+def test_the_shipped_study_takes_one_dev_frame_per_family_and_its_told_rigs_are_possible():
+    spec = rob.load_robustness(ROOT / "studies" / "robustness.toml")
+    suite = load_suite(ROOT / "suites" / "tri360-v1.toml")
+    family = {f.label: f.entry.family for f in suite.frames("dev")}
+    assert [family[f] for f in spec.frames] == ["classroom", "seminar", "lab", "corridor", "office", "library"]
+    assert spec.methods == rob.DEFAULT_METHODS and spec.data == Path("data-dev")
+    assert all(family_rig.baseline_m == 0.4 and family_rig.tilt_max_rad == 0.0 for family_rig in
+               (f.entry.rig for f in suite.frames("dev") if f.label in spec.frames))
+    # the comment's claim: at this seed every translation level gives a possible told rig for a level 0.4 m rig at
+    # any heading
+    frame = make_synthetic_frame(width=64)
+    c = frame.cameras["C"].position
+    for psi in np.linspace(0.0, 2.0 * np.pi, 72, endpoint=False):
+        turn = rotation_about(np.array([0.0, 0.0, 1.0]), psi)
+        cams = {n: CameraPose(c + turn @ (p.position - c), turn @ p.rotation) for n, p in frame.cameras.items()}
+        turned = dataclasses.replace(frame, cameras=cams)
+        for level in spec.levels["translation"]:
+            new = perturb_frame(turned, [("translation", level)], spec.seed, {"path": "x", "sha256": "y"})
+            validate_metadata(new.metadata(), Path("frame.json"))
