@@ -124,12 +124,17 @@ def test_rerun_reuses_every_frame_and_result(study, monkeypatch):
                                   pd.read_csv(out / "robustness.csv").fillna({"unit": ""}), check_dtype=False)
 
 
-def test_a_changed_seed_perturbs_and_evaluates_again_but_not_level_0(source, tmp_path):
+def test_an_added_level_runs_only_itself_and_a_new_seed_every_perturbed_point_but_not_level_0(source, tmp_path):
     p = tmp_path / "r.toml"
     p.write_text(STUDY.format(data=source, method=METHOD).replace("noise = [2, 8]\n", "").replace("[1, 5]", "[1]"))
     o = tmp_path / "o"
     rob.run_robustness(p, o, progress=False)
     first = {q: q.stat().st_mtime_ns for q in (o / "results").rglob("results.csv")}
+    p.write_text(p.read_text().replace("[1]", "[1, 2]"))  # an added level: only that point runs
+    rob.run_robustness(p, o, progress=False)
+    added = {q: q.stat().st_mtime_ns for q in (o / "results").rglob("results.csv")}
+    assert {q: t for q, t in added.items() if q in first} == first and o / "results" / "rotation-2" / \
+        "results.csv" in added
     p.write_text(p.read_text().replace("seed = 3", "seed = 4"))
     rob.run_robustness(p, o, progress=False)
     second = {q: q.stat().st_mtime_ns for q in (o / "results").rglob("results.csv")}
