@@ -335,6 +335,8 @@ def run_study(study_path: Path, out: Path, cluster: ClusterOptions | None = None
             ``render``/``evaluate`` refuses.
     """
     if is_robustness_study(study_path):  # kind = "robustness": harness.jobs.robustness
+        if metric != DEFAULT_METRIC:
+            raise UserError(f"--metric {metric}: a robustness study ({study_path}) tabulates {DEFAULT_METRIC} only")
         return run_robustness(study_path, out, cluster=cluster, progress=progress)
     started = time.time()
     if cluster is not None:

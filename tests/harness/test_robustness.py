@@ -184,6 +184,12 @@ def test_missing_data_root_is_one_line_exit_2(tmp_path, capsys):
     assert "data: missing" in capsys.readouterr().err
 
 
+def test_another_metric_is_refused(study, capsys):
+    path, out = study
+    assert main(["study", str(path), "--out", str(out), "--metric", "rmse_m"]) == 2
+    assert "--metric rmse_m: a robustness study" in capsys.readouterr().err
+
+
 def test_a_wrong_kind_is_refused_by_the_grid_study(tmp_path, capsys):
     path = tmp_path / "r.toml"
     path.write_text('kind = "robust"\n[render]\nscene = "synthetic_box"\n', encoding="utf-8")
