@@ -6,6 +6,7 @@ import argparse
 from pathlib import Path
 
 from harness.cli.cluster import add_cluster_arguments, cluster_options
+from harness.jobs.robustness import is_robustness_study
 from harness.jobs.study import DEFAULT_METRIC, run_study
 
 HELP = "render and evaluate every point of a grid of settings (a study TOML); write study.csv, plots, study.md"
@@ -14,7 +15,9 @@ HELP = "render and evaluate every point of a grid of settings (a study TOML); wr
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("study", type=Path, metavar="STUDY.toml",
                         help="[render] (tri360 render options, dashes as underscores), [evaluate] (method, flow, "
-                             "variants, rectify, report) and [grid] (a list of values for any of those keys)")
+                             "variants, rectify, report) and [grid] (a list of values for any of those keys); or a "
+                             "robustness study: kind = \"robustness\", data, frames, method, seed and [levels] "
+                             "(docs/robustness.md)")
     parser.add_argument("--out", type=Path, required=True, metavar="DIR",
                         help="study directory: study.csv, <key>.png, study.md, and the frames and results it reuses "
                              "when the study is rerun or extended; absent, empty or a study directory tri360 wrote "
@@ -30,5 +33,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args) -> int:
     table = run_study(args.study, args.out, cluster=cluster_options(args), metric=args.metric,
                       progress=not args.quiet, yes=args.yes)
-    print(f"{len(table)} rows in {args.out / 'study.csv'}; plots and study.md in {args.out}")
+    name = "robustness" if is_robustness_study(args.study) else "study"
+    print(f"{len(table)} rows in {args.out / (name + '.csv')}; plots and {name}.md in {args.out}")
     return 0

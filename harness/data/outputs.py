@@ -53,7 +53,7 @@ RESULTS_DIRS = frozenset({"maps", "figures", "clouds"})
 #: what a frame directory holds (``tri360-frame/1``, the render log, per-camera maps of a later format)
 _FRAME_FILE_RE = re.compile(r"^(frame\.json|render_log\.json|[CUR]\.png|[CUR]\.[A-Za-z0-9_]+\.(exr|png))$")
 PREDICTION_FILES = frozenset({"distance.exr", "confidence.exr", "quality.exr", "cloud.ply", "reconstruction.json"})
-STUDY_FILES = frozenset({"points.json", "study.csv", "study.md"})
+STUDY_FILES = frozenset({"points.json", "study.csv", "study.md", "robustness.csv", "robustness.md"})
 STUDY_DIRS = frozenset({"data", "results"})
 OS_LITTER = frozenset({".DS_Store", "Thumbs.db", "desktop.ini"})
 """Folder-view files of macOS / Windows: nobody's data, so they neither make a directory foreign nor non-empty."""

@@ -25,7 +25,7 @@ from harness.data.provenance import software
 from harness.jobs import perturbations as P
 from reconstruction.camera.rig import CAMERA_NAMES
 
-__all__ = ["parse_applies", "perturb_frame", "perturb_root", "frame_hash"]
+__all__ = ["parse_applies", "perturb_frame", "checked_perturbation", "perturb_root", "frame_hash"]
 
 
 def parse_applies(items: list[str], option: str = "--apply") -> list[tuple[str, float | int]]:
@@ -113,6 +113,24 @@ def perturb_frame(frame: Frame, applies: list[tuple[str, float | int]], seed: in
                  renderer=renderer)
 
 
+def checked_perturbation(d: Path, frame: Frame, applies: list[tuple[str, float | int]], seed: int, out: Path,
+                         option: str = "--apply") -> Frame:
+    """:func:`perturb_frame` of the frame read from directory ``d``, its metadata checked as if written to data
+    root ``out`` (a perturbed told rig may be impossible: ``|U - C|`` and ``|R - C|`` no longer on one baseline).
+
+    Raises:
+        UserError: naming ``option`` and the perturbations, the frame and why its told rig is impossible.
+    """
+    source = {"path": str(Path(d).resolve()), "sha256": frame_hash(d)}
+    new = perturb_frame(frame, applies, seed, source)
+    try:
+        validate_metadata(new.metadata(), Path(out) / new.scene / new.viewpoint / "frame.json")
+    except FrameError as exc:
+        told = ", ".join(f"{k}={v}" for k, v in applies if k in ("rotation", "translation"))
+        raise UserError(f"{option} {told}: the told rig of {d} would be impossible ({exc})") from None
+    return new
+
+
 def perturb_root(data: Path, out: Path, applies: list[tuple[str, float | int]], seed: int) -> list[Path]:
     """Perturb every frame under data root (or frame directory) ``data`` into data root ``out``.
 
@@ -139,16 +157,7 @@ def perturb_root(data: Path, out: Path, applies: list[tuple[str, float | int]], 
         check_name(frame.scene, f"{d / 'frame.json'} (scene)")
         check_name(frame.viewpoint, f"{d / 'frame.json'} (viewpoint)")
         frames.append((d, frame))
-    derived = []
-    for d, frame in frames:
-        source = {"path": str(d.resolve()), "sha256": frame_hash(d)}
-        new = perturb_frame(frame, applies, seed, source)
-        try:  # every derived frame checked before the first is written
-            validate_metadata(new.metadata(), out / new.scene / new.viewpoint / "frame.json")
-        except FrameError as exc:
-            told = ", ".join(f"{k}={v}" for k, v in applies if k in ("rotation", "translation"))
-            raise UserError(f"--apply {told}: the told rig of {d} would be impossible ({exc})") from None
-        derived.append(new)
+    derived = [checked_perturbation(d, frame, applies, seed, out) for d, frame in frames]  # all before writing
     written = []
     for new in derived:
         try:

@@ -29,6 +29,9 @@ Before any work every key is checked against its option's type (:func:`load_stud
 and evaluate would check it (:func:`plan_point`), and the plan's size (:data:`LIMIT_POINTS`, :data:`LIMIT_FRAMES`:
 past them only with ``yes``).
 
+A file with ``kind = "robustness"`` is a robustness study instead (:mod:`harness.jobs.robustness`), which
+:func:`run_study` hands over whole.
+
 Reuse: the data roots are named by what decides the frames' pixels (:func:`point_ids`), so a rerun, or an
 extended grid, renders only frames that are missing (``render_frames`` is resumable and checks that stored frames
 were rendered with the same settings), a threads-only change renders nothing, and only points without a complete
@@ -77,6 +80,7 @@ from harness.jobs.render import (
     render_frames,
     settings_from_options,
 )
+from harness.jobs.robustness import is_robustness_study, run_robustness
 from harness.render.base import RenderSettings
 from reports.plots import png_bytes
 from reports.schema import METRIC_COLUMNS
@@ -179,6 +183,9 @@ def load_study(path: Path) -> StudySpec:
         raw = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise UserError(f"{path}: not valid TOML ({exc})") from None
+    if "kind" in raw:
+        raise UserError(f"{path}: kind = {raw['kind']!r}: the only kind of study file is 'robustness' "
+                        "(docs/robustness.md); a grid study has no kind key")
     unknown = sorted(set(raw) - {"render", "evaluate", "grid"})
     if unknown:
         raise UserError(f"{path}: unknown section(s) [{'], ['.join(unknown)}]; a study has [render], [evaluate] "
@@ -327,6 +334,10 @@ def run_study(study_path: Path, out: Path, cluster: ClusterOptions | None = None
         UserError: a malformed study file, an unknown metric, a plan too large without ``yes``, or anything
             ``render``/``evaluate`` refuses.
     """
+    if is_robustness_study(study_path):  # kind = "robustness": harness.jobs.robustness
+        if metric != DEFAULT_METRIC:
+            raise UserError(f"--metric {metric}: a robustness study ({study_path}) tabulates {DEFAULT_METRIC} only")
+        return run_robustness(study_path, out, cluster=cluster, progress=progress)
     started = time.time()
     if cluster is not None:
         cluster.check()
