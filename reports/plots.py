@@ -321,7 +321,7 @@ def cloud_views(clouds: dict[str, tuple[np.ndarray, np.ndarray]], centre, title:
     lo, hi = lo - pad, hi + pad
     c = np.asarray(centre, dtype=np.float64)
     ncols = len(names)
-    fig = Figure(figsize=(max(3.3 * ncols + 0.4, 6.0), 6.8), layout="constrained")  # one column: room for the title
+    fig = Figure(figsize=(max(3.3 * ncols + 0.4, 7.0), 6.8), layout="constrained")  # one column: room for the title
     fig.suptitle(f"{title}\npoints X = C + d * bearing coloured by C's image; cross: camera C"
                  + (f"\n{subtitle}" if subtitle else ""), fontsize=9)
     axes = fig.subplots(len(CLOUD_VIEWS), ncols, squeeze=False)

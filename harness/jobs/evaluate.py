@@ -21,7 +21,7 @@ results.  ``out`` must be absent, empty or a results set tri360 wrote (nothing e
 a frame, a predictions root, inside one or a parent of one (:func:`harness.data.outputs.check_output`); the set
 carries the marker of a results set.  Every name that becomes part of a map's path (scene, viewpoint, method label,
 flow configuration, variant) is checked (:func:`harness.data.names.check_name`), and every frame must have usable
-ground truth, all before the first method runs.
+ground truth (or, below, none may have it), all before the first method runs.
 
 **Frames without ground truth** (real captures, ``tri360 import``): when *no* frame of the data root has ground
 truth, the methods run and nothing is scored.  Each row has empty metrics, ``valid_px`` 0, the method's
@@ -313,11 +313,12 @@ def evaluate(data_root: Path, out: Path, methods: Sequence[Method], scenes: Sequ
              report: bool = True, progress: bool = True, cluster: ClusterOptions | None = None,
              inputs: Sequence[Path] = (), suite: dict | None = None,
              executor: Executor | None = None) -> pd.DataFrame:
-    """Run ``methods`` on every frame with ground truth under ``data_root`` and write a results set to ``out``.
+    """Run ``methods`` on every frame under ``data_root``, score them, and write a results set to ``out``.
 
-    Before any method runs: the frames are found and read, every name that becomes a path is checked, every frame
-    must have ground truth, and ``out`` must be absent, empty or a results set tri360 wrote, and neither an input
-    nor inside or above one (the data root, the frames and ``inputs``, e.g. ``score``'s predictions roots).
+    Before any method runs: the frames are found and read, every name that becomes a path is checked, either every
+    frame has ground truth (scored) or none has (nothing scored, quality figures instead: the module doc;
+    :func:`check_frame_kinds`), and ``out`` must be absent, empty or a results set tri360 wrote, and neither an
+    input nor inside or above one (the data root, the frames and ``inputs``, e.g. ``score``'s predictions roots).
 
     Args:
         inputs: further inputs that ``out`` must keep clear of (predictions roots).
@@ -334,8 +335,9 @@ def evaluate(data_root: Path, out: Path, methods: Sequence[Method], scenes: Sequ
     Returns:
         The results table (also written to ``out``).
     Raises:
-        UserError: bad data root, a malformed frame or one without ground truth (named), an unsafe name, an
-            unusable output location (all checked before any long work), or a method that fails on a frame.
+        UserError: bad data root, a malformed frame, frames with and without ground truth mixed (named), an
+            unsafe name, an unusable output location (all checked before any long work), or a method that fails on
+            a frame.
     """
     started = time.time()
     if cluster is not None:
