@@ -24,7 +24,7 @@ from harness.data.outputs import MARKER
 from harness.data.results import map_paths, quality_map_path, read_results, read_results_set
 from reconstruction.quality import assess
 from reports.pointcloud import parse_ply
-from reports.schema import METRIC_COLUMNS, QUALITY_COLUMNS, unscored_rows
+from reports.schema import METRIC_COLUMNS, QUALITY_COLUMNS, RESULT_COLUMNS, unscored_rows
 from reports.sections import capture_part, quality_part
 from reports.tables import NOTHING_SCORED
 from tests.helpers import make_synthetic_frame
@@ -101,7 +101,7 @@ def test_evaluate_runs_the_methods_and_scores_nothing(capture, results):
             np.testing.assert_allclose(stored[k], v, rtol=1e-6, atol=1e-6, equal_nan=True)
 
 
-def test_report_shows_clouds_and_maps_and_nothing_scored(capture, results):
+def test_report_shows_clouds_and_maps_and_nothing_scored(capture, results, capsys):
     out, cap = results
     assert cap["code"] == 0, cap["err"]
     html = (out / "report.html").read_text()
@@ -125,8 +125,11 @@ def test_report_shows_clouds_and_maps_and_nothing_scored(capture, results):
         assert len(colors) == len(points)
     quality = (out / "quality.md").read_text()
     assert NOTHING_SCORED in quality and all(m in quality for m in table["method"])
-    # report again by itself: same outcome, exit 0, the printed text is the quality table
+    # report again by itself: exit 0, the printed text is the quality table
+    capsys.readouterr()
     assert main(["report", str(out), "--ply", "none"]) == 0
+    printed = capsys.readouterr().out
+    assert "Quality without ground truth" in printed and NOTHING_SCORED in printed and "Leaderboard" not in printed
     assert read_results_set(out).missing == []
 
 
@@ -224,3 +227,16 @@ def test_suite_evaluation_still_needs_ground_truth(tmp_path, capsys):
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and str(frame) in err and "no ground-truth" in err, err
     assert not (tmp_path / "res").exists()
+
+
+def test_results_sets_without_quality_columns_still_load(tmp_path):
+    """A results.csv of an earlier release (no quality columns) reads with them empty, and counts as scored."""
+    old = [c for c in RESULT_COLUMNS if c not in QUALITY_COLUMNS]
+    row = {c: "" for c in old} | {"scene": "s", "viewpoint": "v", "width": 64, "height": 32, "method": "m",
+                                  "mae_m": 0.1, "valid_px": 100, "seconds": 1.0, **dict.fromkeys(
+                                      ("rmse_m", "median_m", "absrel", "delta1", "outlier_rate"), 0.1)}
+    (tmp_path / "r").mkdir()
+    pd.DataFrame([row], columns=old).to_csv(tmp_path / "r" / "results.csv", index=False)
+    table = read_results(tmp_path / "r")
+    assert list(table.columns) == RESULT_COLUMNS and table[QUALITY_COLUMNS].isna().all().all()
+    assert not unscored_rows(table).any() and quality_part(table).html == ""
