@@ -22,6 +22,7 @@ from harness.data.exr import CONFIDENCE_CHANNEL, DISTANCE_CHANNEL, read_exr_chan
 from harness.data.frame import read_frame, write_frame
 from harness.data.outputs import MARKER
 from harness.data.results import map_paths, quality_map_path, read_results, read_results_set
+from harness.jobs.report import build_report
 from reconstruction.quality import assess
 from reports.pointcloud import parse_ply
 from reports.schema import METRIC_COLUMNS, QUALITY_COLUMNS, RESULT_COLUMNS, unscored_rows
@@ -240,3 +241,14 @@ def test_results_sets_without_quality_columns_still_load(tmp_path):
     table = read_results(tmp_path / "r")
     assert list(table.columns) == RESULT_COLUMNS and table[QUALITY_COLUMNS].isna().all().all()
     assert not unscored_rows(table).any() and quality_part(table).html == ""
+
+
+def test_report_names_a_missing_quality_map_and_still_draws_the_frame(results, tmp_path):
+    out, _ = results
+    copy = tmp_path / "res"
+    shutil.copytree(out, copy)
+    (copy / quality_map_path("hall", "pos1", "sweep")).unlink()
+    outcome = build_report(copy, ply="none", cloud_points=500)
+    assert len(outcome.problems) == 1 and "sweep" in outcome.problems[0] and "quality.exr" in outcome.problems[0]
+    html = (copy / "report.html").read_text()
+    assert 'class="problems"' in html and "distance, confidence and quality maps" in html
