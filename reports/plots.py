@@ -6,6 +6,8 @@
 * :func:`cloud_views`: paper Fig. 3 style top-down and side sections of point clouds.
 * :func:`sparsification_plot`: MAE against the fraction of least-confident pixels removed, with the oracle.
 * :func:`region_masks`: the evaluation regions (``reports.regions``) over camera C's image.
+* :func:`capture_maps`: a frame without ground truth: C's image and every method's distance, confidence and
+  ground-truth-free quality maps (nothing scored).
 """
 
 from __future__ import annotations
@@ -25,7 +27,8 @@ from reports.metrics import score_pixels, scored_pixels
 from reports.tables import PAPER_MAE_M, config_order, config_title, variant_order
 
 __all__ = ["variant_colors", "png_bytes", "fig4_mae", "error_maps", "breakdown_lines", "breakdown_groups",
-           "cloud_views", "CLOUD_VIEWS", "sparsification_plot", "region_masks", "REGION_PANELS"]
+           "cloud_views", "CLOUD_VIEWS", "sparsification_plot", "region_masks", "REGION_PANELS",
+           "CAPTURE_MAPS", "capture_maps"]
 
 #: resolution of every PNG tri360 draws (report figures and study plots), dots per inch
 DPI = 90
@@ -318,7 +321,7 @@ def cloud_views(clouds: dict[str, tuple[np.ndarray, np.ndarray]], centre, title:
     lo, hi = lo - pad, hi + pad
     c = np.asarray(centre, dtype=np.float64)
     ncols = len(names)
-    fig = Figure(figsize=(3.3 * ncols + 0.4, 6.8), layout="constrained")
+    fig = Figure(figsize=(max(3.3 * ncols + 0.4, 7.0), 6.8), layout="constrained")  # one column: room for the title
     fig.suptitle(f"{title}\npoints X = C + d * bearing coloured by C's image; cross: camera C"
                  + (f"\n{subtitle}" if subtitle else ""), fontsize=9)
     axes = fig.subplots(len(CLOUD_VIEWS), ncols, squeeze=False)
@@ -447,4 +450,75 @@ def region_masks(image: np.ndarray, masks: dict[str, np.ndarray], title: str) ->
         if handles:
             ax.legend(handles=handles, fontsize=7.5, loc="upper center", bbox_to_anchor=(0.5, -0.01),
                       ncols=len(handles), frameon=False, handlelength=1.0, columnspacing=0.8)
+    return png_bytes(fig)
+
+
+# ------------------------------------------------------------------------------- frames without ground truth
+
+
+#: the columns of :func:`capture_maps`: (map name, panel title, colour map, colour bar label, scale) where the scale
+#: is "zero" (0 to the 99th percentile of the column's pooled finite values) or "range" (1st to 99th percentile)
+CAPTURE_MAPS = (
+    ("distance", "distance", "viridis", "distance (m)", "zero"),
+    ("confidence", "confidence", "cividis", "confidence (higher = more trusted)", "range"),
+    ("uncertainty", "uncertainty (quality)", "magma", "uncertainty (higher = less trusted)", "zero"),
+    ("photometric_residual", "photometric residual", "magma", "residual (grey levels)", "zero"),
+)
+
+
+def capture_maps(image: np.ndarray, maps: dict[str, dict[str, np.ndarray]], title: str) -> bytes:
+    """The maps of a frame without ground truth (a real capture): nothing is scored, so no error is drawn.
+
+    Args:
+        image: (H, W, 3) uint8 RGB, camera C.
+        maps: method label -> {map name -> (H, W) float}, names from :data:`CAPTURE_MAPS` (``distance`` in metres,
+            NaN / inf / <= 0 = no prediction; ``confidence``; the quality maps of ``reconstruction.quality``, NaN
+            where the distance is invalid); a method may lack any of them.
+        title: figure title.
+    Returns:
+        PNG: C's image, then one row per method and one column per map name that some method has; each column on
+        one shared colour scale (:data:`CAPTURE_MAPS`).  Magenta: no valid prediction (distance); light grey: no
+        value.
+    """
+    columns = [c for c in CAPTURE_MAPS if any(c[0] in m for m in maps.values())]
+    ncols = max(1, len(columns))
+    nrows = 1 + len(maps)
+    panel_w = 4.6
+    fig = Figure(figsize=(panel_w * ncols + 1.0 * ncols, (panel_w / 2 + 0.5) * nrows + 0.6), layout="constrained")
+    fig.suptitle(f"{title}\nno ground truth: nothing scored; magenta: no valid prediction; light grey: no value",
+                 fontsize=9)
+    axes = fig.subplots(nrows, ncols, squeeze=False)
+    axes[0, 0].imshow(np.asarray(image), interpolation="nearest")
+    axes[0, 0].set_title("camera C", fontsize=9)
+    for ax in axes[0, 1:]:
+        ax.set_axis_off()
+    for j, (name, head, cmap_name, bar, scale) in enumerate(columns):
+        arrays = {label: np.asarray(m[name], dtype=np.float64) for label, m in maps.items() if name in m}
+        pooled = [a[np.isfinite(a) & ((a > 0) if name == "distance" else True)] for a in arrays.values()]
+        pooled = np.concatenate(pooled) if pooled else np.zeros(0)
+        if pooled.size:
+            lo = 0.0 if scale == "zero" else float(np.percentile(pooled, 1))
+            hi = float(np.percentile(pooled, 99))
+        else:
+            lo, hi = 0.0, 1.0
+        hi = hi if hi > lo else lo + 1e-3
+        cmap = colormaps[cmap_name].with_extremes(bad=NO_SURFACE_RGBA)
+        im, col_axes = None, []
+        for i, label in enumerate(maps, start=1):
+            ax = axes[i, j]
+            if label not in arrays:
+                ax.set_axis_off()
+                continue
+            a = arrays[label]
+            shown = np.where(np.isfinite(a) & ((a > 0) if name == "distance" else True), a, np.nan)
+            im = ax.imshow(shown, cmap=cmap, vmin=lo, vmax=hi, interpolation="nearest")
+            if name == "distance" and not (np.isfinite(a) & (a > 0)).all():
+                ax.imshow(_overlay(~(np.isfinite(a) & (a > 0)), NO_PREDICTION_RGBA), interpolation="nearest")
+            ax.set_title(f"{head}: {label}", fontsize=9)
+            col_axes.append(ax)
+        if im is not None:
+            fig.colorbar(im, ax=col_axes, label=bar, shrink=0.9, extend="max" if scale == "zero" else "both")
+    for ax in axes.ravel():
+        ax.set_xticks([])
+        ax.set_yticks([])
     return png_bytes(fig)

@@ -2,7 +2,9 @@
 
 ``results.csv`` / ``results.json``: one row per (scene, viewpoint, method); ``regions.csv``: the same metrics per
 region of the frame (``reports.regions``).  ``flow``, ``rectify`` and ``variant`` describe flow-pipeline methods
-and are empty for other methods.  ``breakdown.csv``: the same key plus a breakdown kind and bin (long format).
+and are empty for other methods.  A frame without ground truth (a real capture) gets rows with empty metrics,
+``valid_px`` 0 and the ground-truth-free quality figures (:data:`QUALITY_COLUMNS`), and no region or breakdown rows.
+``breakdown.csv``: the same key plus a breakdown kind and bin (long format).
 
 Pure: the column lists, their types and the DataFrame constructors.  The files themselves are read and written
 by ``harness.data.results`` with these definitions.
@@ -16,7 +18,7 @@ from reports.metrics import SUMMARY_KEYS
 
 __all__ = ["KEY_COLUMNS", "FLOW_COLUMNS", "SUITE_COLUMNS", "CORE_METRIC_COLUMNS", "METRIC_COLUMNS", "RESULT_COLUMNS",
            "RESULT_REQUIRED", "REGION_COLUMNS", "REGION_REQUIRED", "BREAKDOWN_COLUMNS", "INT_COLUMNS", "TEXT_COLUMNS",
-           "BOOL_COLUMNS", "results_table", "regions_table", "breakdown_table"]
+           "BOOL_COLUMNS", "QUALITY_COLUMNS", "unscored_rows", "results_table", "regions_table", "breakdown_table"]
 
 #: identify a row
 KEY_COLUMNS = ["scene", "viewpoint", "method"]
@@ -30,7 +32,13 @@ METRIC_COLUMNS = [*CORE_METRIC_COLUMNS, *(k for k in SUMMARY_KEYS if k not in CO
 #: what the frame is (its scene family, difficulty tags joined by ``;``) and, for a suite's split, the suite id and
 #: split (empty otherwise); older results sets lack them
 SUITE_COLUMNS = ["family", "tags", "suite_id", "split"]
-RESULT_COLUMNS = ["scene", "viewpoint", "width", "height", "method", *FLOW_COLUMNS, *METRIC_COLUMNS, *SUITE_COLUMNS]
+#: the ground-truth-free quality figures of a prediction (``reconstruction.quality.assess``: medians of its per-pixel
+#: maps over the validly predicted pixels, and the calibration check's score), written for frames without ground
+#: truth (real captures) and empty for scored frames; older results sets lack them
+QUALITY_COLUMNS = ["photometric_residual_median", "distance_residual_m_median", "pair_agreement_median",
+                   "uncertainty_median", "calibration_score"]
+RESULT_COLUMNS = ["scene", "viewpoint", "width", "height", "method", *FLOW_COLUMNS, *METRIC_COLUMNS, *SUITE_COLUMNS,
+                  *QUALITY_COLUMNS]
 #: the columns a results.csv must have (older results sets lack the later metrics)
 RESULT_REQUIRED = ["scene", "viewpoint", "width", "height", "method", *FLOW_COLUMNS, *CORE_METRIC_COLUMNS]
 REGION_COLUMNS = [*KEY_COLUMNS, *FLOW_COLUMNS, "region", *(c for c in METRIC_COLUMNS if c != "seconds")]
@@ -44,6 +52,16 @@ TEXT_COLUMNS = {"scene", "viewpoint", "method", "flow", "variant", "kind", "regi
 #: true/false in flow-pipeline rows, empty in the others
 BOOL_COLUMNS = {"rectify"}
 # every other column is a float (NaN allowed: e.g. a frame with no scored pixel, ``ause`` without confidence)
+
+
+def unscored_rows(table: pd.DataFrame) -> pd.Series:
+    """Per row of a results table, True where nothing was scored: a frame without ground truth (a real capture),
+    whose row has ``valid_px`` 0 and empty metrics (``mae_m`` NaN) and carries :data:`QUALITY_COLUMNS` instead.  A
+    scored frame always has ``valid_px > 0`` (``evaluate`` refuses a frame with no finite true distance).  A table
+    without either column (a partial one) counts as scored."""
+    if "valid_px" not in table.columns or "mae_m" not in table.columns:
+        return pd.Series(False, index=table.index)
+    return (pd.to_numeric(table["valid_px"], errors="coerce") == 0) & table["mae_m"].isna()
 
 
 def results_table(rows: list[dict]) -> pd.DataFrame:

@@ -19,6 +19,15 @@ results set, calls these functions and writes what they return into the results 
       clouds/<scene>/<viewpoint>/<method>.ply                      # other methods
       report.html                     # everything above inline (images as data URIs), links to the PLYs
 
+Frames without ground truth (real captures: ``reports.schema.unscored_rows``, nothing scored) get instead of the
+leaderboard, MAE table, breakdown and sparsification a table of their ground-truth-free quality figures
+(:func:`quality_part`: ``quality.csv``, ``quality.md``), and per frame (:func:`capture_part`) no error maps,
+regions or ground-truth cloud::
+
+      figures/<scene>/<viewpoint>/maps.png            # C's image, every method's distance, confidence, quality maps
+      figures/<scene>/<viewpoint>/<group>.clouds.png  # the same cloud views, without a ground-truth column
+      clouds/<scene>/<viewpoint>/...ply               # every method's cloud, the same layout as above
+
 **Leaderboard** (:func:`leaderboard_part`, :func:`reports.tables.leaderboard_table`): one row per method of the
 results (flow-pipeline methods by their label, e.g. ``dis-rect:gradient``, and every other method, e.g.
 ``sweep`` or a scored predictions root), columns ``mae_m median_m p90_m bad_5pct delta110 coverage ause`` and
@@ -51,8 +60,11 @@ from reports import plots
 from reports.metrics import scored_pixels, sparsification_curves
 from reports.pointcloud import ply_bytes, point_grid
 from reports.regions import regions as frame_regions
+from reports.schema import METRIC_COLUMNS, QUALITY_COLUMNS, unscored_rows
 from reports.tables import (
     LEADERBOARD_OVERALL,
+    NOTHING_SCORED,
+    QUALITY_HEADERS,
     config_order,
     config_title,
     group_columns,
@@ -62,6 +74,8 @@ from reports.tables import (
     mae_display,
     mae_markdown,
     method_order,
+    quality_markdown,
+    quality_table,
     suite_text,
     variant_mae_table,
     variant_order,
@@ -69,7 +83,7 @@ from reports.tables import (
 
 __all__ = ["Part", "FramePart", "PLY_CHOICES", "DEFAULT_CLOUD_POINTS", "OTHER_KEY", "SECTION_HALF_ANGLE_DEG",
            "SECTION_NOTE", "section_sample", "leaderboard_part", "flow_mae_part", "breakdown_part",
-           "sparsification_part", "frame_part", "report_html"]
+           "sparsification_part", "frame_part", "quality_part", "capture_part", "report_html"]
 
 #: which point clouds become PLY files: every method, only the paper set-up (deepflow-plain) or none
 PLY_CHOICES = ("all", "paper", "none")
@@ -111,17 +125,19 @@ class FramePart(Part):
     curves: dict[str, tuple] = field(default_factory=dict)
 
 
-def section_sample(frame, n_points: int):
+def section_sample(frame, n_points: int, pixels: np.ndarray | None = None):
     """Seeded pixel subsample for the cloud views: half near the horizon, half near the x-z plane.
 
     Args:
         frame: a frame with ground truth for C (``distance["C"]`` (H, W) metres, ``cameras["C"]``).
         n_points: points wanted (about; each half is capped by the pixels available).
+        pixels: (H, W) bool, the pixels to sample from instead of the scored ones (a frame without ground truth:
+            e.g. where some method predicts a distance).
     Returns:
         ``(idx, masks)``: (N,) flat pixel indices of camera C (scored pixels only, sorted) and one (N,) bool
         mask per view of :data:`reports.plots.CLOUD_VIEWS` (top-down, side).
     """
-    scored = scored_pixels(frame.distance["C"]).ravel()
+    scored = (scored_pixels(frame.distance["C"]) if pixels is None else np.asarray(pixels, dtype=bool)).ravel()
     b = bearing_grid(frame.width, frame.height, frame.cameras["C"].rotation).reshape(-1, 3)
     s = np.sin(np.radians(SECTION_HALF_ANGLE_DEG))
     rng = np.random.default_rng(0)  # seeded: the same subsample every run
@@ -325,27 +341,132 @@ def frame_part(frame, rows: Mapping[str, Mapping], preds: Mapping[str, np.ndarra
     return out
 
 
+def quality_part(results: pd.DataFrame) -> Part:
+    """The ground-truth-free quality figures of the frames without ground truth (:func:`reports.tables.quality_table`)
+    instead of a leaderboard: ``quality.csv``, ``quality.md`` (also the printed markdown) and their HTML, clearly
+    labelled as not scored; an empty part when every row was scored."""
+    table = quality_table(results)
+    if not len(table):
+        return Part()
+    view = table.copy()
+    for c in QUALITY_COLUMNS:
+        view[c] = view[c].map(lambda v: f"{v:.4g}" if np.isfinite(v) else "")
+    view["calibration_flagged"] = view["calibration_flagged"].map(lambda v: "yes" if v else "no")
+    view["seconds"] = view["seconds"].map(lambda v: f"{v:.2f}" if np.isfinite(v) else "")
+    view = view.rename(columns={**QUALITY_HEADERS, "calibration_flagged": "calibration flagged"})
+    md = quality_markdown(table)
+    html = (f"<h2>Quality without ground truth ({H.esc(NOTHING_SCORED)})</h2>"
+            f'<p class="note"><strong>{H.esc(NOTHING_SCORED)}</strong>: these frames have no ground-truth distance '
+            "(real captures), so no error, MAE or leaderboard can be computed. Per frame and method: the medians "
+            "over the validly predicted pixels of the quality maps that need no ground truth (reconstruction.quality: "
+            "photometric residual of C's distance reprojected into U and R, the distance change that would explain "
+            "it, C-U / C-R pair disagreement, their combination 'uncertainty', higher = less trustworthy) and the "
+            "calibration check's score (a rig whose told poses are off scores high; flagged above the threshold). "
+            "Definitions and how they were validated against true error: docs/real-captures.md. Also as "
+            + H.link("quality.csv", "quality.csv") + " and " + H.link("quality.md", "quality.md") + ".</p>"
+            + '<div class="scroll">' + H.table(view.astype(str), text_columns=3) + "</div>")
+    return Part(html=html, files={"quality.csv": table.to_csv(index=False), "quality.md": md}, markdown=md,
+                table=table)
+
+
+def capture_part(frame, rows: Mapping[str, Mapping], preds: Mapping[str, np.ndarray],
+                 confidences: Mapping[str, np.ndarray] | None = None,
+                 quality: Mapping[str, Mapping[str, np.ndarray]] | None = None, *, ply: str = "all",
+                 cloud_points: int = DEFAULT_CLOUD_POINTS) -> FramePart:
+    """One frame without ground truth (a real capture; nothing scored): its maps, cloud views and PLY files.
+
+    Args:
+        frame: the frame (``scene``, ``viewpoint``, ``cameras``, ``images``, ``path``; no ``distance`` needed).
+        rows, preds, confidences, ply, cloud_points: as :func:`frame_part`.
+        quality: method label -> its ground-truth-free quality maps (``reconstruction.quality.assess``: name ->
+            (H, W)), for the methods whose maps could be read.
+    Returns:
+        The frame's :class:`FramePart` (no ``curves``: nothing is scored): ``figures/<scene>/<viewpoint>/maps.png``
+        (:func:`reports.plots.capture_maps`), one cloud figure per group (no ground-truth column; axis limits from
+        the group's first method) and, per ``ply``, one PLY per method; empty ``html`` (and a problem) when no map
+        could be read.
+    """
+    if ply not in PLY_CHOICES:
+        raise ValueError(f"ply must be one of {', '.join(PLY_CHOICES)}, got {ply!r}")
+    scene, viewpoint = frame.scene, frame.viewpoint
+    out = FramePart()
+    if not preds:
+        out.problems.append(f"frame {scene}/{viewpoint} ({frame.path}): no distance map could be read; not shown")
+        return out
+    title = f"{scene} / {viewpoint}"
+    fig_dir = f"figures/{scene}/{viewpoint}"
+    cloud_dir = f"clouds/{scene}/{viewpoint}"
+    maps = {label: {"distance": preds[label],
+                    **({"confidence": confidences[label]} if label in (confidences or {}) else {}),
+                    **{k: v for k, v in (quality or {}).get(label, {}).items()
+                       if k in ("uncertainty", "photometric_residual")}}
+            for label in preds}
+    maps_png = plots.capture_maps(frame.images["C"], maps, f"{title}: every method")
+    out.files[f"{fig_dir}/maps.png"] = maps_png
+    blocks = [H.details("distance, confidence and quality maps: every method", H.img(
+        maps_png, f"distance and quality maps {title}",
+        "Camera C's image, then per method its distance, its confidence (if it gives one) and the ground-truth-free "
+        "quality maps 'uncertainty' and 'photometric residual' (reconstruction.quality); each column on one shared "
+        f"colour scale. {NOTHING_SCORED}."), open_=True)]
+    cam = frame.cameras["C"]
+    colors = frame.images["C"].reshape(-1, 3)
+    predicted = np.zeros((frame.height, frame.width), dtype=bool)
+    for p in preds.values():
+        a = np.asarray(p, dtype=np.float64)
+        predicted |= np.isfinite(a) & (a > 0)
+    idx, view_masks = section_sample(frame, cloud_points, pixels=predicted)
+    groups = _cloud_groups(rows, list(preds))
+    any_paper = any(g[2] for g in groups)
+    for i, (key, label, paper, members) in enumerate(groups):
+        clouds, group_links = {}, []
+        for name, method in members.items():
+            pts = point_grid(preds[method], cam.position, cam.rotation).reshape(-1, 3)
+            clouds[name] = (pts[idx], colors[idx])
+            if ply == "all" or (ply == "paper" and paper):
+                rel = f"{cloud_dir}/{key}/{name}.ply" if key != OTHER_KEY else f"{cloud_dir}/{name}.ply"
+                out.files[rel], n = ply_bytes(pts, colors, comment=f"tri360 {title} {method}")
+                group_links.append(H.link(rel, f"{name} ({n} points)"))
+        cloud_png = plots.cloud_views(clouds, cam.position, f"{title} / {label}", view_masks, subtitle=SECTION_NOTE)
+        out.files[f"{fig_dir}/{key}.clouds.png"] = cloud_png
+        block = H.img(cloud_png, f"point clouds {title} {label}",
+                      f"Fig. 3 style sections, {idx.size} sampled pixels (the same in every column): {SECTION_NOTE}. "
+                      "No ground truth: axis limits from the first method's 1-99 % range.")
+        if group_links:
+            block += '<p class="note">PLY point clouds: ' + ", ".join(group_links) + "</p>"
+        blocks.append(H.details(f"point clouds: {label}", block, open_=paper or (i == 0 and not any_paper)))
+    out.html = (f"<h3>{H.esc(scene)} / {H.esc(viewpoint)}</h3>"
+                f'<p class="note">frame: {H.esc(frame.path)} &middot; <strong>{H.esc(NOTHING_SCORED)}</strong> '
+                "(no ground-truth distance)</p>" + "".join(blocks))
+    return out
+
+
 # ----------------------------------------------------------------------------------------------- the page
 
 
 def report_html(results: pd.DataFrame, problems: Sequence[str], *, leaderboard: Part, sparsification: Part,
-                flow: Part, breakdown: Part, frames: Sequence[Part], source: str, generated: str) -> str:
+                flow: Part, breakdown: Part, frames: Sequence[Part], source: str, generated: str,
+                quality: Part | None = None) -> str:
     """The complete ``report.html``.
 
     Args:
         results: the validated results table (the header's counts, the "All results" table).
         problems: one line per thing that could not be shown (listed at the top).
-        leaderboard, sparsification, flow, breakdown: the parts of those names (:func:`leaderboard_part`, ...).
-        frames: the :func:`frame_part` of every frame shown, in order.
+        leaderboard, sparsification, flow, breakdown: the parts of those names (:func:`leaderboard_part`, ...);
+            empty parts for results that scored nothing.
+        frames: the :func:`frame_part` (or :func:`capture_part`) of every frame shown, in order.
         source: what the header names as the results (e.g. the results directory).
         generated: when the report was made (shown as given).
+        quality: :func:`quality_part`, for results with frames without ground truth (shown first).
     """
     order = method_order(results)
     shown = [f.html for f in frames if f.html]
-    body = [_header_html(source, generated, results, order, problems), leaderboard.html, sparsification.html,
-            flow.html, breakdown.html, "<h2>Per frame: error maps, regions and point clouds</h2>",
+    nothing_scored = bool(len(results)) and bool(unscored_rows(results).all())
+    heading = ("<h2>Per frame: distance, confidence and quality maps, point clouds</h2>" if nothing_scored
+               else "<h2>Per frame: error maps, regions and point clouds</h2>")
+    body = [_header_html(source, generated, results, order, problems), quality.html if quality else "",
+            leaderboard.html, sparsification.html, flow.html, breakdown.html, heading,
             "".join(shown) or '<p class="note">No frames could be shown (see problems).</p>',
-            "<h2>All results</h2>", _all_results_html(results)]
+            "<h2>All results</h2>", _all_results_html(results, nothing_scored)]
     return H.page("tri360 report", "\n".join(body))
 
 
@@ -385,7 +506,14 @@ def _leaderboard_html(board: pd.DataFrame, have_regions: bool) -> str:
                                data_keys=view["columns"]))
 
 
-def _all_results_html(results: pd.DataFrame) -> str:
+def _all_results_html(results: pd.DataFrame, nothing_scored: bool = False) -> str:
+    if nothing_scored:  # every metric is empty: show what there is
+        full = results.drop(columns=[c for c in METRIC_COLUMNS if c not in ("seconds", "valid_px")]).copy()
+        for c in QUALITY_COLUMNS:
+            full[c] = full[c].map(lambda v: f"{v:.4g}")
+        full["seconds"] = full["seconds"].map(lambda v: f"{v:.2f}")
+        return (f'<p class="note">{H.esc(NOTHING_SCORED)}: metric columns left out (all empty).</p>'
+                '<div class="scroll">' + H.table(full.astype(str), text_columns=8) + "</div>")
     full = results.copy()
     for c in ("mae_m", "rmse_m", "median_m"):
         full[c] = full[c].map(lambda v: f"{v:.5f}")

@@ -13,7 +13,9 @@ import numpy as np
 import pandas as pd
 
 from reconstruction.methods.flow_pipeline import config_label
+from reconstruction.quality import CALIBRATION_THRESHOLD
 from reports.regions import REGION_NAMES
+from reports.schema import QUALITY_COLUMNS, unscored_rows
 
 __all__ = [
     "suite_text",
@@ -34,6 +36,11 @@ __all__ = [
     "leaderboard_table",
     "leaderboard_display",
     "leaderboard_markdown",
+    "NOTHING_SCORED",
+    "QUALITY_HEADERS",
+    "quality_table",
+    "quality_summary",
+    "quality_markdown",
 ]
 
 
@@ -455,3 +462,74 @@ def _suite_lines(table: pd.DataFrame) -> list[str]:
     """The leaderboard markdown's suite line and a blank line (none outside a suite)."""
     text = suite_text(table)
     return [text, ""] if text else []
+
+
+# ------------------------------------------------------------------------------- frames without ground truth
+
+
+#: what every report part on frames without ground truth says first
+NOTHING_SCORED = "no ground truth: nothing scored"
+#: headings of :data:`reports.schema.QUALITY_COLUMNS` (``reconstruction.quality``; docs/real-captures.md)
+QUALITY_HEADERS = {
+    "photometric_residual_median": "photometric residual (grey levels)",
+    "distance_residual_m_median": "distance residual (m)",
+    "pair_agreement_median": "pair disagreement |log(d_U/d_R)|",
+    "uncertainty_median": "uncertainty",
+    "calibration_score": "calibration score",
+}
+
+
+def quality_table(results: pd.DataFrame) -> pd.DataFrame:
+    """The ground-truth-free quality figures of the rows that scored nothing (``reports.schema.unscored_rows``:
+    frames without ground truth), one row per frame and method.
+
+    Args:
+        results: a results table (rows of scored frames, if any, are left out).
+    Returns:
+        DataFrame with ``scene, viewpoint, method``, the :data:`reports.schema.QUALITY_COLUMNS` (medians over the
+        validly predicted pixels; the calibration score), ``calibration_flagged`` (score above
+        ``reconstruction.quality.CALIBRATION_THRESHOLD``) and ``seconds``, sorted by frame, then
+        :func:`method_order`.
+    """
+    from_schema = results.assign(**{c: np.nan for c in QUALITY_COLUMNS if c not in results.columns})
+    t = from_schema[unscored_rows(from_schema)].copy()
+    rank = {m: i for i, m in enumerate(method_order(t))}
+    t["_rank"] = t["method"].map(rank)
+    t = t.sort_values(["scene", "viewpoint", "_rank"], kind="stable")
+    t["calibration_flagged"] = pd.to_numeric(t["calibration_score"], errors="coerce") > CALIBRATION_THRESHOLD
+    return t[["scene", "viewpoint", "method", *QUALITY_COLUMNS, "calibration_flagged", "seconds"]].reset_index(
+        drop=True)
+
+
+def quality_summary(results: pd.DataFrame) -> pd.DataFrame:
+    """:func:`quality_table` per method: ``method, frames``, the mean over its frames of every quality column and
+    of ``seconds`` (NaN when any frame's is), and ``flagged``, how many frames the calibration check flags; in
+    :func:`method_order`."""
+    t = quality_table(results)
+    rows = []
+    for label in method_order(results):
+        part = t[t["method"] == label]
+        if len(part):
+            rows.append({"method": label, "frames": len(part),
+                         **{c: float(pd.to_numeric(part[c]).mean(skipna=False)) for c in (*QUALITY_COLUMNS,
+                                                                                          "seconds")},
+                         "flagged": int(part["calibration_flagged"].sum())})
+    return pd.DataFrame(rows, columns=["method", "frames", *QUALITY_COLUMNS, "seconds", "flagged"])
+
+
+def quality_markdown(table: pd.DataFrame) -> str:
+    """Markdown document of :func:`quality_table`."""
+    lines = [f"# Quality without ground truth ({NOTHING_SCORED})", "",
+             "Per frame and method: medians over the validly predicted pixels of the ground-truth-free quality maps",
+             "(reconstruction.quality; docs/real-captures.md) and the calibration check's score (flagged above "
+             f"{CALIBRATION_THRESHOLD:g}).", "",
+             "| scene | viewpoint | method | " + " | ".join(_md_cell(QUALITY_HEADERS[c]) for c in QUALITY_COLUMNS)
+             + " | calibration flagged | seconds |",
+             "|---|---|---|" + "---:|" * (len(QUALITY_COLUMNS) + 2)]
+    for _, r in table.iterrows():
+        cells = [r["scene"], r["viewpoint"], r["method"],
+                 *(f"{float(r[c]):.4g}" if np.isfinite(float(r[c])) else "—" for c in QUALITY_COLUMNS),
+                 "yes" if r["calibration_flagged"] else "no",
+                 f"{float(r['seconds']):.2f}" if np.isfinite(float(r["seconds"])) else "—"]
+        lines.append("| " + " | ".join(_md_cell(str(x)) for x in cells) + " |")
+    return "\n".join(lines) + "\n"

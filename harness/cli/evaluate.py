@@ -12,11 +12,22 @@ from harness.jobs.evaluate import evaluate, summary_text
 from harness.jobs.suite import evaluate_suite
 
 HELP = "run methods on every frame under a data root and score them against ground truth"
+DESCRIPTION = (
+    "Run methods on every frame under a data root and score them against ground truth; write a results set "
+    "(and its report). Frames without ground truth (real captures, 'tri360 import'): when no frame of the data "
+    "root has ground truth, the methods run and nothing is scored: the rows have empty metrics, valid_px 0 and "
+    "the ground-truth-free quality figures (photometric residual, distance residual, pair agreement, uncertainty, "
+    "calibration score), the maps are written with their quality maps, and the report shows distance, "
+    "confidence and quality maps and point clouds. A data root that mixes frames with and without ground truth "
+    "is refused (one line naming one of each: evaluate them into separate results sets), and so are "
+    "--flow oracle and a --suite split without ground truth (docs/real-captures.md).")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.description = DESCRIPTION
     parser.add_argument("data_root", type=Path, metavar="DATA_ROOT",
-                        help="folder holding <scene>/<viewpoint>/ frames (or one frame directory)")
+                        help="folder holding <scene>/<viewpoint>/ frames (or one frame directory); all with ground "
+                             "truth (scored) or all without (real captures: nothing scored)")
     add_method_options(parser, multiple=True)
     add_results_options(parser, "evaluate")
     add_suite_arguments(parser, "evaluate")

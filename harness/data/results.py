@@ -7,7 +7,8 @@ A results directory holds::
     breakdown.csv               errors by angle to each baseline, true distance and texture: BREAKDOWN_COLUMNS
     frames.json                 [{scene, viewpoint, path}, ...]: where each evaluated frame lives
     config.json                 tri360 version, every method's configuration ({"methods": {label: {...}}}), ...
-    maps/...                    predicted distance (and confidence) maps, laid out by :func:`map_paths`
+    maps/...                    predicted distance (and confidence) maps, laid out by :func:`map_paths`; for a frame
+                                without ground truth also the quality maps (:func:`quality_map_path`)
 
 Every file is written atomically (``harness.data.atomic``) as strict JSON (``harness.data.jsonio``) or CSV.
 Readers validate against the schema and raise :class:`harness.data.errors.UserError` with one line naming the
@@ -40,11 +41,12 @@ from reports.schema import (
     RESULT_REQUIRED,
     SUITE_COLUMNS,
     TEXT_COLUMNS,
+    unscored_rows,
 )
 
 __all__ = ["RESULTS_CSV", "RESULTS_JSON", "REGIONS_CSV", "BREAKDOWN_CSV", "FRAMES_JSON", "CONFIG_JSON", "MAPS_DIR",
-           "map_paths", "write_results", "read_results", "read_regions", "read_breakdown", "read_frames",
-           "read_method_kinds", "ResultsSet", "read_results_set"]
+           "map_paths", "quality_map_path", "write_results", "read_results", "read_regions", "read_breakdown",
+           "read_frames", "read_method_kinds", "ResultsSet", "read_results_set"]
 
 RESULTS_CSV = "results.csv"
 RESULTS_JSON = "results.json"
@@ -80,6 +82,16 @@ def map_paths(scene: str, viewpoint: str, method: str, flow: str = "", rectify=F
         return key / f"{variant}.distance.exr", key / f"{variant}.confidence.exr"
     d = base / check_name(method, source)
     return d / "distance.exr", d / "confidence.exr"
+
+
+def quality_map_path(scene: str, viewpoint: str, method: str, flow: str = "", rectify=False,
+                     variant: str = "", source: str = "method label") -> Path:
+    """Where the ground-truth-free quality maps (``reconstruction.quality.assess``: one EXR channel per map) of a
+    method's prediction of a frame without ground truth live: beside its distance map (:func:`map_paths`, same
+    arguments and checks), ``quality.exr`` for ``distance.exr`` and ``<variant>.quality.exr`` for
+    ``<variant>.distance.exr``."""
+    dist, _ = map_paths(scene, viewpoint, method, flow, rectify, variant, source)
+    return dist.with_name(dist.name[: -len("distance.exr")] + "quality.exr")
 
 
 # ------------------------------------------------------------------------------------------------ writing
@@ -340,9 +352,10 @@ def read_results_set(results_dir) -> ResultsSet:
     d = Path(results_dir)
     results = read_results(d)
     rs = ResultsSet(d, results, read_regions(d), read_breakdown(d), read_frames(d), read_method_kinds(d) or {})
-    if rs.regions is None:
+    scored = not unscored_rows(results).all()  # frames without ground truth have no regions or breakdown
+    if rs.regions is None and scored:
         rs.missing.append(f"{d / REGIONS_CSV}: file is missing, so the leaderboard has no per-region MAE")
-    if rs.breakdown is None:
+    if rs.breakdown is None and scored:
         rs.missing.append(f"{d / BREAKDOWN_CSV}: file is missing, so there are no breakdown plots")
     if rs.frames is None:
         rs.missing.append(f"{d / FRAMES_JSON}: file is missing, so there are no error maps, region masks, "

@@ -21,7 +21,17 @@ results.  ``out`` must be absent, empty or a results set tri360 wrote (nothing e
 a frame, a predictions root, inside one or a parent of one (:func:`harness.data.outputs.check_output`); the set
 carries the marker of a results set.  Every name that becomes part of a map's path (scene, viewpoint, method label,
 flow configuration, variant) is checked (:func:`harness.data.names.check_name`), and every frame must have usable
-ground truth, all before the first method runs.
+ground truth (or, below, none may have it), all before the first method runs.
+
+**Frames without ground truth** (real captures, ``tri360 import``): when *no* frame of the data root has ground
+truth, the methods run and nothing is scored.  Each row has empty metrics, ``valid_px`` 0, the method's
+``seconds`` and the ground-truth-free quality figures of :func:`reconstruction.quality.assess`
+(``reports.schema.QUALITY_COLUMNS``); the maps are written as for scored frames, plus the quality maps
+(:func:`harness.data.results.quality_map_path`); there is no ``regions.csv`` or ``breakdown.csv``.  A data root that
+mixes frames with and without ground truth is refused in one line naming one frame of each kind (evaluate them
+into separate results sets), and so is a method that needs ground truth (``--flow oracle``) or a suite's split
+with a frame lacking it.  Frames with ground truth are scored exactly as before (no quality figures: ``tri360
+reconstruct`` gives both).
 """
 
 from __future__ import annotations
@@ -35,20 +45,21 @@ import numpy as np
 import pandas as pd
 
 from harness.data.errors import UserError
-from harness.data.exr import CONFIDENCE_CHANNEL, DISTANCE_CHANNEL, write_float_map
+from harness.data.exr import CONFIDENCE_CHANNEL, DISTANCE_CHANNEL, write_exr_channels, write_float_map
 from harness.data.frame import find_frames, read_frame
 from harness.data.names import check_name
 from harness.data.outputs import RESULTS_FORMAT, check_output, mark_output, staged_directory
 from harness.data.provenance import software
-from harness.data.results import map_paths, write_results
+from harness.data.results import map_paths, quality_map_path, write_results
 from harness.jobs.cluster import ClusterOptions, Executor, executor_for, is_distributed
 from harness.jobs.report import build_report
 from reconstruction.methods.base import Method, MethodOutput, flow_fields, method_groups, run_methods
 from reconstruction.methods.flow_pipeline import config_label
+from reconstruction.quality import assess
 from reports.metrics import breakdown
 from reports.regions import region_summaries, regions
-from reports.schema import breakdown_table, regions_table, results_table
-from reports.tables import method_summary
+from reports.schema import METRIC_COLUMNS, QUALITY_COLUMNS, breakdown_table, regions_table, results_table, unscored_rows
+from reports.tables import method_summary, quality_summary
 from scenes.registry import discover
 
 __all__ = ["FrameRef", "select_frames", "evaluate", "evaluate_task", "method_groups", "summary_text",
@@ -126,19 +137,67 @@ def check_method_paths(methods: Sequence[Method]) -> None:
         seen[rel] = m.label
 
 
-def scorable_frame(path: Path):
+def scorable_frame(path: Path, scored: bool = True):
     """Read the frame at ``path`` with its ground truth, refusing one that cannot be scored.
 
+    Args:
+        scored: False = the frame is expected to have no ground truth (a real capture: nothing is scored); it is
+            read and returned as is, and one that has ground truth is refused.
     Raises:
-        UserError: a malformed frame, no ground-truth distance, or no pixel with a finite distance (named).
+        UserError: a malformed frame, no ground-truth distance (or, with ``scored=False``, ground truth), or no
+            pixel with a finite distance (named).
     """
     frame = read_frame(path)
+    if not scored:
+        if frame.has_ground_truth:
+            raise UserError(f"{path}: frame has ground-truth distance, but the other frames of this evaluation have "
+                            "none; evaluate frames with and without ground truth into separate results sets")
+        return frame
     if not frame.has_ground_truth:
         raise UserError(f"{path}: frame has no ground-truth distance, nothing to score "
                         "(use 'tri360 reconstruct' for captures without ground truth)")
+    return _with_finite_distance(frame, path)
+
+
+def _with_finite_distance(frame, path: Path):
+    """``frame`` (with ground truth), refused when no pixel of C has a finite true distance."""
     if not np.isfinite(frame.distance["C"]).any():
-        raise UserError(f"{path / 'C.distance.exr'}: no pixel has a finite distance, nothing to score")
+        raise UserError(f"{Path(path) / 'C.distance.exr'}: no pixel has a finite distance, nothing to score")
     return frame
+
+
+def check_frame_kinds(refs: Sequence[FrameRef], methods: Sequence[Method], suite: dict | None = None) -> bool:
+    """Read every frame (validating it and its ground truth, before the first method runs) and decide how the
+    data root is evaluated: True = every frame has ground truth (scored), False = none has (methods run, nothing
+    scored; the module doc).
+
+    Raises:
+        UserError: a malformed frame or one with no finite true distance (named); frames with and without ground
+            truth mixed (one line naming one of each); no ground truth in a suite's split, or for a method that
+            needs it (the oracle).
+    """
+    with_gt, without = [], []
+    for ref in refs:
+        frame = read_frame(ref.path)
+        if frame.has_ground_truth:
+            _with_finite_distance(frame, ref.path)
+            with_gt.append(ref)
+        else:
+            without.append(ref)
+    if not without:
+        return True
+    if suite:
+        raise UserError(f"{without[0].path}: frame has no ground-truth distance, which every frame of a suite's "
+                        f"split has (render the split again with `tri360 render --suite`)")
+    if with_gt:
+        raise UserError(f"{without[0].path}: frame has no ground-truth distance, but {with_gt[0].path} has; "
+                        "evaluate does not mix scored and unscored frames in one results set: evaluate the frames "
+                        "with and without ground truth into separate results sets")
+    for m in methods:
+        if flow_fields(m).get("flow") == "oracle":
+            raise UserError(f"{without[0].path}: frame has no ground-truth distance, which method {m.label} "
+                            "(flow 'oracle': exact correspondences from ground truth) needs")
+    return False
 
 
 def results_config(methods: Sequence[Method], frames: list, data_root: Path, started: float,
@@ -174,15 +233,31 @@ def frame_labels(frames: list[dict], suite: dict | None = None) -> dict[tuple[st
     return out
 
 
-def _score_rows(frame, method: Method, output: MethodOutput, masks: dict) -> tuple[dict, list[dict], list[dict]]:
-    """The results row, the breakdown rows and the region rows of one method on one frame."""
-    gt = frame.distance["C"]
+def _checked_maps(frame, method: Method, output: MethodOutput) -> tuple[np.ndarray, np.ndarray | None]:
+    """The method's distance and confidence maps, refused (named) when not of the frame's (H, W)."""
     pred = np.asarray(output.distance)
     conf = None if output.confidence is None else np.asarray(output.confidence)
     for what, arr in (("distance", pred), ("confidence", conf)):
-        if arr is not None and arr.shape != gt.shape:
+        if arr is not None and arr.shape != (frame.height, frame.width):
             raise UserError(f"method {method.label}: returned a {arr.shape} {what} map for the "
-                            f"{gt.shape[1]}x{gt.shape[0]} frame {frame.path}")
+                            f"{frame.width}x{frame.height} frame {frame.path}")
+    return pred, conf
+
+
+def _unscored_row(frame, method: Method, output: MethodOutput) -> tuple[dict, dict[str, np.ndarray]]:
+    """The results row of one method on a frame without ground truth (empty metrics, ``valid_px`` 0, the
+    quality figures of :func:`reconstruction.quality.assess`) and its per-pixel quality maps."""
+    pred, _ = _checked_maps(frame, method, output)
+    maps, quality = assess(frame, pred)
+    row = {"scene": frame.scene, "viewpoint": frame.viewpoint, "method": method.label, **flow_fields(method),
+           "width": frame.width, "height": frame.height, **dict.fromkeys(METRIC_COLUMNS, float("nan")),
+           "valid_px": 0, "seconds": round(output.total_seconds, 4), **{c: quality[c] for c in QUALITY_COLUMNS}}
+    return row, maps
+
+
+def _score_rows(frame, method: Method, output: MethodOutput, masks: dict) -> tuple[dict, list[dict], list[dict]]:
+    """The results row, the breakdown rows and the region rows of one method on one frame."""
+    pred, conf = _checked_maps(frame, method, output)
     key = {"scene": frame.scene, "viewpoint": frame.viewpoint, "method": method.label, **flow_fields(method)}
     region_rows = [{**key, **r} for r in region_summaries(frame, pred, conf, masks=masks)]
     overall = next(r for r in region_rows if r["region"] == "all")
@@ -192,8 +267,10 @@ def _score_rows(frame, method: Method, output: MethodOutput, masks: dict) -> tup
     return row, [{**key, **b} for b in breakdown(frame, pred)], region_rows
 
 
-def evaluate_task(frame_path: str, methods: Sequence[Method], stage: str) -> dict:
-    """One task of :func:`evaluate`: run ``methods`` on one frame, write their maps under ``stage``, score them.
+def evaluate_task(frame_path: str, methods: Sequence[Method], stage: str, scored: bool = True) -> dict:
+    """One task of :func:`evaluate`: run ``methods`` on one frame, write their maps under ``stage``, score them
+    (``scored=False``: a frame without ground truth; its rows carry the quality figures, and its quality maps are
+    written too).
 
     Runs in this process or on a Dask worker (then ``frame_path`` and ``stage`` must be on a file system the
     worker sees at the same path).  Writing the maps is atomic and idempotent, so a task re-run after a lost
@@ -205,37 +282,43 @@ def evaluate_task(frame_path: str, methods: Sequence[Method], stage: str) -> dic
         UserError: the frame has no usable ground truth, or a method fails on it (named).
     """
     path = Path(frame_path)
-    frame = scorable_frame(path)
+    frame = scorable_frame(path, scored)
     try:
         outputs = run_methods(frame, methods)
     except ValueError as exc:
         raise UserError(f"{path}: {exc}") from None
-    masks = regions(frame)
-    scored = {}
+    masks = regions(frame) if scored else {}
+    rows = {}
     for method in methods:
         output = outputs[method.label]
-        row, brs, rrs = _score_rows(frame, method, output, masks)
+        if scored:
+            row, brs, rrs = _score_rows(frame, method, output, masks)
+        else:
+            (row, quality), brs, rrs = _unscored_row(frame, method, output), [], []
+            write_exr_channels(Path(stage) / quality_map_path(frame.scene, frame.viewpoint, method.label,
+                                                              **flow_fields(method)), quality)
         dist_rel, conf_rel = map_paths(frame.scene, frame.viewpoint, method.label, **flow_fields(method))
         # a prediction may hold NaN/inf/<= 0 (= no prediction): written as is, like tri360-pred/1
         write_float_map(Path(stage) / dist_rel, np.asarray(output.distance, np.float32), DISTANCE_CHANNEL)
         if output.confidence is not None:
             write_float_map(Path(stage) / conf_rel, np.asarray(output.confidence, np.float32), CONFIDENCE_CHANNEL)
-        scored[method.label] = (row, brs, rrs)
+        rows[method.label] = (row, brs, rrs)
     info = {"path": str(path.resolve()), "scene": frame.scene, "viewpoint": frame.viewpoint,
             "width": frame.width, "height": frame.height, "baseline_m": frame.baseline_m,
-            "renderer": frame.renderer}
-    return {"rows": scored, "frame": info}
+            "renderer": frame.renderer, **({} if scored else {"ground_truth": False})}
+    return {"rows": rows, "frame": info}
 
 
 def evaluate(data_root: Path, out: Path, methods: Sequence[Method], scenes: Sequence[str] | None = None,
              report: bool = True, progress: bool = True, cluster: ClusterOptions | None = None,
              inputs: Sequence[Path] = (), suite: dict | None = None,
              executor: Executor | None = None) -> pd.DataFrame:
-    """Run ``methods`` on every frame with ground truth under ``data_root`` and write a results set to ``out``.
+    """Run ``methods`` on every frame under ``data_root``, score them, and write a results set to ``out``.
 
-    Before any method runs: the frames are found and read, every name that becomes a path is checked, every frame
-    must have ground truth, and ``out`` must be absent, empty or a results set tri360 wrote, and neither an input
-    nor inside or above one (the data root, the frames and ``inputs``, e.g. ``score``'s predictions roots).
+    Before any method runs: the frames are found and read, every name that becomes a path is checked, either every
+    frame has ground truth (scored) or none has (nothing scored, quality figures instead: the module doc;
+    :func:`check_frame_kinds`), and ``out`` must be absent, empty or a results set tri360 wrote, and neither an
+    input nor inside or above one (the data root, the frames and ``inputs``, e.g. ``score``'s predictions roots).
 
     Args:
         inputs: further inputs that ``out`` must keep clear of (predictions roots).
@@ -252,8 +335,9 @@ def evaluate(data_root: Path, out: Path, methods: Sequence[Method], scenes: Sequ
     Returns:
         The results table (also written to ``out``).
     Raises:
-        UserError: bad data root, a malformed frame or one without ground truth (named), an unsafe name, an
-            unusable output location (all checked before any long work), or a method that fails on a frame.
+        UserError: bad data root, a malformed frame, frames with and without ground truth mixed (named), an
+            unsafe name, an unusable output location (all checked before any long work), or a method that fails on
+            a frame.
     """
     started = time.time()
     if cluster is not None:
@@ -266,14 +350,13 @@ def evaluate(data_root: Path, out: Path, methods: Sequence[Method], scenes: Sequ
         raise UserError(f"duplicate method labels: {', '.join(sorted({x for x in labels if labels.count(x) > 1}))}")
     check_method_paths(methods)
     check_output(out, "results", [data_root, *(r.path for r in refs), *inputs])
-    for ref in refs:  # ground truth of every frame, before the first method runs
-        scorable_frame(ref.path)
+    scored = check_frame_kinds(refs, methods, suite)  # ground truth of every frame, before the first method runs
     distributed = is_distributed(cluster, executor)
     groups = method_groups(methods) if distributed else [list(methods)]
     rows, brows, rrows, frames_index, frames_config = [], [], [], [], []
     with staged_directory(out) as stage:
         stage_abs = str(Path(stage).resolve())
-        tasks = {(i, g): (str(ref.path.resolve()), group, stage_abs)
+        tasks = {(i, g): (str(ref.path.resolve()), group, stage_abs, scored)
                  for i, ref in enumerate(refs) for g, group in enumerate(groups)}
         names = {(i, g): f"{ref.scene}/{ref.viewpoint} {group_name(group)}"
                  for i, ref in enumerate(refs) for g, group in enumerate(groups)}
@@ -283,10 +366,10 @@ def evaluate(data_root: Path, out: Path, methods: Sequence[Method], scenes: Sequ
                                       unit="frame" if len(groups) == 1 else "task", progress=progress):
                 done[key] = result
         for i, _ref in enumerate(refs):
-            scored = {label: v for g in range(len(groups)) for label, v in done[(i, g)]["rows"].items()}
+            frame_rows = {label: v for g in range(len(groups)) for label, v in done[(i, g)]["rows"].items()}
             info = done[(i, 0)]["frame"]
             for method in methods:
-                row, brs, rrs = scored[method.label]
+                row, brs, rrs = frame_rows[method.label]
                 rows.append(row)
                 brows.extend(brs)
                 rrows.extend(rrs)
@@ -295,7 +378,8 @@ def evaluate(data_root: Path, out: Path, methods: Sequence[Method], scenes: Sequ
         labels = frame_labels(frames_config, suite)
         rows = [{**r, **labels.get((r["scene"], r["viewpoint"]), {})} for r in rows]
         table = results_table(rows)
-        write_results(stage, table, breakdown_table(brows), regions_table(rrows), frames=frames_index,
+        write_results(stage, table, breakdown_table(brows) if scored else None,
+                      regions_table(rrows) if scored else None, frames=frames_index,
                       config=results_config(methods, frames_config, data_root, started, suite))
         if report:
             build_report(stage)
@@ -317,16 +401,30 @@ def config_keys(table: pd.DataFrame, other: str = "") -> tuple[list[str], list[s
 def summary_text(table: pd.DataFrame) -> str:
     """The results table as the plain-text summary a run prints: one row per method, best MAE first (means over
     its frames, :func:`reports.tables.method_summary`); a mean that is not a number (a frame without one) is
-    ``-``."""
-    summary = method_summary(table)
-    header = ["method", "frames", "MAE (m)", "median (m)", "delta<1.10", "s/frame"]
+    ``-``.  Results of frames without ground truth (nothing scored) print, after a line saying so, the means of
+    their quality figures instead (:func:`reports.tables.quality_summary`)."""
 
     def num(x: float, fmt: str) -> str:
         return format(x, fmt) if np.isfinite(x) else "-"
 
+    if len(table) and unscored_rows(table).all():
+        header = ["method", "frames", "photometric residual", "uncertainty", "calibration score", "flagged",
+                  "s/frame"]
+        rows = [[str(r.method), str(r.frames), num(r.photometric_residual_median, ".2f"),
+                 num(r.uncertainty_median, ".3f"), num(r.calibration_score, ".3f"), str(r.flagged),
+                 num(r.seconds, ".1f")] for r in quality_summary(table).itertuples(index=False)]
+        return "no ground truth: nothing scored; ground-truth-free quality figures (medians), mean over frames:\n" \
+            + _columns_text(header, rows)
+    summary = method_summary(table)
+    header = ["method", "frames", "MAE (m)", "median (m)", "delta<1.10", "s/frame"]
     rows = [[str(r.method), str(r.frames), num(r.mae_m, ".4f"), num(r.median_m, ".4f"),
              num(100.0 * r.delta110, ".1f") + (" %" if np.isfinite(r.delta110) else ""), num(r.seconds, ".1f")]
             for r in summary.itertuples(index=False)]
+    return _columns_text(header, rows)
+
+
+def _columns_text(header: list[str], rows: list[list[str]]) -> str:
+    """Plain-text columns: the first left-aligned, the others right-aligned."""
     widths = [max(len(x) for x in col) for col in zip(header, *rows, strict=True)]
     lines = ["  ".join(x.ljust(w) if i == 0 else x.rjust(w) for i, (x, w) in enumerate(zip(line, widths,
                                                                                          strict=True)))

@@ -3,7 +3,9 @@
 Reads the results directory written by ``tri360 evaluate`` / ``tri360 score`` (``harness.data.results``: the
 CSVs, ``frames.json``, ``config.json``, the maps) and the frames it names; the figures, tables, point clouds
 and ``report.html`` are computed in memory by ``reports.sections`` (pure) and written here, each file
-atomically, into the same directory (the file tree: ``reports.sections``).
+atomically, into the same directory (the file tree: ``reports.sections``).  Frames without ground truth (real
+captures, nothing scored: ``reports.schema.unscored_rows``) get the table of their quality figures instead of the
+leaderboard, and their distance, confidence and quality maps and point clouds instead of error maps.
 
 Problems that do not prevent a report (a missing map, a frame that moved, a missing ``regions.csv``) are listed
 at the top of ``report.html`` and in :attr:`ReportOutcome.problems`; a missing/empty results directory or a
@@ -23,21 +25,24 @@ import pandas as pd
 
 from harness.data.atomic import atomic_write_bytes, atomic_write_text, clean_stale_partials
 from harness.data.errors import FrameError, UserError
-from harness.data.exr import CONFIDENCE_CHANNEL, DISTANCE_CHANNEL, read_float_map
+from harness.data.exr import CONFIDENCE_CHANNEL, DISTANCE_CHANNEL, read_exr_channels, read_float_map
 from harness.data.frame import read_frame
 from harness.data.names import is_safe_name
 from harness.data.outputs import ensure_output_dir
-from harness.data.results import ResultsSet, map_paths, read_results_set
+from harness.data.results import ResultsSet, map_paths, quality_map_path, read_results_set
 from reports.metrics import pooled_sparsification_curves
+from reports.schema import unscored_rows
 from reports.sections import (
     DEFAULT_CLOUD_POINTS,
     PLY_CHOICES,
     FramePart,
     Part,
     breakdown_part,
+    capture_part,
     flow_mae_part,
     frame_part,
     leaderboard_part,
+    quality_part,
     report_html,
     sparsification_part,
 )
@@ -99,9 +104,7 @@ def read_frame_maps(rs: ResultsSet, scene: str, viewpoint: str, order: list[str]
     rows = {r["method"]: r for _, r in sel.iterrows()}
     preds: dict[str, np.ndarray] = {}
     confs: dict[str, np.ndarray] = {}
-    if "C" not in frame.distance:  # frame_part names this problem
-        return frame, rows, preds, confs, problems
-    shape = frame.distance["C"].shape
+    shape = (frame.height, frame.width)
     for label in (m for m in order if m in rows):
         row = rows[label]
         try:
@@ -118,6 +121,27 @@ def read_frame_maps(rs: ResultsSet, scene: str, viewpoint: str, order: list[str]
     return frame, rows, preds, confs, problems
 
 
+def read_quality_maps(rs: ResultsSet, scene: str, viewpoint: str, rows: dict, labels,
+                      shape: tuple[int, int]) -> tuple[dict, list[str]]:
+    """The quality maps (``harness.data.results.quality_map_path``) of the methods ``labels`` of a frame without
+    ground truth -> ``({label: {map name: (H, W) float32}}, problems)``; a missing, unreadable or wrongly sized
+    file is a problem, its method is shown without quality maps."""
+    maps, problems = {}, []
+    for label in labels:
+        row = rows[label]
+        path = rs.directory / quality_map_path(scene, viewpoint, label, row["flow"], row["rectify"], row["variant"])
+        try:
+            channels = read_exr_channels(path)
+            bad = sorted(k for k, v in channels.items() if v.shape != shape)
+            if bad:
+                raise FrameError(f"{path}: channel {bad[0]} has shape {channels[bad[0]].shape}, not the frame's "
+                                 f"{shape}")
+            maps[label] = {k: np.asarray(v, dtype=np.float32) for k, v in channels.items()}
+        except FrameError as exc:
+            problems.append(f"{exc}; the quality maps of {label} on {scene}/{viewpoint} are not shown")
+    return maps, problems
+
+
 def _frame_parts(rs: ResultsSet, order: list[str], ply: str, cloud_points: int,
                  problems: list[str]) -> Iterator[FramePart]:
     """The :class:`reports.sections.FramePart` of every frame of the results, in (scene, viewpoint) order; the
@@ -132,7 +156,13 @@ def _frame_parts(rs: ResultsSet, order: list[str], ply: str, cloud_points: int,
         problems.extend(read_problems)
         if frame is None:
             continue
-        part = frame_part(frame, rows, preds, confs, ply=ply, cloud_points=cloud_points, first=first)
+        if frame.has_ground_truth:
+            part = frame_part(frame, rows, preds, confs, ply=ply, cloud_points=cloud_points, first=first)
+        else:
+            quality, quality_problems = read_quality_maps(rs, scene, viewpoint, rows, list(preds),
+                                                         (frame.height, frame.width))
+            problems.extend(quality_problems)
+            part = capture_part(frame, rows, preds, confs, quality, ply=ply, cloud_points=cloud_points)
         problems.extend(part.problems)
         first = first and not part.html
         yield part
@@ -171,14 +201,20 @@ def build_report(results_dir, *, ply: str = "all", cloud_points: int = DEFAULT_C
         return part
 
     results = rs.results
-    board = put(leaderboard_part(results, rs.regions, rs.kinds))
+    unscored = unscored_rows(results)  # frames without ground truth: nothing scored
+    scored = results if not unscored.any() else results[~unscored].reset_index(drop=True)
+    quality = put(quality_part(results)) if unscored.any() else None
+    if len(scored):
+        board = put(leaderboard_part(scored, rs.regions, rs.kinds))
+        flow = put(flow_mae_part(scored))
+        breakdown = put(breakdown_part(rs.breakdown))
+    else:
+        board, flow, breakdown = Part(), Part(), Part()
     out.leaderboard = board.table
-    flow = put(flow_mae_part(results))
-    out.markdown = board.markdown + ("\n" + flow.markdown if flow.markdown else "")
-    breakdown = put(breakdown_part(rs.breakdown))
+    out.markdown = "\n".join(p.markdown for p in (quality, board, flow) if p is not None and p.markdown)
 
     order = method_order(results)
-    n_frames = len(set(zip(results["scene"], results["viewpoint"], strict=True)))
+    n_frames = len(set(zip(scored["scene"], scored["viewpoint"], strict=True)))
     curves: dict[str, list[tuple]] = {}
     frames = []
     for part in _frame_parts(rs, order, ply, cloud_points, out.problems):
@@ -193,10 +229,10 @@ def build_report(results_dir, *, ply: str = "all", cloud_points: int = DEFAULT_C
             if missing:
                 out.problems.append(f"method {label}: a confidence map for {len(curves[label])} frame(s) but "
                                     f"not for {missing}; its sparsification curve pools only the former")
-    spars = put(sparsification_part(out.sparsification))
+    spars = put(sparsification_part(out.sparsification)) if len(scored) else Part()
     page = report_html(results, out.problems, leaderboard=board, sparsification=spars, flow=flow,
                        breakdown=breakdown, frames=frames, source=str(d.resolve()),
-                       generated=time.strftime("%Y-%m-%d %H:%M:%S"))
+                       generated=time.strftime("%Y-%m-%d %H:%M:%S"), quality=quality)
     atomic_write_text(out.html_path, page)
     out.files.append(out.html_path)
     return out

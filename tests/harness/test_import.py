@@ -11,6 +11,7 @@ import pytest
 
 from harness.cli import main
 from harness.data.frame import read_frame, write_frame
+from harness.data.results import read_results
 from reports.pointcloud import parse_ply
 from tests.helpers import make_synthetic_frame
 
@@ -70,11 +71,15 @@ def test_bad_inputs_are_one_line_exit_2(jpegs, tmp_path, capsys):
     assert not (tmp_path / "d" / "s" / "v").exists()
 
 
-def test_evaluate_says_no_ground_truth_in_one_line(jpegs, tmp_path, capsys):
+def test_evaluate_runs_methods_and_scores_nothing(jpegs, tmp_path, capsys):
+    """A capture has no ground truth: evaluate runs the methods and scores nothing (the whole workflow with the
+    report: tests/harness/test_evaluate_nogt.py)."""
     out = tmp_path / "real" / "hall" / "pos1"
     assert main(["import", *jpegs, "--rig", str(RIG), "--out", str(out)]) == 0
     capsys.readouterr()
-    assert main(["evaluate", str(tmp_path / "real"), "--out", str(tmp_path / "res"), "--quiet"]) == 2
-    err = capsys.readouterr().err.strip()
-    assert len(err.splitlines()) == 1 and "no ground-truth" in err and "reconstruct" in err
-    assert not (tmp_path / "res").exists()
+    assert main(["evaluate", str(tmp_path / "real"), "--out", str(tmp_path / "res"), "--method", "dis-rect:average",
+                 "--no-report", "--quiet"]) == 0
+    assert "nothing scored" in capsys.readouterr().out
+    table = read_results(tmp_path / "res")
+    assert len(table) == 1 and table["valid_px"].iloc[0] == 0 and np.isnan(table["mae_m"].iloc[0])
+    assert np.isfinite(table["calibration_score"].iloc[0])
