@@ -81,21 +81,6 @@ def _lap(seconds: dict, key: str, start: tuple[float, float]) -> None:
     seconds[key + "_cpu"] = time.process_time() - start[1]
 
 
-def _family_distance(p: np.ndarray, offsets: np.ndarray, axis: np.ndarray, d_max_m: float) -> np.ndarray:
-    """Distance of fractional labels ``p`` (0 .. 2 per - 1) of one plane family with ``offsets`` (metres; one side,
-    ascending |o|, then the other, as :func:`plane_heights`) along bearing components ``axis``; ``d_max_m`` where
-    the plane is not in front."""
-    per = offsets.size // 2
-    side = (p >= per - 0.5).astype(np.int64)  # 0: negative side, 1: positive side
-    local = np.clip(p - side * per, 0.0, per - 1.0)
-    log_mag = np.log(np.abs(offsets[:per]))
-    idx = np.arange(per, dtype=np.float64)
-    o = np.exp(np.interp(local, idx, log_mag)) * np.where(side == 1, 1.0, -1.0)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        dp = o / axis
-    return np.where(np.isfinite(dp) & (dp > 0), dp, d_max_m)
-
-
 def _wall_distance(p: np.ndarray, offsets: np.ndarray, axis: np.ndarray, d_max_m: float) -> np.ndarray:
     """Distance of fractional labels ``p`` (0 .. Q - 1) of one wall family with signed ``offsets`` (metres, one
     side, ascending |o|) along bearing components ``axis``; ``d_max_m`` where the wall is not in front."""
