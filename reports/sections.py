@@ -250,6 +250,46 @@ def _cloud_groups(rows: Mapping[str, Mapping], labels: Sequence[str]) -> list[tu
     return groups
 
 
+def _cloud_blocks(out: FramePart, rows: Mapping[str, Mapping], preds: Mapping[str, np.ndarray], cam,
+                  colors: np.ndarray, idx: np.ndarray, view_masks, ply: str, title: str, fig_dir: str,
+                  cloud_dir: str, reference: tuple[str, np.ndarray] | None, limits: str) -> list[str]:
+    """The point-cloud views of a frame, one group per flow configuration and one for every other method
+    (:func:`_cloud_groups`), and each method's PLY as ``ply`` asks; files go into ``out.files``.
+
+    Args:
+        colors: (H*W, 3) uint8 colours of C's pixels; idx: the sampled pixel indices; view_masks: their sections.
+        reference: ``(name, (len(idx), 3) points)`` drawn first in every view and setting its axis limits (the
+            ground truth), or None (the first method sets them).
+        limits: the caption's sentence on the axis limits.
+    Returns:
+        One HTML ``<details>`` block per group.
+    """
+    blocks = []
+    groups = _cloud_groups(rows, list(preds))
+    any_paper = any(g[2] for g in groups)
+    for i, (key, label, paper, members) in enumerate(groups):
+        clouds = {reference[0]: (reference[1], colors[idx])} if reference is not None else {}
+        group_links = []
+        for name, method in members.items():
+            pts = point_grid(preds[method], cam.position, cam.rotation).reshape(-1, 3)
+            clouds[name] = (pts[idx], colors[idx])
+            if ply == "all" or (ply == "paper" and paper):
+                rel = f"{cloud_dir}/{key}/{name}.ply" if key != OTHER_KEY else f"{cloud_dir}/{name}.ply"
+                out.files[rel], n = ply_bytes(pts, colors, comment=f"tri360 {title} {method}")
+                group_links.append(H.link(rel, f"{name} ({n} points)"))
+        cloud_png = plots.cloud_views(clouds, cam.position, f"{title} / {label}", view_masks,
+                                      reference=reference[0] if reference is not None else None,
+                                      subtitle=SECTION_NOTE)
+        out.files[f"{fig_dir}/{key}.clouds.png"] = cloud_png
+        block = H.img(cloud_png, f"point clouds {title} {label}",
+                      f"Fig. 3 style sections, {idx.size} sampled pixels (the same in every column): {SECTION_NOTE}. "
+                      + limits)
+        if group_links:
+            block += '<p class="note">PLY point clouds: ' + ", ".join(group_links) + "</p>"
+        blocks.append(H.details(f"point clouds: {label}", block, open_=paper or (i == 0 and not any_paper)))
+    return blocks
+
+
 def frame_part(frame, rows: Mapping[str, Mapping], preds: Mapping[str, np.ndarray],
                confidences: Mapping[str, np.ndarray] | None = None, *, ply: str = "all",
                cloud_points: int = DEFAULT_CLOUD_POINTS, first: bool = False) -> FramePart:
@@ -314,27 +354,9 @@ def frame_part(frame, rows: Mapping[str, Mapping], preds: Mapping[str, np.ndarra
         rel = f"{cloud_dir}/ground_truth.ply"
         out.files[rel], n = ply_bytes(gt_pts, colors, comment=f"tri360 ground truth {scene}/{viewpoint} camera C")
         links.append(H.link(rel, f"ground truth ({n} points)"))
-    groups = _cloud_groups(rows, list(preds))
-    any_paper = any(g[2] for g in groups)
-    for i, (key, label, paper, members) in enumerate(groups):
-        clouds = {"ground truth": (gt_pts[idx], colors[idx])}
-        group_links = []
-        for name, method in members.items():
-            pts = point_grid(preds[method], cam.position, cam.rotation).reshape(-1, 3)
-            clouds[name] = (pts[idx], colors[idx])
-            if ply == "all" or (ply == "paper" and paper):
-                rel = f"{cloud_dir}/{key}/{name}.ply" if key != OTHER_KEY else f"{cloud_dir}/{name}.ply"
-                out.files[rel], n = ply_bytes(pts, colors, comment=f"tri360 {title} {method}")
-                group_links.append(H.link(rel, f"{name} ({n} points)"))
-        cloud_png = plots.cloud_views(clouds, cam.position, f"{title} / {label}", view_masks,
-                                      reference="ground truth", subtitle=SECTION_NOTE)
-        out.files[f"{fig_dir}/{key}.clouds.png"] = cloud_png
-        block = H.img(cloud_png, f"point clouds {title} {label}",
-                      f"Fig. 3 style sections, {idx.size} sampled pixels (the same in every column): {SECTION_NOTE}. "
-                      "Axis limits from the ground truth's 1-99 % range.")
-        if group_links:
-            block += '<p class="note">PLY point clouds: ' + ", ".join(group_links) + "</p>"
-        blocks.append(H.details(f"point clouds: {label}", block, open_=paper or (i == 0 and not any_paper)))
+    blocks += _cloud_blocks(out, rows, preds, cam, colors, idx, view_masks, ply, title, fig_dir, cloud_dir,
+                            reference=("ground truth", gt_pts[idx]),
+                            limits="Axis limits from the ground truth's 1-99 % range.")
     ply_note = ('<p class="note">PLY point clouds of this frame: ' + ", ".join(links) + "</p>") if links else ""
     out.html = (f"<h3>{H.esc(scene)} / {H.esc(viewpoint)}</h3>"
                 f'<p class="note">frame: {H.esc(frame.path)}</p>{ply_note}' + "".join(blocks))
@@ -415,25 +437,9 @@ def capture_part(frame, rows: Mapping[str, Mapping], preds: Mapping[str, np.ndar
         a = np.asarray(p, dtype=np.float64)
         predicted |= np.isfinite(a) & (a > 0)
     idx, view_masks = section_sample(frame, cloud_points, pixels=predicted)
-    groups = _cloud_groups(rows, list(preds))
-    any_paper = any(g[2] for g in groups)
-    for i, (key, label, paper, members) in enumerate(groups):
-        clouds, group_links = {}, []
-        for name, method in members.items():
-            pts = point_grid(preds[method], cam.position, cam.rotation).reshape(-1, 3)
-            clouds[name] = (pts[idx], colors[idx])
-            if ply == "all" or (ply == "paper" and paper):
-                rel = f"{cloud_dir}/{key}/{name}.ply" if key != OTHER_KEY else f"{cloud_dir}/{name}.ply"
-                out.files[rel], n = ply_bytes(pts, colors, comment=f"tri360 {title} {method}")
-                group_links.append(H.link(rel, f"{name} ({n} points)"))
-        cloud_png = plots.cloud_views(clouds, cam.position, f"{title} / {label}", view_masks, subtitle=SECTION_NOTE)
-        out.files[f"{fig_dir}/{key}.clouds.png"] = cloud_png
-        block = H.img(cloud_png, f"point clouds {title} {label}",
-                      f"Fig. 3 style sections, {idx.size} sampled pixels (the same in every column): {SECTION_NOTE}. "
-                      "No ground truth: axis limits from the first method's 1-99 % range.")
-        if group_links:
-            block += '<p class="note">PLY point clouds: ' + ", ".join(group_links) + "</p>"
-        blocks.append(H.details(f"point clouds: {label}", block, open_=paper or (i == 0 and not any_paper)))
+    blocks += _cloud_blocks(out, rows, preds, cam, colors, idx, view_masks, ply, title, fig_dir, cloud_dir,
+                            reference=None,
+                            limits="No ground truth: axis limits from the first method's 1-99 % range.")
     out.html = (f"<h3>{H.esc(scene)} / {H.esc(viewpoint)}</h3>"
                 f'<p class="note">frame: {H.esc(frame.path)} &middot; <strong>{H.esc(NOTHING_SCORED)}</strong> '
                 "(no ground-truth distance)</p>" + "".join(blocks))
