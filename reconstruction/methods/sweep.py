@@ -251,8 +251,10 @@ def sweep_distances(frame, cost_params: CostParams, plane_params: PlaneParams, s
             and plane_params.per_side > 0:
         z_floor, z_ceil, yaw, walls, coarse = room_bounds(frame, cost_params, plane_params, sgm, pairs, shared)
         bounds = (z_floor, z_ceil)
-        size = (frame.width, frame.height)
-        coarse = tuple(cv2.resize(np.asarray(a, np.float32), size, interpolation=cv2.INTER_LINEAR) for a in coarse)
+        if any(callable(p) for p in priors):  # only the gated priors read the coarse maps
+            size = (frame.width, frame.height)
+            coarse = tuple(cv2.resize(np.asarray(a, np.float32), size, interpolation=cv2.INTER_LINEAR)
+                           for a in coarse)
     cost, heights, inv_d = _sphere_costs(frame, cost_params, plane_params, pairs, shared,
                                          wall_labels=sum(o.size for _, o in walls))
     out = []

@@ -224,7 +224,7 @@ def fill_plane_costs(cost: np.ndarray, levels: int, a_z: np.ndarray, heights: np
 
 @numba.njit(parallel=True, cache=True)
 def _bound(cost, levels, a_z, inv_d, heights, z_low, z_high, max_cost):
-    h, w, n = cost.shape
+    h, w, _ = cost.shape
     for y in numba.prange(h):
         for x in range(w):
             az = a_z[y, x]
@@ -232,7 +232,7 @@ def _bound(cost, levels, a_z, inv_d, heights, z_low, z_high, max_cost):
                 z = az / inv_d[i]
                 if z < z_low or z > z_high:
                     cost[y, x, i] = max_cost
-            for p in range(n - levels):
+            for p in range(heights.shape[0]):  # the horizontal planes only (wall labels follow them)
                 if heights[p] < z_low or heights[p] > z_high:
                     cost[y, x, levels + p] = max_cost
 

@@ -286,3 +286,15 @@ def test_sweep_with_wall_families_on_the_tilted_rig():
     assert yaw is not None and abs((yaw + 45) % 90 - 45) < 1.0, yaw
     np.testing.assert_allclose(sorted(np.abs(out.info["walls_m"])), [2.5, 2.5, 3.0, 3.0], rtol=0.02)
     assert out.info["wall_share"] > 0.1
+
+
+def test_the_room_bound_of_the_horizontal_planes_leaves_the_wall_labels_alone():
+    """``bound_costs`` forbids sphere and horizontal-plane labels only: the wall labels after them are the business
+    of ``bound_wall_costs`` (reading plane heights past their end made wall families nondeterministic)."""
+    from reconstruction.sweep.planes import bound_costs
+
+    levels, heights = 4, np.array([-2.0, -1.0, 1.0, 2.0])
+    cost = np.zeros((1, 1, levels + heights.size + 30), np.uint16)
+    bound_costs(cost, levels, np.array([[0.5]]), np.linspace(0.2, 1.0, levels), heights, -1.5, 1.5, 999)
+    np.testing.assert_array_equal(cost[0, 0, levels:levels + 4], [999, 0, 0, 999])
+    assert not cost[0, 0, levels + heights.size:].any()
