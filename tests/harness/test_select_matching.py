@@ -39,6 +39,13 @@ def test_the_rule_says_when_no_method_meets_the_bound():
         sel.choose(t.drop(index="fused"))
 
 
+def test_reference_rows_are_never_chosen():
+    t = table({"sweep": (0.20, 0.10, 0.30), "fused": (0.18, 0.20, 0.16), "ref": (0.10, 0.09, 0.12),
+               "x": (0.15, 0.104, 0.16)})
+    assert sel.choose(t, references=["ref"])[:2] == ("x", True)
+    assert sel.choose(t, references=[])[:2] == ("ref", True)
+
+
 def test_candidates_are_sweep_fused_and_the_fused_variants_sharing_one_flow():
     methods = sel.candidate_methods()
     labels = [m.label for m in methods]
@@ -57,7 +64,8 @@ def test_select_on_a_tiny_suite_split_writes_the_results_and_the_choice(tmp_path
     chosen = json.loads((out / "selection.json").read_text())
     assert chosen["split"] == "dev" and chosen["suite_id"].startswith("sha256:")
     assert chosen["chosen"] in [m.label for m in sel.candidate_methods()]
-    assert set(chosen["table"]) == {m.label for m in sel.candidate_methods()}
+    assert set(chosen["table"]) == {m.label for m in sel.candidate_methods()} | set(sel.REFERENCES)
+    assert chosen["chosen"] not in sel.REFERENCES
     assert f"**{chosen['chosen']}**" in (out / "selection.md").read_text() and "Chosen:" in printed
     assert {"selection.md", "selection.json", "results.csv"} <= set(read_marker(out)["entries"])
     # a rerun into its own output is accepted; a directory of someone else's is refused with status 2
