@@ -47,7 +47,8 @@ from reconstruction.methods.sweep import SweepMethod
 from reconstruction.sweep.planes import PlaneParams
 from reports.tables import leaderboard_table
 
-__all__ = ["TOLERANCE", "BASELINES", "CANDIDATE_PRIORS", "REFERENCES", "candidate_methods", "family_table", "choose", "main"]
+__all__ = ["TOLERANCE", "BASELINES", "CANDIDATE_PRIORS", "AVERAGE_PRIOR", "REFERENCES", "candidate_methods",
+           "family_table", "choose", "main"]
 
 TOLERANCE = 0.05
 BASELINES = ("sweep", "fused")
@@ -67,6 +68,9 @@ CANDIDATE_PRIORS: dict[str, tuple[bool, PriorParams]] = {
     "fused-walls-k1-f0.5-0.7": (True, PriorParams(sweep_confidence_power=1.0, frame_agreement_low=0.5,
                                                   frame_agreement_high=0.7)),
 }
+#: candidates whose prior is the flow pipeline's unrefined distance (``dis-rect:average``: no LM, so cheaper)
+AVERAGE_PRIOR = ("fused-walls-k1-f0.5-0.7-avg",)
+CANDIDATE_PRIORS["fused-walls-k1-f0.5-0.7-avg"] = CANDIDATE_PRIORS["fused-walls-k1-f0.5-0.7"]
 
 
 #: built-in methods run beside the candidates for the table, not chosen from: tri360's DIS flow pipeline
@@ -75,12 +79,15 @@ REFERENCES = tuple(f"dis-rect:{v}" for v in DEFAULT_VARIANTS)
 
 def candidate_methods() -> list[Method]:
     """``sweep``, ``fused``, the sweep with wall families (``sweep-walls``) and one fused method per
-    :data:`CANDIDATE_PRIORS` entry (``fused``'s flow; its sweep, with wall families where the entry says so)."""
+    :data:`CANDIDATE_PRIORS` entry (``fused``'s flow, or ``dis-rect:average`` for :data:`AVERAGE_PRIOR`; its
+    sweep, with wall families where the entry says so)."""
     base = fused_method()
+    average = get_methods(["dis-rect:average"])[0]
     walls = dataclasses.replace(base.sweep, planes=_WALLS)
     out: list[Method] = [SweepMethod(), base, SweepMethod(planes=_WALLS, label="sweep-walls")]
     for label, (with_walls, prior) in CANDIDATE_PRIORS.items():
-        out.append(FusedMethod(flow=base.flow, sweep=walls if with_walls else base.sweep, prior=prior, label=label))
+        out.append(FusedMethod(flow=average if label in AVERAGE_PRIOR else base.flow,
+                               sweep=walls if with_walls else base.sweep, prior=prior, label=label))
     return out
 
 
