@@ -100,8 +100,9 @@ PROG = "validate_quality"
 def rank_correlation(measure: np.ndarray, error: np.ndarray) -> float:
     """Spearman rank correlation of ``measure`` (N,) with ``error`` (N,); a measure that is not a number counts as
     the largest (ties at the top).  NaN for fewer than 3 pixels or a constant input (unitless, -1..1)."""
-    m = np.where(np.isnan(measure), np.inf, np.asarray(measure, np.float64))
-    e = np.asarray(error, np.float64)
+    m = np.asarray(measure)
+    m = np.where(np.isnan(m), np.inf, m)  # keeps float32 (ranks only): the pooled pixels of a split are many
+    e = np.asarray(error)
     if m.size < 3:
         return float("nan")
     with warnings.catch_warnings():
