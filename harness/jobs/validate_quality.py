@@ -12,7 +12,7 @@ on a data root of frames with ground truth (a suite's split: ``tri360 render --s
 
 1. **Ranking.**  Per frame, C's distance of method LABEL (a registered label) -- run here, or, with ``--results``,
    the distance map that a ``tri360 evaluate`` results set holds for the frame under ``--results-label`` (default
-   LABEL), accepted only when that set's ``config.json`` records for it the configuration of LABEL (its label
+   LABEL), accepted only when that set's ``config.json`` records for it the configuration of LABEL (method labels
    aside: a selection run's candidate may become the registered default under another name) -- goes through
    :func:`reconstruction.quality.assess`.  Over the validly predicted pixels with ground truth, the Spearman rank
    correlation ``rho`` of each measure (:data:`MEASURES`; and the method's own confidence, negated, where it gives
@@ -137,21 +137,28 @@ def calibration_choice(keys: Sequence[tuple[str, str]], families: dict[tuple[str
     return out
 
 
-def _config_key(config) -> object:
-    """A method configuration as it reads back from JSON, without its top-level ``label``."""
-    c = jsonio.to_jsonable(config)
-    return {k: v for k, v in c.items() if k != "label"} if isinstance(c, dict) else c
+def _without_labels(config) -> object:
+    """A method configuration as it reads back from JSON, without the ``label`` of the method and of the methods
+    inside it (names, not behaviour: ``fused``'s flow and sweep carry their own)."""
+    if isinstance(config, dict):
+        return {k: _without_labels(v) for k, v in config.items() if k != "label"}
+    if isinstance(config, list):
+        return [_without_labels(v) for v in config]
+    return config
 
 
-def config_difference(stored, wanted, where: str = "") -> str | None:
-    """The first place where two method configurations (as JSON, top-level ``label`` ignored; ``kind`` looked at
-    first) differ: ``"sweep.planes.wall_labels: 9 vs 0"`` (``stored`` first), or None when they are equal."""
-    a, b = (_config_key(stored), _config_key(wanted)) if not where else (stored, wanted)
+def config_difference(stored, wanted) -> str | None:
+    """The first place where two method configurations (as JSON, every method ``label`` ignored; ``kind`` looked
+    at first) differ: ``"sweep.planes.wall_labels: 9 vs 0"`` (``stored`` first), or None when they are equal."""
+    return _difference(_without_labels(jsonio.to_jsonable(stored)), _without_labels(jsonio.to_jsonable(wanted)), "")
+
+
+def _difference(a, b, where: str) -> str | None:
     if isinstance(a, dict) and isinstance(b, dict):
         for k in sorted(set(a) | set(b), key=lambda k: (k != "kind", k)):
             if k not in a or k not in b:
                 return f"{where}{k}: {'absent' if k not in a else 'present'} vs {'absent' if k not in b else 'present'}"
-            d = config_difference(a[k], b[k], f"{where}{k}.")
+            d = _difference(a[k], b[k], f"{where}{k}.")
             if d is not None:
                 return d
         return None

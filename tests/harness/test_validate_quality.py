@@ -26,8 +26,10 @@ from harness.jobs.validate_quality import (
     rank_correlation,
 )
 from harness.render.raycast import render_frame
+from reconstruction.methods.registry import fused_method
 from reconstruction.methods.sweep import SweepMethod
 from reconstruction.quality import CALIBRATION_THRESHOLD
+from reconstruction.sweep.planes import PlaneParams
 from scenes.model import choose_viewpoints
 from scenes.registry import get_scene
 from tests.helpers import make_synthetic_frame
@@ -192,6 +194,11 @@ def test_configurations_compare_without_their_label():
     other = dataclasses.replace(SweepMethod(), pairs=("U",)).config()
     assert config_difference(other, base) == "pairs: ['U'] vs ['U', 'R']"
     assert config_difference({**base, "kind": "fused"}, base).startswith("kind:")
+    fused = fused_method()
+    renamed = dataclasses.replace(fused, label="fused-b", sweep=dataclasses.replace(fused.sweep, label="sweep-b"))
+    assert config_difference(renamed.config(), fused.config()) is None  # labels inside a method are names too
+    walls = dataclasses.replace(fused, sweep=dataclasses.replace(fused.sweep, planes=PlaneParams(wall_labels=9)))
+    assert config_difference(walls.config(), fused.config()).startswith("sweep.planes.wall_labels: 9 vs ")
 
 
 def test_rank_correlation_counts_nan_as_most_uncertain():
@@ -199,3 +206,18 @@ def test_rank_correlation_counts_nan_as_most_uncertain():
     assert rank_correlation(np.array([1.0, 2.0, 3.0, np.nan]), err) == pytest.approx(1.0, abs=1e-12)
     assert rank_correlation(np.array([4.0, 3.0, 2.0, 1.0]), err) == pytest.approx(-1.0, abs=1e-12)
     assert math.isnan(rank_correlation(np.ones(4), err)) and math.isnan(rank_correlation(np.ones(2), err[:2]))
+
+
+def test_frames_without_ground_truth_are_skipped_and_frames_keeps_the_first(tmp_path, capsys):
+    root = tmp_path / "mixed"
+    for vp in (1, 0):
+        write_frame(make_synthetic_frame(width=96, viewpoint=vp), root)
+    write_frame(dataclasses.replace(make_synthetic_frame(width=96), scene="real", distance={}), root)
+    out = tmp_path / "val"
+    code, _, err = _run(capsys, root, "--method", METHOD, "--out", out, "--frames", "1", "--calibration-frames", "0",
+                        "--quiet")
+    assert code == 0, err
+    rows = pd.read_csv(out / "validation.csv")
+    assert list(zip(rows["scene"], rows["viewpoint"], strict=True)) == [("synthetic_box", "vp000")]
+    summary = json.loads((out / "validation.json").read_text())
+    assert summary["frames"] == 1 and summary["skipped_without_ground_truth"] == [str(root / "real" / "vp000")]
