@@ -1,4 +1,4 @@
-"""Validate the ground-truth-free quality measures (:mod:`reconstruction.quality`) against true error, rerunnable.
+"""Validate the ground-truth-free quality measures against true error on frames with ground truth (rerunnable).
 
 Run as::
 
@@ -573,8 +573,7 @@ def validate_quality(data_root: Path, method_label: str, out: Path, results: Pat
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog=f"python -m harness.jobs.{PROG}", description=__doc__.splitlines()[0],
-                                     formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    parser = argparse.ArgumentParser(prog=f"python -m harness.jobs.{PROG}", description=__doc__.splitlines()[0])
     parser.add_argument("data_root", type=Path, metavar="DATA_ROOT", help="data root of frames with ground truth")
     parser.add_argument("--method", required=True, metavar="LABEL", help="registered method label (e.g. fused)")
     parser.add_argument("--out", type=Path, required=True, metavar="DIR", help="output directory (a study directory)")
@@ -584,9 +583,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--results-label", default=None, metavar="LABEL2",
                         help="the method's label in the results set (default: LABEL)")
     parser.add_argument("--calibration-frames", type=int, default=10, metavar="K",
-                        help="frames of the calibration check, round-robin over families (0 = none)")
-    parser.add_argument("--rotation", type=float, default=0.5, help="rotation error of U and R, degrees")
-    parser.add_argument("--seed", type=int, default=1, help="seed of the rotation error")
+                        help="frames of the calibration check, round-robin over families (0 = none; default 10)")
+    parser.add_argument("--rotation", type=float, default=0.5, metavar="DEG",
+                        help="rotation error of U and R, degrees (default 0.5)")
+    parser.add_argument("--seed", type=int, default=1, help="seed of the rotation error (default 1)")
     parser.add_argument("--frames", type=int, default=None, metavar="N",
                         help="only the first N frames with ground truth, in (scene, viewpoint) order")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
