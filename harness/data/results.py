@@ -46,7 +46,7 @@ from reports.schema import (
 
 __all__ = ["RESULTS_CSV", "RESULTS_JSON", "REGIONS_CSV", "BREAKDOWN_CSV", "FRAMES_JSON", "CONFIG_JSON", "MAPS_DIR",
            "map_paths", "quality_map_path", "write_results", "read_results", "read_regions", "read_breakdown",
-           "read_frames", "read_method_kinds", "ResultsSet", "read_results_set"]
+           "read_frames", "read_method_kinds", "read_config", "ResultsSet", "read_results_set"]
 
 RESULTS_CSV = "results.csv"
 RESULTS_JSON = "results.json"
@@ -303,6 +303,22 @@ def read_frames(results_dir) -> list[dict] | None:
             raise UserError(f"{path}: entry {i} must be an object with string keys scene, viewpoint, path")
         out.append({"scene": item["scene"], "viewpoint": item["viewpoint"], "path": item["path"]})
     return out
+
+
+def read_config(results_dir) -> dict | None:
+    """``RESULTS/config.json`` as written (tri360 version, ``methods`` ``{label: configuration}``, ``frames``...);
+    ``None`` if the file does not exist.
+
+    Raises:
+        UserError: the file is not valid JSON, not an object, or its ``methods`` entry is not an object.
+    """
+    path = Path(results_dir) / CONFIG_JSON
+    raw = _read_json(path)
+    if raw is None:
+        return None
+    if not isinstance(raw, dict) or not isinstance(raw.get("methods", {}), dict):
+        raise UserError(f"{path}: must be a JSON object whose 'methods' is an object {{label: configuration}}")
+    return raw
 
 
 def read_method_kinds(results_dir) -> dict[str, str] | None:

@@ -1,0 +1,614 @@
+"""Validate the ground-truth-free quality measures against true error on frames with ground truth (rerunnable).
+
+Run as::
+
+    python -m harness.jobs.validate_quality DATA_ROOT --method LABEL --out DIR
+        [--results RESULTS_SET [--results-label LABEL2]] [--calibration-frames 10] [--rotation 0.5] [--seed 1]
+        [--frames N] [--quiet]
+
+on a data root of frames with ground truth (a suite's split: ``tri360 render --suite suites/tri360-v1.toml
+--split dev --out data-dev``; frames without ground truth are skipped, ``--frames N`` keeps the first N in
+(scene, viewpoint) order).  Two checks, issue 19's:
+
+1. **Ranking.**  Per frame, C's distance of method LABEL (a registered label) -- run here, or, with ``--results``,
+   the distance map that a ``tri360 evaluate`` results set holds for the frame under ``--results-label`` (default
+   LABEL), accepted only when that set's ``config.json`` records for it the configuration of LABEL (method labels
+   aside: a selection run's candidate may become the registered default under another name) -- goes through
+   :func:`reconstruction.quality.assess`.  Over the validly predicted pixels with ground truth, the Spearman rank
+   correlation ``rho`` of each measure (:data:`MEASURES`; and the method's own confidence, negated, where it gives
+   one) with the true absolute error, and the measure's AUSE (:func:`reports.metrics.sparsification_curves`, the
+   measure negated as the confidence: pixels removed most uncertain first).  A pixel whose measure is not a
+   number counts as the most uncertain (as in the sparsification).  Per family (the frame's provenance names it;
+   else the scene name up to ``-s<seed>``) and over all frames: the mean, median and minimum of the frames' rho,
+   the share of frames with rho >= :data:`RHO_BAR`, and the rho and AUSE of the family's pixels pooled.
+2. **Calibration check.**  ``--calibration-frames`` frames, chosen round-robin over the families in sorted order
+   (each family's frames in order), are perturbed in memory with ``--rotation`` degrees of rotation error of U
+   and R and ``--seed`` (:func:`harness.jobs.perturb.checked_perturbation`, as ``tri360 perturb --apply
+   rotation=...`` does), the method is run on the perturbed frame, and the :func:`reconstruction.quality.
+   calibration_score` of the exact frame (from the distance of part 1) and of the perturbed one are compared with
+   :data:`reconstruction.quality.CALIBRATION_THRESHOLD`.  A frame is *separated* when the exact frame is not
+   flagged and the perturbed one is.
+
+``DIR`` (a study directory: absent, empty or one tri360 wrote; built in a staging directory and swapped in whole)
+gets
+
+- ``validation.csv``: one row per frame: ``scene, viewpoint, family, width, height, scored_px`` (pixels with
+  ground truth), ``valid_px`` (of those, validly predicted: the pixels ranked), ``mae_m`` (as ``evaluate`` scores
+  it), ``mae_valid_m`` (over the ranked pixels), ``rho:<m>`` and ``ause_m:<m>`` for every measure of
+  :data:`MEASURES` and ``confidence`` (empty for a method without one), ``uncertainty_median``,
+  ``calibration_score`` and ``calibration_flagged`` of the exact frame;
+- ``calibration.csv``: one row per checked frame: ``scene, viewpoint, family, rotation_deg, seed, exact_score,
+  exact_flagged, perturbed_score, perturbed_flagged, separated, perturbed_mae_m``;
+- ``validation.json``: the summary (per measure the statistics of the frames' rho; per family and over all
+  frames those of ``uncertainty`` and the pooled figures; the calibration counts), the method's configuration,
+  where the distances came from, the data root, tri360's version and commit;
+- ``validation.md``: the tables, ready to paste (also printed at the end).
+
+Everything is checked before the first method runs; a bad option, method, data root, results set or ``--out`` is
+one line and exit status 2, Ctrl-C one line and 130, and either way ``DIR`` is left as it was.
+"""
+
+from __future__ import annotations
+
+import argparse
+import re
+import sys
+import time
+import warnings
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from scipy import stats
+
+from harness.data import jsonio
+from harness.data.atomic import atomic_write_text
+from harness.data.errors import UserError
+from harness.data.exr import CONFIDENCE_CHANNEL, DISTANCE_CHANNEL, read_float_map
+from harness.data.outputs import check_output, mark_output, staged_directory
+from harness.data.provenance import software
+from harness.data.results import map_paths, read_config, read_results_set
+from harness.jobs import perturbations as P
+from harness.jobs.evaluate import FrameRef, frame_labels, scorable_frame, select_frames
+from harness.jobs.perturb import checked_perturbation
+from harness.jobs.progress import progress_bar
+from reconstruction.camera.rig import CAMERA_NAMES
+from reconstruction.methods.base import Method, run_methods
+from reconstruction.methods.registry import get_methods
+from reconstruction.quality import CALIBRATION_THRESHOLD, assess, calibration_score
+from reports.metrics import ause, pooled_sparsification_curves, scored_pixels, sparsification_curves, summary
+
+__all__ = ["FORMAT", "MEASURES", "RHO_BAR", "rank_correlation", "frame_family", "calibration_choice",
+           "config_difference", "frame_validation", "validate_quality", "main"]
+
+FORMAT = "tri360-quality-validation/1"
+"""The ``format`` of ``validation.json``."""
+MEASURES = ("uncertainty", "photometric_residual", "distance_residual_m", "pair_agreement")
+"""The per-pixel maps of :func:`reconstruction.quality.assess` that are validated (higher = less trustworthy);
+``uncertainty`` is the one to rank pixels by."""
+CONFIDENCE = "confidence"
+RHO_BAR = 0.5
+"""Issue 19's bar for the rank correlation of the default method."""
+PROG = "validate_quality"
+
+
+# ------------------------------------------------------------------------------------------------ pure parts
+
+
+def rank_correlation(measure: np.ndarray, error: np.ndarray) -> float:
+    """Spearman rank correlation of ``measure`` (N,) with ``error`` (N,); a measure that is not a number counts as
+    the largest (ties at the top).  NaN for fewer than 3 pixels or a constant input (unitless, -1..1)."""
+    m = np.asarray(measure)
+    m = np.where(np.isnan(m), np.inf, m)  # keeps float32 (ranks only): the pooled pixels of a split are many
+    e = np.asarray(error)
+    if m.size < 3:
+        return float("nan")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # a constant input: NaN, said by the result itself
+        rho = stats.spearmanr(m, e).statistic
+    return float(rho)
+
+
+def frame_family(scene: str, labelled: str) -> str:
+    """The family of a frame: ``labelled`` (what its provenance names, :func:`harness.jobs.evaluate.frame_labels`)
+    when not empty, else the scene name up to ``-s<seed>`` (a suite's naming, ``<family>[-<preset>]-s<seed>``),
+    else the scene name."""
+    if labelled:
+        return labelled
+    m = re.match(r"^(.+?)-s\d+$", scene)
+    return m.group(1) if m else scene
+
+
+def calibration_choice(keys: Sequence[tuple[str, str]], families: dict[tuple[str, str], str],
+                       count: int) -> list[tuple[str, str]]:
+    """``count`` frames (``(scene, viewpoint)`` keys) spread over the families: round-robin over the families in
+    sorted order, each family's frames in sorted order; fewer when there are fewer frames."""
+    queues: dict[str, list] = {}
+    for k in sorted(keys):
+        queues.setdefault(families[k], []).append(k)
+    order = [queues[f] for f in sorted(queues)]
+    out: list[tuple[str, str]] = []
+    while len(out) < count and any(order):
+        for q in order:
+            if q and len(out) < count:
+                out.append(q.pop(0))
+    return out
+
+
+def _without_labels(config) -> object:
+    """A method configuration as it reads back from JSON, without the ``label`` of the method and of the methods
+    inside it (names, not behaviour: ``fused``'s flow and sweep carry their own)."""
+    if isinstance(config, dict):
+        return {k: _without_labels(v) for k, v in config.items() if k != "label"}
+    if isinstance(config, list):
+        return [_without_labels(v) for v in config]
+    return config
+
+
+def config_difference(stored, wanted) -> str | None:
+    """The first place where two method configurations (as JSON, every method ``label`` ignored; ``kind`` looked
+    at first) differ: ``"sweep.planes.wall_labels: 9 vs 0"`` (``stored`` first), or None when they are equal."""
+    return _difference(_without_labels(jsonio.to_jsonable(stored)), _without_labels(jsonio.to_jsonable(wanted)), "")
+
+
+def _difference(a, b, where: str) -> str | None:
+    if isinstance(a, dict) and isinstance(b, dict):
+        for k in sorted(set(a) | set(b), key=lambda k: (k != "kind", k)):
+            if k not in a or k not in b:
+                return f"{where}{k}: {'absent' if k not in a else 'present'} vs {'absent' if k not in b else 'present'}"
+            d = _difference(a[k], b[k], f"{where}{k}.")
+            if d is not None:
+                return d
+        return None
+    if a == b:
+        return None
+
+    def short(x) -> str:
+        r = repr(x)
+        return r if len(r) <= 40 else r[:37] + "..."
+
+    return f"{where.rstrip('.') or 'configuration'}: {short(a)} vs {short(b)}"
+
+
+@dataclass
+class FrameValidation:
+    """The ranking check of one frame.
+
+    Attributes:
+        row: the ``validation.csv`` row (module doc; rho unitless, AUSE and MAE metres).
+        error: (N,) float32 true absolute error of the N validly predicted pixels with ground truth, metres.
+        uncertainty: (N,) float32 ``uncertainty`` of those pixels (NaN = not a number).
+        curves: per compared measure, ``(fractions, curve, oracle, N)`` of its sparsification (for pooling).
+    """
+
+    row: dict
+    error: np.ndarray
+    uncertainty: np.ndarray
+    curves: dict[str, tuple] = field(default_factory=dict)
+
+
+def frame_validation(frame, distance: np.ndarray, confidence: np.ndarray | None) -> FrameValidation:
+    """Rank correlation and AUSE of every measure (and of the method's confidence, negated) on one frame.
+
+    Args:
+        frame: a frame with ground truth (``distance["C"]``, metres).
+        distance: (H, W) C's predicted distance, metres (NaN, inf, <= 0 = no prediction).
+        confidence: (H, W) the method's confidence (higher = more trustworthy) or None.
+    """
+    gt = np.asarray(frame.distance["C"], np.float64)
+    d = np.asarray(distance, np.float64)
+    valid = np.isfinite(d) & (d > 0)
+    sel = scored_pixels(gt) & valid
+    err = np.abs(d - gt)[sel]
+    maps, quality = assess(frame, distance)
+    ranked = {m: maps[m] for m in MEASURES}
+    if confidence is not None:
+        ranked[CONFIDENCE] = -np.asarray(confidence, np.float64)
+    row = {"scene": frame.scene, "viewpoint": frame.viewpoint, "width": frame.width, "height": frame.height,
+           "scored_px": int(scored_pixels(gt).sum()), "valid_px": int(sel.sum()),
+           "mae_m": summary(d, gt)["mae_m"], "mae_valid_m": float(err.mean()) if err.size else float("nan")}
+    curves = {}
+    for name in (*MEASURES, CONFIDENCE):
+        if name not in ranked:
+            row[f"rho:{name}"], row[f"ause_m:{name}"] = float("nan"), float("nan")
+            continue
+        u = np.asarray(ranked[name], np.float64)
+        row[f"rho:{name}"] = rank_correlation(u[sel], err)
+        fractions, curve, oracle = sparsification_curves(d, gt, -u, mask=valid)
+        row[f"ause_m:{name}"] = ause(fractions, curve, oracle) if sel.any() else float("nan")
+        curves[name] = (fractions, curve, oracle, int(sel.sum()))
+    row["uncertainty_median"] = quality["uncertainty_median"]
+    row["calibration_score"] = quality["calibration_score"]
+    row["calibration_flagged"] = quality["calibration_flagged"]
+    return FrameValidation(row, err.astype(np.float32), maps["uncertainty"][sel].astype(np.float32), curves)
+
+
+def _stats(values: Sequence[float]) -> dict:
+    """Mean, median, min, max of the finite ``values`` and the share of all of them at least :data:`RHO_BAR`."""
+    v = np.asarray(values, np.float64)
+    f = v[np.isfinite(v)]
+    nan = float("nan")
+    return {"frames": int(v.size), "finite": int(f.size), "mean": float(f.mean()) if f.size else nan,
+            "median": float(np.median(f)) if f.size else nan, "min": float(f.min()) if f.size else nan,
+            "max": float(f.max()) if f.size else nan,
+            "share_at_least_bar": float(np.mean(np.isfinite(v) & (v >= RHO_BAR))) if v.size else nan}
+
+
+def _pooled(items: Sequence[FrameValidation]) -> dict:
+    """Over the pixels of ``items`` pooled: the rho of ``uncertainty`` and every measure's AUSE (metres;
+    :func:`reports.metrics.pooled_sparsification_curves`, pixel-weighted; NaN for the confidence unless every frame
+    has one)."""
+    out = {"pixels": int(sum(i.error.size for i in items))}
+    out["rho:uncertainty"] = rank_correlation(np.concatenate([i.uncertainty for i in items]),
+                                              np.concatenate([i.error for i in items]))
+    for name in (*MEASURES, CONFIDENCE):
+        # frames without a ranked pixel add nothing; the confidence only when every frame has one
+        parts = [i.curves[name] for i in items if name in i.curves and i.curves[name][3] > 0]
+        ok = bool(parts) and all(name in i.curves for i in items)
+        out[f"ause_m:{name}"] = pooled_sparsification_curves(parts)["ause"] if ok else float("nan")
+    return out
+
+
+def ranking_summary(items: Sequence[FrameValidation], families: Sequence[str]) -> dict:
+    """Per-frame statistics of every measure's rho, and per family and over all frames those of ``uncertainty``
+    plus the pooled figures (:func:`_pooled`)."""
+    rows = [i.row for i in items]
+    per_measure = {name: _stats([r[f"rho:{name}"] for r in rows]) for name in (*MEASURES, CONFIDENCE)}
+    fams = {}
+    for fam in sorted(set(families)):
+        mine = [i for i, f in zip(items, families, strict=True) if f == fam]
+        fams[fam] = {**_stats([i.row["rho:uncertainty"] for i in mine]), "pooled": _pooled(mine)}
+    return {"measure": "uncertainty", "rho_bar": RHO_BAR, "per_frame": per_measure, "families": fams,
+            "all": {**per_measure["uncertainty"], "pooled": _pooled(items)}}
+
+
+def calibration_summary(rows: Sequence[dict], rotation: float, seed: int, asked: int) -> dict:
+    """Counts of the calibration check over its ``rows`` (``calibration.csv``)."""
+    exact = np.array([r["exact_score"] for r in rows], np.float64)
+    pert = np.array([r["perturbed_score"] for r in rows], np.float64)
+    nan = float("nan")
+    return {"rotation_deg": rotation, "seed": seed, "threshold": CALIBRATION_THRESHOLD, "frames_asked": asked,
+            "frames": len(rows), "separated": int(sum(r["separated"] for r in rows)),
+            "exact_flagged": int(sum(r["exact_flagged"] for r in rows)),
+            "perturbed_flagged": int(sum(r["perturbed_flagged"] for r in rows)),
+            "max_exact_score": float(np.nanmax(exact)) if np.isfinite(exact).any() else nan,
+            "min_perturbed_score": float(np.nanmin(pert)) if np.isfinite(pert).any() else nan,
+            "every_perturbed_above_every_exact": bool(len(rows) and np.isfinite(exact).all()
+                                                      and np.isfinite(pert).all() and pert.min() > exact.max())}
+
+
+def _num(x, fmt: str = ".3f") -> str:
+    return format(float(x), fmt) if x is not None and np.isfinite(float(x)) else "-"
+
+
+def validation_markdown(result: dict, rows: Sequence[dict], calib_rows: Sequence[dict]) -> str:
+    """``validation.md``: the per-frame, per-family and calibration tables and the verdict against issue 19's bars."""
+    ranking, calib, method = result["ranking"], result["calibration"], result["method"]["label"]
+    src = result["distances"]
+    where = ("run by this job" if src["source"] == "run" else
+             f"read from the results set {src['path']} (method {src['label']!r}, the configuration of {method!r})")
+    sw = result["software"]
+    lines = [f"# Quality without ground truth against true error: `{method}`", "",
+             f"{result['frames']} frames with ground truth under {result['data_root']} "
+             f"({len(ranking['families'])} families); tri360 {sw.get('tri360_version')} "
+             f"(commit {sw.get('commit') or 'unknown'}); distances {where}.", "",
+             "rho: Spearman rank correlation between the measure and the true absolute error over the validly "
+             "predicted pixels (1 = ranks pixels exactly by error); AUSE: area between the MAE sparsification curve "
+             "(pixels removed most uncertain first) and the oracle's, metres; the method's confidence is negated "
+             "(least confident first).", "",
+             "## Per frame", "",
+             "| family | frame | MAE m | `uncertainty` rho / AUSE m | `photometric_residual` rho / AUSE | "
+             "`distance_residual_m` rho / AUSE | method confidence rho / AUSE |",
+             "|---|---|---:|---:|---:|---:|---:|"]
+    for r in rows:
+        cells = [f"{_num(r[f'rho:{n}'])} / {_num(r[f'ause_m:{n}'])}"
+                 for n in ("uncertainty", "photometric_residual", "distance_residual_m", CONFIDENCE)]
+        lines.append(f"| {r['family']} | {r['scene']}/{r['viewpoint']} | {_num(r['mae_m'])} | " + " | ".join(cells)
+                     + " |")
+    lines += ["", "## Per family (`uncertainty`)", "",
+              "| family | frames | mean rho | median rho | min rho | frames with rho >= 0.5 | pooled rho | "
+              "pooled AUSE m |", "|---|---:|---:|---:|---:|---:|---:|---:|"]
+    for name, s in [*ranking["families"].items(), ("**all**", ranking["all"])]:
+        share = round(s["share_at_least_bar"] * s["frames"]) if np.isfinite(s["share_at_least_bar"]) else 0
+        lines.append(f"| {name} | {s['frames']} | {_num(s['mean'])} | {_num(s['median'])} | {_num(s['min'])} | "
+                     f"{share} of {s['frames']} | {_num(s['pooled']['rho:uncertainty'])} | "
+                     f"{_num(s['pooled']['ause_m:uncertainty'])} |")
+    per = ranking["per_frame"]
+    lines += ["", "Mean rho over frames of the other measures: "
+              + ", ".join(f"`{n}` {_num(per[n]['mean'])}" for n in (*MEASURES[1:], CONFIDENCE)) + "."]
+    lines += ["", f"## Calibration check (rotation {calib['rotation_deg']:g} deg of U and R, seed {calib['seed']}, "
+              f"threshold {calib['threshold']:g})", ""]
+    if calib_rows:
+        lines += ["| family | frame | exact score | flagged | perturbed score | flagged | separated |",
+                  "|---|---|---:|---|---:|---|---|"]
+        for r in calib_rows:
+            lines.append(f"| {r['family']} | {r['scene']}/{r['viewpoint']} | {_num(r['exact_score'])} | "
+                         f"{'yes' if r['exact_flagged'] else 'no'} | {_num(r['perturbed_score'])} | "
+                         f"{'yes' if r['perturbed_flagged'] else 'no'} | {'yes' if r['separated'] else 'no'} |")
+        lines += ["", f"Separated (exact not flagged, perturbed flagged): {calib['separated']} of {calib['frames']} "
+                  f"frames; every perturbed score above every exact one: "
+                  f"{'yes' if calib['every_perturbed_above_every_exact'] else 'no'} (highest exact "
+                  f"{_num(calib['max_exact_score'])}, lowest perturbed {_num(calib['min_perturbed_score'])})."]
+    else:
+        lines.append("Not run (`--calibration-frames 0`).")
+    a = ranking["all"]
+    lines += ["", "## Against issue 19's bars", "",
+              f"- `uncertainty` rho: mean over frames {_num(a['mean'])}, median {_num(a['median'])}, min "
+              f"{_num(a['min'])}; {round(a['share_at_least_bar'] * a['frames'])} of {a['frames']} frames at "
+              f"least {RHO_BAR} (mean at least {RHO_BAR}: {'yes' if a['mean'] >= RHO_BAR else 'no'}; every frame: "
+              f"{'yes' if a['min'] >= RHO_BAR else 'no'}; pooled rho {_num(a['pooled']['rho:uncertainty'])})."]
+    if calib_rows:
+        bar = "yes" if calib["separated"] >= 0.9 * calib["frames"] else "no"
+        note = "" if calib["frames"] == 10 else f"; {calib['frames']} frames checked, not 10"
+        lines.append(f"- calibration check: {calib['separated']} of {calib['frames']} frames separated (at least 9 "
+                     f"in 10: {bar}{note}).")
+    return "\n".join(lines) + "\n"
+
+
+# --------------------------------------------------------------------------------------------------- inputs
+
+
+def resolve_method(label: str) -> Method:
+    """The registered method ``label``.
+
+    Raises:
+        UserError: an unknown label (the registry's message).
+    """
+    try:
+        return get_methods([label])[0]
+    except ValueError as exc:
+        raise UserError(f"--method {label}: {exc}") from None
+
+
+def ground_truth_frames(data_root: Path, count: int | None = None) -> tuple[list[FrameRef], list[FrameRef]]:
+    """The frames under ``data_root`` that have ground truth, in (scene, viewpoint) order, the first ``count``
+    of them (None: all), and the frames without ground truth (skipped).
+
+    Raises:
+        UserError: a missing data root, no frames, a malformed frame.json, duplicate frames
+            (:func:`harness.jobs.evaluate.select_frames`), or no frame with ground truth.
+    """
+    refs = sorted(select_frames(data_root), key=lambda r: (r.scene, r.viewpoint))
+    with_gt = [r for r in refs if any((r.path / f"{n}.distance.exr").exists() for n in CAMERA_NAMES)]
+    without = [r for r in refs if r not in with_gt]
+    if not with_gt:
+        raise UserError(f"{data_root}: no frame has ground-truth distance ({len(refs)} frame(s), e.g. "
+                        f"{refs[0].path}); the validation needs true error (render frames with tri360 render)")
+    return (with_gt if count is None else with_gt[:count]), without
+
+
+@dataclass(frozen=True)
+class StoredMaps:
+    """Where a results set holds one frame's maps of the reused method: distance map, confidence map or None."""
+
+    distance: Path
+    confidence: Path | None
+
+
+def stored_maps(results: Path, label: str, method: Method, refs: Sequence[FrameRef],
+                renderers: dict[tuple[str, str], dict]) -> dict[tuple[str, str], StoredMaps]:
+    """The maps that results set ``results`` holds for method ``label`` on each of ``refs``, checked before any
+    work: its ``config.json`` records for ``label`` the configuration of ``method`` (labels aside), it has a row of
+    ``label`` and a distance map for every frame, and each frame it evaluated has the provenance (``renderer``)
+    of the frame under the data root.
+
+    Raises:
+        UserError: one line naming the results set (or file) and the label.
+    """
+    rs = read_results_set(results)
+    config = read_config(results)
+    if config is None:
+        raise UserError(f"{results / 'config.json'}: file is missing, so the configuration of {label!r} cannot be "
+                        f"checked against {method.label!r}'s (leave out --results to run the method)")
+    methods = config.get("methods", {})
+    if label not in methods:
+        raise UserError(f"--results {results}: records no method {label!r} (it has: "
+                        f"{', '.join(sorted(methods)) or 'none'}); give --results-label")
+    diff = config_difference(methods[label], method.config())
+    if diff is not None:
+        raise UserError(f"--results {results}: method {label!r} there was run with another configuration than "
+                        f"{method.label!r} (first difference, there vs {method.label!r}: {diff}); leave out "
+                        f"--results to run {method.label!r}")
+    frames = {(f.get("scene"), f.get("viewpoint")): f for f in config.get("frames", []) if isinstance(f, dict)}
+    table = rs.results[rs.results["method"] == label]
+    rows = {(r.scene, r.viewpoint): r for r in table.itertuples(index=False)}
+    out = {}
+    for ref in refs:
+        key = (ref.scene, ref.viewpoint)
+        if key not in rows:
+            raise UserError(f"--results {results}: holds no row of {label!r} for frame {ref.scene}/{ref.viewpoint} "
+                            f"({ref.path})")
+        known = frames.get(key, {}).get("renderer")
+        if known is not None and jsonio.to_jsonable(known) != jsonio.to_jsonable(renderers[key]):
+            raise UserError(f"--results {results}: its frame {ref.scene}/{ref.viewpoint} is not the one at "
+                            f"{ref.path} (other provenance in frame.json); evaluate that data root, or leave out "
+                            "--results")
+        r = rows[key]
+        dist, conf = map_paths(ref.scene, ref.viewpoint, label, flow=r.flow, rectify=r.rectify, variant=r.variant,
+                               source=str(results / "results.csv"))
+        if not (results / dist).is_file():
+            raise UserError(f"{results / dist}: file is missing (the distance map of {label!r} for "
+                            f"{ref.scene}/{ref.viewpoint})")
+        out[key] = StoredMaps(results / dist, results / conf if (results / conf).is_file() else None)
+    return out
+
+
+def _read_stored(maps: StoredMaps, frame) -> tuple[np.ndarray, np.ndarray | None]:
+    """The stored distance (and confidence) of ``frame``, refused (named) when not of the frame's size."""
+    d = read_float_map(maps.distance, DISTANCE_CHANNEL)
+    c = None if maps.confidence is None else read_float_map(maps.confidence, CONFIDENCE_CHANNEL)
+    for path, arr in ((maps.distance, d), (maps.confidence, c)):
+        if arr is not None and arr.shape != (frame.height, frame.width):
+            raise UserError(f"{path}: a {arr.shape[1]}x{arr.shape[0]} map for the {frame.width}x{frame.height} "
+                            f"frame {frame.path}")
+    return d, c
+
+
+def _run(method: Method, frame) -> tuple[np.ndarray, np.ndarray | None]:
+    """The method's distance and confidence of ``frame``, float32 as ``evaluate`` stores them."""
+    try:
+        output = run_methods(frame, [method])[method.label]
+    except ValueError as exc:
+        raise UserError(f"{frame.path}: {exc}") from None
+    d = np.asarray(output.distance, np.float32)
+    if d.shape != (frame.height, frame.width):
+        raise UserError(f"method {method.label}: returned a {d.shape} distance map for the "
+                        f"{frame.width}x{frame.height} frame {frame.path}")
+    conf = output.confidence
+    if conf is not None and np.shape(conf) != d.shape:
+        raise UserError(f"method {method.label}: returned a {np.shape(conf)} confidence map for the "
+                        f"{frame.width}x{frame.height} frame {frame.path}")
+    return d, None if conf is None else np.asarray(conf, np.float32)
+
+
+# ------------------------------------------------------------------------------------------------------ job
+
+
+def _check_count(value, option: str, minimum: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < minimum:
+        raise UserError(f"{option} must be an integer >= {minimum}, got {value!r}")
+    return int(value)
+
+
+def validate_quality(data_root: Path, method_label: str, out: Path, results: Path | None = None,
+                     results_label: str | None = None, calibration_frames: int = 10, rotation: float = 0.5,
+                     seed: int = 1, frames: int | None = None, progress: bool = True) -> tuple[dict, str]:
+    """Run both checks of the module doc on ``data_root`` and write ``out``.
+
+    Everything is checked before the first method runs: the options, the method, the frames and their ground
+    truth, the reused results set, and ``out`` (:func:`harness.data.outputs.check_output`: a study directory
+    that is not an input, inside one or around one).
+
+    Args:
+        method_label: a registered method label.
+        results: a results set whose maps of ``results_label`` (default ``method_label``) are used instead of
+            running the method for part 1 (the calibration check always runs the method on the perturbed frames).
+        calibration_frames: frames of the calibration check (0 = none; fewer when the data root has fewer).
+        rotation: degrees of rotation error of U and R; seed: the perturbation's seed.
+        frames: only the first N frames with ground truth (None = all).
+    Returns:
+        ``(validation.json's contents, validation.md's text)``.
+    Raises:
+        UserError: bad input (one line naming it), before any work where it can be known then.
+    """
+    started = time.time()
+    data_root, out = Path(data_root), Path(out)
+    method = resolve_method(method_label)
+    try:
+        rotation = float(P.parse_level("rotation", str(rotation)))
+    except ValueError as exc:
+        raise UserError(f"--rotation: {exc}") from None
+    seed = _check_count(seed, "--seed", 0)
+    calibration_frames = _check_count(calibration_frames, "--calibration-frames", 0)
+    if frames is not None:
+        frames = _check_count(frames, "--frames", 1)
+    if results_label is not None and results is None:
+        raise UserError("--results-label needs --results (the results set whose maps it names)")
+    refs, skipped = ground_truth_frames(data_root, frames)
+    results = None if results is None else Path(results)
+    check_output(out, "study", [data_root, *(r.path for r in refs), *([results] if results else [])])
+    renderers = {}
+    for ref in refs:  # every frame and its ground truth, before any work
+        renderers[(ref.scene, ref.viewpoint)] = scorable_frame(ref.path).renderer
+    infos = [{"scene": r.scene, "viewpoint": r.viewpoint, "renderer": renderers[(r.scene, r.viewpoint)]}
+             for r in refs]
+    labelled = frame_labels(infos)
+    families = {k: frame_family(k[0], v["family"]) for k, v in labelled.items()}
+    stored = None if results is None else stored_maps(results, results_label or method_label, method, refs,
+                                                      renderers)
+    chosen = set(calibration_choice(list(families), families, calibration_frames))
+    items: list[FrameValidation] = []
+    calib_rows: list[dict] = []
+    with staged_directory(out) as stage, progress_bar(len(refs) + len(chosen), "validate", "step",
+                                                      progress) as bar:
+        for ref in refs:
+            key = (ref.scene, ref.viewpoint)
+            frame = scorable_frame(ref.path)
+            distance, confidence = _read_stored(stored[key], frame) if stored else _run(method, frame)
+            item = frame_validation(frame, distance, confidence)
+            item.row = {"scene": ref.scene, "viewpoint": ref.viewpoint, "family": families[key],
+                        **{k: v for k, v in item.row.items() if k not in ("scene", "viewpoint")}}
+            items.append(item)
+            bar.set_postfix_str(f"{ref.scene}/{ref.viewpoint} rho {_num(item.row['rho:uncertainty'])}")
+            bar.update(1)
+            if key not in chosen:
+                continue
+            told = checked_perturbation(ref.path, frame, [("rotation", rotation)], seed, stage, "--rotation")
+            d_off, _ = _run(method, told)
+            off = calibration_score(told, d_off)["score"]
+            exact = item.row["calibration_score"]
+            exact_flag, off_flag = bool(exact > CALIBRATION_THRESHOLD), bool(off > CALIBRATION_THRESHOLD)
+            calib_rows.append({"scene": ref.scene, "viewpoint": ref.viewpoint, "family": families[key],
+                               "rotation_deg": rotation, "seed": seed, "exact_score": exact,
+                               "exact_flagged": exact_flag, "perturbed_score": off, "perturbed_flagged": off_flag,
+                               "separated": (not exact_flag) and off_flag,
+                               "perturbed_mae_m": summary(d_off, told.distance["C"])["mae_m"]})
+            bar.set_postfix_str(f"{ref.scene}/{ref.viewpoint} calibration {_num(exact)} -> {_num(off)}")
+            bar.update(1)
+        calib_rows.sort(key=lambda r: (r["family"], r["scene"], r["viewpoint"]))
+        rows = [i.row for i in items]
+        result = {
+            "format": FORMAT, "software": software(), "created_unix_s": round(started, 3),
+            "data_root": str(data_root.resolve()), "frames": len(refs),
+            "skipped_without_ground_truth": [str(r.path) for r in skipped],
+            "method": {"label": method.label, "configuration": method.config()},
+            "distances": ({"source": "run"} if results is None else
+                          {"source": "results set", "path": str(results.resolve()),
+                           "label": results_label or method_label}),
+            "ranking": ranking_summary(items, [r["family"] for r in rows]),
+            "calibration": calibration_summary(calib_rows, rotation, seed, calibration_frames),
+        }
+        text = validation_markdown(result, rows, calib_rows)
+        calib_columns = ["scene", "viewpoint", "family", "rotation_deg", "seed", "exact_score", "exact_flagged",
+                         "perturbed_score", "perturbed_flagged", "separated", "perturbed_mae_m"]
+        atomic_write_text(stage / "validation.csv", pd.DataFrame(rows).to_csv(index=False))
+        atomic_write_text(stage / "calibration.csv",
+                          pd.DataFrame(calib_rows, columns=calib_columns).to_csv(index=False))
+        atomic_write_text(stage / "validation.json", jsonio.dumps(result))
+        atomic_write_text(stage / "validation.md", text)
+        mark_output(stage, "study")
+    return result, text
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog=f"python -m harness.jobs.{PROG}", description=__doc__.splitlines()[0])
+    parser.add_argument("data_root", type=Path, metavar="DATA_ROOT", help="data root of frames with ground truth")
+    parser.add_argument("--method", required=True, metavar="LABEL", help="registered method label (e.g. fused)")
+    parser.add_argument("--out", type=Path, required=True, metavar="DIR", help="output directory (a study directory)")
+    parser.add_argument("--results", type=Path, default=None, metavar="RESULTS_SET",
+                        help="read C's distance maps from this tri360 evaluate results set instead of running the "
+                             "method (for the ranking; its config.json must record LABEL's configuration)")
+    parser.add_argument("--results-label", default=None, metavar="LABEL2",
+                        help="the method's label in the results set (default: LABEL)")
+    parser.add_argument("--calibration-frames", type=int, default=10, metavar="K",
+                        help="frames of the calibration check, round-robin over families (0 = none; default 10)")
+    parser.add_argument("--rotation", type=float, default=0.5, metavar="DEG",
+                        help="rotation error of U and R, degrees (default 0.5)")
+    parser.add_argument("--seed", type=int, default=1, help="seed of the rotation error (default 1)")
+    parser.add_argument("--frames", type=int, default=None, metavar="N",
+                        help="only the first N frames with ground truth, in (scene, viewpoint) order")
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    args = parser.parse_args(argv)
+    try:
+        _, text = validate_quality(args.data_root, args.method, args.out, results=args.results,
+                                   results_label=args.results_label, calibration_frames=args.calibration_frames,
+                                   rotation=args.rotation, seed=args.seed, frames=args.frames,
+                                   progress=not args.quiet)
+    except UserError as exc:
+        print(f"{PROG}: error: {exc}", file=sys.stderr)
+        return 2
+    except OSError as exc:
+        where = f"{exc.filename}: " if exc.filename is not None else ""
+        print(f"{PROG}: error: {where}{exc.strerror or exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"{PROG}: interrupted (the output directory was left as it was)", file=sys.stderr)
+        return 130
+    print(text, end="")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,223 @@
+"""The validation job of the ground-truth-free quality measures (``python -m harness.jobs.validate_quality``) on
+tiny ray-cast frames: its outputs, the calibration check, reuse of a results set's maps and the refusals."""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import io
+import json
+import math
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from harness.data import jsonio
+from harness.data.frame import write_frame
+from harness.data.outputs import read_marker
+from harness.jobs.evaluate import evaluate
+from harness.jobs.validate_quality import (
+    MEASURES,
+    calibration_choice,
+    config_difference,
+    frame_family,
+    main,
+    rank_correlation,
+)
+from harness.render.raycast import render_frame
+from reconstruction.methods.registry import fused_method
+from reconstruction.methods.sweep import SweepMethod
+from reconstruction.quality import CALIBRATION_THRESHOLD
+from reconstruction.sweep.planes import PlaneParams
+from scenes.model import choose_viewpoints
+from scenes.registry import get_scene
+from tests.helpers import make_synthetic_frame
+
+WIDTH = 200
+METHOD = "sweep"
+RHO_COLUMNS = [f"rho:{m}" for m in (*MEASURES, "confidence")]
+
+
+def _box_room_frame():
+    entry, preset = get_scene("box_room")
+    spec = entry.spec(preset, seed=4)
+    return render_frame(spec, choose_viewpoints(spec, 1, 4)[0], WIDTH, "box_room", "vp000")
+
+
+@pytest.fixture(scope="module")
+def data(tmp_path_factory):
+    """A data root of three 200x100 ray-cast frames of two families (synthetic_box vp000/vp001, box_room)."""
+    root = tmp_path_factory.mktemp("qval") / "data"
+    for vp in (0, 1):
+        write_frame(make_synthetic_frame(width=WIDTH, viewpoint=vp), root)
+    write_frame(_box_room_frame(), root)
+    return root
+
+
+def _run(capsys, *args) -> tuple[int, str, str]:
+    capsys.readouterr()
+    code = main([str(a) for a in args])
+    cap = capsys.readouterr()
+    return code, cap.out, cap.err
+
+
+@pytest.fixture(scope="module")
+def validated(data):
+    """The job run on ``data`` with ``sweep`` (2 calibration frames): ``(out, exit status, stdout)``."""
+    out = data.parent / "val"
+    buf_out, buf_err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(buf_out), contextlib.redirect_stderr(buf_err):
+        code = main([str(data), "--method", METHOD, "--out", str(out), "--calibration-frames", "2", "--quiet"])
+    assert buf_err.getvalue() == ""
+    return out, code, buf_out.getvalue()
+
+
+def test_outputs_exist_and_parse(data, validated):
+    out, code, text = validated
+    assert code == 0
+    rows = pd.read_csv(out / "validation.csv")
+    assert sorted(zip(rows["scene"], rows["viewpoint"], strict=True)) == [
+        ("box_room", "vp000"), ("synthetic_box", "vp000"), ("synthetic_box", "vp001")]
+    assert set(rows["family"]) == {"box_room", "synthetic_box"}
+    for col in RHO_COLUMNS:  # sweep gives a confidence: every column has a value
+        rho = rows[col].to_numpy(float)
+        assert np.isfinite(rho).all() and (np.abs(rho) <= 1.0).all(), col
+    assert (rows["valid_px"] > 0.9 * WIDTH * WIDTH / 2).all()
+    assert np.isfinite(rows["ause_m:uncertainty"]).all()
+    summary = json.loads((out / "validation.json").read_text())
+    assert summary["frames"] == 3 and summary["data_root"] == str(data.resolve())
+    assert summary["method"]["configuration"] == jsonio.to_jsonable(SweepMethod().config())
+    assert set(summary["software"]) == {"tri360_version", "commit"}
+    assert summary["ranking"]["all"]["mean"] == pytest.approx(rows["rho:uncertainty"].mean(), abs=1e-12)
+    assert set(summary["ranking"]["families"]) == {"box_room", "synthetic_box"}
+    assert -1.0 <= summary["ranking"]["all"]["pooled"]["rho:uncertainty"] <= 1.0
+    md = (out / "validation.md").read_text()
+    assert text == md and "| box_room | box_room/vp000 |" in md and "## Calibration check" in md
+    assert read_marker(out)["kind"] == "study"
+
+
+def test_calibration_check_flags_the_rotated_frames(validated):
+    out, code, _ = validated
+    assert code == 0
+    calib = pd.read_csv(out / "calibration.csv")
+    # round-robin over the families: one frame of each
+    assert sorted(calib["family"]) == ["box_room", "synthetic_box"] and (calib["rotation_deg"] == 0.5).all()
+    # on these exact ray-cast frames the exact score is about -0.03..-0.05 and the rotated one 0.16..0.17: the
+    # assertions keep wide margins around the threshold
+    assert (calib["exact_score"] < CALIBRATION_THRESHOLD - 0.01).all()
+    assert (calib["perturbed_score"] > CALIBRATION_THRESHOLD + 0.05).all()
+    assert (calib["perturbed_score"] > calib["exact_score"] + 0.1).all()
+    assert calib["separated"].all()
+    summary = json.loads((out / "validation.json").read_text())["calibration"]
+    assert summary["separated"] == 2 and summary["frames"] == 2 and summary["every_perturbed_above_every_exact"]
+
+
+@pytest.fixture(scope="module")
+def results(data):
+    """A results set of ``evaluate`` holding ``sweep`` under another label and a sweep of another configuration."""
+    out = data.parent / "res"
+    other = dataclasses.replace(SweepMethod(), pairs=("U",), label="sweep-u")
+    evaluate(data, out, [SweepMethod(label="sweep-b"), other], report=False, progress=False)
+    return out
+
+
+def test_results_reuse_gives_the_same_rho_as_running_the_method(data, validated, results, tmp_path, capsys):
+    out = tmp_path / "val-reused"
+    code, text, err = _run(capsys, data, "--method", METHOD, "--out", out, "--results", results,
+                           "--results-label", "sweep-b", "--calibration-frames", "0", "--quiet")
+    assert code == 0, err
+    ran = pd.read_csv(validated[0] / "validation.csv").set_index(["scene", "viewpoint"])
+    reused = pd.read_csv(out / "validation.csv").set_index(["scene", "viewpoint"]).loc[ran.index]
+    for col in [*RHO_COLUMNS, "mae_m", "ause_m:uncertainty"]:
+        np.testing.assert_allclose(reused[col], ran[col], rtol=0, atol=1e-9, err_msg=col)
+    summary = json.loads((out / "validation.json").read_text())
+    assert summary["distances"] == {"source": "results set", "path": str(results.resolve()), "label": "sweep-b"}
+    assert summary["calibration"]["frames"] == 0 and "Not run" in text
+
+
+def test_results_of_another_configuration_or_label_are_refused_in_one_line(data, results, tmp_path, capsys):
+    out = tmp_path / "val"
+    for label, words in (("sweep-u", ["'sweep-u'", "another configuration", "pairs"]),
+                         ("absent", ["'absent'", "records no method"])):
+        code, _, err = _run(capsys, data, "--method", METHOD, "--out", out, "--results", results,
+                            "--results-label", label, "--quiet")
+        assert code == 2 and len(err.strip().splitlines()) == 1, err
+        assert all(w in err for w in words), err
+        assert not out.exists()
+
+
+def test_bad_inputs_are_one_line_and_exit_2(data, tmp_path, capsys):
+    a_file = tmp_path / "file.txt"
+    a_file.write_text("x", encoding="utf-8")
+    cases = [
+        ([tmp_path / "missing", "--method", METHOD, "--out", tmp_path / "o1"], "missing"),
+        ([data, "--method", "no-such-method", "--out", tmp_path / "o2"], "no-such-method"),
+        ([data, "--method", METHOD, "--out", a_file], str(a_file)),
+        ([data, "--method", METHOD, "--out", data / "inside"], "input"),
+        ([data, "--method", METHOD, "--out", tmp_path / "o3", "--rotation", "-1"], "--rotation"),
+        ([data, "--method", METHOD, "--out", tmp_path / "o4", "--results-label", "x"], "--results"),
+        ([data, "--method", METHOD, "--out", tmp_path / "o5", "--results", tmp_path / "no-results"], "no-results"),
+    ]
+    for args, word in cases:
+        code, out, err = _run(capsys, *args, "--quiet")
+        assert code == 2 and len(err.strip().splitlines()) == 1 and word in err, (args, err)
+        assert out == ""
+    assert not any((tmp_path / f"o{i}").exists() for i in range(1, 6))
+    assert a_file.read_text(encoding="utf-8") == "x" and not (data / "inside").exists()
+
+
+def test_a_data_root_without_ground_truth_is_refused(data, tmp_path, capsys):
+    root = tmp_path / "nogt"
+    write_frame(dataclasses.replace(make_synthetic_frame(width=64), distance={}), root)
+    code, _, err = _run(capsys, root, "--method", METHOD, "--out", tmp_path / "o", "--quiet")
+    assert code == 2 and len(err.strip().splitlines()) == 1 and "ground-truth" in err, err
+
+
+def test_calibration_frames_go_round_robin_over_sorted_families():
+    keys = [("a-s1", "vp000"), ("a-s1", "vp001"), ("a-s1", "vp002"), ("b-s2", "vp000"), ("c-s3", "vp000")]
+    fams = {k: k[0].split("-")[0] for k in keys}
+    assert calibration_choice(keys[::-1], fams, 4) == [("a-s1", "vp000"), ("b-s2", "vp000"), ("c-s3", "vp000"),
+                                                      ("a-s1", "vp001")]
+    assert len(calibration_choice(keys, fams, 10)) == 5 and calibration_choice(keys, fams, 0) == []
+
+
+def test_family_from_provenance_else_from_the_suite_scene_name():
+    assert frame_family("classroom-lecture-s1003", "classroom") == "classroom"
+    assert frame_family("classroom-lecture-s1003", "") == "classroom-lecture"
+    assert frame_family("seminar-s1011", "") == "seminar" and frame_family("hall", "") == "hall"
+
+
+def test_configurations_compare_without_their_label():
+    base = SweepMethod().config()
+    assert config_difference({**base, "label": "renamed"}, base) is None
+    other = dataclasses.replace(SweepMethod(), pairs=("U",)).config()
+    assert config_difference(other, base) == "pairs: ['U'] vs ['U', 'R']"
+    assert config_difference({**base, "kind": "fused"}, base).startswith("kind:")
+    fused = fused_method()
+    renamed = dataclasses.replace(fused, label="fused-b", sweep=dataclasses.replace(fused.sweep, label="sweep-b"))
+    assert config_difference(renamed.config(), fused.config()) is None  # labels inside a method are names too
+    walls = dataclasses.replace(fused, sweep=dataclasses.replace(fused.sweep, planes=PlaneParams(wall_labels=9)))
+    assert config_difference(walls.config(), fused.config()).startswith("sweep.planes.wall_labels: 9 vs ")
+
+
+def test_rank_correlation_counts_nan_as_most_uncertain():
+    err = np.array([0.1, 0.2, 0.3, 0.4])
+    assert rank_correlation(np.array([1.0, 2.0, 3.0, np.nan]), err) == pytest.approx(1.0, abs=1e-12)
+    assert rank_correlation(np.array([4.0, 3.0, 2.0, 1.0]), err) == pytest.approx(-1.0, abs=1e-12)
+    assert math.isnan(rank_correlation(np.ones(4), err)) and math.isnan(rank_correlation(np.ones(2), err[:2]))
+
+
+def test_frames_without_ground_truth_are_skipped_and_frames_keeps_the_first(tmp_path, capsys):
+    root = tmp_path / "mixed"
+    for vp in (1, 0):
+        write_frame(make_synthetic_frame(width=96, viewpoint=vp), root)
+    write_frame(dataclasses.replace(make_synthetic_frame(width=96), scene="real", distance={}), root)
+    out = tmp_path / "val"
+    code, _, err = _run(capsys, root, "--method", METHOD, "--out", out, "--frames", "1", "--calibration-frames", "0",
+                        "--quiet")
+    assert code == 0, err
+    rows = pd.read_csv(out / "validation.csv")
+    assert list(zip(rows["scene"], rows["viewpoint"], strict=True)) == [("synthetic_box", "vp000")]
+    summary = json.loads((out / "validation.json").read_text())
+    assert summary["frames"] == 1 and summary["skipped_without_ground_truth"] == [str(root / "real" / "vp000")]
