@@ -1,7 +1,13 @@
-"""Benchmark of the trinocular sweep: time of each stage at 1000x500 (median of 3 runs), the whole method's time,
-and peak memory (RSS) at 1000x500 and 4000x2000, each size run in a child process.
+"""Benchmark of the sweep-based methods: time of each stage at 1000x500 (median of 3 runs), the whole method's
+time, and peak memory (RSS) at 1000x500 and 4000x2000, each run in a child process; beside it the same at
+1000x500 for a baseline method, measured in the same run, and the goals.
 
-    python -m harness.jobs.bench_sweep [--runs 3] [--big-width 4000] [--method sweep|fused]
+    python -m harness.jobs.bench_sweep [--runs 3] [--big-width 4000] [--method LABEL] [--baseline LABEL|none]
+
+``--method`` is any registered label (default: the default method); ``--baseline`` (default ``fused``) is timed in
+the same run, one run of each in turn, so that both see the same load.  Goals (exit status 1 when one is missed,
+so ``make bench`` fails): the method's median wall time at 1000x500 at most the baseline's, and its peak RSS at
+1000x500 at most :data:`GOAL_PEAK_GB`.
 
 Each stage is reported as wall seconds and process CPU seconds (all threads): on a shared machine the wall time
 is inflated by other jobs, the CPU time much less.
@@ -22,13 +28,14 @@ import time
 import cv2
 import numpy as np
 
+from harness.jobs.bench import goals_status
 from harness.render.raycast import render_frame
-from reconstruction.methods.registry import fused_method
-from reconstruction.methods.sweep import SweepMethod
+from reconstruction.methods.registry import DEFAULT_METHOD, get_methods
 from scenes.model import choose_viewpoints
 from scenes.registry import get_scene
 
 BASE_WIDTH = 1000
+GOAL_PEAK_GB = 1.0  # peak RSS of the method at 1000x500, GB
 
 
 def bench_frame(width: int):
@@ -45,11 +52,11 @@ def bench_frame(width: int):
     return frame
 
 
-def child(width: int, runs: int, method_name: str = "sweep") -> None:
+def child(width: int, runs: int, method_name: str = DEFAULT_METHOD) -> None:
     """Run the method ``runs`` times on a ``width`` frame; print one JSON line with per-stage seconds per run
-    (wall, and ``<stage>_cpu`` process CPU seconds)."""
+    (wall, and ``<stage>_cpu`` process CPU seconds) and the process's peak RSS (``peak_gb``)."""
     frame = bench_frame(width)
-    method = fused_method() if method_name == "fused" else SweepMethod()
+    method = get_methods([method_name])[0]
     out = []
     for _ in range(runs):
         t, c = time.perf_counter(), time.process_time()
@@ -57,50 +64,74 @@ def child(width: int, runs: int, method_name: str = "sweep") -> None:
         wall, cpu = time.perf_counter() - t, time.process_time() - c
         stage_cpu = {f"{k}_cpu": v for k, v in res.info.get("cpu_seconds", {}).items() if k != "total"}
         out.append({**res.seconds, **stage_cpu, "wall": wall, "wall_cpu": cpu})
-    print(json.dumps({"width": width, "runs": out}), flush=True)
+    peak_gb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024 ** 2  # ru_maxrss is KiB on Linux
+    print(json.dumps({"width": width, "runs": out, "peak_gb": peak_gb}), flush=True)
 
 
-def run_child(width: int, runs: int, method_name: str = "sweep") -> tuple[dict, float]:
+def run_child(width: int, runs: int, method_name: str = DEFAULT_METHOD) -> tuple[dict, float]:
     """Run :func:`child` in a fresh process; returns its JSON result and its peak RSS in GB."""
     proc = subprocess.run([sys.executable, "-m", "harness.jobs.bench_sweep", "--child", str(width),
                            "--runs", str(runs), "--method", method_name],
                           capture_output=True, text=True, check=True)
-    peak_gb = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024 ** 2  # ru_maxrss is KiB on Linux
     line = [x for x in proc.stdout.splitlines() if x.startswith("{")][-1]
-    return json.loads(line), peak_gb
+    res = json.loads(line)
+    return res, float(res["peak_gb"])
 
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--runs", type=int, default=3, help="timed runs at 1000x500 (the median is reported)")
     ap.add_argument("--big-width", type=int, default=4000, help="width of the memory run (0 = skip)")
-    ap.add_argument("--method", choices=("sweep", "fused"), default="fused",
-                    help="the method to time (default: fused, what `tri360 reconstruct` runs by default)")
+    ap.add_argument("--method", default=DEFAULT_METHOD,
+                    help=f"the method to time, by label (default: {DEFAULT_METHOD}, what `tri360 reconstruct` runs)")
+    ap.add_argument("--baseline", default="fused",
+                    help="method timed in the same run for the time goal (default: fused; 'none' = no baseline)")
     ap.add_argument("--child", type=int, default=0, help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.child:
         child(args.child, args.runs, args.method)
         return 0
-    # warm-up child: numba compiles (cache=True) once, so the timed child measures steady state
-    run_child(320, 1, args.method)
-    res, _ = run_child(BASE_WIDTH, args.runs, args.method)
-    # RUSAGE_CHILDREN is the max over all children so far: the 1000-wide child is the largest yet
-    peak_small = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024 ** 2
-    stages = [k for k in res["runs"][0] if k not in ("total", "wall") and not k.endswith("_cpu")]
+    try:
+        get_methods([args.method] + ([args.baseline] if args.baseline != "none" else []))
+    except ValueError as exc:
+        print(f"bench_sweep: {exc}", file=sys.stderr)
+        return 2
+    labels = [args.method] + ([args.baseline] if args.baseline not in ("none", args.method) else [])
+    for label in labels:  # warm-up children: numba compiles (cache=True) once, so timed children measure steady state
+        run_child(320, 1, label)
+    runs: dict[str, list[dict]] = {label: [] for label in labels}
+    peak: dict[str, float] = {label: 0.0 for label in labels}
+    for _ in range(args.runs):  # one run of each in turn: both see the same load
+        for label in labels:
+            res, gb = run_child(BASE_WIDTH, 1, label)
+            runs[label].extend(res["runs"])
+            peak[label] = max(peak[label], gb)
 
-    def med(key):
-        return np.median([r.get(key, np.nan) for r in res["runs"]])
+    def med(label, key):
+        return float(np.median([r.get(key, np.nan) for r in runs[label]]))
 
-    print(f"{args.method} at {BASE_WIDTH}x{BASE_WIDTH // 2}, median of {args.runs} runs (seconds, wall / CPU):")
-    for k in stages:
-        print(f"  {k:16s} {med(k):7.2f} / {med(k + '_cpu'):7.2f}")
-    print(f"  {'method total':16s} {med('wall'):7.2f} / {med('wall_cpu'):7.2f}")
-    print(f"peak RSS at {BASE_WIDTH}x{BASE_WIDTH // 2}: {peak_small:.2f} GB")
+    for label in labels:
+        stages = [k for k in runs[label][0] if k not in ("total", "wall") and not k.endswith("_cpu")]
+        print(f"{label} at {BASE_WIDTH}x{BASE_WIDTH // 2}, median of {args.runs} runs (seconds, wall / CPU):")
+        for k in stages:
+            print(f"  {k:16s} {med(label, k):7.2f} / {med(label, k + '_cpu'):7.2f}")
+        print(f"  {'method total':16s} {med(label, 'wall'):7.2f} / {med(label, 'wall_cpu'):7.2f}")
+        print(f"peak RSS at {BASE_WIDTH}x{BASE_WIDTH // 2}: {peak[label]:.2f} GB")
     if args.big_width:
         big, peak_big = run_child(args.big_width, 1, args.method)
-        print(f"peak RSS at {args.big_width}x{args.big_width // 2}: {peak_big:.2f} GB "
+        print(f"{args.method}: peak RSS at {args.big_width}x{args.big_width // 2}: {peak_big:.2f} GB "
               f"(one run, {big['runs'][0]['wall']:.1f} s)")
-    return 0
+    goals = [(peak[args.method] <= GOAL_PEAK_GB,
+              f"{args.method} peak RSS at {BASE_WIDTH}x{BASE_WIDTH // 2} <= {GOAL_PEAK_GB:g} GB: "
+              f"{peak[args.method]:.2f} GB")]
+    if len(labels) > 1:
+        t, b = med(args.method, "wall"), med(args.baseline, "wall")
+        goals.append((t <= b, f"{args.method} at {BASE_WIDTH}x{BASE_WIDTH // 2} no slower than {args.baseline} "
+                              f"(same run, median wall): {t:.2f} s vs {b:.2f} s ({t / b:.2f} x)"))
+    print("goals vs measured:")
+    for ok, text in goals:
+        print(f"  [{'PASS' if ok else 'FAIL'}] {text}")
+    return goals_status([ok for ok, _ in goals])
 
 
 if __name__ == "__main__":
