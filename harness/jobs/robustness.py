@@ -63,7 +63,7 @@ KIND = "robustness"
 """The ``kind`` key's value that makes a study file a robustness study."""
 KEYS = ("kind", "data", "frames", "method", "seed", "levels")
 """The keys of a robustness study file."""
-DEFAULT_METHODS = ("fused", "sweep", "dis-rect:gradient", "deepflow-plain:gradient")
+DEFAULT_METHODS = ("fused-adaptive", "fused", "sweep", "dis-rect:gradient", "deepflow-plain:gradient")
 """The methods when the file names none: the default method, the sweep alone, tri360's flow pipeline and the
 paper's set-up (each flow configuration with the paper's optimised variant)."""
 ORIGINS = {"jpeg": 100}

@@ -42,9 +42,8 @@ from harness.jobs.cluster import ClusterOptions
 from harness.jobs.suite import evaluate_suite
 from reconstruction.methods.base import Method
 from reconstruction.methods.fused import FusedMethod, PriorParams
-from reconstruction.methods.registry import DEFAULT_VARIANTS, fused_method, get_methods
+from reconstruction.methods.registry import DEFAULT_VARIANTS, WALL_PLANES, adaptive_method, fused_method, get_methods
 from reconstruction.methods.sweep import SweepMethod
-from reconstruction.sweep.planes import PlaneParams
 from reports.tables import leaderboard_table
 
 __all__ = ["TOLERANCE", "BASELINES", "CANDIDATE_PRIORS", "AVERAGE_PRIOR", "REFERENCES", "candidate_methods",
@@ -54,9 +53,11 @@ TOLERANCE = 0.05
 BASELINES = ("sweep", "fused")
 DEFAULT_SUITE = Path("suites/tri360-v1.toml")
 
-_WALLS = PlaneParams(wall_labels=9)
+_WALLS = WALL_PLANES
 
-#: the fused candidates: label -> (wall families?, prior weight per pixel), all on ``fused``'s flow and sweep
+#: the fused candidates besides the registered default ``fused-adaptive`` (:func:`reconstruction.methods.registry.
+#: adaptive_method`: wall families, frame agreement 0.6-0.8; the dev selection chose it under the candidate label
+#: ``fused-walls-f0.6-0.8``): label -> (wall families?, prior weight per pixel), all on ``fused``'s flow and sweep
 #: (:class:`reconstruction.methods.fused.PriorParams`, :class:`reconstruction.sweep.planes.PlaneParams`).
 #: A first look at 10 dev frames (classroom, seminar, lab) left out three more that were worse than ``sweep``
 #: pooled: the flow confidence alone, wall families alone, and wall families with the sweep-confidence power only.
@@ -64,7 +65,6 @@ CANDIDATE_PRIORS: dict[str, tuple[bool, PriorParams]] = {
     "fused-c0.5-2": (False, PriorParams(contrast_low=0.5, contrast_high=2.0)),
     "fused-walls-f0.4-0.6": (True, PriorParams(frame_agreement_low=0.4, frame_agreement_high=0.6)),
     "fused-walls-f0.5-0.7": (True, PriorParams(frame_agreement_low=0.5, frame_agreement_high=0.7)),
-    "fused-walls-f0.6-0.8": (True, PriorParams(frame_agreement_low=0.6, frame_agreement_high=0.8)),
     "fused-walls-k1-f0.5-0.7": (True, PriorParams(sweep_confidence_power=1.0, frame_agreement_low=0.5,
                                                   frame_agreement_high=0.7)),
 }
@@ -78,13 +78,13 @@ REFERENCES = tuple(f"dis-rect:{v}" for v in DEFAULT_VARIANTS)
 
 
 def candidate_methods() -> list[Method]:
-    """``sweep``, ``fused``, the sweep with wall families (``sweep-walls``) and one fused method per
-    :data:`CANDIDATE_PRIORS` entry (``fused``'s flow, or ``dis-rect:average`` for :data:`AVERAGE_PRIOR`; its
-    sweep, with wall families where the entry says so)."""
+    """``sweep``, ``fused``, the sweep with wall families (``sweep-walls``), the default ``fused-adaptive`` and one
+    fused method per :data:`CANDIDATE_PRIORS` entry (``fused``'s flow, or ``dis-rect:average`` for
+    :data:`AVERAGE_PRIOR`; its sweep, with wall families where the entry says so)."""
     base = fused_method()
     average = get_methods(["dis-rect:average"])[0]
     walls = dataclasses.replace(base.sweep, planes=_WALLS)
-    out: list[Method] = [SweepMethod(), base, SweepMethod(planes=_WALLS, label="sweep-walls")]
+    out: list[Method] = [SweepMethod(), base, SweepMethod(planes=_WALLS, label="sweep-walls"), adaptive_method()]
     for label, (with_walls, prior) in CANDIDATE_PRIORS.items():
         out.append(FusedMethod(flow=average if label in AVERAGE_PRIOR else base.flow,
                                sweep=walls if with_walls else base.sweep, prior=prior, label=label))

@@ -1,7 +1,9 @@
 """The method registry: built-in methods plus outside ones (entry-point group ``tri360.methods``).
 
-Built in: ``fused`` (the default: the sweep with the flow distance as SGM prior), ``sweep`` (the trinocular
-sphere sweep alone), and every configuration of the paper's flow pipeline, labelled ``<flow>-<rect|plain>:<variant>``
+Built in: ``fused-adaptive`` (the default: the sweep with wall-plane families and the flow distance as an SGM
+prior weighted by how much of the frame flow and sweep agree on), ``fused`` (the previous default: the sweep with
+the flow distance as SGM prior, one constant weight), ``sweep`` (the trinocular sphere sweep alone), and every
+configuration of the paper's flow pipeline, labelled ``<flow>-<rect|plain>:<variant>``
 for each flow backend (:func:`reconstruction.flow.backends.discover_flows`, plus ``oracle``), rectified and
 plain, and each of ``average`` and the refinement variants (:func:`reconstruction.refine.lm.discover_variants`).
 An outside package declares methods with an entry point that loads to a :class:`Method`, a list of them,
@@ -11,27 +13,35 @@ registry each time it is called.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 
 from reconstruction.flow.backends import ORACLE, discover_flows
 from reconstruction.methods.base import Method
 from reconstruction.methods.flow_pipeline import DEFAULT_FLOW, FlowMethod
-from reconstruction.methods.fused import FusedMethod
+from reconstruction.methods.fused import FusedMethod, PriorParams
 from reconstruction.methods.sweep import SweepMethod
 from reconstruction.plugins import merge_registry
 from reconstruction.refine.lm import discover_variants
+from reconstruction.sweep.planes import PlaneParams
 
 __all__ = ["ENTRY_POINT_GROUP", "DEFAULT_CONFIGS", "DEFAULT_METHOD", "DEFAULT_VARIANTS", "PAPER_CONFIG",
-           "builtin_methods", "discover_methods", "get_methods", "flow_methods", "default_methods", "fused_method"]
+           "WALL_PLANES", "ADAPTIVE_PRIOR", "builtin_methods", "discover_methods", "get_methods", "flow_methods",
+           "default_methods", "fused_method", "adaptive_method"]
 
 ENTRY_POINT_GROUP = "tri360.methods"
 #: the paper's set-up: DeepFlow on plain equirect pairs
 PAPER_CONFIG = ("deepflow", False)
 #: flow configurations evaluated by default: tri360's (rectified) and the paper's set-up
 DEFAULT_CONFIGS = [(DEFAULT_FLOW, True), PAPER_CONFIG]
-#: what ``tri360 reconstruct`` runs by default: the most accurate method (measured over the classroom frames,
-#: docs/matching.md): the sweep with the dis-rect:gradient distance as SGM prior
-DEFAULT_METHOD = "fused"
+#: what ``tri360 reconstruct`` runs by default: the method ``python -m harness.jobs.select_matching`` chose on the
+#: dev split of suites/tri360-v1.toml (docs/matching.md), :func:`adaptive_method`
+DEFAULT_METHOD = "fused-adaptive"
+#: the default's plane labels: the sweep's horizontal planes plus 9 labels per wall found by the coarse pass
+WALL_PLANES = PlaneParams(wall_labels=9)
+#: the default's prior weight: ``fused``'s, scaled by the share of pixels where the flow and the plain coarse sweep
+#: agree within 5 %: 0 below 60 %, full above 80 % (:class:`reconstruction.methods.fused.PriorParams`)
+ADAPTIVE_PRIOR = PriorParams(frame_agreement_low=0.6, frame_agreement_high=0.8)
 DEFAULT_VARIANTS = ("average", "angle", "gradient", "color")
 """The variants ``tri360 evaluate`` runs by default: the paper's (``color-rgb`` and ``color-patch``, its next steps,
 measured no better on classroom frames, run when asked for)."""
@@ -77,10 +87,19 @@ def fused_method() -> FusedMethod:
     return FusedMethod(flow=flow_methods([DEFAULT_FLOW], [True], ["gradient"])[0])
 
 
+def adaptive_method() -> FusedMethod:
+    """``fused-adaptive`` (the default): ``fused``'s flow prior in the sweep with :data:`WALL_PLANES`, weighted by
+    :data:`ADAPTIVE_PRIOR` (chosen on the suite's dev split, docs/matching.md)."""
+    base = fused_method()
+    return FusedMethod(flow=base.flow, sweep=dataclasses.replace(base.sweep, planes=WALL_PLANES),
+                       prior=ADAPTIVE_PRIOR, label="fused-adaptive")
+
+
 def builtin_methods() -> list[Method]:
-    """The fused sweep, the trinocular sweep and every configuration of the flow pipeline (all flows incl. the
-    oracle, rectified and plain, all variants)."""
-    return [fused_method(), SweepMethod(), *flow_methods([*discover_flows()[0], ORACLE], [True, False])]
+    """The default (``fused-adaptive``), ``fused``, the trinocular sweep and every configuration of the flow
+    pipeline (all flows incl. the oracle, rectified and plain, all variants)."""
+    return [adaptive_method(), fused_method(), SweepMethod(),
+            *flow_methods([*discover_flows()[0], ORACLE], [True, False])]
 
 
 def discover_methods() -> tuple[dict[str, Method], dict[str, str]]:
@@ -111,9 +130,10 @@ def get_methods(labels: Sequence[str]) -> list[Method]:
 
 
 def default_methods() -> list[Method]:
-    """What ``tri360 evaluate`` reports by default: the most accurate method (``DEFAULT_METHOD``), then tri360's
-    flow pipeline and the paper's set-up, each with the paper's variants (:data:`DEFAULT_VARIANTS`)."""
-    out: list[Method] = [fused_method()]
+    """What ``tri360 evaluate`` reports by default: the default method (``DEFAULT_METHOD``), the previous one
+    (``fused``), then tri360's flow pipeline and the paper's set-up, each with the paper's variants
+    (:data:`DEFAULT_VARIANTS`)."""
+    out: list[Method] = [adaptive_method(), fused_method()]
     for flow, rect in DEFAULT_CONFIGS:
         out.extend(flow_methods([flow], [rect], list(DEFAULT_VARIANTS)))
     return out

@@ -31,7 +31,7 @@ def test_builtin_labels_are_stable_and_unique():
     for label in ("dis-rect:gradient", "deepflow-plain:average", "oracle-rect:color", "farneback-plain:angle"):
         assert label in labels
     assert [m.label for m in default_methods()] == [
-        "fused", "dis-rect:average", "dis-rect:angle", "dis-rect:gradient", "dis-rect:color",
+        "fused-adaptive", "fused", "dis-rect:average", "dis-rect:angle", "dis-rect:gradient", "dis-rect:color",
         "deepflow-plain:average", "deepflow-plain:angle", "deepflow-plain:gradient", "deepflow-plain:color"]
 
 

@@ -11,6 +11,7 @@ import pytest
 
 from harness.jobs.regression import (
     FINAL,
+    REGRESSION_METHODS,
     check,
     load_bounds,
     main,
@@ -22,7 +23,7 @@ from harness.jobs.regression import (
     write_bounds,
 )
 from reconstruction.methods.flow_pipeline import config_label
-from reconstruction.methods.registry import DEFAULT_METHOD, DEFAULT_VARIANTS
+from reconstruction.methods.registry import DEFAULT_VARIANTS
 
 #: the repository's bounds file (the regression job takes it as ``--bounds``: no path is built into the package)
 BOUNDS_PATH = Path(__file__).resolve().parents[1] / "regression_bounds.json"
@@ -200,10 +201,11 @@ def test_committed_bounds_cover_every_regression_key():
     data = load_bounds(BOUNDS_PATH)
     want = {config_label(f, r) for f, r in regression_configs()}
     for scene in ("classroom", "synthetic_box"):
-        assert set(data["bounds"][scene]) == want | {DEFAULT_METHOD}
-        assert set(data["bounds"][scene][DEFAULT_METHOD]) == {FINAL}
-        for label in [*want, DEFAULT_METHOD]:
-            if label != DEFAULT_METHOD:
+        assert set(data["bounds"][scene]) == want | set(REGRESSION_METHODS)
+        for label in REGRESSION_METHODS:
+            assert set(data["bounds"][scene][label]) == {FINAL}
+        for label in [*want, *REGRESSION_METHODS]:
+            if label not in REGRESSION_METHODS:
                 assert set(data["bounds"][scene][label]) == set(DEFAULT_VARIANTS)
             for v, bound in data["bounds"][scene][label].items():
                 measured = data["measured"][scene][label][v]
