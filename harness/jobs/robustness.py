@@ -64,8 +64,8 @@ KIND = "robustness"
 KEYS = ("kind", "data", "frames", "method", "seed", "levels")
 """The keys of a robustness study file."""
 DEFAULT_METHODS = ("fused-adaptive", "fused", "sweep", "dis-rect:gradient", "deepflow-plain:gradient")
-"""The methods when the file names none: the default method, the sweep alone, tri360's flow pipeline and the
-paper's set-up (each flow configuration with the paper's optimised variant)."""
+"""The methods when the file names none: the default method, the previous one (``fused``), the sweep alone,
+tri360's flow pipeline and the paper's set-up (each flow configuration with the paper's optimised variant)."""
 ORIGINS = {"jpeg": 100}
 """Per kind whose severity grows as its level falls, the level the unperturbed frames stand at in tables, plots and
 the doubling level (JPEG quality 100: the closest to no compression); every other kind: 0."""
