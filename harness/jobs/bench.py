@@ -50,8 +50,8 @@ from reconstruction.refine.triangulate import TriangulationLimits
 from scenes.model import choose_viewpoints
 from scenes.registry import get_scene
 
-__all__ = ["AGREE_TOL_M", "goals_status", "run_vectorised", "scipy_pixel", "run_scipy", "agreement", "costs",
-           "compare_variant", "load_or_render_frame", "main"]
+__all__ = ["AGREE_TOL_M", "goals_status", "report_goals", "run_vectorised", "scipy_pixel", "run_scipy", "agreement",
+           "costs", "compare_variant", "load_or_render_frame", "main"]
 
 AGREE_TOL_M = 1e-4  # |d_vec - d_scipy| counted as "the same result", metres
 GOAL_AGREE = 0.999  # share of subset pixels that must agree
@@ -246,6 +246,14 @@ def goals_status(results) -> int:
     return 0 if all(results) else 1
 
 
+def report_goals(goals, out=print) -> int:
+    """Print each ``(met, text)`` goal as a ``[PASS]`` / ``[FAIL]`` line through ``out``; return the exit status
+    (:func:`goals_status`)."""
+    for ok, text in goals:
+        out(_goal(ok, text))
+    return goals_status([ok for ok, _ in goals])
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m harness.jobs.bench", description=__doc__.split("\n\n")[0])
     ap.add_argument("--width", type=int, default=1000, help="frame width in pixels (height = width / 2)")
@@ -338,11 +346,10 @@ def main(argv: list[str] | None = None) -> int:
          f"peak memory <= {GOAL_PEAK_MB / 1024:g} GB: {peak_reconstruct:.0f} MB (reconstruct), "
          f"{peak:.0f} MB (whole bench)"),
     ]
-    for ok, text in goals:
-        out(_goal(ok, text))
+    status = report_goals(goals, out)
     smallest = min((r["speedup"] for r in rows.values()), default=float("nan"))
     out(f"refine speedup vs per-pixel scipy: {smallest:.0f} x")
-    return goals_status([ok for ok, _ in goals])
+    return status
 
 
 if __name__ == "__main__":

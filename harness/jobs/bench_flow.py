@@ -28,7 +28,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from harness.jobs.bench import load_or_render_frame
+from harness.jobs.bench import load_or_render_frame, report_goals
 from reconstruction.flow.deepflow import DeepFlowParams, deep_flow
 from reconstruction.flow.deepmatching import DeepMatchingParams, deep_matching_both
 from reconstruction.flow.matching import match_pair
@@ -100,9 +100,7 @@ def _run(args, root: Path) -> int:
     goals = [(fr["seconds"] <= args.max_seconds, f"frame deepflow flow (2 pairs, both ways) {fr['seconds']:.1f} s "
                                                  f"<= {args.max_seconds:g} s"),
              (fr["peak_gb"] <= args.max_gb, f"its peak RSS {fr['peak_gb']:.2f} GB <= {args.max_gb:g} GB")]
-    for ok, text in goals:
-        print(f"  [{'PASS' if ok else 'FAIL'}] {text}")
-    return 0 if all(ok for ok, _ in goals) else 1
+    return report_goals(goals)
 
 
 if __name__ == "__main__":

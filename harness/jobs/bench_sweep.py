@@ -28,7 +28,7 @@ import time
 import cv2
 import numpy as np
 
-from harness.jobs.bench import goals_status
+from harness.jobs.bench import report_goals
 from harness.render.raycast import render_frame
 from reconstruction.methods.registry import DEFAULT_METHOD, get_methods
 from scenes.model import choose_viewpoints
@@ -129,9 +129,7 @@ def main(argv=None) -> int:
         goals.append((t <= b, f"{args.method} at {BASE_WIDTH}x{BASE_WIDTH // 2} no slower than {args.baseline} "
                               f"(same run, median wall): {t:.2f} s vs {b:.2f} s ({t / b:.2f} x)"))
     print("goals vs measured:")
-    for ok, text in goals:
-        print(f"  [{'PASS' if ok else 'FAIL'}] {text}")
-    return goals_status([ok for ok, _ in goals])
+    return report_goals(goals)
 
 
 if __name__ == "__main__":

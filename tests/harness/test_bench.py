@@ -74,3 +74,10 @@ def test_render_bench_times_the_render_command_end_to_end(capsys):
 def test_goals_status_fails_on_any_missed_goal():
     assert bench.goals_status([True, True]) == 0
     assert bench.goals_status([True, False]) == 1
+
+
+def test_report_goals_prints_one_line_per_goal_and_fails_on_a_missed_one():
+    lines = []
+    assert bench.report_goals([(True, "a <= 1"), (False, "b <= 2")], lines.append) == 1
+    assert lines == ["  [PASS] a <= 1", "  [FAIL] b <= 2"]
+    assert bench.report_goals([(True, "a")], lines.append) == 0
