@@ -26,7 +26,6 @@ on ``dev`` only; run ``--split test`` once, with the chosen method among the can
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -53,8 +52,6 @@ TOLERANCE = 0.05
 BASELINES = ("sweep", "fused")
 DEFAULT_SUITE = Path("suites/tri360-v1.toml")
 
-_WALLS = WALL_PLANES
-
 #: the fused candidates besides the registered default ``fused-adaptive`` (:func:`reconstruction.methods.registry.
 #: adaptive_method`: wall families, frame agreement 0.6-0.8; the dev selection chose it under the candidate label
 #: ``fused-walls-f0.6-0.8``): label -> (wall families?, prior weight per pixel), all on ``fused``'s flow and sweep
@@ -67,10 +64,11 @@ CANDIDATE_PRIORS: dict[str, tuple[bool, PriorParams]] = {
     "fused-walls-f0.5-0.7": (True, PriorParams(frame_agreement_low=0.5, frame_agreement_high=0.7)),
     "fused-walls-k1-f0.5-0.7": (True, PriorParams(sweep_confidence_power=1.0, frame_agreement_low=0.5,
                                                   frame_agreement_high=0.7)),
+    "fused-walls-k1-f0.5-0.7-avg": (True, PriorParams(sweep_confidence_power=1.0, frame_agreement_low=0.5,
+                                                      frame_agreement_high=0.7)),
 }
 #: candidates whose prior is the flow pipeline's unrefined distance (``dis-rect:average``: no LM, so cheaper)
 AVERAGE_PRIOR = ("fused-walls-k1-f0.5-0.7-avg",)
-CANDIDATE_PRIORS["fused-walls-k1-f0.5-0.7-avg"] = CANDIDATE_PRIORS["fused-walls-k1-f0.5-0.7"]
 
 
 #: built-in methods run beside the candidates for the table, not chosen from: tri360's DIS flow pipeline
@@ -83,8 +81,9 @@ def candidate_methods() -> list[Method]:
     :data:`AVERAGE_PRIOR`; its sweep, with wall families where the entry says so)."""
     base = fused_method()
     average = get_methods(["dis-rect:average"])[0]
-    walls = dataclasses.replace(base.sweep, planes=_WALLS)
-    out: list[Method] = [SweepMethod(), base, SweepMethod(planes=_WALLS, label="sweep-walls"), adaptive_method()]
+    default = adaptive_method()
+    walls = default.sweep  # fused's sweep with the wall families
+    out: list[Method] = [SweepMethod(), base, SweepMethod(planes=WALL_PLANES, label="sweep-walls"), default]
     for label, (with_walls, prior) in CANDIDATE_PRIORS.items():
         out.append(FusedMethod(flow=average if label in AVERAGE_PRIOR else base.flow,
                                sweep=walls if with_walls else base.sweep, prior=prior, label=label))
