@@ -63,7 +63,7 @@ from reports.tables import method_summary, quality_summary
 from scenes.registry import discover
 
 __all__ = ["FrameRef", "select_frames", "evaluate", "evaluate_task", "method_groups", "summary_text",
-           "results_config"]
+           "results_config", "checked_maps"]
 
 
 @dataclass(frozen=True)
@@ -233,7 +233,7 @@ def frame_labels(frames: list[dict], suite: dict | None = None) -> dict[tuple[st
     return out
 
 
-def _checked_maps(frame, method: Method, output: MethodOutput) -> tuple[np.ndarray, np.ndarray | None]:
+def checked_maps(frame, method: Method, output: MethodOutput) -> tuple[np.ndarray, np.ndarray | None]:
     """The method's distance and confidence maps, refused (named) when not of the frame's (H, W)."""
     pred = np.asarray(output.distance)
     conf = None if output.confidence is None else np.asarray(output.confidence)
@@ -247,7 +247,7 @@ def _checked_maps(frame, method: Method, output: MethodOutput) -> tuple[np.ndarr
 def _unscored_row(frame, method: Method, output: MethodOutput) -> tuple[dict, dict[str, np.ndarray]]:
     """The results row of one method on a frame without ground truth (empty metrics, ``valid_px`` 0, the
     quality figures of :func:`reconstruction.quality.assess`) and its per-pixel quality maps."""
-    pred, _ = _checked_maps(frame, method, output)
+    pred, _ = checked_maps(frame, method, output)
     maps, quality = assess(frame, pred)
     row = {"scene": frame.scene, "viewpoint": frame.viewpoint, "method": method.label, **flow_fields(method),
            "width": frame.width, "height": frame.height, **dict.fromkeys(METRIC_COLUMNS, float("nan")),
@@ -257,7 +257,7 @@ def _unscored_row(frame, method: Method, output: MethodOutput) -> tuple[dict, di
 
 def _score_rows(frame, method: Method, output: MethodOutput, masks: dict) -> tuple[dict, list[dict], list[dict]]:
     """The results row, the breakdown rows and the region rows of one method on one frame."""
-    pred, conf = _checked_maps(frame, method, output)
+    pred, conf = checked_maps(frame, method, output)
     key = {"scene": frame.scene, "viewpoint": frame.viewpoint, "method": method.label, **flow_fields(method)}
     region_rows = [{**key, **r} for r in region_summaries(frame, pred, conf, masks=masks)]
     overall = next(r for r in region_rows if r["region"] == "all")

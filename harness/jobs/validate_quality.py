@@ -71,7 +71,7 @@ from harness.data.outputs import check_output, mark_output, staged_directory
 from harness.data.provenance import software
 from harness.data.results import map_paths, read_config, read_results_set
 from harness.jobs import perturbations as P
-from harness.jobs.evaluate import FrameRef, frame_labels, scorable_frame, select_frames
+from harness.jobs.evaluate import FrameRef, checked_maps, frame_labels, scorable_frame, select_frames
 from harness.jobs.perturb import checked_perturbation
 from harness.jobs.progress import progress_bar
 from reconstruction.camera.rig import CAMERA_NAMES
@@ -200,14 +200,15 @@ def frame_validation(frame, distance: np.ndarray, confidence: np.ndarray | None)
     gt = np.asarray(frame.distance["C"], np.float64)
     d = np.asarray(distance, np.float64)
     valid = np.isfinite(d) & (d > 0)
-    sel = scored_pixels(gt) & valid
+    scored = scored_pixels(gt)
+    sel = scored & valid
     err = np.abs(d - gt)[sel]
     maps, quality = assess(frame, distance)
     ranked = {m: maps[m] for m in MEASURES}
     if confidence is not None:
         ranked[CONFIDENCE] = -np.asarray(confidence, np.float64)
     row = {"scene": frame.scene, "viewpoint": frame.viewpoint, "width": frame.width, "height": frame.height,
-           "scored_px": int(scored_pixels(gt).sum()), "valid_px": int(sel.sum()),
+           "scored_px": int(scored.sum()), "valid_px": int(sel.sum()),
            "mae_m": summary(d, gt)["mae_m"], "mae_valid_m": float(err.mean()) if err.size else float("nan")}
     curves = {}
     for name in (*MEASURES, CONFIDENCE):
@@ -447,20 +448,14 @@ def _read_stored(maps: StoredMaps, frame) -> tuple[np.ndarray, np.ndarray | None
 
 
 def _run(method: Method, frame) -> tuple[np.ndarray, np.ndarray | None]:
-    """The method's distance and confidence of ``frame``, float32 as ``evaluate`` stores them."""
+    """The method's distance and confidence of ``frame``, float32 as ``evaluate`` stores them (shapes checked by
+    :func:`harness.jobs.evaluate.checked_maps`)."""
     try:
         output = run_methods(frame, [method])[method.label]
     except ValueError as exc:
         raise UserError(f"{frame.path}: {exc}") from None
-    d = np.asarray(output.distance, np.float32)
-    if d.shape != (frame.height, frame.width):
-        raise UserError(f"method {method.label}: returned a {d.shape} distance map for the "
-                        f"{frame.width}x{frame.height} frame {frame.path}")
-    conf = output.confidence
-    if conf is not None and np.shape(conf) != d.shape:
-        raise UserError(f"method {method.label}: returned a {np.shape(conf)} confidence map for the "
-                        f"{frame.width}x{frame.height} frame {frame.path}")
-    return d, None if conf is None else np.asarray(conf, np.float32)
+    d, conf = checked_maps(frame, method, output)
+    return np.asarray(d, np.float32), None if conf is None else np.asarray(conf, np.float32)
 
 
 # ------------------------------------------------------------------------------------------------------ job
