@@ -9,7 +9,20 @@ The measures, all from C's predicted distance ``d`` and the frame's images and *
   (a point occluded in one camera is usually seen by the other).  About 0 at the true distance on an exact frame.
 - **distance residual** (per pixel, metres): the photometric residual divided by how fast the reprojected grey
   level changes with C's distance -- the distance change that would explain it (:func:`distance_residual`).
-- **uncertainty** (per pixel): the geometric mean of the two residuals, the map to rank pixels by.
+- **residual uncertainty** (per pixel): the geometric mean of the two residuals.
+- **geometric uncertainty** (per pixel, metres per radian): how much C's distance moves for a small error of
+  angle, ``d^2 / sqrt(sum_k (|b_k| sin g_k)^2)`` over the baselines ``b_k`` (C-U, C-R) and the angles ``g_k``
+  between the bearing and each baseline -- triangulation gets worse with the square of the distance and along a
+  baseline (:func:`geometric_uncertainty`).
+- **disagreement** (per pixel, unitless; only where the method hands back a *reference*, an independent distance
+  it computed on the way, such as ``fused``'s flow distance): ``|log(d / d_ref)|`` smoothed over a few pixels
+  (:func:`disagreement`).  Where two different estimators disagree, at least one of them is wrong.
+- **uncertainty** (per pixel, the map to rank pixels by): the product of the factors of
+  :data:`UNCERTAINTY_FACTORS` that the prediction has (:func:`uncertainty_factors`, :func:`combine`): the
+  geometric uncertainty, the method's ambiguity ``1 - confidence``, the disagreement plus
+  :data:`DISAGREEMENT_FLOOR` and the square root of the residual uncertainty.  Which factors enter was chosen on
+  the suite's dev split by ``python -m harness.jobs.validate_quality`` (it ranks every subset;
+  docs/real-captures.md).
 - **pair agreement** (per pixel, unitless): no built-in method hands back its C-U and C-R distances separately,
   so this is a reprojection proxy: along each C ray, the distance in ``d * (1 + s)``, ``s`` in
   :data:`SEARCH_STEPS`, that minimises the residual of U alone and that of R alone are found; the measure is
@@ -29,8 +42,10 @@ import numpy as np
 from reconstruction.camera.equirect import bearing_grid, project, project_with_derivative
 from reconstruction.camera.resample import sample_equirect
 
-__all__ = ["SEARCH_STEPS", "CALIBRATION_STEP_DEG", "CALIBRATION_THRESHOLD", "grey", "warped_grey",
-           "photometric_residual", "distance_residual", "pair_agreement", "uncertainty", "calibration_score", "assess"]
+__all__ = ["SEARCH_STEPS", "CALIBRATION_STEP_DEG", "CALIBRATION_THRESHOLD", "FACTORS", "UNCERTAINTY_FACTORS",
+           "DISAGREEMENT_FLOOR", "grey", "warped_grey", "photometric_residual", "distance_residual", "pair_agreement",
+           "residual_uncertainty", "geometric_uncertainty", "disagreement", "uncertainty_factors", "combine",
+           "calibration_score", "assess"]
 
 SEARCH_STEPS = (-0.08, -0.04, -0.02, -0.01, 0.0, 0.01, 0.02, 0.04, 0.08)
 """Relative distance steps of the pair-agreement search along each ray."""
@@ -39,6 +54,16 @@ CALIBRATION_STEP_DEG = 0.25
 CALIBRATION_THRESHOLD = 0.02
 """A calibration score above this flags the frame's told poses as off (chosen on synthetic_box frames,
 docs/real-captures.md)."""
+FACTORS = ("geometric", "ambiguity", "disagreement", "residual")
+"""The factors the per-pixel ``uncertainty`` can be made of (:func:`uncertainty_factors`)."""
+UNCERTAINTY_FACTORS = ("geometric", "ambiguity", "disagreement", "residual")
+"""The factors of the ``uncertainty`` map (those a prediction has; chosen on the suite's dev split by
+``harness.jobs.validate_quality``, docs/real-captures.md)."""
+DISAGREEMENT_FLOOR = 0.02
+"""Added to the disagreement factor (unitless, a relative distance difference of 2 %): two estimators that agree
+to better than that do not make a pixel more trustworthy than the other factors say."""
+DISAGREEMENT_SIGMA_PX = 3.0
+"""Gaussian smoothing of the disagreement, pixels (wrapping in longitude): wrong regions, not single pixels."""
 WINDOW = 5
 _LUMA = np.array([0.299, 0.587, 0.114], dtype=np.float32)
 
@@ -201,22 +226,110 @@ def calibration_score(frame, distance: np.ndarray, step_deg: float = CALIBRATION
     return out
 
 
-def uncertainty(residual: np.ndarray, distance_residual_m: np.ndarray) -> np.ndarray:
-    """The per-pixel quality measure to rank pixels by (higher = less trustworthy): the geometric mean
-    ``sqrt(photometric_residual * distance_residual_m)`` of :func:`photometric_residual` (grey levels) and
-    :func:`distance_residual` (metres); it ranked pixels by true error better than either alone on classroom
-    frames (docs/real-captures.md).  (H, W) float32, NaN where either is NaN."""
+def residual_uncertainty(residual: np.ndarray, distance_residual_m: np.ndarray) -> np.ndarray:
+    """The geometric mean ``sqrt(photometric_residual * distance_residual_m)`` of :func:`photometric_residual`
+    (grey levels) and :func:`distance_residual` (metres).  (H, W) float32, NaN where either is NaN."""
     return np.sqrt(np.asarray(residual, np.float32) * np.asarray(distance_residual_m, np.float32))
 
 
-def assess(frame, distance: np.ndarray) -> tuple[dict[str, np.ndarray], dict]:
-    """All measures of one prediction -> (per-pixel maps ``photometric_residual``, ``distance_residual_m``,
-    ``pair_agreement``, ``uncertainty`` (:func:`uncertainty`); per-frame
-    summary: their medians over valid pixels, ``calibration_score``, ``calibration_flagged`` and the details)."""
+def geometric_uncertainty(frame, distance: np.ndarray) -> np.ndarray:
+    """Triangulation sensitivity of C's distance to an angular error: ``d^2 / sqrt(sum_k (|b_k| sin g_k)^2)``.
+
+    For one pair with baseline ``b`` (metres) and the angle ``g`` between C's bearing and the baseline, a bearing
+    error of ``e`` radians moves the triangulated distance by about ``e * d^2 / (|b| sin g)``; the two pairs
+    combine as independent measurements.
+    Args:
+        frame: frame-like with ``cameras`` C, U, R (told poses).
+        distance: (H, W) C's distance, metres (NaN, inf, <= 0 = none).
+    Returns:
+        (H, W) float32 metres per radian; NaN where ``distance`` is invalid.
+    """
+    d = np.asarray(distance, dtype=np.float64)
+    valid = np.isfinite(d) & (d > 0)
+    h, w = d.shape
+    cam_c = frame.cameras["C"]
+    b = bearing_grid(w, h, rotation=cam_c.rotation)
+    sum_sq = np.zeros((h, w))
+    for k in ("U", "R"):
+        base = np.asarray(frame.cameras[k].position, np.float64) - np.asarray(cam_c.position, np.float64)
+        length = float(np.linalg.norm(base))
+        if length == 0:
+            continue
+        cos_g = b @ (base / length)
+        sum_sq += length ** 2 * np.maximum(1.0 - cos_g ** 2, 0.0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        g = np.where(valid, d ** 2 / np.sqrt(np.maximum(sum_sq, 1e-12)), np.nan)
+    return g.astype(np.float32)
+
+
+def disagreement(distance: np.ndarray, reference: np.ndarray, sigma_px: float = DISAGREEMENT_SIGMA_PX) -> np.ndarray:
+    """How far C's distance is from an independent estimate: ``|log(d / d_ref)|`` smoothed by a Gaussian of
+    ``sigma_px`` pixels (wrapping in longitude).
+
+    Args:
+        distance, reference: (H, W) distances, metres (NaN, inf, <= 0 = none); where the reference is invalid
+            the disagreement before smoothing is 1 (a factor e apart).
+    Returns:
+        (H, W) float32, unitless; NaN where ``distance`` is invalid.
+    """
+    d = np.asarray(distance, np.float64)
+    r = np.asarray(reference, np.float64)
+    valid = np.isfinite(d) & (d > 0)
+    ok = valid & np.isfinite(r) & (r > 0)
+    x = np.ones(d.shape, np.float32)
+    x[ok] = np.abs(np.log(d[ok] / r[ok]))
+    if sigma_px > 0:
+        pad = int(np.ceil(3 * sigma_px))
+        g = np.concatenate([x[:, -pad:], x, x[:, :pad]], axis=1)
+        x = cv2.GaussianBlur(g, (0, 0), sigma_px, borderType=cv2.BORDER_REFLECT)[:, pad:-pad]
+    return np.where(valid, x, np.nan).astype(np.float32)
+
+
+def uncertainty_factors(maps: dict[str, np.ndarray], confidence: np.ndarray | None = None) -> dict[str, np.ndarray]:
+    """The factors of :data:`FACTORS` that a prediction has, from its quality maps (:func:`assess`'s) and the
+    method's confidence: ``geometric`` = ``geometric_m``; ``ambiguity`` = ``1 - confidence`` (when there is one);
+    ``disagreement`` = ``disagreement + DISAGREEMENT_FLOOR`` (when there is a reference); ``residual`` =
+    ``sqrt(residual_uncertainty)``.  Each (H, W) float32, higher = less trustworthy."""
+    out = {"geometric": np.asarray(maps["geometric_m"], np.float32)}
+    if confidence is not None:
+        out["ambiguity"] = (1.0 - np.clip(np.asarray(confidence, np.float32), 0.0, 1.0)).astype(np.float32)
+    if "disagreement" in maps:
+        out["disagreement"] = (np.asarray(maps["disagreement"], np.float32) + np.float32(DISAGREEMENT_FLOOR))
+    out["residual"] = np.sqrt(np.asarray(maps["residual_uncertainty"], np.float32))
+    return out
+
+
+def combine(factors: dict[str, np.ndarray], names) -> np.ndarray:
+    """The product of the factors ``names`` that ``factors`` has (a missing one counts as 1): (H, W) float32,
+    NaN where any used factor is NaN."""
+    used = [factors[n] for n in names if n in factors]
+    if not used:
+        raise ValueError(f"none of the factors {', '.join(names)} is available")
+    return np.prod(np.stack(used), axis=0).astype(np.float32)
+
+
+def assess(frame, distance: np.ndarray, confidence: np.ndarray | None = None,
+           reference: np.ndarray | None = None) -> tuple[dict[str, np.ndarray], dict]:
+    """All measures of one prediction.
+
+    Args:
+        frame: frame-like (``cameras`` with the told poses, ``images``).
+        distance: (H, W) C's distance, metres; confidence: (H, W) the method's confidence in [0, 1] or None;
+        reference: (H, W) an independent distance the method computed on the way (metres) or None.
+    Returns:
+        ``(maps, summary)``: per-pixel maps ``photometric_residual``, ``distance_residual_m``, ``pair_agreement``,
+        ``residual_uncertainty``, ``geometric_m``, ``disagreement`` (with a reference only) and ``uncertainty``
+        (:data:`UNCERTAINTY_FACTORS`); per frame their medians over valid pixels, ``calibration_score``,
+        ``calibration_flagged`` and the details.
+    """
     maps = {"photometric_residual": photometric_residual(frame, distance),
             "distance_residual_m": distance_residual(frame, distance),
             "pair_agreement": pair_agreement(frame, distance)}
-    maps["uncertainty"] = uncertainty(maps["photometric_residual"], maps["distance_residual_m"])
+    maps["residual_uncertainty"] = residual_uncertainty(maps["photometric_residual"], maps["distance_residual_m"])
+    maps["geometric_m"] = geometric_uncertainty(frame, distance)
+    if reference is not None:
+        maps["disagreement"] = disagreement(distance, reference)
+    maps["uncertainty"] = combine(uncertainty_factors(maps, confidence), UNCERTAINTY_FACTORS)
     calib = calibration_score(frame, distance)
     summary = {f"{k}_median": (float(np.nanmedian(v)) if np.isfinite(v).any() else float("nan"))
                for k, v in maps.items()}

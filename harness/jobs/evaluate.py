@@ -234,10 +234,12 @@ def frame_labels(frames: list[dict], suite: dict | None = None) -> dict[tuple[st
 
 
 def checked_maps(frame, method: Method, output: MethodOutput) -> tuple[np.ndarray, np.ndarray | None]:
-    """The method's distance and confidence maps, refused (named) when not of the frame's (H, W)."""
+    """The method's distance and confidence maps, refused (named) when they (or its reference distance) are not
+    of the frame's (H, W)."""
     pred = np.asarray(output.distance)
     conf = None if output.confidence is None else np.asarray(output.confidence)
-    for what, arr in (("distance", pred), ("confidence", conf)):
+    ref = None if output.reference is None else np.asarray(output.reference)
+    for what, arr in (("distance", pred), ("confidence", conf), ("reference distance", ref)):
         if arr is not None and arr.shape != (frame.height, frame.width):
             raise UserError(f"method {method.label}: returned a {arr.shape} {what} map for the "
                             f"{frame.width}x{frame.height} frame {frame.path}")
@@ -247,8 +249,8 @@ def checked_maps(frame, method: Method, output: MethodOutput) -> tuple[np.ndarra
 def _unscored_row(frame, method: Method, output: MethodOutput) -> tuple[dict, dict[str, np.ndarray]]:
     """The results row of one method on a frame without ground truth (empty metrics, ``valid_px`` 0, the
     quality figures of :func:`reconstruction.quality.assess`) and its per-pixel quality maps."""
-    pred, _ = checked_maps(frame, method, output)
-    maps, quality = assess(frame, pred)
+    pred, conf = checked_maps(frame, method, output)
+    maps, quality = assess(frame, pred, conf, output.reference)
     row = {"scene": frame.scene, "viewpoint": frame.viewpoint, "method": method.label, **flow_fields(method),
            "width": frame.width, "height": frame.height, **dict.fromkeys(METRIC_COLUMNS, float("nan")),
            "valid_px": 0, "seconds": round(output.total_seconds, 4), **{c: quality[c] for c in QUALITY_COLUMNS}}

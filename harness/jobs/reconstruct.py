@@ -20,8 +20,6 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
-import numpy as np
-
 from harness.data import jsonio
 from harness.data.atomic import atomic_write_bytes, atomic_write_text
 from harness.data.errors import UserError
@@ -36,6 +34,7 @@ from harness.data.predictions import (
     write_prediction,
 )
 from harness.data.provenance import software
+from harness.jobs.evaluate import checked_maps
 from harness.jobs.progress import progress_bar
 from reconstruction.methods.base import Method, MethodOutput, run_methods
 from reconstruction.quality import assess
@@ -119,14 +118,11 @@ def reconstruct_to(frame_dir: Path, out: Path, method: Method, progress: bool = 
     check_one_method(out, method)
     desc = f"{frame.scene}/{frame.viewpoint} {method.label}"
     output = run_with_progress(frame, [method], desc, progress)[method.label]
-    for what, arr in (("distance", output.distance), ("confidence", output.confidence)):
-        if arr is not None and np.shape(arr) != (frame.height, frame.width):
-            raise UserError(f"method {method.label}: returned a {np.shape(arr)} {what} map for the "
-                            f"{frame.width}x{frame.height} frame {frame_dir}")
+    checked_maps(frame, method, output)
     info = {"frame": str(Path(frame_dir).resolve()), "scene": frame.scene, "viewpoint": frame.viewpoint,
             "method": method.label, "config": method.config(), "seconds": output.seconds, "info": output.info,
             "software": software()}
-    quality_maps, info["quality"] = assess(frame, output.distance)
+    quality_maps, info["quality"] = assess(frame, output.distance, output.confidence, output.reference)
     if frame.has_ground_truth:
         info["metrics"] = summary(output.distance, frame.distance["C"], output.confidence)
     method_info = _method_info(method)

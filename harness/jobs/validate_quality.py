@@ -14,20 +14,26 @@ on a data root of frames with ground truth (a suite's split: ``tri360 render --s
    the distance map that a ``tri360 evaluate`` results set holds for the frame under ``--results-label`` (default
    LABEL), accepted only when that set's ``config.json`` records for it the configuration of LABEL (method labels
    aside: a selection run's candidate may become the registered default under another name) -- goes through
-   :func:`reconstruction.quality.assess`.  Over the validly predicted pixels with ground truth, the Spearman rank
+   :func:`reconstruction.quality.assess` with the method's confidence and, for a method that hands back a
+   reference distance (``fused``'s family: its flow method, read from the same results set under that method's
+   label), the reference.  Over the validly predicted pixels with ground truth, the Spearman rank
    correlation ``rho`` of each measure (:data:`MEASURES`; and the method's own confidence, negated, where it gives
    one) with the true absolute error, and the measure's AUSE (:func:`reports.metrics.sparsification_curves`, the
    measure negated as the confidence: pixels removed most uncertain first).  A pixel whose measure is not a
    number counts as the most uncertain (as in the sparsification).  Per family (the frame's provenance names it;
    else the scene name up to ``-s<seed>``) and over all frames: the mean, median and minimum of the frames' rho,
-   the share of frames with rho >= :data:`RHO_BAR`, and the rho and AUSE of the family's pixels pooled.
+   the share of frames with rho >= :data:`RHO_BAR`, and the rho and AUSE of the family's pixels pooled.  Also
+   the rho of every product of uncertainty factors (:func:`factor_subsets` of
+   :data:`reconstruction.quality.FACTORS`) and the one with the highest mean rho: how
+   :data:`reconstruction.quality.UNCERTAINTY_FACTORS` is chosen on the suite's dev split.
 2. **Calibration check.**  ``--calibration-frames`` frames, chosen round-robin over the families in sorted order
    (each family's frames in order), are perturbed in memory with ``--rotation`` degrees of rotation error of U
    and R and ``--seed`` (:func:`harness.jobs.perturb.checked_perturbation`, as ``tri360 perturb --apply
    rotation=...`` does), the method is run on the perturbed frame, and the :func:`reconstruction.quality.
    calibration_score` of the exact frame (from the distance of part 1) and of the perturbed one are compared with
    :data:`reconstruction.quality.CALIBRATION_THRESHOLD`.  A frame is *separated* when the exact frame is not
-   flagged and the perturbed one is.
+   flagged and the perturbed one is.  The summary also gives the threshold that separates most of the checked
+   frames (:func:`choose_threshold`): how ``CALIBRATION_THRESHOLD`` is chosen on the dev split.
 
 ``DIR`` (a study directory: absent, empty or one tri360 wrote; built in a staging directory and swapped in whole)
 gets
@@ -35,7 +41,8 @@ gets
 - ``validation.csv``: one row per frame: ``scene, viewpoint, family, width, height, scored_px`` (pixels with
   ground truth), ``valid_px`` (of those, validly predicted: the pixels ranked), ``mae_m`` (as ``evaluate`` scores
   it), ``mae_valid_m`` (over the ranked pixels), ``rho:<m>`` and ``ause_m:<m>`` for every measure of
-  :data:`MEASURES` and ``confidence`` (empty for a method without one), ``uncertainty_median``,
+  :data:`MEASURES` and ``confidence`` (empty for a method without one), ``rho:factors:<a*b...>`` for every
+  factor subset, ``uncertainty_median``,
   ``calibration_score`` and ``calibration_flagged`` of the exact frame;
 - ``calibration.csv``: one row per checked frame: ``scene, viewpoint, family, rotation_deg, seed, exact_score,
   exact_flagged, perturbed_score, perturbed_flagged, separated, perturbed_mae_m``;
@@ -51,6 +58,7 @@ one line and exit status 2, Ctrl-C one line and 130, and either way ``DIR`` is l
 from __future__ import annotations
 
 import argparse
+import itertools
 import re
 import sys
 import time
@@ -77,17 +85,27 @@ from harness.jobs.progress import progress_bar
 from reconstruction.camera.rig import CAMERA_NAMES
 from reconstruction.methods.base import Method, run_methods
 from reconstruction.methods.registry import get_methods
-from reconstruction.quality import CALIBRATION_THRESHOLD, assess, calibration_score
+from reconstruction.quality import (
+    CALIBRATION_THRESHOLD,
+    FACTORS,
+    UNCERTAINTY_FACTORS,
+    assess,
+    calibration_score,
+    combine,
+    uncertainty_factors,
+)
 from reports.metrics import ause, pooled_sparsification_curves, scored_pixels, sparsification_curves, summary
 
 __all__ = ["FORMAT", "MEASURES", "RHO_BAR", "rank_correlation", "frame_family", "calibration_choice",
-           "config_difference", "frame_validation", "validate_quality", "main"]
+           "config_difference", "frame_validation", "factor_subsets", "subset_key", "choose_subset",
+           "choose_threshold", "validate_quality", "main"]
 
 FORMAT = "tri360-quality-validation/1"
 """The ``format`` of ``validation.json``."""
-MEASURES = ("uncertainty", "photometric_residual", "distance_residual_m", "pair_agreement")
+MEASURES = ("uncertainty", "photometric_residual", "distance_residual_m", "pair_agreement", "residual_uncertainty",
+            "geometric_m", "disagreement")
 """The per-pixel maps of :func:`reconstruction.quality.assess` that are validated (higher = less trustworthy);
-``uncertainty`` is the one to rank pixels by."""
+``uncertainty`` is the one to rank pixels by (``disagreement`` only for methods that give a reference distance)."""
 CONFIDENCE = "confidence"
 RHO_BAR = 0.5
 """Issue 19's bar for the rank correlation of the default method."""
@@ -109,6 +127,50 @@ def rank_correlation(measure: np.ndarray, error: np.ndarray) -> float:
         warnings.simplefilter("ignore")  # a constant input: NaN, said by the result itself
         rho = stats.spearmanr(m, e).statistic
     return float(rho)
+
+
+def factor_subsets(names: Sequence[str] = FACTORS) -> list[tuple[str, ...]]:
+    """Every non-empty subset of the uncertainty factors ``names``, in order of size, then of ``names``."""
+    return [tuple(c) for k in range(1, len(names) + 1) for c in itertools.combinations(names, k)]
+
+
+def subset_key(names: Sequence[str]) -> str:
+    """The column of a factor subset: ``factors:a*b``."""
+    return "factors:" + "*".join(names)
+
+
+def choose_subset(means: dict[str, float]) -> str | None:
+    """The factor subset (a :func:`subset_key`) with the highest mean rho over frames; a tie goes to the smaller
+    subset (listed first).  None when no mean is finite."""
+    best = None
+    for key, value in means.items():
+        if np.isfinite(value) and (best is None or value > means[best]):
+            best = key
+    return best
+
+
+def choose_threshold(exact: Sequence[float], perturbed: Sequence[float]) -> dict:
+    """The calibration threshold that separates most frames (exact score <= t < perturbed score), the middle of
+    the widest interval of such thresholds between two consecutive scores; and the count it separates.
+
+    Args:
+        exact, perturbed: the calibration scores of the exact and the perturbed frames (NaN = never separated).
+    Returns:
+        ``{"threshold": t, "separated": n, "frames": N}`` (t NaN without finite scores).
+    """
+    e = np.asarray(exact, np.float64)
+    p = np.asarray(perturbed, np.float64)
+    scores = np.unique(np.concatenate([e[np.isfinite(e)], p[np.isfinite(p)]]))
+    if scores.size < 2:
+        return {"threshold": float(scores[0]) if scores.size else float("nan"),
+                "separated": int(np.sum((e <= scores[0]) & (p > scores[0]))) if scores.size else 0,
+                "frames": int(e.size)}
+    mids = (scores[:-1] + scores[1:]) / 2
+    widths = np.diff(scores)
+    counts = np.array([int(np.sum((e <= t) & (p > t))) for t in mids])
+    best = np.flatnonzero(counts == counts.max())
+    i = int(best[np.argmax(widths[best])])
+    return {"threshold": float(mids[i]), "separated": int(counts[i]), "frames": int(e.size)}
 
 
 def frame_family(scene: str, labelled: str) -> str:
@@ -189,13 +251,18 @@ class FrameValidation:
     curves: dict[str, tuple] = field(default_factory=dict)
 
 
-def frame_validation(frame, distance: np.ndarray, confidence: np.ndarray | None) -> FrameValidation:
-    """Rank correlation and AUSE of every measure (and of the method's confidence, negated) on one frame.
+def frame_validation(frame, distance: np.ndarray, confidence: np.ndarray | None,
+                     reference: np.ndarray | None = None) -> FrameValidation:
+    """Rank correlation and AUSE of every measure (and of the method's confidence, negated) on one frame, and the
+    rank correlation of every product of uncertainty factors (:func:`factor_subsets`; ``rho:factors:...``, NaN
+    for a subset with a factor the prediction lacks).
 
     Args:
         frame: a frame with ground truth (``distance["C"]``, metres).
         distance: (H, W) C's predicted distance, metres (NaN, inf, <= 0 = no prediction).
         confidence: (H, W) the method's confidence (higher = more trustworthy) or None.
+        reference: (H, W) the method's reference distance (:class:`reconstruction.methods.base.MethodOutput`),
+            metres, or None.
     """
     gt = np.asarray(frame.distance["C"], np.float64)
     d = np.asarray(distance, np.float64)
@@ -203,8 +270,8 @@ def frame_validation(frame, distance: np.ndarray, confidence: np.ndarray | None)
     scored = scored_pixels(gt)
     sel = scored & valid
     err = np.abs(d - gt)[sel]
-    maps, quality = assess(frame, distance)
-    ranked = {m: maps[m] for m in MEASURES}
+    maps, quality = assess(frame, distance, confidence, reference)
+    ranked = {m: maps[m] for m in MEASURES if m in maps}
     if confidence is not None:
         ranked[CONFIDENCE] = -np.asarray(confidence, np.float64)
     row = {"scene": frame.scene, "viewpoint": frame.viewpoint, "width": frame.width, "height": frame.height,
@@ -220,6 +287,11 @@ def frame_validation(frame, distance: np.ndarray, confidence: np.ndarray | None)
         fractions, curve, oracle = sparsification_curves(d, gt, -u, mask=valid)
         row[f"ause_m:{name}"] = ause(fractions, curve, oracle) if sel.any() else float("nan")
         curves[name] = (fractions, curve, oracle, int(sel.sum()))
+    factors = uncertainty_factors(maps, confidence)
+    for names in factor_subsets():
+        ok = all(n in factors for n in names)
+        row[f"rho:{subset_key(names)}"] = (rank_correlation(np.asarray(combine(factors, names), np.float64)[sel], err)
+                                           if ok else float("nan"))
     row["uncertainty_median"] = quality["uncertainty_median"]
     row["calibration_score"] = quality["calibration_score"]
     row["calibration_flagged"] = quality["calibration_flagged"]
@@ -257,12 +329,17 @@ def ranking_summary(items: Sequence[FrameValidation], families: Sequence[str]) -
     plus the pooled figures (:func:`_pooled`)."""
     rows = [i.row for i in items]
     per_measure = {name: _stats([r[f"rho:{name}"] for r in rows]) for name in (*MEASURES, CONFIDENCE)}
+    subsets = {subset_key(n): _stats([r[f"rho:{subset_key(n)}"] for r in rows]) for n in factor_subsets()}
     fams = {}
     for fam in sorted(set(families)):
         mine = [i for i, f in zip(items, families, strict=True) if f == fam]
         fams[fam] = {**_stats([i.row["rho:uncertainty"] for i in mine]), "pooled": _pooled(mine)}
+    chosen = choose_subset({k: v["mean"] if v["finite"] == v["frames"] else float("nan")
+                            for k, v in subsets.items()})
     return {"measure": "uncertainty", "rho_bar": RHO_BAR, "per_frame": per_measure, "families": fams,
-            "all": {**per_measure["uncertainty"], "pooled": _pooled(items)}}
+            "all": {**per_measure["uncertainty"], "pooled": _pooled(items)},
+            "factor_subsets": subsets, "uncertainty_factors": list(UNCERTAINTY_FACTORS),
+            "best_factor_subset": chosen}
 
 
 def calibration_summary(rows: Sequence[dict], rotation: float, seed: int, asked: int) -> dict:
@@ -271,6 +348,7 @@ def calibration_summary(rows: Sequence[dict], rotation: float, seed: int, asked:
     pert = np.array([r["perturbed_score"] for r in rows], np.float64)
     nan = float("nan")
     return {"rotation_deg": rotation, "seed": seed, "threshold": CALIBRATION_THRESHOLD, "frames_asked": asked,
+            "best_threshold": choose_threshold(exact, pert),
             "frames": len(rows), "separated": int(sum(r["separated"] for r in rows)),
             "exact_flagged": int(sum(r["exact_flagged"] for r in rows)),
             "perturbed_flagged": int(sum(r["perturbed_flagged"] for r in rows)),
@@ -318,7 +396,19 @@ def validation_markdown(result: dict, rows: Sequence[dict], calib_rows: Sequence
                      f"{_num(s['pooled']['ause_m:uncertainty'])} |")
     per = ranking["per_frame"]
     lines += ["", "Mean rho over frames of the other measures: "
-              + ", ".join(f"`{n}` {_num(per[n]['mean'])}" for n in (*MEASURES[1:], CONFIDENCE)) + "."]
+              + ", ".join(f"`{n}` {_num(per[n]['mean'])}" for n in (*MEASURES[1:], CONFIDENCE)
+                          if per[n]["finite"]) + "."]
+    subsets, used = ranking["factor_subsets"], "*".join(ranking["uncertainty_factors"])
+    lines += ["", "## Which factors make `uncertainty` (every product; mean rho over frames)", "",
+              f"`uncertainty` is the product of `{used}` (reconstruction.quality.UNCERTAINTY_FACTORS; a factor the "
+              "prediction lacks counts as 1). Highest mean rho here: "
+              f"`{(ranking['best_factor_subset'] or '-').removeprefix('factors:')}`.", "",
+              "| factors | mean rho | median rho | min rho |", "|---|---:|---:|---:|"]
+    for key, st in sorted(subsets.items(), key=lambda kv: -kv[1]["mean"] if np.isfinite(kv[1]["mean"]) else 0):
+        if st["finite"]:
+            name = key.removeprefix("factors:")
+            mark = "**" if key == ranking["best_factor_subset"] else ""
+            lines.append(f"| {mark}`{name}`{mark} | {_num(st['mean'])} | {_num(st['median'])} | {_num(st['min'])} |")
     lines += ["", f"## Calibration check (rotation {calib['rotation_deg']:g} deg of U and R, seed {calib['seed']}, "
               f"threshold {calib['threshold']:g})", ""]
     if calib_rows:
@@ -331,7 +421,11 @@ def validation_markdown(result: dict, rows: Sequence[dict], calib_rows: Sequence
         lines += ["", f"Separated (exact not flagged, perturbed flagged): {calib['separated']} of {calib['frames']} "
                   f"frames; every perturbed score above every exact one: "
                   f"{'yes' if calib['every_perturbed_above_every_exact'] else 'no'} (highest exact "
-                  f"{_num(calib['max_exact_score'])}, lowest perturbed {_num(calib['min_perturbed_score'])})."]
+                  f"{_num(calib['max_exact_score'])}, lowest perturbed {_num(calib['min_perturbed_score'])}).",
+                  "", f"The threshold that separates most of these frames (the middle of the widest such interval): "
+                  f"{_num(calib['best_threshold']['threshold'], '.4f')}, separating "
+                  f"{calib['best_threshold']['separated']} of {calib['best_threshold']['frames']} "
+                  "(reconstruction.quality.CALIBRATION_THRESHOLD is chosen so on the suite's dev split)."]
     else:
         lines.append("Not run (`--calibration-frames 0`).")
     a = ranking["all"]
@@ -447,15 +541,17 @@ def _read_stored(maps: StoredMaps, frame) -> tuple[np.ndarray, np.ndarray | None
     return d, c
 
 
-def _run(method: Method, frame) -> tuple[np.ndarray, np.ndarray | None]:
-    """The method's distance and confidence of ``frame``, float32 as ``evaluate`` stores them (shapes checked by
-    :func:`harness.jobs.evaluate.checked_maps`)."""
+def _run(method: Method, frame) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
+    """The method's distance, confidence and reference distance of ``frame``, float32 as ``evaluate`` stores them
+    (shapes checked by :func:`harness.jobs.evaluate.checked_maps`)."""
     try:
         output = run_methods(frame, [method])[method.label]
     except ValueError as exc:
         raise UserError(f"{frame.path}: {exc}") from None
     d, conf = checked_maps(frame, method, output)
-    return np.asarray(d, np.float32), None if conf is None else np.asarray(conf, np.float32)
+    ref = output.reference
+    return (np.asarray(d, np.float32), None if conf is None else np.asarray(conf, np.float32),
+            None if ref is None else np.asarray(ref, np.float32))
 
 
 # ------------------------------------------------------------------------------------------------------ job
@@ -513,6 +609,15 @@ def validate_quality(data_root: Path, method_label: str, out: Path, results: Pat
     families = {k: frame_family(k[0], v["family"]) for k, v in labelled.items()}
     stored = None if results is None else stored_maps(results, results_label or method_label, method, refs,
                                                       renderers)
+    ref_method = getattr(method, "reference_method", None)
+    ref_stored = None
+    if results is not None and ref_method is not None:
+        held = (read_config(results) or {}).get("methods", {})
+        if ref_method.label not in held:
+            raise UserError(f"--results {results}: holds no maps of {ref_method.label!r}, the method whose distance "
+                            f"{method.label!r} hands back as its reference (evaluate it beside {method.label!r}, or "
+                            "leave out --results)")
+        ref_stored = stored_maps(results, ref_method.label, ref_method, refs, renderers)
     chosen = set(calibration_choice(list(families), families, calibration_frames))
     items: list[FrameValidation] = []
     calib_rows: list[dict] = []
@@ -521,8 +626,12 @@ def validate_quality(data_root: Path, method_label: str, out: Path, results: Pat
         for ref in refs:
             key = (ref.scene, ref.viewpoint)
             frame = scorable_frame(ref.path)
-            distance, confidence = _read_stored(stored[key], frame) if stored else _run(method, frame)
-            item = frame_validation(frame, distance, confidence)
+            if stored:
+                distance, confidence = _read_stored(stored[key], frame)
+                reference = _read_stored(ref_stored[key], frame)[0] if ref_stored else None
+            else:
+                distance, confidence, reference = _run(method, frame)
+            item = frame_validation(frame, distance, confidence, reference)
             item.row = {"scene": ref.scene, "viewpoint": ref.viewpoint, "family": families[key],
                         **{k: v for k, v in item.row.items() if k not in ("scene", "viewpoint")}}
             items.append(item)
@@ -531,7 +640,7 @@ def validate_quality(data_root: Path, method_label: str, out: Path, results: Pat
             if key not in chosen:
                 continue
             told = checked_perturbation(ref.path, frame, [("rotation", rotation)], seed, stage, "--rotation")
-            d_off, _ = _run(method, told)
+            d_off = _run(method, told)[0]
             off = calibration_score(told, d_off)["score"]
             exact = item.row["calibration_score"]
             exact_flag, off_flag = bool(exact > CALIBRATION_THRESHOLD), bool(off > CALIBRATION_THRESHOLD)

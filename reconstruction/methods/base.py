@@ -30,12 +30,16 @@ class MethodOutput:
         confidence: (H, W) float32, higher = more trustworthy, or None.
         seconds: wall time per stage, seconds (``total`` at least).
         info: free-form, JSON-able details (e.g. LM iterations).
+        reference: (H, W) float32 an independent distance of camera C that the method computed on the way
+            (metres; e.g. ``fused``'s flow-pipeline distance), or None.  The ground-truth-free quality measures
+            use it (:func:`reconstruction.quality.disagreement`); it is not scored.
     """
 
     distance: np.ndarray
     confidence: np.ndarray | None = None
     seconds: dict[str, float] = field(default_factory=dict)
     info: dict[str, Any] = field(default_factory=dict)
+    reference: np.ndarray | None = None
 
     @property
     def total_seconds(self) -> float:

@@ -175,6 +175,11 @@ class FusedMethod:
         once for this method and the flow-pipeline methods of the same configuration."""
         return self.flow.group_key
 
+    @property
+    def reference_method(self) -> FlowMethod:
+        """The method whose distance this one hands back as its ``reference`` (:class:`MethodOutput`): the flow."""
+        return self.flow
+
     def config(self) -> dict:
         return {"kind": "fused", "label": self.label, "flow": self.flow.config(), "sweep": self.sweep.config(),
                 "prior": asdict(self.prior)}
@@ -217,5 +222,5 @@ class FusedMethod:
                 seconds = {"flow": flow.total_seconds, **{k: v for k, v in seconds.items() if k != "total"}}
                 seconds["total"] = sum(seconds.values())
                 outs[m.label] = MethodOutput(distance=d, confidence=conf, seconds=seconds,
-                                             info={**info, "flow_label": m.flow.label})
+                                             info={**info, "flow_label": m.flow.label}, reference=flow.distance)
         return outs

@@ -90,8 +90,9 @@ def test_evaluate_runs_the_methods_and_scores_nothing(capture, results):
         dist_rel, conf_rel = map_paths("hall", "pos1", row["method"], row["flow"], row["rectify"], row["variant"])
         distance = read_float_map(out / dist_rel, DISTANCE_CHANNEL)
         assert distance.shape == (WIDTH // 2, WIDTH) and np.isfinite(distance).mean() > 0.9
-        assert read_float_map(out / conf_rel, CONFIDENCE_CHANNEL).shape == distance.shape
-        maps, summary = assess(frame, distance)
+        confidence = read_float_map(out / conf_rel, CONFIDENCE_CHANNEL)
+        assert confidence.shape == distance.shape
+        maps, summary = assess(frame, distance, confidence)  # neither method hands back a reference
         for c in QUALITY_COLUMNS:
             assert np.isfinite(row[c]), c
             assert row[c] == pytest.approx(summary[c], rel=1e-6, abs=1e-9), c

@@ -20,6 +20,9 @@ from harness.jobs.evaluate import evaluate
 from harness.jobs.validate_quality import (
     MEASURES,
     calibration_choice,
+    choose_subset,
+    choose_threshold,
+    factor_subsets,
     config_difference,
     frame_family,
     main,
@@ -28,7 +31,7 @@ from harness.jobs.validate_quality import (
 from harness.render.raycast import render_frame
 from reconstruction.methods.registry import fused_method
 from reconstruction.methods.sweep import SweepMethod
-from reconstruction.quality import CALIBRATION_THRESHOLD
+from reconstruction.quality import CALIBRATION_THRESHOLD, FACTORS, UNCERTAINTY_FACTORS
 from reconstruction.sweep.planes import PlaneParams
 from scenes.model import choose_viewpoints
 from scenes.registry import get_scene
@@ -36,7 +39,7 @@ from tests.helpers import make_synthetic_frame
 
 WIDTH = 200
 METHOD = "sweep"
-RHO_COLUMNS = [f"rho:{m}" for m in (*MEASURES, "confidence")]
+RHO_COLUMNS = [f"rho:{m}" for m in (*MEASURES, "confidence") if m != "disagreement"]  # sweep: no reference
 
 
 def _box_room_frame():
@@ -221,3 +224,51 @@ def test_frames_without_ground_truth_are_skipped_and_frames_keeps_the_first(tmp_
     assert list(zip(rows["scene"], rows["viewpoint"], strict=True)) == [("synthetic_box", "vp000")]
     summary = json.loads((out / "validation.json").read_text())
     assert summary["frames"] == 1 and summary["skipped_without_ground_truth"] == [str(root / "real" / "vp000")]
+
+
+def test_factor_subsets_cover_every_product_and_the_best_mean_wins():
+    subsets = factor_subsets()
+    assert len(subsets) == 2 ** len(FACTORS) - 1 and len(set(subsets)) == len(subsets)
+    assert subsets[0] == (FACTORS[0],) and subsets[-1] == tuple(FACTORS)
+    assert tuple(UNCERTAINTY_FACTORS) in subsets
+    assert choose_subset({"factors:a": 0.4, "factors:a*b": 0.5, "factors:b": float("nan")}) == "factors:a*b"
+    assert choose_subset({"factors:a": 0.5, "factors:a*b": 0.5}) == "factors:a"  # a tie: the smaller one
+    assert choose_subset({"factors:a": float("nan")}) is None
+
+
+def test_threshold_separates_most_frames_in_the_middle_of_the_widest_gap():
+    # exact scores all below every perturbed one: the middle of the gap between the highest exact and lowest
+    # perturbed score
+    t = choose_threshold([-0.10, -0.05, -0.03], [0.2, -0.01, 0.05])
+    assert t == {"threshold": pytest.approx(-0.02), "separated": 3, "frames": 3}
+    # overlap: one frame cannot be separated; the threshold keeps the other two
+    t = choose_threshold([-0.10, 0.10], [0.30, 0.05])
+    assert t["separated"] == 1 and -0.10 < t["threshold"] < 0.30
+    assert np.isnan(choose_threshold([float("nan")], [float("nan")])["threshold"])
+
+
+def test_a_fused_method_ranks_with_its_flow_as_reference(data, tmp_path, capsys):
+    """fused hands back its flow distance: the disagreement column is filled and, from a results set, the
+    reference is read under the flow method's label (and refused, named, when the set lacks it)."""
+    out = tmp_path / "val-fused"
+    code, _, err = _run(capsys, data, "--method", "fused", "--out", out, "--frames", "1", "--calibration-frames", "0",
+                        "--quiet")
+    assert code == 0, err
+    ran = pd.read_csv(out / "validation.csv")
+    assert np.isfinite(ran["rho:disagreement"]).all()
+    assert np.isfinite(ran["rho:factors:" + "*".join(UNCERTAINTY_FACTORS)]).all()
+    fused = fused_method()
+    res = tmp_path / "res-fused"
+    evaluate(data, res, [fused, fused.flow], report=False, progress=False, scenes=["box_room"])
+    reused = tmp_path / "val-fused-reused"
+    code, _, err = _run(capsys, data, "--method", "fused", "--out", reused, "--results", res, "--frames", "1",
+                        "--calibration-frames", "0", "--quiet")
+    assert code == 0, err
+    again = pd.read_csv(reused / "validation.csv")
+    for col in ("rho:uncertainty", "rho:disagreement"):
+        np.testing.assert_allclose(again[col], ran[col], rtol=0, atol=1e-6, err_msg=col)
+    alone = tmp_path / "res-alone"
+    evaluate(data, alone, [fused], report=False, progress=False, scenes=["box_room"])
+    code, _, err = _run(capsys, data, "--method", "fused", "--out", tmp_path / "v3", "--results", alone,
+                        "--frames", "1", "--calibration-frames", "0", "--quiet")
+    assert code == 2 and err.count("\n") == 1 and repr(fused.flow.label) in err and "reference" in err
