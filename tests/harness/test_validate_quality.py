@@ -106,11 +106,10 @@ def test_calibration_check_flags_the_rotated_frames(validated):
     calib = pd.read_csv(out / "calibration.csv")
     # round-robin over the families: one frame of each
     assert sorted(calib["family"]) == ["box_room", "synthetic_box"] and (calib["rotation_deg"] == 0.5).all()
-    # on these exact ray-cast frames the exact score is about -0.03..-0.05 and the rotated one 0.16..0.17: the
-    # assertions keep wide margins around the threshold
-    assert (calib["exact_score"] < CALIBRATION_THRESHOLD - 0.01).all()
-    assert (calib["perturbed_score"] > CALIBRATION_THRESHOLD + 0.05).all()
-    assert (calib["perturbed_score"] > calib["exact_score"] + 0.1).all()
+    # on these exact ray-cast frames the exact score (degrees) is about 0.015-0.034 and the rotated one 0.50-0.54
+    # (measured): the assertions keep wide margins around the threshold
+    assert (calib["exact_score"] < min(CALIBRATION_THRESHOLD, 0.1)).all()
+    assert (calib["perturbed_score"] > max(CALIBRATION_THRESHOLD, 0.3)).all()
     assert calib["separated"].all()
     summary = json.loads((out / "validation.json").read_text())["calibration"]
     assert summary["separated"] == 2 and summary["frames"] == 2 and summary["every_perturbed_above_every_exact"]
