@@ -10,48 +10,20 @@ Nothing half-written is left behind (every writer is atomic).
 
 from __future__ import annotations
 
-import os
-import signal
-import sys
+from harness import startup
 
-EXIT_USAGE = 2
-EXIT_INTERRUPTED = 130
-
-
-def _interrupted_while_starting(signum, frame) -> None:
-    """SIGINT while the command's modules load (numba, pandas, matplotlib, Dask: seconds).  A KeyboardInterrupt
-    raised there would unwind through a library's import and print its traceback; nothing has been done yet, so
-    this prints one line and exits 130 at once."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # a second Ctrl-C does not print a second line
-    os.write(2, b"tri360: interrupted while starting (nothing was done)\n")
-    os._exit(EXIT_INTERRUPTED)
-
-
-def _guard_startup():
-    """Catch Ctrl-C while the imports below run; the handler to put back afterwards, or None.
-
-    Only Python's own handler is replaced: SIGINT ignored (a job started in the background) stays ignored, and
-    a program that set its own handler keeps it; off the main thread signals cannot be set and are left alone.
-    """
-    previous = signal.getsignal(signal.SIGINT)
-    if previous is not signal.default_int_handler:
-        return None
-    try:
-        signal.signal(signal.SIGINT, _interrupted_while_starting)
-    except ValueError:  # not the main thread
-        return None
-    return previous
-
-
-_UNGUARD = _guard_startup()
+_GUARDED = startup.guard("tri360")
 # every import below runs under the guard (so ruff's E402 is off for this file, in pyproject.toml)
 import argparse
+import sys
 
 from harness import __version__
 from harness.cli import evaluate, import_, perturb, reconstruct, render, report, score, study
 from harness.cli import scenes as scenes_cmd
 from harness.data.errors import UserError
 from scenes.registry import SceneError
+
+EXIT_USAGE = 2
 
 COMMANDS = {"render": render, "scenes": scenes_cmd, "reconstruct": reconstruct, "evaluate": evaluate,
             "score": score, "report": report, "study": study, "perturb": perturb, "import": import_}
@@ -103,11 +75,10 @@ def main(argv: list[str] | None = None) -> int:
         return EXIT_USAGE
     except KeyboardInterrupt:
         print(f"{prog}: interrupted (finished outputs are complete; partial ones were removed)", file=sys.stderr)
-        return EXIT_INTERRUPTED
+        return startup.EXIT_INTERRUPTED
 
 
-if _UNGUARD is not None and signal.getsignal(signal.SIGINT) is _interrupted_while_starting:
-    signal.signal(signal.SIGINT, _UNGUARD)  # from here on Ctrl-C is a KeyboardInterrupt, handled by main()
+startup.release()  # from here on Ctrl-C is a KeyboardInterrupt, handled by main()
 
 
 if __name__ == "__main__":

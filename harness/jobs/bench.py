@@ -32,6 +32,7 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import least_squares
 
+from harness import startup
 from harness.data.frame import find_frames, read_frame, write_frame
 from harness.jobs.progress import track
 from harness.render.raycast import render_frame
@@ -353,4 +354,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(startup.run_main(main, "bench"))

@@ -19,6 +19,7 @@ import tempfile
 import time
 from pathlib import Path
 
+from harness import startup
 from harness.jobs.bench import goals_status
 from harness.jobs.cluster import ClusterOptions
 from harness.jobs.executor import DaskExecutor
@@ -73,4 +74,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(startup.run_main(main, "bench_dask"))

@@ -28,6 +28,7 @@ import tempfile
 import time
 from pathlib import Path
 
+from harness import startup
 from harness.jobs.bench import load_or_render_frame, report_goals
 from reconstruction.flow.deepflow import DeepFlowParams, deep_flow
 from reconstruction.flow.deepmatching import DeepMatchingParams, deep_matching_both
@@ -104,4 +105,4 @@ def _run(args, root: Path) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(startup.run_main(main, "bench_flow"))

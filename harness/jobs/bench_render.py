@@ -22,6 +22,7 @@ import tempfile
 import time
 from pathlib import Path
 
+from harness import startup
 from harness.jobs.bench import goals_status
 from harness.jobs.render import DEFAULT_SCENE, DEFAULTS, RENDER_LOG
 
@@ -70,4 +71,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(startup.run_main(main, "bench_render"))

@@ -22,6 +22,7 @@ import sys
 import time
 from pathlib import Path
 
+from harness import startup
 from harness.data.errors import UserError
 from harness.jobs.render import DEFAULT_SCENE, DEFAULTS
 from harness.jobs.suite import PlannedFrame, load, plan
@@ -100,4 +101,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(startup.run_main(main, "bench_suite"))

@@ -28,6 +28,7 @@ import time
 import cv2
 import numpy as np
 
+from harness import startup
 from harness.jobs.bench import report_goals
 from harness.render.raycast import render_frame
 from reconstruction.methods.registry import DEFAULT_METHOD, get_methods
@@ -133,4 +134,4 @@ def main(argv=None) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    sys.exit(startup.run_main(main, "bench_sweep"))

@@ -33,6 +33,7 @@ from pathlib import Path
 
 import pandas as pd
 
+from harness import startup
 from harness.data.atomic import atomic_write_text
 from harness.jobs.evaluate import config_keys, evaluate
 from harness.jobs.render import render_frames
@@ -306,4 +307,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(startup.run_main(main, "regression"))

@@ -33,6 +33,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from harness import startup
 from harness.data import jsonio
 from harness.data.atomic import atomic_write_text
 from harness.data.errors import UserError
@@ -190,4 +191,4 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(startup.run_main(main, "select_matching"))

@@ -71,6 +71,7 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
+from harness import startup
 from harness.data import jsonio
 from harness.data.atomic import atomic_write_text
 from harness.data.errors import UserError
@@ -715,4 +716,4 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(startup.run_main(main, "validate_quality"))

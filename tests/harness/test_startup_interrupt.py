@@ -55,3 +55,29 @@ def test_ctrl_c_during_start_up_or_run_is_one_line_and_130(tmp_path, delay_s):
     assert proc.returncode == 130, (proc.returncode, stderr)
     assert len(lines) == 1 and "Traceback" not in stderr, stderr
     assert lines[0].startswith(("tri360: interrupted", "tri360 render: interrupted")), stderr
+
+
+@pytest.mark.parametrize("delay_s", [0.0, 0.05, 0.2])
+def test_ctrl_c_while_a_python_m_job_starts_is_one_line_and_130(tmp_path, delay_s):
+    """``python -m harness.jobs.<job>``: the job's imports (pandas, scipy, numba, OpenCV: over a second) run under
+    the same guard; the delays stay well inside them (the job itself would stop at once on its missing data
+    root, with status 2)."""
+    cmd = [sys.executable, "-m", "harness.jobs.validate_quality", str(tmp_path / "absent"), "--method", "sweep",
+           "--out", str(tmp_path / "out")]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=sigint_default, start_new_session=True)
+    try:
+        deadline = time.monotonic() + 120
+        while not _loading_modules(proc.pid) and proc.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.002)
+        assert proc.poll() is None, proc.communicate()
+        time.sleep(delay_s)
+        os.killpg(proc.pid, signal.SIGINT)
+        _, stderr = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+    assert proc.returncode == 130, (proc.returncode, stderr)
+    assert stderr.splitlines() == ["validate_quality: interrupted while starting (nothing was done)"], stderr
+    assert not (tmp_path / "out").exists()
