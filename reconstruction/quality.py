@@ -257,6 +257,7 @@ def geometric_uncertainty(frame, distance: np.ndarray) -> np.ndarray:
     For one pair with baseline ``b`` (metres) and the angle ``g`` between C's bearing and the baseline, a bearing
     error of ``e`` radians moves the triangulated distance by about ``e * d^2 / (|b| sin g)``; the two pairs
     combine as independent measurements.
+
     Args:
         frame: frame-like with ``cameras`` C, U, R (told poses).
         distance: (H, W) C's distance, metres (NaN, inf, <= 0 = none).
