@@ -143,8 +143,11 @@ def _local_cluster(options: ClusterOptions) -> LocalCluster:
     """A ``LocalCluster`` on 127.0.0.1 whose worker processes never see Ctrl-C (:func:`_quiet_forkserver`)."""
     if _quiet_forkserver():
         dask.config.set({"distributed.worker.multiprocessing-method": "forkserver"})  # restarts too: kept
+    # dashboard off; the scheduler still serves HTTP (health, metrics): on a free loopback port, not Dask's default
+    # 8787, which another cluster (a second tri360 job) may hold -- Dask would warn about it on stderr
     return LocalCluster(n_workers=options.workers, threads_per_worker=options.threads_per_worker,
-                        processes=True, host=LOOPBACK, dashboard_address=None, silence_logs=logging.CRITICAL)
+                        processes=True, host=LOOPBACK, dashboard_address=None, silence_logs=logging.CRITICAL,
+                        scheduler_kwargs={"dashboard_address": f"{LOOPBACK}:0"})
 
 
 class DaskExecutor:

@@ -5,6 +5,7 @@ certificates.  Frames and results must equal a sequential run's; a worker killed
 
 from __future__ import annotations
 
+import contextlib
 import datetime
 import ipaddress
 import json
@@ -298,3 +299,21 @@ def test_cycles_renders_on_a_dask_worker_identically(cluster, tmp_path):
     (d,) = render_scene("box_room", out_root=tmp_path / "dask", cluster=ClusterOptions(scheduler=address), **kw)
     assert json.loads((d / RENDER_LOG).read_text())["pid"] in worker_pids
     assert frame_files(tmp_path / "dask") == frame_files(tmp_path / "seq")
+
+
+@pytest.mark.cluster
+def test_local_cluster_starts_quietly_when_dasks_default_port_is_taken(capfd, recwarn):
+    """A second job's cluster (or anything else) on 127.0.0.1:8787: our LocalCluster's scheduler serves its HTTP
+    on another free loopback port and says nothing (Dask would warn "Port 8787 is already in use", which the
+    command line shows on stderr)."""
+    with contextlib.ExitStack() as stack:
+        holder = stack.enter_context(socket.socket())
+        with contextlib.suppress(OSError):  # already taken by another process: the same situation
+            holder.bind(("127.0.0.1", 8787))
+            holder.listen()
+        capfd.readouterr()
+        with DaskExecutor(ClusterOptions(workers=1)) as ex:
+            assert list(ex.run(pow, {"a": (2, 5)}, progress=False)) == [("a", 32)]
+        _, err = capfd.readouterr()
+    said = [str(w.message) for w in recwarn] + [err]
+    assert not any("8787" in x or "already in use" in x for x in said), said
