@@ -32,38 +32,9 @@ def _loading_modules(pid: int) -> bool:
         return False
 
 
-@pytest.mark.parametrize("delay_s", [0.0, 0.05, 0.2, 0.5, 1.5, 4.0])
-def test_ctrl_c_during_start_up_or_run_is_one_line_and_130(tmp_path, delay_s):
-    # a render that would take minutes (numpy ray-caster, many large frames): it is interrupted long before
-    args = ["render", "--scene", "synthetic_box", "--width", "2000", "--viewpoints", "500",
-            "--out", str(tmp_path / "data"), "--quiet"]
-    proc = subprocess.Popen([*CLI, *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            preexec_fn=sigint_default, start_new_session=True)
-    try:
-        deadline = time.monotonic() + 120
-        while not _loading_modules(proc.pid) and proc.poll() is None and time.monotonic() < deadline:
-            time.sleep(0.002)
-        assert proc.poll() is None, proc.communicate()
-        time.sleep(delay_s)
-        os.killpg(proc.pid, signal.SIGINT)  # as a terminal's Ctrl-C: the whole process group
-        _, stderr = proc.communicate(timeout=120)
-    finally:
-        if proc.poll() is None:
-            os.killpg(proc.pid, signal.SIGKILL)
-            proc.wait()
-    lines = stderr.splitlines()
-    assert proc.returncode == 130, (proc.returncode, stderr)
-    assert len(lines) == 1 and "Traceback" not in stderr, stderr
-    assert lines[0].startswith(("tri360: interrupted", "tri360 render: interrupted")), stderr
-
-
-@pytest.mark.parametrize("delay_s", [0.0, 0.05, 0.2])
-def test_ctrl_c_while_a_python_m_job_starts_is_one_line_and_130(tmp_path, delay_s):
-    """``python -m harness.jobs.<job>``: the job's imports (pandas, scipy, numba, OpenCV: over a second) run under
-    the same guard; the delays stay well inside them (the job itself would stop at once on its missing data
-    root, with status 2)."""
-    cmd = [sys.executable, "-m", "harness.jobs.validate_quality", str(tmp_path / "absent"), "--method", "sweep",
-           "--out", str(tmp_path / "out")]
+def _interrupt_after_loading(cmd: list[str], delay_s: float) -> tuple[int, str]:
+    """Start ``cmd`` in its own session (SIGINT at its default action), wait until it loads its modules, sleep
+    ``delay_s`` and Ctrl-C its whole process group as a terminal does; its exit status and stderr."""
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             preexec_fn=sigint_default, start_new_session=True)
     try:
@@ -78,6 +49,29 @@ def test_ctrl_c_while_a_python_m_job_starts_is_one_line_and_130(tmp_path, delay_
         if proc.poll() is None:
             os.killpg(proc.pid, signal.SIGKILL)
             proc.wait()
-    assert proc.returncode == 130, (proc.returncode, stderr)
+    return proc.returncode, stderr
+
+
+@pytest.mark.parametrize("delay_s", [0.0, 0.05, 0.2, 0.5, 1.5, 4.0])
+def test_ctrl_c_during_start_up_or_run_is_one_line_and_130(tmp_path, delay_s):
+    # a render that would take minutes (numpy ray-caster, many large frames): it is interrupted long before
+    args = ["render", "--scene", "synthetic_box", "--width", "2000", "--viewpoints", "500",
+            "--out", str(tmp_path / "data"), "--quiet"]
+    code, stderr = _interrupt_after_loading([*CLI, *args], delay_s)
+    lines = stderr.splitlines()
+    assert code == 130, (code, stderr)
+    assert len(lines) == 1 and "Traceback" not in stderr, stderr
+    assert lines[0].startswith(("tri360: interrupted", "tri360 render: interrupted")), stderr
+
+
+@pytest.mark.parametrize("delay_s", [0.0, 0.05, 0.2])
+def test_ctrl_c_while_a_python_m_job_starts_is_one_line_and_130(tmp_path, delay_s):
+    """``python -m harness.jobs.<job>``: the job's imports (pandas, scipy, numba, OpenCV: over a second) run under
+    the same guard; the delays stay well inside them (the job itself would stop at once on its missing data
+    root, with status 2)."""
+    cmd = [sys.executable, "-m", "harness.jobs.validate_quality", str(tmp_path / "absent"), "--method", "sweep",
+           "--out", str(tmp_path / "out")]
+    code, stderr = _interrupt_after_loading(cmd, delay_s)
+    assert code == 130, (code, stderr)
     assert stderr.splitlines() == ["validate_quality: interrupted while starting (nothing was done)"], stderr
     assert not (tmp_path / "out").exists()
