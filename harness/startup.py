@@ -18,10 +18,15 @@ import signal
 import sys
 from collections.abc import Callable
 
-__all__ = ["EXIT_INTERRUPTED", "guard", "release", "run_main"]
+__all__ = ["EXIT_INTERRUPTED", "interrupted_line", "guard", "release", "run_main"]
 
 EXIT_INTERRUPTED = 130
 _guard: dict[str, object] = {}  # the handler installed by guard() and the one it replaced
+
+
+def interrupted_line(prog: str) -> str:
+    """What a command says when Ctrl-C stops it after start-up (its context managers removed partial outputs)."""
+    return f"{prog}: interrupted (finished outputs are complete; partial ones were removed)"
 
 
 def guard(prog: str) -> bool:
@@ -60,5 +65,5 @@ def run_main(main: Callable[[], int | None], prog: str) -> int:
     try:
         return int(main() or 0)
     except KeyboardInterrupt:
-        print(f"{prog}: interrupted (finished outputs are complete; partial ones were removed)", file=sys.stderr)
+        print(interrupted_line(prog), file=sys.stderr)
         return EXIT_INTERRUPTED

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from harness import startup
 
-_GUARDED = startup.guard("tri360")
+startup.guard("tri360")
 # every import below runs under the guard (so ruff's E402 is off for this file, in pyproject.toml)
 import argparse
 import sys
@@ -74,7 +74,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{prog}: error: {_os_error_line(exc)}", file=sys.stderr)
         return EXIT_USAGE
     except KeyboardInterrupt:
-        print(f"{prog}: interrupted (finished outputs are complete; partial ones were removed)", file=sys.stderr)
+        print(startup.interrupted_line(prog), file=sys.stderr)
         return startup.EXIT_INTERRUPTED
 
 

@@ -618,7 +618,8 @@ def validate_quality(data_root: Path, method_label: str, out: Path, results: Pat
             raise UserError(f"--results {results}: holds no maps of {ref_method.label!r}, the method whose distance "
                             f"{method.label!r} hands back as its reference (evaluate it beside {method.label!r}, or "
                             "leave out --results)")
-        ref_stored = stored_maps(results, ref_method.label, ref_method, refs, renderers)
+        ref_stored = {k: StoredMaps(m.distance, None)  # only its distance is used
+                      for k, m in stored_maps(results, ref_method.label, ref_method, refs, renderers).items()}
     chosen = set(calibration_choice(list(families), families, calibration_frames))
     items: list[FrameValidation] = []
     calib_rows: list[dict] = []
