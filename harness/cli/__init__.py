@@ -10,7 +10,7 @@ Nothing half-written is left behind (every writer is atomic).
 
 from __future__ import annotations
 
-from harness import startup
+from harness.jobs import startup
 
 startup.guard("tri360")
 # every import below runs under the guard (so ruff's E402 is off for this file, in pyproject.toml)

@@ -32,8 +32,8 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import least_squares
 
-from harness import startup
 from harness.data.frame import find_frames, read_frame, write_frame
+from harness.jobs import startup
 from harness.jobs.progress import track
 from harness.render.raycast import render_frame
 from reconstruction.flow.matching import match_pair

@@ -19,7 +19,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from harness import startup
+from harness.jobs import startup
 from harness.jobs.bench import goals_status
 from harness.jobs.cluster import ClusterOptions
 from harness.jobs.executor import DaskExecutor

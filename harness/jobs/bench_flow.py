@@ -28,7 +28,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from harness import startup
+from harness.jobs import startup
 from harness.jobs.bench import load_or_render_frame, report_goals
 from reconstruction.flow.deepflow import DeepFlowParams, deep_flow
 from reconstruction.flow.deepmatching import DeepMatchingParams, deep_matching_both

@@ -22,7 +22,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from harness import startup
+from harness.jobs import startup
 from harness.jobs.bench import goals_status
 from harness.jobs.render import DEFAULT_SCENE, DEFAULTS, RENDER_LOG
 

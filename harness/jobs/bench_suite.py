@@ -22,8 +22,8 @@ import sys
 import time
 from pathlib import Path
 
-from harness import startup
 from harness.data.errors import UserError
+from harness.jobs import startup
 from harness.jobs.render import DEFAULT_SCENE, DEFAULTS
 from harness.jobs.suite import PlannedFrame, load, plan
 from harness.render.registry import get_renderer

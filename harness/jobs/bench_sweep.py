@@ -28,7 +28,7 @@ import time
 import cv2
 import numpy as np
 
-from harness import startup
+from harness.jobs import startup
 from harness.jobs.bench import report_goals
 from harness.render.raycast import render_frame
 from reconstruction.methods.registry import DEFAULT_METHOD, get_methods

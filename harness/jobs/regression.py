@@ -33,8 +33,8 @@ from pathlib import Path
 
 import pandas as pd
 
-from harness import startup
 from harness.data.atomic import atomic_write_text
+from harness.jobs import startup
 from harness.jobs.evaluate import config_keys, evaluate
 from harness.jobs.render import render_frames
 from harness.render.base import RenderSettings

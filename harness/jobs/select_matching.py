@@ -33,11 +33,11 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from harness import startup
 from harness.data import jsonio
 from harness.data.atomic import atomic_write_text
 from harness.data.errors import UserError
 from harness.data.outputs import mark_output
+from harness.jobs import startup
 from harness.jobs.cluster import ClusterOptions
 from harness.jobs.suite import evaluate_suite
 from reconstruction.methods.base import Method

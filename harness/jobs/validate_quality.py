@@ -71,7 +71,6 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-from harness import startup
 from harness.data import jsonio
 from harness.data.atomic import atomic_write_text
 from harness.data.errors import UserError
@@ -80,6 +79,7 @@ from harness.data.outputs import check_output, mark_output, staged_directory
 from harness.data.provenance import software
 from harness.data.results import map_paths, read_config, read_results_set
 from harness.jobs import perturbations as P
+from harness.jobs import startup
 from harness.jobs.evaluate import FrameRef, checked_maps, frame_labels, scorable_frame, select_frames
 from harness.jobs.perturb import checked_perturbation
 from harness.jobs.progress import progress_bar
