@@ -61,21 +61,23 @@ def _os_error_line(exc: OSError) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     """Parse ``argv`` (default: the command line), run the command; its exit status.  Ctrl-C at any moment
-    (parsing included) is one line and 130."""
+    (parsing included) is one line and 130; SIGTERM while it runs is handled the same way (partial outputs
+    removed), exit status 143."""
     prog = "tri360"
     try:
-        args = build_parser().parse_args(argv)
-        prog = f"tri360 {args.command}"
-        return int(args._module.run(args) or 0)
+        with startup.sigterm_as_interrupt():
+            args = build_parser().parse_args(argv)
+            prog = f"tri360 {args.command}"
+            return int(args._module.run(args) or 0)
     except (UserError, SceneError) as exc:
         print(f"{prog}: error: {exc}", file=sys.stderr)
         return EXIT_USAGE
     except OSError as exc:
         print(f"{prog}: error: {_os_error_line(exc)}", file=sys.stderr)
         return EXIT_USAGE
-    except KeyboardInterrupt:
-        print(startup.interrupted_line(prog), file=sys.stderr)
-        return startup.EXIT_INTERRUPTED
+    except KeyboardInterrupt as exc:
+        print(startup.interrupted_line(prog, exc), file=sys.stderr)
+        return startup.exit_status(exc)
 
 
 startup.release()  # from here on Ctrl-C is a KeyboardInterrupt, handled by main()

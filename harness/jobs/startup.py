@@ -1,4 +1,5 @@
-"""Ctrl-C while a command starts: one line and exit status 130, never a library's traceback.
+"""Ctrl-C while a command starts: one line and exit status 130, never a library's traceback; SIGTERM after it
+handled as Ctrl-C (partial outputs removed), exit status 143.
 
 A command's imports (numba, pandas, matplotlib, Dask) take seconds; a ``KeyboardInterrupt`` raised inside one of
 them would unwind through the library and print its traceback.  :func:`guard` replaces Python's SIGINT handler by
@@ -8,25 +9,51 @@ back when the imports are done, so that from then on Ctrl-C is a ``KeyboardInter
 background) stays ignored, a program that set its own handler keeps it, and off the main thread nothing changes.
 Python's own start-up before the guard is set, tens of milliseconds, is the interpreter's.
 
+SIGTERM (``kill``, a batch system's time limit) would end the process at once and leave the hidden staging
+directory of an output half-written.  While a command runs (:func:`sigterm_as_interrupt`, used by the CLI's
+``main`` and :func:`run_main`), SIGTERM with its default action raises :class:`Terminated`, a
+``KeyboardInterrupt``: the same context managers remove partial outputs, and the command says ``terminated`` and
+exits 143 (128 + SIGTERM).  During the imports before, nothing has been written, and SIGTERM keeps its default
+action.
+
 This module imports nothing heavy, so that it can be the first thing a command loads.
 """
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 
-__all__ = ["EXIT_INTERRUPTED", "interrupted_line", "guard", "release", "run_main"]
+__all__ = ["EXIT_INTERRUPTED", "EXIT_TERMINATED", "Terminated", "interrupted_line", "exit_status", "guard",
+           "release", "sigterm_as_interrupt", "run_main"]
 
 EXIT_INTERRUPTED = 130
+EXIT_TERMINATED = 128 + signal.SIGTERM
+
+
+class Terminated(KeyboardInterrupt):
+    """Raised by the SIGTERM handler that :func:`release` installs: handled wherever Ctrl-C is, exit status 143."""
 _guard: dict[str, object] = {}  # the handler installed by guard() and the one it replaced
 
 
-def interrupted_line(prog: str) -> str:
-    """What a command says when Ctrl-C stops it after start-up (its context managers removed partial outputs)."""
-    return f"{prog}: interrupted (finished outputs are complete; partial ones were removed)"
+def interrupted_line(prog: str, exc: BaseException | None = None) -> str:
+    """What a command says when Ctrl-C (or SIGTERM: ``exc`` a :class:`Terminated`) stops it after start-up (its
+    context managers removed partial outputs)."""
+    what = "terminated" if isinstance(exc, Terminated) else "interrupted"
+    return f"{prog}: {what} (finished outputs are complete; partial ones were removed)"
+
+
+def exit_status(exc: BaseException) -> int:
+    """130 for Ctrl-C, 143 for SIGTERM (:class:`Terminated`)."""
+    return EXIT_TERMINATED if isinstance(exc, Terminated) else EXIT_INTERRUPTED
+
+
+def _terminated(signum, frame) -> None:
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)  # one clean-up; a second SIGTERM does not interrupt it
+    raise Terminated()
 
 
 def guard(prog: str) -> bool:
@@ -58,12 +85,32 @@ def release() -> None:
         signal.signal(signal.SIGINT, previous)
 
 
+@contextlib.contextmanager
+def sigterm_as_interrupt() -> Iterator[None]:
+    """While inside: SIGTERM raises :class:`Terminated` if it had its default action (main thread only); the
+    previous action is put back on the way out."""
+    installed = False
+    if signal.getsignal(signal.SIGTERM) is signal.SIG_DFL:
+        try:
+            signal.signal(signal.SIGTERM, _terminated)
+            installed = True
+        except ValueError:  # not the main thread
+            pass
+    try:
+        yield
+    finally:
+        if installed:
+            signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
 def run_main(main: Callable[[], int | None], prog: str) -> int:
     """Run a ``python -m`` job's ``main()`` after :func:`release`; Ctrl-C during it is one line on stderr
-    (``<prog>: interrupted``) and 130 (the job's own context managers have removed partial outputs by then)."""
+    (``<prog>: interrupted``) and 130, SIGTERM ``terminated`` and 143 (the job's own context managers have removed
+    partial outputs by then)."""
     release()
     try:
-        return int(main() or 0)
-    except KeyboardInterrupt:
-        print(interrupted_line(prog), file=sys.stderr)
-        return EXIT_INTERRUPTED
+        with sigterm_as_interrupt():
+            return int(main() or 0)
+    except KeyboardInterrupt as exc:
+        print(interrupted_line(prog, exc), file=sys.stderr)
+        return exit_status(exc)

@@ -75,3 +75,31 @@ def test_ctrl_c_while_a_python_m_job_starts_is_one_line_and_130(tmp_path, delay_
     assert code == 130, (code, stderr)
     assert stderr.splitlines() == ["validate_quality: interrupted while starting (nothing was done)"], stderr
     assert not (tmp_path / "out").exists()
+
+
+def test_sigterm_during_a_render_removes_its_partial_frame_and_exits_143(tmp_path):
+    """``kill`` (SIGTERM) while a frame is being written: the hidden staging directory goes, the frames already
+    finished stay, one line on stderr, exit status 143."""
+    out = tmp_path / "data"
+    cmd = [*CLI, "render", "--scene", "synthetic_box", "--width", "1600", "--viewpoints", "50", "--out", str(out),
+           "--quiet"]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    try:
+        deadline = time.monotonic() + 300
+        staging = []
+        while proc.poll() is None and time.monotonic() < deadline:
+            staging = [p for p in out.rglob(".*partial*")] if out.exists() else []
+            if staging:
+                break
+            time.sleep(0.005)
+        assert staging and proc.poll() is None, proc.communicate()
+        proc.send_signal(signal.SIGTERM)
+        _, stderr = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+    assert proc.returncode == 143, (proc.returncode, stderr)
+    assert stderr.splitlines() == ["tri360 render: terminated (finished outputs are complete; partial ones were "
+                                   "removed)"], stderr
+    assert not [p for p in out.rglob("*") if "partial" in p.name], sorted(out.rglob("*"))
