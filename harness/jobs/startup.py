@@ -35,7 +35,10 @@ EXIT_TERMINATED = 128 + signal.SIGTERM
 
 
 class Terminated(KeyboardInterrupt):
-    """Raised by the SIGTERM handler that :func:`release` installs: handled wherever Ctrl-C is, exit status 143."""
+    """Raised by the SIGTERM handler of :func:`sigterm_as_interrupt`: handled wherever Ctrl-C is, exit status
+    143."""
+
+
 _guard: dict[str, object] = {}  # the handler installed by guard() and the one it replaced
 
 
