@@ -183,9 +183,6 @@ def main(argv: Sequence[str] | None = None) -> int:
     except UserError as exc:
         print(f"select_matching: {exc}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt as exc:  # Ctrl-C or SIGTERM
-        print(startup.interrupted_line("select_matching", exc), file=sys.stderr)
-        return startup.exit_status(exc)
     print(text)
     return 0
 

@@ -709,10 +709,6 @@ def main(argv: Sequence[str] | None = None) -> int:
         where = f"{exc.filename}: " if exc.filename is not None else ""
         print(f"{PROG}: error: {where}{exc.strerror or exc}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt as exc:  # Ctrl-C or SIGTERM
-        print(f"{PROG}: {'terminated' if isinstance(exc, startup.Terminated) else 'interrupted'} (the output "
-              "directory was left as it was)", file=sys.stderr)
-        return startup.exit_status(exc)
     print(text, end="")
     return 0
 

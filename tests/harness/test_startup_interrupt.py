@@ -88,7 +88,7 @@ def test_sigterm_during_a_render_removes_its_partial_frame_and_exits_143(tmp_pat
         deadline = time.monotonic() + 300
         staging = []
         while proc.poll() is None and time.monotonic() < deadline:
-            staging = [p for p in out.rglob(".*partial*")] if out.exists() else []
+            staging = list(out.rglob(".*partial*")) if out.exists() else []
             if staging:
                 break
             time.sleep(0.005)
