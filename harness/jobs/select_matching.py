@@ -3,7 +3,7 @@
 Run as::
 
     python -m harness.jobs.select_matching DATA_ROOT --out DIR [--suite suites/tri360-v1.toml] [--split dev]
-        [--workers N | --scheduler ADDRESS]
+        [--candidates LABEL ...] [--workers N | --scheduler ADDRESS]
 
 ``DATA_ROOT`` must hold exactly the split's frames (``tri360 render --suite ... --split dev``; checked as for
 ``tri360 evaluate --suite``).  Every candidate of :func:`candidate_methods` runs on every frame, ``sweep`` and
@@ -20,7 +20,9 @@ choice.
 The rule (:func:`choose`): a candidate is *eligible* when on every family its MAE is at most ``1 + TOLERANCE``
 times the better of ``sweep`` and ``fused`` there; the choice is the eligible candidate with the lowest pooled MAE
 over the split (when none is eligible: the one whose worst family ratio is lowest, and the table says so).  Choose
-on ``dev`` only; run ``--split test`` once, with the chosen method among the candidates, to report it.
+on ``dev`` only; run ``--split test`` once, with the chosen method among the candidates, to report it:
+``--candidates fused-adaptive`` runs that one beside the baselines and the reference rows (4 of the 13 sweeps per
+frame), so the test run does not look at the candidates that were not chosen.
 """
 
 from __future__ import annotations
@@ -76,10 +78,16 @@ AVERAGE_PRIOR = ("fused-walls-k1-f0.5-0.7-avg",)
 REFERENCES = tuple(f"dis-rect:{v}" for v in DEFAULT_VARIANTS)
 
 
-def candidate_methods() -> list[Method]:
+def candidate_methods(only: Sequence[str] | None = None) -> list[Method]:
     """``sweep``, ``fused``, the sweep with wall families (``sweep-walls``), the default ``fused-adaptive`` and one
     fused method per :data:`CANDIDATE_PRIORS` entry (``fused``'s flow, or ``dis-rect:average`` for
-    :data:`AVERAGE_PRIOR`; its sweep, with wall families where the entry says so)."""
+    :data:`AVERAGE_PRIOR`; its sweep, with wall families where the entry says so).
+
+    Args:
+        only: candidate labels to keep (None = all); the :data:`BASELINES` are always kept, first.
+    Raises:
+        UserError: a label in ``only`` that is not a candidate (the message lists them).
+    """
     base = fused_method()
     average = get_methods(["dis-rect:average"])[0]
     default = adaptive_method()
@@ -88,7 +96,13 @@ def candidate_methods() -> list[Method]:
     for label, (with_walls, prior) in CANDIDATE_PRIORS.items():
         out.append(FusedMethod(flow=average if label in AVERAGE_PRIOR else base.flow,
                                sweep=walls if with_walls else base.sweep, prior=prior, label=label))
-    return out
+    if only is None:
+        return out
+    known = [m.label for m in out]
+    unknown = [x for x in only if x not in known]
+    if unknown:
+        raise UserError(f"unknown candidate(s) {', '.join(unknown)} (candidates: {', '.join(known)})")
+    return [m for m in out if m.label in BASELINES or m.label in only]
 
 
 def family_table(results: pd.DataFrame) -> pd.DataFrame:
@@ -156,6 +170,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--suite", type=Path, default=DEFAULT_SUITE, help="suite file")
     parser.add_argument("--split", choices=("dev", "test"), default="dev", help="suite split")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    parser.add_argument("--candidates", nargs="+", default=None, metavar="LABEL",
+                        help="run only these candidates beside the baselines (sweep, fused), e.g. the method chosen "
+                             "on dev for the one test run (default: every candidate)")
     parser.add_argument("--no-references", action="store_true",
                         help=f"run the candidates only, not the reference rows ({', '.join(REFERENCES)})")
     where = parser.add_mutually_exclusive_group()
@@ -167,7 +184,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         cluster = ClusterOptions(scheduler=args.scheduler, workers=args.workers)
         if cluster.distributed:
             cluster.check()
-        methods = candidate_methods() + ([] if args.no_references else get_methods(list(REFERENCES)))
+        methods = candidate_methods(args.candidates) + ([] if args.no_references else get_methods(list(REFERENCES)))
         results = evaluate_suite(args.data_root, args.suite, args.split, args.out, methods, report=False,
                                  progress=not args.quiet, cluster=cluster if cluster.distributed else None)
         table = family_table(results)

@@ -54,6 +54,17 @@ def test_candidates_are_sweep_fused_and_the_fused_variants_sharing_one_flow():
     assert len(keys) == 1  # one group: the flow once per frame for every fused candidate
 
 
+def test_candidates_can_be_narrowed_to_the_chosen_one_and_the_baselines(tmp_path, capsys):
+    assert [m.label for m in sel.candidate_methods(["fused-adaptive"])] == ["sweep", "fused", "fused-adaptive"]
+    assert [m.label for m in sel.candidate_methods(["fused"])] == ["sweep", "fused"]
+    with pytest.raises(Exception, match=r"unknown candidate\(s\) nope \(candidates: sweep, fused, sweep-walls"):
+        sel.candidate_methods(["fused-adaptive", "nope"])
+    out = tmp_path / "sel"
+    assert sel.main([str(tmp_path), "--out", str(out), "--candidates", "nope", "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "unknown candidate(s) nope" in err[0] and not out.exists()
+
+
 def test_select_on_a_tiny_suite_split_writes_the_results_and_the_choice(tmp_path, capsys):
     suite = write(tmp_path, MINI.format(width=64))
     root = tmp_path / "data"
@@ -68,8 +79,12 @@ def test_select_on_a_tiny_suite_split_writes_the_results_and_the_choice(tmp_path
     assert chosen["chosen"] not in sel.REFERENCES
     assert f"**{chosen['chosen']}**" in (out / "selection.md").read_text() and "Chosen:" in printed
     assert {"selection.md", "selection.json", "results.csv"} <= set(read_marker(out)["entries"])
-    # a rerun into its own output is accepted; a directory of someone else's is refused with status 2
-    assert sel.main([str(root), "--suite", str(suite), "--out", str(out), "--quiet"]) == 0
+    # a rerun into its own output is accepted (here the one-time test run's form: the chosen candidate only);
+    # a directory of someone else's is refused with status 2
+    assert sel.main([str(root), "--suite", str(suite), "--out", str(out), "--quiet",
+                     "--candidates", "fused-adaptive"]) == 0
+    rerun = json.loads((out / "selection.json").read_text())
+    assert set(rerun["table"]) == {"sweep", "fused", "fused-adaptive", *sel.REFERENCES}
     other = tmp_path / "mine"
     other.mkdir()
     (other / "notes.txt").write_text("keep")
