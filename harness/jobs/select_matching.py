@@ -18,8 +18,11 @@ table (MAE and solid-angle-weighted MAE, pooled over each family's scored pixels
 choice.
 
 The rule (:func:`choose`): a candidate is *eligible* when on every family its MAE is at most ``1 + TOLERANCE``
-times the better of ``sweep`` and ``fused`` there; the choice is the eligible candidate with the lowest pooled MAE
-over the split (when none is eligible: the one whose worst family ratio is lowest, and the table says so).  Choose
+times the better of ``sweep`` and ``fused`` there, and its time summed over the split's frames (the ``seconds``
+column: each method's stages as they would take alone, the shared flow included) is at most ``1 +
+TIME_TOLERANCE`` times ``fused``'s in the same run (the default must not cost more than the method it replaces);
+the choice is the eligible candidate with the lowest pooled MAE over the split (when none is eligible: the one
+whose worst family ratio is lowest, and the table says so).  Choose
 on ``dev`` only; run ``--split test`` once, with the chosen method among the candidates, to report it:
 ``--candidates fused-adaptive`` runs that one beside the baselines and the reference rows (4 of the 13 sweeps per
 frame), so the test run does not look at the candidates that were not chosen.
@@ -48,10 +51,12 @@ from reconstruction.methods.registry import DEFAULT_VARIANTS, WALL_PLANES, adapt
 from reconstruction.methods.sweep import SweepMethod
 from reports.tables import leaderboard_table
 
-__all__ = ["TOLERANCE", "BASELINES", "CANDIDATE_PRIORS", "AVERAGE_PRIOR", "REFERENCES", "candidate_methods",
-           "family_table", "choose", "main"]
+__all__ = ["TOLERANCE", "TIME_TOLERANCE", "BASELINES", "CANDIDATE_PRIORS", "AVERAGE_PRIOR", "REFERENCES",
+           "candidate_methods", "family_table", "choose", "main"]
 
 TOLERANCE = 0.05
+#: a candidate's summed seconds may exceed ``fused``'s by this fraction (0: no slower)
+TIME_TOLERANCE = 0.0
 BASELINES = ("sweep", "fused")
 DEFAULT_SUITE = Path("suites/tri360-v1.toml")
 
@@ -69,9 +74,16 @@ CANDIDATE_PRIORS: dict[str, tuple[bool, PriorParams]] = {
                                                   frame_agreement_high=0.7)),
     "fused-walls-k1-f0.5-0.7-avg": (True, PriorParams(sweep_confidence_power=1.0, frame_agreement_low=0.5,
                                                       frame_agreement_high=0.7)),
+    # the local-contrast gate of fused-c0.5-2 on the two best wall candidates: no flow prior where C's image has no
+    # texture for the flow to follow (a plain board or wall, where the wall labels carry the sweep)
+    "fused-walls-f0.6-0.8-c0.5-2": (True, PriorParams(contrast_low=0.5, contrast_high=2.0, frame_agreement_low=0.6,
+                                                      frame_agreement_high=0.8)),
+    "fused-walls-k1-f0.5-0.7-avg-c0.5-2": (True, PriorParams(contrast_low=0.5, contrast_high=2.0,
+                                                             sweep_confidence_power=1.0, frame_agreement_low=0.5,
+                                                             frame_agreement_high=0.7)),
 }
 #: candidates whose prior is the flow pipeline's unrefined distance (``dis-rect:average``: no LM, so cheaper)
-AVERAGE_PRIOR = ("fused-walls-k1-f0.5-0.7-avg",)
+AVERAGE_PRIOR = ("fused-walls-k1-f0.5-0.7-avg", "fused-walls-k1-f0.5-0.7-avg-c0.5-2")
 
 
 #: built-in methods run beside the candidates for the table, not chosen from: tri360's DIS flow pipeline
@@ -107,21 +119,28 @@ def candidate_methods(only: Sequence[str] | None = None) -> list[Method]:
 
 def family_table(results: pd.DataFrame) -> pd.DataFrame:
     """Per method: pooled ``mae_m`` and ``mae_sw_m`` over the split and ``mae_family:<f>`` / ``mae_sw_family:<f>``
-    per family (metres), as the leaderboard pools them; one row per method, index ``method``."""
+    per family (metres), as the leaderboard pools them, and ``seconds``, the method's time summed over the frames;
+    one row per method, index ``method``."""
     board = leaderboard_table(results)
     board = board[board["source"] == "tri360"].set_index("method")
-    cols = ["frames", "mae_m", "mae_sw_m", *sorted(c for c in board.columns if c.startswith("mae_family:")),
+    board["seconds"] = results.groupby("method")["seconds"].sum(min_count=1)
+    cols = ["frames", "mae_m", "mae_sw_m", "seconds",
+            *sorted(c for c in board.columns if c.startswith("mae_family:")),
             *sorted(c for c in board.columns if c.startswith("mae_sw_family:"))]
     return board[cols]
 
 
 def choose(table: pd.DataFrame, tolerance: float = TOLERANCE,
-           references: Sequence[str] = REFERENCES) -> tuple[str, bool, pd.Series]:
+           references: Sequence[str] = REFERENCES,
+           time_tolerance: float | None = TIME_TOLERANCE) -> tuple[str, bool, pd.Series]:
     """Apply the selection rule to a :func:`family_table`; rows named in ``references`` are never chosen.
 
+    Args:
+        time_tolerance: with a ``seconds`` column, a method is eligible only when its seconds are at most
+            ``1 + time_tolerance`` times ``fused``'s; None = no time bound.
     Returns:
-        ``(label, eligible, worst)``: the chosen method, whether it meets the bound on every family, and per
-        method the worst ratio of its family MAE to the better of the baselines' (dimensionless).
+        ``(label, eligible, worst)``: the chosen method, whether it meets the bounds (every family, and the time),
+        and per method the worst ratio of its family MAE to the better of the baselines' (dimensionless).
     Raises:
         UserError: a baseline is missing from the table.
     """
@@ -132,6 +151,8 @@ def choose(table: pd.DataFrame, tolerance: float = TOLERANCE,
     best = table.loc[list(BASELINES), fams].min(axis=0)
     worst = (table[fams] / best).max(axis=1)
     eligible = worst <= 1.0 + tolerance
+    if time_tolerance is not None and "seconds" in table.columns:
+        eligible &= table["seconds"] <= table.loc["fused", "seconds"] * (1.0 + time_tolerance)
     cands = ~table.index.isin(list(references))
     pool = table[eligible & cands] if (eligible & cands).any() else table.loc[[worst[cands].idxmin()]]
     label = str(pool["mae_m"].idxmin())
@@ -139,25 +160,29 @@ def choose(table: pd.DataFrame, tolerance: float = TOLERANCE,
 
 
 def selection_markdown(table: pd.DataFrame, label: str, eligible: bool, worst: pd.Series, suite: str,
-                       split: str, tolerance: float = TOLERANCE) -> str:
-    """The selection as Markdown: the method x family MAE table (plain, then solid-angle weighted) and the choice."""
+                       split: str, tolerance: float = TOLERANCE, time_tolerance: float = TIME_TOLERANCE) -> str:
+    """The selection as Markdown: the method x family MAE table (plain, then solid-angle weighted; each with the
+    worst family ratio and the summed seconds over ``fused``'s) and the choice."""
     fams = [c.split(":", 1)[1] for c in table.columns if c.startswith("mae_family:")]
+    time_ratio = table["seconds"] / table.loc["fused", "seconds"]
 
     def fmt(x) -> str:
         return f"{x:.3f}" if np.isfinite(x) else "-"
 
     lines = [f"# Matching selection on {suite}, split {split}", "",
              f"Rule: eligible = MAE on every family at most {1 + tolerance:.2f} x the better of "
-             f"{' and '.join(BASELINES)}; choice = the eligible method with the lowest pooled MAE.", ""]
+             f"{' and '.join(BASELINES)}, and seconds summed over the frames at most {1 + time_tolerance:.2f} x "
+             "fused's; choice = the eligible method with the lowest pooled MAE.", ""]
     for title, prefix, pooled in (("MAE (m)", "mae_family:", "mae_m"),
                                   ("solid-angle-weighted MAE (m)", "mae_sw_family:", "mae_sw_m")):
-        lines += [f"## {title}", "", "| method | all | " + " | ".join(fams) + " | worst ratio |",
-                  "|---|" + "---:|" * (len(fams) + 2)]
+        lines += [f"## {title}", "", "| method | all | " + " | ".join(fams) + " | worst ratio | time / fused |",
+                  "|---|" + "---:|" * (len(fams) + 3)]
         for m, row in table.sort_values(pooled).iterrows():
-            cells = [fmt(row[pooled]), *(fmt(row[prefix + f]) for f in fams), f"{worst[m]:.2f}"]
+            cells = [fmt(row[pooled]), *(fmt(row[prefix + f]) for f in fams), f"{worst[m]:.2f}",
+                     f"{time_ratio[m]:.2f}"]
             lines.append(f"| {'**' + m + '**' if m == label else m} | " + " | ".join(cells) + " |")
         lines.append("")
-    verdict = "meets the bound on every family" if eligible else "meets the bound on no family set: none does"
+    verdict = "meets the bounds" if eligible else "no method meets the bounds: the lowest worst family ratio"
     lines.append(f"Chosen: `{label}` ({verdict}; pooled MAE {table.loc[label, 'mae_m']:.4f} m).")
     return "\n".join(lines) + "\n"
 
@@ -193,7 +218,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         text = selection_markdown(table, label, eligible, worst, f"{args.suite.name} ({suite_id})", args.split)
         atomic_write_text(args.out / "selection.md", text)
         payload = {"suite": str(args.suite), "suite_id": suite_id, "split": args.split, "tolerance": TOLERANCE,
-                   "chosen": label, "eligible": eligible, "worst_ratio": {k: float(v) for k, v in worst.items()},
+                   "time_tolerance": TIME_TOLERANCE, "chosen": label, "eligible": eligible,
+                   "worst_ratio": {k: float(v) for k, v in worst.items()},
                    "table": {m: {k: float(v) for k, v in row.items()} for m, row in table.iterrows()}}
         atomic_write_text(args.out / "selection.json", jsonio.dumps(payload))
         mark_output(args.out, "results")

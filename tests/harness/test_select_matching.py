@@ -39,6 +39,19 @@ def test_the_rule_says_when_no_method_meets_the_bound():
         sel.choose(t.drop(index="fused"))
 
 
+def test_a_candidate_slower_than_fused_over_the_split_is_not_eligible():
+    t = table({"sweep": (0.20, 0.10, 0.30), "fused": (0.18, 0.20, 0.16), "slow": (0.12, 0.10, 0.15),
+               "quick": (0.13, 0.104, 0.16)})
+    t["seconds"] = pd.Series({"sweep": 50.0, "fused": 100.0, "slow": 100.5, "quick": 99.0})
+    label, eligible, _ = sel.choose(t)
+    assert (label, eligible) == ("quick", True)
+    assert sel.choose(t, time_tolerance=0.01)[:2] == ("slow", True)
+    assert sel.choose(t, time_tolerance=None)[:2] == ("slow", True)
+    text = sel.selection_markdown(t, label, eligible, sel.choose(t)[2], "s", "dev")
+    assert "| **quick** | 0.130 | 0.104 | 0.160 | 1.04 | 0.99 |" in text
+    assert "| slow | 0.120 | 0.100 | 0.150 | 1.00 | 1.00 |" in text  # 100.5 / 100 rounds to 1.00 but is over
+
+
 def test_reference_rows_are_never_chosen():
     t = table({"sweep": (0.20, 0.10, 0.30), "fused": (0.18, 0.20, 0.16), "ref": (0.10, 0.09, 0.12),
                "x": (0.15, 0.104, 0.16)})
@@ -76,7 +89,8 @@ def test_select_on_a_tiny_suite_split_writes_the_results_and_the_choice(tmp_path
     assert chosen["split"] == "dev" and chosen["suite_id"].startswith("sha256:")
     assert chosen["chosen"] in [m.label for m in sel.candidate_methods()]
     assert set(chosen["table"]) == {m.label for m in sel.candidate_methods()} | set(sel.REFERENCES)
-    assert chosen["chosen"] not in sel.REFERENCES
+    assert chosen["chosen"] not in sel.REFERENCES and chosen["time_tolerance"] == sel.TIME_TOLERANCE
+    assert all(chosen["table"][m]["seconds"] > 0 for m in chosen["table"])
     assert f"**{chosen['chosen']}**" in (out / "selection.md").read_text() and "Chosen:" in printed
     assert {"selection.md", "selection.json", "results.csv"} <= set(read_marker(out)["entries"])
     # a rerun into its own output is accepted (here the one-time test run's form: the chosen candidate only);
