@@ -31,6 +31,7 @@ frame), so the test run does not look at the candidates that were not chosen.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -49,10 +50,11 @@ from reconstruction.methods.base import Method
 from reconstruction.methods.fused import FusedMethod, PriorParams
 from reconstruction.methods.registry import DEFAULT_VARIANTS, WALL_PLANES, adaptive_method, fused_method, get_methods
 from reconstruction.methods.sweep import SweepMethod
+from reconstruction.sweep.planes import PlaneParams
 from reports.tables import leaderboard_table
 
-__all__ = ["TOLERANCE", "TIME_TOLERANCE", "BASELINES", "CANDIDATE_PRIORS", "AVERAGE_PRIOR", "REFERENCES",
-           "candidate_methods", "family_table", "choose", "main"]
+__all__ = ["TOLERANCE", "TIME_TOLERANCE", "BASELINES", "WALLS_COARSE3", "CANDIDATE_PRIORS", "AVERAGE_PRIOR",
+           "REFERENCES", "candidate_methods", "family_table", "choose", "main"]
 
 TOLERANCE = 0.05
 #: a candidate's summed seconds may exceed ``fused``'s by this fraction (0: no slower)
@@ -60,27 +62,36 @@ TIME_TOLERANCE = 0.0
 BASELINES = ("sweep", "fused")
 DEFAULT_SUITE = Path("suites/tri360-v1.toml")
 
+#: the default's wall families with the coarse room-bound pass on images 3x smaller instead of 2x (the coarse pass
+#: is then about 0.6 s CPU cheaper at 1000x500, about what the wall labels cost in SGM)
+WALLS_COARSE3 = dataclasses.replace(WALL_PLANES, coarse_factor=3)
+
 #: the fused candidates besides the registered default ``fused-adaptive`` (:func:`reconstruction.methods.registry.
 #: adaptive_method`: wall families, frame agreement 0.6-0.8; the dev selection chose it under the candidate label
-#: ``fused-walls-f0.6-0.8``): label -> (wall families?, prior weight per pixel), all on ``fused``'s flow and sweep
-#: (:class:`reconstruction.methods.fused.PriorParams`, :class:`reconstruction.sweep.planes.PlaneParams`).
+#: ``fused-walls-f0.6-0.8``): label -> (the sweep's plane families, prior weight per pixel), all on ``fused``'s flow
+#: and its sweep but for the planes (None: ``fused``'s, no walls; :class:`reconstruction.methods.fused.PriorParams`,
+#: :class:`reconstruction.sweep.planes.PlaneParams`).
 #: A first look at 10 dev frames (classroom, seminar, lab) left out three more that were worse than ``sweep``
 #: pooled: the flow confidence alone, wall families alone, and wall families with the sweep-confidence power only.
-CANDIDATE_PRIORS: dict[str, tuple[bool, PriorParams]] = {
-    "fused-c0.5-2": (False, PriorParams(contrast_low=0.5, contrast_high=2.0)),
-    "fused-walls-f0.4-0.6": (True, PriorParams(frame_agreement_low=0.4, frame_agreement_high=0.6)),
-    "fused-walls-f0.5-0.7": (True, PriorParams(frame_agreement_low=0.5, frame_agreement_high=0.7)),
-    "fused-walls-k1-f0.5-0.7": (True, PriorParams(sweep_confidence_power=1.0, frame_agreement_low=0.5,
-                                                  frame_agreement_high=0.7)),
-    "fused-walls-k1-f0.5-0.7-avg": (True, PriorParams(sweep_confidence_power=1.0, frame_agreement_low=0.5,
-                                                      frame_agreement_high=0.7)),
-    # the local-contrast gate of fused-c0.5-2 on the two best wall candidates: no flow prior where C's image has no
-    # texture for the flow to follow (a plain board or wall, where the wall labels carry the sweep)
-    "fused-walls-f0.6-0.8-c0.5-2": (True, PriorParams(contrast_low=0.5, contrast_high=2.0, frame_agreement_low=0.6,
-                                                      frame_agreement_high=0.8)),
-    "fused-walls-k1-f0.5-0.7-avg-c0.5-2": (True, PriorParams(contrast_low=0.5, contrast_high=2.0,
-                                                             sweep_confidence_power=1.0, frame_agreement_low=0.5,
+CANDIDATE_PRIORS: dict[str, tuple[PlaneParams | None, PriorParams]] = {
+    "fused-c0.5-2": (None, PriorParams(contrast_low=0.5, contrast_high=2.0)),
+    "fused-walls-f0.4-0.6": (WALL_PLANES, PriorParams(frame_agreement_low=0.4, frame_agreement_high=0.6)),
+    "fused-walls-f0.5-0.7": (WALL_PLANES, PriorParams(frame_agreement_low=0.5, frame_agreement_high=0.7)),
+    "fused-walls-k1-f0.5-0.7": (WALL_PLANES, PriorParams(sweep_confidence_power=1.0, frame_agreement_low=0.5,
+                                                         frame_agreement_high=0.7)),
+    "fused-walls-k1-f0.5-0.7-avg": (WALL_PLANES, PriorParams(sweep_confidence_power=1.0, frame_agreement_low=0.5,
                                                              frame_agreement_high=0.7)),
+    # the local-contrast gate of fused-c0.5-2 on the best wall candidates: no flow prior where C's image has no
+    # texture for the flow to follow (a plain board or wall, where the wall labels carry the sweep); -q3: the
+    # cheaper coarse pass, so that the walls cost no more time than fused
+    "fused-walls-f0.6-0.8-c0.5-2": (WALL_PLANES, PriorParams(contrast_low=0.5, contrast_high=2.0,
+                                                             frame_agreement_low=0.6, frame_agreement_high=0.8)),
+    "fused-walls-f0.6-0.8-c0.5-2-q3": (WALLS_COARSE3, PriorParams(contrast_low=0.5, contrast_high=2.0,
+                                                                  frame_agreement_low=0.6, frame_agreement_high=0.8)),
+    "fused-walls-k1-f0.5-0.7-avg-c0.5-2": (WALL_PLANES, PriorParams(contrast_low=0.5, contrast_high=2.0,
+                                                                    sweep_confidence_power=1.0,
+                                                                    frame_agreement_low=0.5,
+                                                                    frame_agreement_high=0.7)),
 }
 #: candidates whose prior is the flow pipeline's unrefined distance (``dis-rect:average``: no LM, so cheaper)
 AVERAGE_PRIOR = ("fused-walls-k1-f0.5-0.7-avg", "fused-walls-k1-f0.5-0.7-avg-c0.5-2")
@@ -93,7 +104,7 @@ REFERENCES = tuple(f"dis-rect:{v}" for v in DEFAULT_VARIANTS)
 def candidate_methods(only: Sequence[str] | None = None) -> list[Method]:
     """``sweep``, ``fused``, the sweep with wall families (``sweep-walls``), the default ``fused-adaptive`` and one
     fused method per :data:`CANDIDATE_PRIORS` entry (``fused``'s flow, or ``dis-rect:average`` for
-    :data:`AVERAGE_PRIOR`; its sweep, with wall families where the entry says so).
+    :data:`AVERAGE_PRIOR`; ``fused``'s sweep with the entry's plane families).
 
     Args:
         only: candidate labels to keep (None = all); the :data:`BASELINES` are always kept, first.
@@ -103,11 +114,11 @@ def candidate_methods(only: Sequence[str] | None = None) -> list[Method]:
     base = fused_method()
     average = get_methods(["dis-rect:average"])[0]
     default = adaptive_method()
-    walls = default.sweep  # fused's sweep with the wall families
     out: list[Method] = [SweepMethod(), base, SweepMethod(planes=WALL_PLANES, label="sweep-walls"), default]
-    for label, (with_walls, prior) in CANDIDATE_PRIORS.items():
-        out.append(FusedMethod(flow=average if label in AVERAGE_PRIOR else base.flow,
-                               sweep=walls if with_walls else base.sweep, prior=prior, label=label))
+    for label, (planes, prior) in CANDIDATE_PRIORS.items():
+        sweep = base.sweep if planes is None else dataclasses.replace(base.sweep, planes=planes)
+        out.append(FusedMethod(flow=average if label in AVERAGE_PRIOR else base.flow, sweep=sweep, prior=prior,
+                               label=label))
     if only is None:
         return out
     known = [m.label for m in out]
