@@ -9,8 +9,11 @@ The flow ``w = (u, v)`` from image 1 to image 2 minimises
 
 with the robust penaliser ``Psi(s^2) = sqrt(s^2 + eps^2)`` (eps = 1e-3), the per-channel normalisations
 ``n = |grad I|^2 + 0.1^2`` of Zimmer et al. (images in 0..255), and the matching term fed by
-:func:`reconstruction.flow.deepmatching.deep_matching`: ``w_match`` is the matches' flow splatted over each
-match's cell, ``phi`` its score divided by the largest score (in (0, 1]; 0 where no match).  The energy is
+:func:`reconstruction.flow.deepmatching.deep_matching`, as in the authors' code: each match is a single point of
+weight ``phi`` (:func:`match_weights`: image 0's texture at the match times the agreement of both images at its
+ends; DeepMatching's score is not used), bilinearly splatted on each level's grid where the weights add up and
+``w_match`` is their weighted mean (:func:`match_field`), so the term is sparse at fine levels and pulls hard
+only at coarse ones, where many matches fall on one pixel.  The energy is
 minimised coarse to fine (pyramid factor ``eta`` = 0.95 down to ``min_size`` = 25 pixels); at each level, ``n_inner``
 fixed-point iterations linearise the data terms around the current flow (the second image warped by it) and
 solve the linear system of the increment with ``n_solver`` coupled red-black SOR sweeps (relaxation ``omega``);
@@ -36,9 +39,15 @@ import cv2
 import numba
 import numpy as np
 
-from reconstruction.flow.deepmatching import DeepMatchingParams, Matches, deep_matching
+from reconstruction.flow.deepmatching import (
+    DeepMatchingParams,
+    Matches,
+    blur_periodic,
+    central_differences,
+    deep_matching,
+)
 
-__all__ = ["DeepFlowParams", "deep_flow", "match_field"]
+__all__ = ["DeepFlowParams", "deep_flow", "match_field", "match_weights"]
 
 DATANORM = 0.1 * 0.1  # squared normalisation added to |grad I|^2 (grey levels^2 per pixel^2)
 EPS2 = 0.001 * 0.001  # squared epsilon of the robust penaliser
@@ -82,33 +91,100 @@ class DeepFlowParams:
         return asdict(self)
 
 
-def match_field(m: Matches, h: int, w: int, wrap: bool = True):
-    """Splat matches into dense maps: each match's flow over its cell (``m.cell`` pixels square).
+def match_weights(img0: np.ndarray, img1: np.ndarray, m: Matches, wrap: bool = True) -> np.ndarray:
+    """Each match's weight phi in the matching term, as the authors' DeepFlow code computes it (its
+    ``compute_desc_weight``; DeepMatching's score is not used): high where image 0 is textured in every direction
+    and where both images agree at the match's ends,
 
+        phi = 10 sqrt(lambda_min) / (50 sqrt(2 pi)) exp(-s^2 / (2 50^2)),
+
+    with ``lambda_min`` the smaller eigenvalue of image 0's structure tensor (images smoothed by sigma 0.8 px,
+    central differences, summed over channels, integrated by a Gaussian of sigma 3 px; grey levels^2 per px^2)
+    at the match's start, and ``s`` the sum over channels of the absolute differences of the smoothed colours and
+    of their five-point x and y derivatives between the start and the (nearest-pixel) end (grey levels).
+
+    Args:
+        img0, img1: (H, W, 3) uint8 RGB or (H, W) grey images, 0..255.
+        m: matches from img0 to img1, input pixels.
+        wrap: columns are periodic.
     Returns:
-        ``(mu, mv, mw)``, each (H, W) float32: the matches' flow (pixels) and weight phi = score / max score
-        (0 where no match; where cells overlap the better-scored match wins).
+        (M,) float64 weights, >= 0 (about 1 for a match in good texture whose ends agree).
     """
-    mu = np.zeros((h, w), np.float32)
-    mv = np.zeros((h, w), np.float32)
-    mw = np.zeros((h, w), np.float32)
     if m.x0.size == 0:
-        return mu, mv, mw
-    phi = (m.score / max(float(m.score.max()), 1e-12)).astype(np.float32)
-    half = 0.5 * m.cell
-    order = np.argsort(phi, kind="stable")  # ascending: later (better) matches overwrite
-    for k in order:
-        x0, y0 = m.x0[k], m.y0[k]
-        r0, r1 = max(0, int(np.ceil(y0 - half))), min(h, int(np.ceil(y0 + half)))
-        c0, c1 = int(np.ceil(x0 - half)), int(np.ceil(x0 + half))
-        cols = np.arange(c0, c1)
-        cols = cols % w if wrap else cols[(cols >= 0) & (cols < w)]
-        if r1 <= r0 or cols.size == 0:
-            continue
-        mu[r0:r1, cols] = m.x1[k] - x0
-        mv[r0:r1, cols] = m.y1[k] - y0
-        mw[r0:r1, cols] = phi[k]
-    return mu, mv, mw
+        return np.zeros(0)
+    h, w = img0.shape[:2]
+
+    def prep(img):  # a grey image counts as three equal channels, as in the authors' code
+        x = img.astype(np.float32)
+        return blur_periodic(np.repeat(x[..., None], 3, axis=2) if x.ndim == 2 else x, 0.8, wrap).reshape(h, w, -1)
+
+    s0, s1 = prep(img0), prep(img1)
+    cx, cy = central_differences(s0, wrap)
+    jxx = blur_periodic(np.ascontiguousarray((cx * cx).sum(2)), 3.0, wrap)
+    jxy = blur_periodic(np.ascontiguousarray((cx * cy).sum(2)), 3.0, wrap)
+    jyy = blur_periodic(np.ascontiguousarray((cy * cy).sum(2)), 3.0, wrap)
+    t = 0.5 * (jxx + jyy)
+    lam = t - np.sqrt(np.maximum(t * t + jxy * jxy - jxx * jyy, 0.0))
+    i0 = np.clip(np.rint(m.y0).astype(np.int64), 0, h - 1)
+    i1 = np.clip(np.rint(m.y1).astype(np.int64), 0, h - 1)
+    j0, j1 = np.rint(m.x0).astype(np.int64), np.rint(m.x1).astype(np.int64)
+    j0, j1 = (j0 % w, j1 % w) if wrap else (np.clip(j0, 0, w - 1), np.clip(j1, 0, w - 1))
+    score = np.abs(s0[i0, j0] - s1[i1, j1]).sum(1)
+    for d0, d1 in ((_dx5(s0, wrap), _dx5(s1, wrap)), (_dy5(s0), _dy5(s1))):
+        score += np.abs(d0[i0, j0] - d1[i1, j1]).sum(1)
+    sig = 50.0  # grey levels
+    gauss = np.exp(-score ** 2 / (2 * sig ** 2)) / (sig * np.sqrt(2 * np.pi))
+    return np.maximum(10.0 * np.sqrt(np.maximum(lam[i0, j0], 0.0)) * gauss, 0.0).astype(np.float64)
+
+
+def match_field(m: Matches, phi: np.ndarray, h: int, w: int, wrap: bool = True,
+                level_hw: tuple[int, int] | None = None):
+    """The matches as dense maps at one pyramid level, as the authors' ``descflow_resize``: each match is one
+    point (its image-0 position), bilinearly splatted on the level's pixel grid; the weights *add up* and the
+    flow is their weighted mean.
+
+    Args:
+        m: matches in input pixels (centres at integers).
+        phi: (M,) each match's weight (dimensionless, >= 0; :func:`match_weights`).
+        h, w: the input size, pixels.
+        wrap: columns are periodic.
+        level_hw: (lh, lw) the level's size (default (h, w)); positions map as ``(x + 0.5) lw / w - 0.5`` (the
+            centre-aligned mapping of ``cv2.resize``) and the flow is scaled by ``lw / w``, ``lh / h``.
+    Returns:
+        ``(mu, mv, mw)``, each (lh, lw) float32: the matches' flow (level pixels) and the summed weights (0 where
+        no match).
+    """
+    lh, lw = level_hw if level_hw is not None else (h, w)
+    mu = np.zeros((lh, lw), np.float64)
+    mv = np.zeros((lh, lw), np.float64)
+    mw = np.zeros((lh, lw), np.float64)
+    if m.x0.size == 0:
+        return mu.astype(np.float32), mv.astype(np.float32), mw.astype(np.float32)
+    phi = np.asarray(phi, np.float64)
+    sx, sy = lw / w, lh / h
+    fu, fv = (m.x1 - m.x0) * sx, (m.y1 - m.y0) * sy
+    xs = (m.x0 + 0.5) * sx - 0.5
+    ys = np.clip((m.y0 + 0.5) * sy - 0.5, 0.0, lh - 1.0)
+    if wrap:
+        xs = xs % lw
+    else:
+        xs = np.clip(xs, 0.0, lw - 1.0)
+    x0f, y0f = np.floor(xs), np.floor(ys)
+    ax, ay = xs - x0f, ys - y0f
+    x0i, y0i = x0f.astype(np.int64), y0f.astype(np.int64)
+    for dy, wy in ((0, 1.0 - ay), (1, ay)):
+        yi = np.minimum(y0i + dy, lh - 1)
+        for dx, wx in ((0, 1.0 - ax), (1, ax)):
+            xi = (x0i + dx) % lw if wrap else np.minimum(x0i + dx, lw - 1)
+            wt = phi * wx * wy
+            np.add.at(mw, (yi, xi), wt)
+            np.add.at(mu, (yi, xi), wt * fu)
+            np.add.at(mv, (yi, xi), wt * fv)
+    ok = mw > 1e-10
+    mu[ok] /= mw[ok]
+    mv[ok] /= mw[ok]
+    mw[~ok] = 0.0
+    return mu.astype(np.float32), mv.astype(np.float32), mw.astype(np.float32)
 
 
 @numba.njit(parallel=True, cache=True)
@@ -363,7 +439,6 @@ def deep_flow(img0: np.ndarray, img1: np.ndarray, params: DeepFlowParams | None 
     if matches is None:
         mp = p.matching if p.matching.wrap == p.wrap else DeepMatchingParams(**{**asdict(p.matching), "wrap": p.wrap})
         matches = deep_matching(img0, img1, mp)
-    mu, mv, mw = match_field(matches, h, w, p.wrap)
 
     def prep(img):
         x = img.astype(np.float32)
@@ -372,6 +447,7 @@ def deep_flow(img0: np.ndarray, img1: np.ndarray, params: DeepFlowParams | None 
             x = cv2.GaussianBlur(x, (0, 0), p.sigma, borderType=cv2.BORDER_REPLICATE)
         return x if x.ndim == 3 else x[..., None]
 
+    phi = match_weights(img0, img1, matches, p.wrap)
     s1, s2 = prep(img0), prep(img1)
     sizes = []
     k = 0
@@ -385,7 +461,6 @@ def deep_flow(img0: np.ndarray, img1: np.ndarray, params: DeepFlowParams | None 
         if min(lw, lh) <= p.min_size:
             break
     n_lev = len(sizes)
-    wmu, wmv = mw * mu, mw * mv
     u = v = None
     for k in range(n_lev - 1, -1, -1):
         lw, lh = sizes[k]
@@ -398,10 +473,7 @@ def deep_flow(img0: np.ndarray, img1: np.ndarray, params: DeepFlowParams | None 
             ph, pw = u.shape
             u = cv2.resize(u, (lw, lh), interpolation=cv2.INTER_LINEAR) * (lw / pw)
             v = cv2.resize(v, (lw, lh), interpolation=cv2.INTER_LINEAR) * (lh / ph)
-        lmw = cv2.resize(mw, (lw, lh), interpolation=cv2.INTER_AREA)
-        safe = np.maximum(lmw, 1e-6)
-        lmu = np.where(lmw > 1e-6, cv2.resize(wmu, (lw, lh), interpolation=cv2.INTER_AREA) / safe, 0.0) * (lw / w)
-        lmv = np.where(lmw > 1e-6, cv2.resize(wmv, (lw, lh), interpolation=cv2.INTER_AREA) / safe, 0.0) * (lh / h)
+        lmu, lmv, lmw = match_field(matches, phi, h, w, p.wrap, (lh, lw))
         half_beta = 0.5 * p.beta * ((k / (n_lev - 1)) ** p.bk if (p.bk > 0 and n_lev > 1) else 1.0)
         u, v = _one_level(u.astype(np.float32), v.astype(np.float32), im1, im2, lmu.astype(np.float32),
                           lmv.astype(np.float32), lmw.astype(np.float32), half_beta, p)

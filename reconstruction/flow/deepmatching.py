@@ -52,7 +52,8 @@ import cv2
 import numba
 import numpy as np
 
-__all__ = ["DeepMatchingParams", "Matches", "deep_matching", "deep_matching_both", "pixel_descriptors"]
+__all__ = ["DeepMatchingParams", "Matches", "deep_matching", "deep_matching_both", "pixel_descriptors", "blur_periodic",
+           "central_differences"]
 
 PATCH_CELLS = 4  # an atomic patch is 4 x 4 cells
 N_ORIENT = 8
@@ -115,8 +116,9 @@ class Matches:
     cell: float
 
 
-def _blur(x: np.ndarray, sigma: float, wrap: bool) -> np.ndarray:
-    """Gaussian blur of an (H, W) or (H, W, C) float32 array, periodic in columns if ``wrap``."""
+def blur_periodic(x: np.ndarray, sigma: float, wrap: bool) -> np.ndarray:
+    """Gaussian blur (``sigma`` pixels) of an (H, W) or (H, W, C) float32 array, periodic in columns if ``wrap``
+    (rows: the edge replicated)."""
     if sigma <= 0:
         return x
     pad = int(np.ceil(3 * sigma)) + 1
@@ -129,6 +131,19 @@ def _blur(x: np.ndarray, sigma: float, wrap: bool) -> np.ndarray:
     return cv2.GaussianBlur(x, (0, 0), sigma, borderType=cv2.BORDER_REPLICATE)
 
 
+def central_differences(x: np.ndarray, wrap: bool) -> tuple[np.ndarray, np.ndarray]:
+    """``(d/dx, d/dy)`` of an (H, W) or (H, W, C) array by central differences (per pixel); columns periodic if
+    ``wrap`` (else 0 in the first and last column), 0 in the first and last row."""
+    if wrap:
+        gx = 0.5 * (np.roll(x, -1, axis=1) - np.roll(x, 1, axis=1))
+    else:
+        gx = np.zeros_like(x)
+        gx[:, 1:-1] = 0.5 * (x[:, 2:] - x[:, :-2])
+    gy = np.zeros_like(x)
+    gy[1:-1] = 0.5 * (x[2:] - x[:-2])
+    return gx, gy
+
+
 def pixel_descriptors(gray: np.ndarray, p: DeepMatchingParams) -> np.ndarray:
     """Per-pixel 9-dimensional descriptors.
 
@@ -138,19 +153,13 @@ def pixel_descriptors(gray: np.ndarray, p: DeepMatchingParams) -> np.ndarray:
     Returns:
         (H, W, 9) float32, each pixel's vector of unit L2 norm.
     """
-    g = _blur(gray.astype(np.float32), p.presmooth_sigma, p.wrap)
-    if p.wrap:
-        gx = 0.5 * (np.roll(g, -1, axis=1) - np.roll(g, 1, axis=1))
-    else:
-        gx = np.zeros_like(g)
-        gx[:, 1:-1] = 0.5 * (g[:, 2:] - g[:, :-2])
-    gy = np.zeros_like(g)
-    gy[1:-1] = 0.5 * (g[2:] - g[:-2])
+    g = blur_periodic(gray.astype(np.float32), p.presmooth_sigma, p.wrap)
+    gx, gy = central_differences(g, p.wrap)
     ang = np.arange(N_ORIENT) * (2 * np.pi / N_ORIENT)
     hog = np.maximum(0.0, gx[..., None] * np.cos(ang) + gy[..., None] * np.sin(ang)).astype(np.float32)
-    hog = _blur(hog, p.mid_smoothing, p.wrap)
+    hog = blur_periodic(hog, p.mid_smoothing, p.wrap)
     hog = (2.0 / (1.0 + np.exp(-p.hog_sigmoid * hog)) - 1.0).astype(np.float32)
-    hog = _blur(hog, p.post_smoothing, p.wrap)
+    hog = blur_periodic(hog, p.post_smoothing, p.wrap)
     desc = np.concatenate([hog, np.full(g.shape + (1,), p.ninth_dim, np.float32)], axis=2)
     desc /= np.linalg.norm(desc, axis=2, keepdims=True)
     return np.ascontiguousarray(desc.astype(np.float32))

@@ -6,7 +6,7 @@ import cv2
 import numpy as np
 
 from reconstruction.flow.backends import FlowBackend, equirect_flow, get_flow
-from reconstruction.flow.deepflow import DeepFlowParams, deep_flow, match_field
+from reconstruction.flow.deepflow import DeepFlowParams, deep_flow, match_field, match_weights
 from reconstruction.flow.deepmatching import DeepMatchingParams, Matches
 from tests.reconstruction.test_deepmatching import texture
 
@@ -46,14 +46,53 @@ def test_non_periodic_flow_and_determinism():
     assert float(np.mean(np.hypot(inner[..., 0] - 24, inner[..., 1]))) < 0.5
 
 
-def test_match_field_splats_each_match_over_its_cell_and_wraps():
-    m = Matches(x0=np.array([1.0, 20.0]), y0=np.array([5.0, 5.0]), x1=np.array([-9.0, 23.0]),
-                y1=np.array([6.0, 5.0]), score=np.array([2.0, 1.0]), cell=4.0)
-    mu, mv, mw = match_field(m, 16, 32)
-    assert mu[5, 1] == -10 and mv[5, 1] == 1 and mw[5, 1] == 1.0
-    assert mu[5, 31] == -10  # the first match's cell crosses the seam (columns -1..2)
-    assert mu[5, 20] == 3 and mw[5, 20] == 0.5
-    assert mw[12, 10] == 0.0 and mw.sum() == 16 * 1.0 + 16 * 0.5
+def test_quantised_matches_do_not_pin_the_flow():
+    """256x128 pair moved by exactly (40, 3) px (wrapping); DeepMatching at its default half resolution can only
+    say 2 or 4 px vertically (1 or 2 working px).  The matching term is the authors' one (each match one point;
+    sparse at fine levels), so the data term recovers the sub-match precision: mean end-point error below
+    0.02 px (measured 0.0006 px; with each match splatted over its whole 16 px cell, as before, 0.175 px)."""
+    h, w = 128, 256
+    img0 = texture(h, w, 7)
+    img1 = np.roll(np.roll(img0, 40, axis=1), 3, axis=0)
+    flow = deep_flow(img0, img1, DeepFlowParams())
+    ex = (flow[..., 0] - 40 + w / 2) % w - w / 2
+    assert float(np.mean(np.hypot(ex, flow[..., 1] - 3)[4:-4])) < 0.02
+
+
+def test_match_field_splats_each_match_at_one_point_and_wraps():
+    """Each match is one point, bilinearly splatted; weights add up (none lost, none duplicated), the flow is
+    their weighted mean and is scaled with the level; a point between the last and the first column wraps."""
+    m = Matches(x0=np.array([1.0, 1.0, 31.5]), y0=np.array([5.0, 5.0, 13.0]), x1=np.array([-9.0, -6.0, 34.5]),
+                y1=np.array([6.0, 6.0, 13.0]), score=np.ones(3), cell=4.0)
+    phi = np.array([2.0, 1.0, 1.0])
+    mu, mv, mw = match_field(m, phi, 16, 32)
+    assert mw[5, 1] == 3.0 and mu[5, 1] == -9.0 and mv[5, 1] == 1.0  # (2 * -10 + 1 * -7) / 3
+    assert mw[13, 31] == 0.5 and mw[13, 0] == 0.5 and mu[13, 0] == 3.0 and mu[13, 31] == 3.0  # across the seam
+    assert mw.sum() == 4.0 and np.count_nonzero(mw) == 3
+    # half size: (1, 5) -> (0.25, 2.25) shared by columns 0-1 and rows 2-3, its flow halved; weights kept
+    mu, mv, mw = match_field(m, phi, 16, 32, level_hw=(8, 16))
+    np.testing.assert_allclose(mw.sum(), 4.0, rtol=1e-6)
+    np.testing.assert_allclose(mw[2:4, 0:2], 3.0 * np.outer([0.75, 0.25], [0.75, 0.25]), rtol=1e-6)
+    np.testing.assert_allclose(mu[2:4, 0:2], -4.5, rtol=1e-6)
+    np.testing.assert_allclose(mv[2:4, 0:2], 0.5, rtol=1e-6)
+    np.testing.assert_allclose(mu[6:8, 15], 1.5, rtol=1e-6)  # the seam match: x 15.5 -> columns 15 and 0
+    np.testing.assert_allclose(mu[6:8, 0], 1.5, rtol=1e-6)
+
+
+def test_match_weights_favour_textured_consistent_matches():
+    """The authors' phi: a correct match in texture weighs about 1 (0.3 to 5), a match 7 px off weighs at most
+    a fifth of it, and any match in a flat image weighs 0."""
+    img0 = texture(H, W, 8)
+    img1 = np.roll(img0, 10, axis=1)
+    ys, xs = np.mgrid[12:52:8, 4:124:8]
+    x0, y0 = xs.ravel().astype(float), ys.ravel().astype(float)
+    good = Matches(x0=x0, y0=y0, x1=x0 + 10, y1=y0, score=np.ones(x0.size), cell=8.0)
+    bad = Matches(x0=x0, y0=y0, x1=x0 + 17, y1=y0, score=np.ones(x0.size), cell=8.0)
+    pg, pb = match_weights(img0, img1, good), match_weights(img0, img1, bad)
+    assert 0.3 < np.median(pg) < 5.0
+    assert np.mean(pb) < 0.2 * np.mean(pg)
+    flat = np.full_like(img0, 128)
+    assert np.all(match_weights(flat, flat, good) == 0.0)
 
 
 def test_wrapping_backends_get_unpadded_images():
