@@ -24,8 +24,8 @@ TIME_TOLERANCE`` times ``fused``'s in the same run (the default must not cost mo
 the choice is the eligible candidate with the lowest pooled MAE over the split (when none is eligible: the one
 whose worst family ratio is lowest, and the table says so).  Choose
 on ``dev`` only; run ``--split test`` once, with the chosen method among the candidates, to report it:
-``--candidates fused-adaptive`` runs that one beside the baselines and the reference rows (4 of the 13 sweeps per
-frame), so the test run does not look at the candidates that were not chosen.
+``--candidates fused-gated`` runs that one beside the baselines and the reference rows, so the test run does not
+look at the candidates that were not chosen.
 """
 
 from __future__ import annotations
@@ -48,7 +48,14 @@ from harness.jobs.cluster import ClusterOptions
 from harness.jobs.suite import evaluate_suite
 from reconstruction.methods.base import Method
 from reconstruction.methods.fused import FusedMethod, PriorParams
-from reconstruction.methods.registry import DEFAULT_VARIANTS, WALL_PLANES, adaptive_method, fused_method, get_methods
+from reconstruction.methods.registry import (
+    DEFAULT_VARIANTS,
+    WALL_PLANES,
+    adaptive_method,
+    fused_method,
+    gated_method,
+    get_methods,
+)
 from reconstruction.methods.sweep import SweepMethod
 from reconstruction.sweep.planes import PlaneParams
 from reports.tables import leaderboard_table
@@ -66,11 +73,13 @@ DEFAULT_SUITE = Path("suites/tri360-v1.toml")
 #: is then about 0.6 s CPU cheaper at 1000x500, about what the wall labels cost in SGM)
 WALLS_COARSE3 = dataclasses.replace(WALL_PLANES, coarse_factor=3)
 
-#: the fused candidates besides the registered default ``fused-adaptive`` (:func:`reconstruction.methods.registry.
-#: adaptive_method`: wall families, frame agreement 0.6-0.8; the dev selection chose it under the candidate label
-#: ``fused-walls-f0.6-0.8``): label -> (the sweep's plane families, prior weight per pixel), all on ``fused``'s flow
-#: and its sweep but for the planes (None: ``fused``'s, no walls; :class:`reconstruction.methods.fused.PriorParams`,
-#: :class:`reconstruction.sweep.planes.PlaneParams`).
+#: the fused candidates besides the registered ``fused-adaptive`` (:func:`reconstruction.methods.registry.
+#: adaptive_method`: wall families, frame agreement 0.6-0.8; the first dev selection chose it under the candidate
+#: label ``fused-walls-f0.6-0.8``) and the default ``fused-gated`` (:func:`reconstruction.methods.registry.
+#: gated_method`; the dev selection with the time bound chose it under the candidate label
+#: ``fused-walls-k1-f0.5-0.7-avg-c0.5-2``): label -> (the sweep's plane families, prior weight per pixel), all on
+#: ``fused``'s flow and its sweep but for the planes (None: ``fused``'s, no walls;
+#: :class:`reconstruction.methods.fused.PriorParams`, :class:`reconstruction.sweep.planes.PlaneParams`).
 #: A first look at 10 dev frames (classroom, seminar, lab) left out three more that were worse than ``sweep``
 #: pooled: the flow confidence alone, wall families alone, and wall families with the sweep-confidence power only.
 CANDIDATE_PRIORS: dict[str, tuple[PlaneParams | None, PriorParams]] = {
@@ -88,13 +97,9 @@ CANDIDATE_PRIORS: dict[str, tuple[PlaneParams | None, PriorParams]] = {
                                                              frame_agreement_low=0.6, frame_agreement_high=0.8)),
     "fused-walls-f0.6-0.8-c0.5-2-q3": (WALLS_COARSE3, PriorParams(contrast_low=0.5, contrast_high=2.0,
                                                                   frame_agreement_low=0.6, frame_agreement_high=0.8)),
-    "fused-walls-k1-f0.5-0.7-avg-c0.5-2": (WALL_PLANES, PriorParams(contrast_low=0.5, contrast_high=2.0,
-                                                                    sweep_confidence_power=1.0,
-                                                                    frame_agreement_low=0.5,
-                                                                    frame_agreement_high=0.7)),
 }
 #: candidates whose prior is the flow pipeline's unrefined distance (``dis-rect:average``: no LM, so cheaper)
-AVERAGE_PRIOR = ("fused-walls-k1-f0.5-0.7-avg", "fused-walls-k1-f0.5-0.7-avg-c0.5-2")
+AVERAGE_PRIOR = ("fused-walls-k1-f0.5-0.7-avg",)
 
 
 #: built-in methods run beside the candidates for the table, not chosen from: tri360's DIS flow pipeline
@@ -102,7 +107,8 @@ REFERENCES = tuple(f"dis-rect:{v}" for v in DEFAULT_VARIANTS)
 
 
 def candidate_methods(only: Sequence[str] | None = None) -> list[Method]:
-    """``sweep``, ``fused``, the sweep with wall families (``sweep-walls``), the default ``fused-adaptive`` and one
+    """``sweep``, ``fused``, the sweep with wall families (``sweep-walls``), ``fused-adaptive``, the default
+    ``fused-gated`` and one
     fused method per :data:`CANDIDATE_PRIORS` entry (``fused``'s flow, or ``dis-rect:average`` for
     :data:`AVERAGE_PRIOR`; ``fused``'s sweep with the entry's plane families).
 
@@ -113,8 +119,8 @@ def candidate_methods(only: Sequence[str] | None = None) -> list[Method]:
     """
     base = fused_method()
     average = get_methods(["dis-rect:average"])[0]
-    default = adaptive_method()
-    out: list[Method] = [SweepMethod(), base, SweepMethod(planes=WALL_PLANES, label="sweep-walls"), default]
+    out: list[Method] = [SweepMethod(), base, SweepMethod(planes=WALL_PLANES, label="sweep-walls"), adaptive_method(),
+                         gated_method()]
     for label, (planes, prior) in CANDIDATE_PRIORS.items():
         sweep = base.sweep if planes is None else dataclasses.replace(base.sweep, planes=planes)
         out.append(FusedMethod(flow=average if label in AVERAGE_PRIOR else base.flow, sweep=sweep, prior=prior,

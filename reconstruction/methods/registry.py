@@ -1,7 +1,9 @@
 """The method registry: built-in methods plus outside ones (entry-point group ``tri360.methods``).
 
-Built in: ``fused-adaptive`` (the default: the sweep with wall-plane families and the flow distance as an SGM
-prior weighted by how much of the frame flow and sweep agree on), ``fused`` (the previous default: the sweep with
+Built in: ``fused-gated`` (the default: the sweep with wall-plane families and the unrefined flow distance as an
+SGM prior, gated by C's local contrast, by the plain sweep's confidence where the two disagree and by how much of
+the frame they agree on), ``fused-adaptive`` (the previous default: the refined flow distance, the frame gate
+only), ``fused`` (the previous default: the sweep with
 the flow distance as SGM prior, one constant weight), ``sweep`` (the trinocular sphere sweep alone), and every
 configuration of the paper's flow pipeline, labelled ``<flow>-<rect|plain>:<variant>``
 for each flow backend (:func:`reconstruction.flow.backends.discover_flows`, plus ``oracle``), rectified and
@@ -26,8 +28,8 @@ from reconstruction.refine.lm import discover_variants
 from reconstruction.sweep.planes import PlaneParams
 
 __all__ = ["ENTRY_POINT_GROUP", "DEFAULT_CONFIGS", "DEFAULT_METHOD", "DEFAULT_VARIANTS", "PAPER_CONFIG",
-           "WALL_PLANES", "ADAPTIVE_PRIOR", "builtin_methods", "discover_methods", "get_methods", "flow_methods",
-           "default_methods", "fused_method", "adaptive_method"]
+           "WALL_PLANES", "ADAPTIVE_PRIOR", "GATED_PRIOR", "builtin_methods", "discover_methods", "get_methods",
+           "flow_methods", "default_methods", "fused_method", "adaptive_method", "gated_method"]
 
 ENTRY_POINT_GROUP = "tri360.methods"
 #: the paper's set-up: DeepFlow on plain equirect pairs
@@ -35,13 +37,20 @@ PAPER_CONFIG = ("deepflow", False)
 #: flow configurations evaluated by default: tri360's (rectified) and the paper's set-up
 DEFAULT_CONFIGS = [(DEFAULT_FLOW, True), PAPER_CONFIG]
 #: what ``tri360 reconstruct`` runs by default: the method ``python -m harness.jobs.select_matching`` chose on the
-#: dev split of suites/tri360-v1.toml (docs/matching.md), :func:`adaptive_method`
-DEFAULT_METHOD = "fused-adaptive"
-#: the default's plane labels: the sweep's horizontal planes plus 9 labels per wall found by the coarse pass
+#: dev split of suites/tri360-v1.toml with the time bound (docs/matching.md), :func:`gated_method`
+DEFAULT_METHOD = "fused-gated"
+#: the plane labels of ``fused-adaptive`` and ``fused-gated``: the sweep's horizontal planes plus 9 labels per wall
+#: found by the coarse pass
 WALL_PLANES = PlaneParams(wall_labels=9)
-#: the default's prior weight: ``fused``'s, scaled by the share of pixels where the flow and the plain coarse sweep
-#: agree within 5 %: 0 below 60 %, full above 80 % (:class:`reconstruction.methods.fused.PriorParams`)
+#: ``fused-adaptive``'s prior weight: ``fused``'s, scaled by the share of pixels where the flow and the plain coarse
+#: sweep agree within 5 %: 0 below 60 %, full above 80 % (:class:`reconstruction.methods.fused.PriorParams`)
 ADAPTIVE_PRIOR = PriorParams(frame_agreement_low=0.6, frame_agreement_high=0.8)
+#: the default ``fused-gated``'s prior weight: ``fused``'s, times a ramp of C's local contrast (0 below 0.5, full
+#: above 2 gray levels: no prior where there is no texture for the flow to follow), times ``1 - c_sweep`` where the
+#: flow and the plain coarse sweep disagree by more than 5 % (a confident sweep keeps its answer), times the frame's
+#: agreement share ramped from 0 at 50 % to full at 70 %
+GATED_PRIOR = PriorParams(contrast_low=0.5, contrast_high=2.0, sweep_confidence_power=1.0, frame_agreement_low=0.5,
+                          frame_agreement_high=0.7)
 DEFAULT_VARIANTS = ("average", "angle", "gradient", "color")
 """The variants ``tri360 evaluate`` runs by default: the paper's (``color-rgb`` and ``color-patch``, its next steps,
 measured no better on classroom frames, run when asked for)."""
@@ -88,17 +97,27 @@ def fused_method() -> FusedMethod:
 
 
 def adaptive_method() -> FusedMethod:
-    """``fused-adaptive`` (the default): ``fused``'s flow prior in the sweep with :data:`WALL_PLANES`, weighted by
-    :data:`ADAPTIVE_PRIOR` (chosen on the suite's dev split, docs/matching.md)."""
+    """``fused-adaptive`` (the previous default): ``fused``'s flow prior in the sweep with :data:`WALL_PLANES`,
+    weighted by :data:`ADAPTIVE_PRIOR` (chosen on the suite's dev split, docs/matching.md)."""
     base = fused_method()
     return FusedMethod(flow=base.flow, sweep=dataclasses.replace(base.sweep, planes=WALL_PLANES),
                        prior=ADAPTIVE_PRIOR, label="fused-adaptive")
 
 
+def gated_method() -> FusedMethod:
+    """``fused-gated`` (the default): the sweep with :data:`WALL_PLANES` and the ``{DEFAULT_FLOW}-rect:average``
+    distance (the flow pipeline without its LM, which makes it no slower than ``fused``) as prior, weighted by
+    :data:`GATED_PRIOR` (chosen on the suite's dev split, docs/matching.md)."""
+    base = fused_method()
+    return FusedMethod(flow=flow_methods([DEFAULT_FLOW], [True], ["average"])[0],
+                       sweep=dataclasses.replace(base.sweep, planes=WALL_PLANES), prior=GATED_PRIOR,
+                       label="fused-gated")
+
+
 def builtin_methods() -> list[Method]:
-    """The default (``fused-adaptive``), ``fused``, the trinocular sweep and every configuration of the flow
-    pipeline (all flows incl. the oracle, rectified and plain, all variants)."""
-    return [adaptive_method(), fused_method(), SweepMethod(),
+    """The default (``fused-gated``), ``fused-adaptive``, ``fused``, the trinocular sweep and every configuration of
+    the flow pipeline (all flows incl. the oracle, rectified and plain, all variants)."""
+    return [gated_method(), adaptive_method(), fused_method(), SweepMethod(),
             *flow_methods([*discover_flows()[0], ORACLE], [True, False])]
 
 
@@ -130,10 +149,9 @@ def get_methods(labels: Sequence[str]) -> list[Method]:
 
 
 def default_methods() -> list[Method]:
-    """What ``tri360 evaluate`` reports by default: the default method (``DEFAULT_METHOD``), the previous one
-    (``fused``), then tri360's flow pipeline and the paper's set-up, each with the paper's variants
-    (:data:`DEFAULT_VARIANTS`)."""
-    out: list[Method] = [adaptive_method(), fused_method()]
+    """What ``tri360 evaluate`` reports by default: the default method (``DEFAULT_METHOD``), ``fused``, then tri360's
+    flow pipeline and the paper's set-up, each with the paper's variants (:data:`DEFAULT_VARIANTS`)."""
+    out: list[Method] = [gated_method(), fused_method()]
     for flow, rect in DEFAULT_CONFIGS:
         out.extend(flow_methods([flow], [rect], list(DEFAULT_VARIANTS)))
     return out

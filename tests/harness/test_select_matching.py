@@ -62,13 +62,14 @@ def test_reference_rows_are_never_chosen():
 def test_candidates_are_sweep_fused_and_the_fused_variants_sharing_one_flow():
     methods = sel.candidate_methods()
     labels = [m.label for m in methods]
-    assert labels[:4] == ["sweep", "fused", "sweep-walls", "fused-adaptive"] and len(set(labels)) == len(labels)
+    assert labels[:5] == ["sweep", "fused", "sweep-walls", "fused-adaptive", "fused-gated"]
+    assert len(set(labels)) == len(labels)
     keys = {m.group_key for m in methods if hasattr(m, "group_key")}
     assert len(keys) == 1  # one group: the flow once per frame for every fused candidate
 
 
 def test_candidates_can_be_narrowed_to_the_chosen_one_and_the_baselines(tmp_path, capsys):
-    assert [m.label for m in sel.candidate_methods(["fused-adaptive"])] == ["sweep", "fused", "fused-adaptive"]
+    assert [m.label for m in sel.candidate_methods(["fused-gated"])] == ["sweep", "fused", "fused-gated"]
     assert [m.label for m in sel.candidate_methods(["fused"])] == ["sweep", "fused"]
     with pytest.raises(Exception, match=r"unknown candidate\(s\) nope \(candidates: sweep, fused, sweep-walls"):
         sel.candidate_methods(["fused-adaptive", "nope"])
@@ -96,9 +97,9 @@ def test_select_on_a_tiny_suite_split_writes_the_results_and_the_choice(tmp_path
     # a rerun into its own output is accepted (here the one-time test run's form: the chosen candidate only);
     # a directory of someone else's is refused with status 2
     assert sel.main([str(root), "--suite", str(suite), "--out", str(out), "--quiet",
-                     "--candidates", "fused-adaptive"]) == 0
+                     "--candidates", "fused-gated"]) == 0
     rerun = json.loads((out / "selection.json").read_text())
-    assert set(rerun["table"]) == {"sweep", "fused", "fused-adaptive", *sel.REFERENCES}
+    assert set(rerun["table"]) == {"sweep", "fused", "fused-gated", *sel.REFERENCES}
     other = tmp_path / "mine"
     other.mkdir()
     (other / "notes.txt").write_text("keep")
