@@ -26,9 +26,8 @@ _BIG = np.int32(1 << 30)
 
 
 @numba.njit(inline="always", fastmath=True, cache=True)
-def _step(prev, c, out, bounds, nfam, fmin, p1, p2e, p3e):
-    # prev/out: (L,) float32 path costs (integer-valued, exact); c: (L,) uint16; bounds: (nfam + 1,) label
-    # ranges of the families (each at least 2 labels).  Branch-free inner loops (SIMD).
+def _family_minima(prev, bounds, nfam, fmin):
+    # fmin[f] = min of prev over family f's labels; returns the minimum over all labels
     g = np.float32(_BIG)
     for f in range(nfam):
         m = np.float32(_BIG)
@@ -36,16 +35,34 @@ def _step(prev, c, out, bounds, nfam, fmin, p1, p2e, p3e):
             m = min(m, prev[i])
         fmin[f] = m
         g = min(g, m)
+    return g
+
+
+@numba.njit(inline="always", fastmath=True, cache=True)
+def _step(prev, c, out, acc, bounds, nfam, fmin, g, fnext, p1, p2e, p3e):
+    # prev/out: (L,) float32 path costs (integer-valued, exact); c: (L,) uint16; bounds: (nfam + 1,) label
+    # ranges of the families (each at least 2 labels); fmin/g: prev's family minima and minimum.  Writes out,
+    # adds it to acc ((L,) uint16), fills fnext with out's family minima and returns out's minimum: one pass over
+    # the labels per step.  Branch-free inner loop (SIMD).
+    gn = np.float32(_BIG)
     for f in range(nfam):
         a, b = bounds[f], bounds[f + 1]
         base = min(fmin[f] + p2e, g + p2e + p3e)
-        best = min(prev[a], prev[a + 1] + p1)
-        out[a] = np.float32(c[a]) + min(best, base) - g
+        v = np.float32(c[a]) + min(min(prev[a], prev[a + 1] + p1), base) - g
+        out[a] = v
+        acc[a] += np.uint16(np.int32(v))
+        m = v
         for i in range(a + 1, b - 1):
-            t = min(prev[i], min(prev[i - 1], prev[i + 1]) + p1)
-            out[i] = np.float32(c[i]) + min(t, base) - g
-        best = min(prev[b - 1], prev[b - 2] + p1)
-        out[b - 1] = np.float32(c[b - 1]) + min(best, base) - g
+            v = np.float32(c[i]) + min(min(prev[i], min(prev[i - 1], prev[i + 1]) + p1), base) - g
+            out[i] = v
+            acc[i] += np.uint16(np.int32(v))
+            m = min(m, v)
+        v = np.float32(c[b - 1]) + min(min(prev[b - 1], prev[b - 2] + p1), base) - g
+        out[b - 1] = v
+        acc[b - 1] += np.uint16(np.int32(v))
+        fnext[f] = min(m, v)
+        gn = min(gn, fnext[f])
+    return gn
 
 
 @numba.njit(inline="always", cache=True)
@@ -65,19 +82,21 @@ def _horizontal(cost, gray, bounds, nfam, p1, p2, p3, edge, out):
         prev = np.empty(n, np.float32)
         cur = np.empty(n, np.float32)
         fmin = np.empty(nfam, np.float32)
+        fnext = np.empty(nfam, np.float32)
+        scratch = np.zeros(n, np.uint16)  # where the warm-up steps add (discarded): the step stays branch-free
         for direction in (1, -1):
             x0 = (-warm) % w if direction == 1 else (w - 1 + warm) % w
             for i in range(n):
                 prev[i] = cost[y, x0, i]
+            g = _family_minima(prev, bounds, nfam, fmin)
             xp = x0
             for k in range(1, w + warm):
                 x = (xp + direction) % w
                 p2e, p3e = _penalties(gray[y, x], gray[y, xp], p1, p2, p3, edge)
-                _step(prev, cost[y, x], cur, bounds, nfam, fmin, p1, p2e, p3e)
-                if k >= warm:
-                    for i in range(n):
-                        out[y, x, i] += np.uint16(np.int32(cur[i]))
+                acc = out[y, x] if k >= warm else scratch
+                g = _step(prev, cost[y, x], cur, acc, bounds, nfam, fmin, g, fnext, p1, p2e, p3e)
                 prev, cur = cur, prev
+                fmin, fnext = fnext, fmin
                 xp = x
 
 
@@ -91,20 +110,21 @@ def _lines(cost, gray, bounds, nfam, p1, p2, p3, edge, out, dx, down):
         prev = np.empty(n, np.float32)
         cur = np.empty(n, np.float32)
         fmin = np.empty(nfam, np.float32)
+        fnext = np.empty(nfam, np.float32)
         y = np.int64(0) if down else np.int64(h - 1)
         x = np.int64(x0)
         for i in range(n):
             prev[i] = cost[y, x, i]
             out[y, x, i] += cost[y, x, i]
+        g = _family_minima(prev, bounds, nfam, fmin)
         for s in range(1, h):
             yp, xp = y, x
             y = s if down else h - 1 - s
             x = np.int64((xp - dx) % w)
             p2e, p3e = _penalties(gray[y, x], gray[yp, xp], p1, p2, p3, edge)
-            _step(prev, cost[y, x], cur, bounds, nfam, fmin, p1, p2e, p3e)
-            for i in range(n):
-                out[y, x, i] += np.uint16(np.int32(cur[i]))
+            g = _step(prev, cost[y, x], cur, out[y, x], bounds, nfam, fmin, g, fnext, p1, p2e, p3e)
             prev, cur = cur, prev
+            fmin, fnext = fnext, fmin
 
 
 def check_penalties(max_cost: int, p1: int, p2: int, p3: int) -> None:
