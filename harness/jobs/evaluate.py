@@ -53,7 +53,15 @@ from harness.data.provenance import software
 from harness.data.results import map_paths, quality_map_path, write_results
 from harness.jobs.cluster import ClusterOptions, Executor, executor_for, is_distributed
 from harness.jobs.report import build_report
-from reconstruction.methods.base import Method, MethodOutput, flow_fields, method_groups, run_methods
+from reconstruction.methods.base import (
+    Method,
+    MethodOutput,
+    flow_fields,
+    method_groups,
+    reference_distance,
+    run_methods,
+    with_references,
+)
 from reconstruction.methods.flow_pipeline import config_label
 from reconstruction.quality import assess
 from reports.metrics import breakdown
@@ -246,11 +254,13 @@ def checked_maps(frame, method: Method, output: MethodOutput) -> tuple[np.ndarra
     return pred, conf
 
 
-def _unscored_row(frame, method: Method, output: MethodOutput) -> tuple[dict, dict[str, np.ndarray]]:
+def _unscored_row(frame, method: Method, outputs: dict[str, MethodOutput]) -> tuple[dict, dict[str, np.ndarray]]:
     """The results row of one method on a frame without ground truth (empty metrics, ``valid_px`` 0, the
-    quality figures of :func:`reconstruction.quality.assess`) and its per-pixel quality maps."""
+    quality figures of :func:`reconstruction.quality.assess`) and its per-pixel quality maps; ``outputs``: every
+    method's output on the frame by label (the reference distance may be another's, :func:`reference_distance`)."""
+    output = outputs[method.label]
     pred, conf = checked_maps(frame, method, output)
-    maps, quality = assess(frame, pred, conf, output.reference)
+    maps, quality = assess(frame, pred, conf, reference_distance(frame, method, outputs))
     row = {"scene": frame.scene, "viewpoint": frame.viewpoint, "method": method.label, **flow_fields(method),
            "width": frame.width, "height": frame.height, **dict.fromkeys(METRIC_COLUMNS, float("nan")),
            "valid_px": 0, "seconds": round(output.total_seconds, 4), **{c: quality[c] for c in QUALITY_COLUMNS}}
@@ -286,7 +296,8 @@ def evaluate_task(frame_path: str, methods: Sequence[Method], stage: str, scored
     path = Path(frame_path)
     frame = scorable_frame(path, scored)
     try:
-        outputs = run_methods(frame, methods)
+        # a frame without ground truth is assessed: the quality references run along (sharing their flow)
+        outputs = run_methods(frame, methods if scored else with_references(methods))
     except ValueError as exc:
         raise UserError(f"{path}: {exc}") from None
     masks = regions(frame) if scored else {}
@@ -296,7 +307,7 @@ def evaluate_task(frame_path: str, methods: Sequence[Method], stage: str, scored
         if scored:
             row, brs, rrs = _score_rows(frame, method, output, masks)
         else:
-            (row, quality), brs, rrs = _unscored_row(frame, method, output), [], []
+            (row, quality), brs, rrs = _unscored_row(frame, method, outputs), [], []
             write_exr_channels(Path(stage) / quality_map_path(frame.scene, frame.viewpoint, method.label,
                                                               **flow_fields(method)), quality)
         dist_rel, conf_rel = map_paths(frame.scene, frame.viewpoint, method.label, **flow_fields(method))

@@ -36,7 +36,7 @@ from harness.data.predictions import (
 from harness.data.provenance import software
 from harness.jobs.evaluate import checked_maps
 from harness.jobs.progress import progress_bar
-from reconstruction.methods.base import Method, MethodOutput, run_methods
+from reconstruction.methods.base import Method, MethodOutput, reference_distance, run_methods, with_references
 from reconstruction.quality import assess
 from reports.metrics import summary
 from reports.pointcloud import ply_bytes, point_grid
@@ -117,12 +117,15 @@ def reconstruct_to(frame_dir: Path, out: Path, method: Method, progress: bool = 
     check_output(out, "predictions", [frame_dir])
     check_one_method(out, method)
     desc = f"{frame.scene}/{frame.viewpoint} {method.label}"
-    output = run_with_progress(frame, [method], desc, progress)[method.label]
+    # the quality reference (if the method names one it does not compute) runs along, sharing the flow
+    outputs = run_with_progress(frame, with_references([method]), desc, progress)
+    output = outputs[method.label]
     checked_maps(frame, method, output)
     info = {"frame": str(Path(frame_dir).resolve()), "scene": frame.scene, "viewpoint": frame.viewpoint,
             "method": method.label, "config": method.config(), "seconds": output.seconds, "info": output.info,
             "software": software()}
-    quality_maps, info["quality"] = assess(frame, output.distance, output.confidence, output.reference)
+    quality_maps, info["quality"] = assess(frame, output.distance, output.confidence,
+                                           reference_distance(frame, method, outputs))
     if frame.has_ground_truth:
         info["metrics"] = summary(output.distance, frame.distance["C"], output.confidence)
     method_info = _method_info(method)

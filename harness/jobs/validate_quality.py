@@ -13,10 +13,11 @@ on a data root of frames with ground truth (a suite's split: ``tri360 render --s
 1. **Ranking.**  Per frame, C's distance of method LABEL (a registered label) -- run here, or, with ``--results``,
    the distance map that a ``tri360 evaluate`` results set holds for the frame under ``--results-label`` (default
    LABEL), accepted only when that set's ``config.json`` records for it the configuration of LABEL (method labels
-   aside: a selection run's candidate may become the registered default under another name) -- goes through
-   :func:`reconstruction.quality.assess` with the method's confidence and, for a method that hands back a
-   reference distance (``fused``'s family: its flow method, read from the same results set under that method's
-   label), the reference.  Over the validly predicted pixels with ground truth, the Spearman rank
+   aside: a selection run's candidate may become the registered default under another name; and a fused method's
+   ``quality_flow``) -- goes through :func:`reconstruction.quality.assess` with the method's confidence and, for a
+   method with a reference distance (``fused``'s family: its ``reference_method``, read from the same results set
+   under that method's label, or run with it, :func:`reconstruction.methods.base.reference_distance`), the
+   reference.  Over the validly predicted pixels with ground truth, the Spearman rank
    correlation ``rho`` of each measure (:data:`MEASURES`; and the method's own confidence, negated, where it gives
    one) with the true absolute error, and the measure's AUSE (:func:`reports.metrics.sparsification_curves`, the
    measure negated as the confidence: pixels removed most uncertain first).  A pixel whose measure is not a
@@ -84,7 +85,7 @@ from harness.jobs.evaluate import FrameRef, checked_maps, frame_labels, scorable
 from harness.jobs.perturb import checked_perturbation
 from harness.jobs.progress import progress_bar
 from reconstruction.camera.rig import CAMERA_NAMES
-from reconstruction.methods.base import Method, run_methods
+from reconstruction.methods.base import Method, reference_distance, run_methods, with_references
 from reconstruction.methods.registry import get_methods
 from reconstruction.quality import (
     CALIBRATION_THRESHOLD,
@@ -200,19 +201,25 @@ def calibration_choice(keys: Sequence[tuple[str, str]], families: dict[tuple[str
     return out
 
 
+#: configuration keys that do not change a method's distance map: labels (names, not behaviour: ``fused``'s flow
+#: and sweep carry their own) and a fused method's ``quality_flow`` (what its quality is compared with)
+_IGNORED_KEYS = ("label", "quality_flow")
+
+
 def _without_labels(config) -> object:
-    """A method configuration as it reads back from JSON, without the ``label`` of the method and of the methods
-    inside it (names, not behaviour: ``fused``'s flow and sweep carry their own)."""
+    """A method configuration as it reads back from JSON, without the keys of :data:`_IGNORED_KEYS` in the method
+    and in the methods inside it."""
     if isinstance(config, dict):
-        return {k: _without_labels(v) for k, v in config.items() if k != "label"}
+        return {k: _without_labels(v) for k, v in config.items() if k not in _IGNORED_KEYS}
     if isinstance(config, list):
         return [_without_labels(v) for v in config]
     return config
 
 
 def config_difference(stored, wanted) -> str | None:
-    """The first place where two method configurations (as JSON, every method ``label`` ignored; ``kind`` looked
-    at first) differ: ``"sweep.planes.wall_labels: 9 vs 0"`` (``stored`` first), or None when they are equal."""
+    """The first place where two method configurations (as JSON, every method ``label`` and a fused method's
+    ``quality_flow`` ignored: they do not change the distance; ``kind`` looked at first) differ:
+    ``"sweep.planes.wall_labels: 9 vs 0"`` (``stored`` first), or None when they are equal."""
     return _difference(_without_labels(jsonio.to_jsonable(stored)), _without_labels(jsonio.to_jsonable(wanted)), "")
 
 
@@ -486,9 +493,9 @@ class StoredMaps:
 def stored_maps(results: Path, label: str, method: Method, refs: Sequence[FrameRef],
                 renderers: dict[tuple[str, str], dict]) -> dict[tuple[str, str], StoredMaps]:
     """The maps that results set ``results`` holds for method ``label`` on each of ``refs``, checked before any
-    work: its ``config.json`` records for ``label`` the configuration of ``method`` (labels aside), it has a row of
-    ``label`` and a distance map for every frame, and each frame it evaluated has the provenance (``renderer``)
-    of the frame under the data root.
+    work: its ``config.json`` records for ``label`` the configuration of ``method`` (labels and ``quality_flow``
+    aside), it has a row of ``label`` and a distance map for every frame, and each frame it evaluated has the
+    provenance (``renderer``) of the frame under the data root.
 
     Raises:
         UserError: one line naming the results set (or file) and the label.
@@ -542,15 +549,17 @@ def _read_stored(maps: StoredMaps, frame) -> tuple[np.ndarray, np.ndarray | None
     return d, c
 
 
-def _run(method: Method, frame) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
-    """The method's distance, confidence and reference distance of ``frame``, float32 as ``evaluate`` stores them
-    (shapes checked by :func:`harness.jobs.evaluate.checked_maps`)."""
+def _run(method: Method, frame, reference: bool = True) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
+    """The method's distance, confidence and reference distance (:func:`reference_distance`; None when not
+    ``reference``) of ``frame``, float32 as ``evaluate`` stores them (shapes checked by
+    :func:`harness.jobs.evaluate.checked_maps`)."""
     try:
-        output = run_methods(frame, [method])[method.label]
+        outputs = run_methods(frame, with_references([method]) if reference else [method])
+        output = outputs[method.label]
+        ref = reference_distance(frame, method, outputs) if reference else None
     except ValueError as exc:
         raise UserError(f"{frame.path}: {exc}") from None
     d, conf = checked_maps(frame, method, output)
-    ref = output.reference
     return (np.asarray(d, np.float32), None if conf is None else np.asarray(conf, np.float32),
             None if ref is None else np.asarray(ref, np.float32))
 
@@ -642,7 +651,7 @@ def validate_quality(data_root: Path, method_label: str, out: Path, results: Pat
             if key not in chosen:
                 continue
             told = checked_perturbation(ref.path, frame, [("rotation", rotation)], seed, stage, "--rotation")
-            d_off = _run(method, told)[0]
+            d_off = _run(method, told, reference=False)[0]
             off = calibration_score(told, d_off)["score"]
             exact = item.row["calibration_score"]
             exact_flag, off_flag = bool(exact > CALIBRATION_THRESHOLD), bool(off > CALIBRATION_THRESHOLD)

@@ -18,7 +18,8 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
-__all__ = ["Method", "MethodOutput", "method_groups", "run_methods", "flow_fields"]
+__all__ = ["Method", "MethodOutput", "method_groups", "run_methods", "flow_fields", "with_references",
+           "reference_distance"]
 
 
 @dataclass
@@ -106,3 +107,44 @@ def run_methods(frame, methods: Sequence[Method],
                     on_stage(m.label)
                 outs[m.label] = m.run(frame)
     return {m.label: outs[m.label] for m in methods}
+
+
+def with_references(methods: Sequence[Method]) -> list[Method]:
+    """``methods`` followed by the methods whose distance they name as their quality reference
+    (``reference_method``) and that are not among them (by label): run together (:func:`run_methods`), a reference
+    of the same flow configuration shares the flow, and :func:`reference_distance` finds it in the outputs."""
+    out = list(methods)
+    labels = {m.label for m in out}
+    for m in methods:
+        ref = getattr(m, "reference_method", None)
+        if ref is not None and ref.label not in labels:
+            out.append(ref)
+            labels.add(ref.label)
+    return out
+
+
+def reference_distance(frame, method: Method, outputs: dict[str, MethodOutput]) -> np.ndarray | None:
+    """The distance the quality measures compare ``method``'s with on ``frame`` (:func:`reconstruction.quality.
+    assess`'s ``reference``).
+
+    The method's own ``reference`` when its output has one; else, for a method that names one
+    (``reference_method``, e.g. ``fused-gated``'s refined flow, which it does not compute itself), that method's
+    distance: taken from ``outputs`` when the same run computed it, else run now.  None for a method without
+    a reference.
+
+    Args:
+        frame: the frame; method: a method with an output in ``outputs``; outputs: outputs by label
+            (:func:`run_methods`).
+    Returns:
+        (H, W) float32 metres, or None.
+    """
+    own = outputs[method.label].reference
+    if own is not None:
+        return own
+    ref = getattr(method, "reference_method", None)
+    if ref is None:
+        return None
+    out = outputs.get(ref.label)
+    if out is None:
+        out = run_methods(frame, [ref])[ref.label]
+    return np.asarray(out.distance, np.float32)

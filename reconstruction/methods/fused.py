@@ -162,12 +162,18 @@ class FusedMethod:
         sweep: the sweep's parameters (cost, planes, SGM, post; :class:`SweepMethod`).
         prior: prior strength (:class:`PriorParams`).
         label: the method's label.
+        quality_flow: the flow-pipeline method whose distance the ground-truth-free quality measures compare this
+            method's with (:func:`reconstruction.quality.disagreement`), when it is not ``flow`` (None: ``flow``,
+            whose distance :meth:`run` hands back as ``reference``).  :meth:`run` does not compute it, so it costs
+            the method no time: whoever assesses the quality runs it (:func:`reconstruction.methods.base.
+            reference_distance`).
     """
 
     flow: FlowMethod
     sweep: SweepMethod = field(default_factory=fused_sweep)
     prior: PriorParams = field(default_factory=PriorParams)
     label: str = "fused"
+    quality_flow: FlowMethod | None = None
 
     @property
     def group_key(self) -> tuple:
@@ -177,12 +183,16 @@ class FusedMethod:
 
     @property
     def reference_method(self) -> FlowMethod:
-        """The method whose distance this one hands back as its ``reference`` (:class:`MethodOutput`): the flow."""
-        return self.flow
+        """The method whose distance is this one's reference for the quality measures: ``quality_flow`` if set
+        (not computed by :meth:`run`), else the flow (handed back as ``reference``, :class:`MethodOutput`)."""
+        return self.flow if self.quality_flow is None else self.quality_flow
 
     def config(self) -> dict:
-        return {"kind": "fused", "label": self.label, "flow": self.flow.config(), "sweep": self.sweep.config(),
-                "prior": asdict(self.prior)}
+        out = {"kind": "fused", "label": self.label, "flow": self.flow.config(), "sweep": self.sweep.config(),
+               "prior": asdict(self.prior)}
+        if self.quality_flow is not None:  # only then: the configurations recorded before it existed still match
+            out["quality_flow"] = self.quality_flow.config()
+        return out
 
     def run(self, frame) -> MethodOutput:
         """Run the flow method, then the sweep with its distance as prior; seconds per stage of both (wall; the
@@ -222,5 +232,6 @@ class FusedMethod:
                 seconds = {"flow": flow.total_seconds, **{k: v for k, v in seconds.items() if k != "total"}}
                 seconds["total"] = sum(seconds.values())
                 outs[m.label] = MethodOutput(distance=d, confidence=conf, seconds=seconds,
-                                             info={**info, "flow_label": m.flow.label}, reference=flow.distance)
+                                             info={**info, "flow_label": m.flow.label},
+                                             reference=flow.distance if m.quality_flow is None else None)
         return outs

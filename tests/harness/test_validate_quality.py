@@ -201,6 +201,10 @@ def test_configurations_compare_without_their_label():
     assert config_difference(renamed.config(), fused.config()) is None  # labels inside a method are names too
     walls = dataclasses.replace(fused, sweep=dataclasses.replace(fused.sweep, planes=PlaneParams(wall_labels=9)))
     assert config_difference(walls.config(), fused.config()).startswith("sweep.planes.wall_labels: 9 vs ")
+    # what the quality is compared with does not change the distance: a stored map stays usable
+    checked = dataclasses.replace(fused, quality_flow=fused.flow)
+    assert "quality_flow" in checked.config() and "quality_flow" not in fused.config()
+    assert config_difference(fused.config(), checked.config()) is None
 
 
 def test_rank_correlation_counts_nan_as_most_uncertain():
