@@ -62,7 +62,9 @@ def _os_error_line(exc: OSError) -> str:
 def main(argv: list[str] | None = None) -> int:
     """Parse ``argv`` (default: the command line), run the command; its exit status.  Ctrl-C at any moment
     (parsing included) is one line and 130; SIGTERM while it runs is handled the same way (partial outputs
-    removed), exit status 143."""
+    removed), exit status 143.  With ``argv`` None (this process's own command line: the ``tri360`` script,
+    ``python -m harness.cli``) Ctrl-C is ignored once the command has returned, during the interpreter's shutdown
+    (:func:`harness.jobs.startup.finished`)."""
     prog = "tri360"
     try:
         with startup.sigterm_as_interrupt():
@@ -78,6 +80,9 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt as exc:
         print(startup.interrupted_line(prog, exc), file=sys.stderr)
         return startup.exit_status(exc)
+    finally:
+        if argv is None:
+            startup.finished()
 
 
 startup.release()  # from here on Ctrl-C is a KeyboardInterrupt, handled by main()

@@ -16,6 +16,11 @@ directory of an output half-written.  While a command runs (:func:`sigterm_as_in
 exits 143 (128 + SIGTERM).  During the imports before, nothing has been written, and SIGTERM keeps its default
 action.
 
+Once the command has returned, :func:`finished` ignores Ctrl-C: what is left is the interpreter's shutdown (joining
+threads, exit callbacks, freeing modules; about half a second with Dask loaded), and Python puts SIGINT back to its
+default action part-way through it, so that a Ctrl-C there killed the process without a word although every output
+was complete.  Ignored, the exit status stays the command's own.
+
 This module imports nothing heavy, so that it can be the first thing a command loads.
 """
 
@@ -28,7 +33,7 @@ import sys
 from collections.abc import Callable, Iterator
 
 __all__ = ["EXIT_INTERRUPTED", "EXIT_TERMINATED", "Terminated", "interrupted_line", "exit_status", "guard",
-           "release", "sigterm_as_interrupt", "run_main"]
+           "release", "sigterm_as_interrupt", "finished", "run_main"]
 
 EXIT_INTERRUPTED = 130
 EXIT_TERMINATED = 128 + signal.SIGTERM
@@ -106,10 +111,17 @@ def sigterm_as_interrupt() -> Iterator[None]:
             signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
 
+def finished() -> None:
+    """The command has returned and the process is about to exit: ignore Ctrl-C from now on (main thread only;
+    elsewhere nothing changes)."""
+    with contextlib.suppress(ValueError):
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
 def run_main(main: Callable[[], int | None], prog: str) -> int:
     """Run a ``python -m`` job's ``main()`` after :func:`release`; Ctrl-C during it is one line on stderr
     (``<prog>: interrupted``) and 130, SIGTERM ``terminated`` and 143 (the job's own context managers have removed
-    partial outputs by then)."""
+    partial outputs by then).  For a process's ``__main__`` only: on the way out it calls :func:`finished`."""
     release()
     try:
         with sigterm_as_interrupt():
@@ -117,3 +129,5 @@ def run_main(main: Callable[[], int | None], prog: str) -> int:
     except KeyboardInterrupt as exc:
         print(interrupted_line(prog, exc), file=sys.stderr)
         return exit_status(exc)
+    finally:
+        finished()

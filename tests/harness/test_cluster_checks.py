@@ -5,6 +5,7 @@ only), TLS files that are not PEM (naming which option); Ctrl-C with --workers p
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import http.server
 import os
 import signal
@@ -19,6 +20,7 @@ import pytest
 
 from harness.cli import main
 from harness.data.errors import UserError
+from harness.data.frame import find_frames, read_frame, write_frame
 from harness.jobs.cluster import (
     BASE_BYTES,
     ClusterOptions,
@@ -178,22 +180,39 @@ def frames(tmp_path_factory):
     return root
 
 
+@pytest.fixture(scope="module")
+def many_frames(frames, tmp_path_factory):
+    """48 frames, copies of the two rendered ones under other viewpoint names: work that lasts well past the
+    moment the Ctrl-C test interrupts it on any machine (the two frames alone are evaluated in about 2 s)."""
+    root = tmp_path_factory.mktemp("many-frames")
+    originals = [read_frame(d) for d in find_frames(frames)]
+    for i in range(48):
+        write_frame(dataclasses.replace(originals[i % len(originals)], viewpoint=f"vp{i:03d}", path=None), root)
+    return root
+
+
+def _start_cli(args: list[str]) -> subprocess.Popen:
+    """``python -m harness.cli ARGS`` in a session of its own with Ctrl-C's default action (as from a terminal,
+    even when this test runs from a background job, which inherits SIGINT ignored)."""
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), *filter(None, [os.environ.get("PYTHONPATH")])])}
+    return subprocess.Popen([sys.executable, "-m", "harness.cli", *args], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, env=env, start_new_session=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+
+
 @pytest.mark.cluster
 @pytest.mark.parametrize("command", ["evaluate", "study"])
-def test_ctrl_c_with_workers_prints_one_line(frames, tmp_path, command):
+def test_ctrl_c_with_workers_prints_one_line(many_frames, tmp_path, command):
     """Ctrl-C to the whole process group, as a terminal sends it, once the LocalCluster's workers run: exit 130
     and exactly one line on stderr (the workers ignore SIGINT and are stopped by the command)."""
     if command == "evaluate":
-        args = ["evaluate", str(frames), "--out", str(tmp_path / "out"), "--no-report"]
+        args = ["evaluate", str(many_frames), "--out", str(tmp_path / "out"), "--no-report"]
     else:
         study = tmp_path / "s.toml"
         study.write_text('[render]\nscene = "synthetic_box"\nwidth = 400\n[evaluate]\nmethod = ["fused"]\n'
                          "[grid]\nbaseline = [0.2, 0.3, 0.4, 0.5]\n")
         args = ["study", str(study), "--out", str(tmp_path / "out")]
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), *filter(None, [os.environ.get("PYTHONPATH")])])}
-    proc = subprocess.Popen([sys.executable, "-m", "harness.cli", *args, "--workers", "2", "--quiet"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env, start_new_session=True,
-                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    proc = _start_cli([*args, "--workers", "2", "--quiet"])
     try:
         deadline = time.monotonic() + 120
         while proc.poll() is None and time.monotonic() < deadline and len(
@@ -222,3 +241,27 @@ def test_a_job_runs_on_options_or_an_open_executor_never_both():
         assert isinstance(ex, SequentialExecutor)
     with pytest.raises(UserError, match="not both"):
         executor_for(ClusterOptions(workers=1), seq)
+
+
+@pytest.mark.cluster
+def test_ctrl_c_after_the_command_finished_leaves_its_exit_status(frames, tmp_path):
+    """Ctrl-C once the results are written, while the process shuts down (Dask loaded: about half a second, in
+    which Python puts SIGINT back to its default action): exit status 0 and nothing on stderr -- not a silent death
+    by SIGINT.  On a machine slow enough that the command had not returned yet: 130 and one line."""
+    proc = _start_cli(["evaluate", str(frames), "--out", str(tmp_path / "out"), "--no-report", "--workers", "2",
+                       "--quiet", "--method", "fused"])
+    try:
+        for line in proc.stdout:
+            if b"results in" in line:
+                break
+        time.sleep(0.3)
+        os.killpg(proc.pid, signal.SIGINT)
+        _, err = proc.communicate(timeout=90)
+    finally:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait(timeout=30)
+    assert proc.returncode in (0, 130), (proc.returncode, err.decode())
+    lines = err.decode().strip().splitlines()
+    assert len(lines) == (proc.returncode == 130), err.decode()
+    assert (tmp_path / "out" / "results.csv").is_file()
