@@ -208,9 +208,9 @@ def test_ctrl_c_with_workers_prints_one_line(many_frames, tmp_path, command):
     if command == "evaluate":
         args = ["evaluate", str(many_frames), "--out", str(tmp_path / "out"), "--no-report"]
     else:
-        study = tmp_path / "s.toml"
+        study = tmp_path / "s.toml"  # 8 grid points: 4 took 23 s (2 cores, loaded)
         study.write_text('[render]\nscene = "synthetic_box"\nwidth = 400\n[evaluate]\nmethod = ["fused"]\n'
-                         "[grid]\nbaseline = [0.2, 0.3, 0.4, 0.5]\n")
+                         "[grid]\nbaseline = [0.15, 0.2, 0.25, 0.3, 0.35, 0.4, 0.45, 0.5]\n")
         args = ["study", str(study), "--out", str(tmp_path / "out")]
     proc = _start_cli([*args, "--workers", "2", "--quiet"])
     try:
