@@ -14,6 +14,7 @@ import subprocess
 import sys
 import threading
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -191,13 +192,26 @@ def many_frames(frames, tmp_path_factory):
     return root
 
 
-def _start_cli(args: list[str]) -> subprocess.Popen:
+@contextlib.contextmanager
+def _cli(args: list[str]) -> Iterator[subprocess.Popen]:
     """``python -m harness.cli ARGS`` in a session of its own with Ctrl-C's default action (as from a terminal,
-    even when this test runs from a background job, which inherits SIGINT ignored)."""
+    even when this test runs from a background job, which inherits SIGINT ignored); killed on the way out."""
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), *filter(None, [os.environ.get("PYTHONPATH")])])}
-    return subprocess.Popen([sys.executable, "-m", "harness.cli", *args], stdout=subprocess.PIPE,
+    proc = subprocess.Popen([sys.executable, "-m", "harness.cli", *args], stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, env=env, start_new_session=True,
                             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    try:
+        yield proc
+    finally:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait(timeout=30)
+
+
+def _ctrl_c(proc: subprocess.Popen) -> str:
+    """Ctrl-C to the whole process group, as a terminal sends it; the command's stderr once it has exited."""
+    os.killpg(proc.pid, signal.SIGINT)
+    return proc.communicate(timeout=90)[1].decode()
 
 
 @pytest.mark.cluster
@@ -212,23 +226,17 @@ def test_ctrl_c_with_workers_prints_one_line(many_frames, tmp_path, command):
         study.write_text('[render]\nscene = "synthetic_box"\nwidth = 400\n[evaluate]\nmethod = ["fused"]\n'
                          "[grid]\nbaseline = [0.15, 0.2, 0.25, 0.3, 0.35, 0.4, 0.45, 0.5]\n")
         args = ["study", str(study), "--out", str(tmp_path / "out")]
-    proc = _start_cli([*args, "--workers", "2", "--quiet"])
-    try:
+    with _cli([*args, "--workers", "2", "--quiet"]) as proc:
         deadline = time.monotonic() + 120
         while proc.poll() is None and time.monotonic() < deadline and len(
                 [p for p in _descendants(proc.pid) if "forkserver" in _cmdline(p)]) < 3:  # the server + 2 workers
             time.sleep(0.2)
         time.sleep(3.0)  # the workers import and take their first tasks
         assert proc.poll() is None, proc.communicate()
-        os.killpg(proc.pid, signal.SIGINT)
-        _, err = proc.communicate(timeout=90)
-    finally:
-        with contextlib.suppress(ProcessLookupError):
-            os.killpg(proc.pid, signal.SIGKILL)
-        proc.wait(timeout=30)
-    assert proc.returncode == 130, err.decode()
-    lines = err.decode().strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith(f"tri360 {command}: interrupted"), err.decode()
+        err = _ctrl_c(proc)
+    assert proc.returncode == 130, err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"tri360 {command}: interrupted"), err
 
 
 
@@ -248,20 +256,13 @@ def test_ctrl_c_after_the_command_finished_leaves_its_exit_status(frames, tmp_pa
     """Ctrl-C once the results are written, while the process shuts down (Dask loaded: about half a second, in
     which Python puts SIGINT back to its default action): exit status 0 and nothing on stderr -- not a silent death
     by SIGINT.  On a machine slow enough that the command had not returned yet: 130 and one line."""
-    proc = _start_cli(["evaluate", str(frames), "--out", str(tmp_path / "out"), "--no-report", "--workers", "2",
-                       "--quiet", "--method", "fused"])
-    try:
+    with _cli(["evaluate", str(frames), "--out", str(tmp_path / "out"), "--no-report", "--workers", "2", "--quiet",
+               "--method", "fused"]) as proc:
         for line in proc.stdout:
             if b"results in" in line:
                 break
         time.sleep(0.3)
-        os.killpg(proc.pid, signal.SIGINT)
-        _, err = proc.communicate(timeout=90)
-    finally:
-        with contextlib.suppress(ProcessLookupError):
-            os.killpg(proc.pid, signal.SIGKILL)
-        proc.wait(timeout=30)
-    assert proc.returncode in (0, 130), (proc.returncode, err.decode())
-    lines = err.decode().strip().splitlines()
-    assert len(lines) == (proc.returncode == 130), err.decode()
+        err = _ctrl_c(proc)
+    assert proc.returncode in (0, 130), (proc.returncode, err)
+    assert len(err.strip().splitlines()) == (proc.returncode == 130), err
     assert (tmp_path / "out" / "results.csv").is_file()
