@@ -23,10 +23,10 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field
 
+import numba
 import numpy as np
 
 from reconstruction.camera.equirect import project_rays_camera
-from reconstruction.camera.resample import bilinear_with_gradient
 from reconstruction.plugins import merge_registry, unknown_name_message
 from reconstruction.refine.triangulate import PairGeometry, beta_of_distance
 
@@ -221,6 +221,32 @@ class RefineProblem:
             ``(r, J)``, each (M, m): residuals (pixel equivalents) and d r / d d (per metre).
         """
         sel = slice(None) if idx is None else idx
+        geo_r, geo_j = self._geometric(d, sel)
+        if not self._has_color():
+            return geo_r, geo_j
+        m = d.shape[0]
+        cols = sum(t.ref.shape[1] for t in self.color)
+        r = np.empty((m, geo_r.shape[1] + cols))
+        j = np.empty_like(r)
+        r[:, :geo_r.shape[1]], j[:, :geo_j.shape[1]] = geo_r, geo_j
+        self._color(d, idx, r, j, np.zeros((m, 3)), geo_r.shape[1])
+        return r, j
+
+    def normal_terms(self, d: np.ndarray, idx: np.ndarray | None = None):
+        """Per-pixel cost ``sum(r^2)``, gradient ``sum(J r)`` and Gauss-Newton Hessian ``sum(J^2)``, each (M,),
+        of :meth:`residuals` without forming the colour residuals' (M, P c) arrays (what the LM needs)."""
+        geo_r, geo_j = self._geometric(d, slice(None) if idx is None else idx)
+        sums = np.stack(_normal_terms(geo_r, geo_j), axis=1)
+        if self._has_color():
+            empty = np.empty((0, 0))
+            self._color(d, idx, empty, empty, sums, 0)
+        return sums[:, 0], sums[:, 1], sums[:, 2]
+
+    def _has_color(self) -> bool:
+        return bool(self.color) and self.color_weight > 0
+
+    def _geometric(self, d: np.ndarray, sel):
+        """(M, pairs) geometric residuals and their derivatives."""
         scale = self.height / np.pi
         rs, js = [], []
         for g, w in zip(self.pairs, self.weights, strict=True):
@@ -229,21 +255,77 @@ class RefineProblem:
             sw = np.sqrt(w[sel]) * scale
             rs.append(sw * (beta - gi.beta_obs))
             js.append(sw * dbeta)
-        if self.color and self.color_weight > 0:
-            s = self.color_saturation
-            lam = np.sqrt(self.color_weight)
-            for term in self.color:
-                u, v, du, dv = project_rays_camera(term.start, term.direction[sel], d, self.width, self.height)
-                offsets = np.zeros((1, 2)) if term.offsets is None else term.offsets
-                c = term.image.shape[2]
-                for k, (ou, ov) in enumerate(offsets):
-                    val, gu, gv = bilinear_with_gradient(term.image, u + ou, v + ov)
-                    e = val - term.ref[sel][:, k * c:(k + 1) * c]
-                    de = gu * du[:, None] + gv * dv[:, None]
-                    th = np.tanh(e / s)
-                    rs.extend((lam * s * th).T)
-                    js.extend((lam * (1.0 - th * th) * de).T)
         return np.stack(rs, axis=1), np.stack(js, axis=1)
+
+    def _color(self, d, idx, r_out, j_out, sums, col0):
+        """Colour residuals of every term into columns ``col0...`` of ``r_out`` / ``j_out`` (when not empty) and
+        their sums added to ``sums`` (M, 3)."""
+        rows = np.arange(d.shape[0]) if idx is None else np.asarray(idx, dtype=np.int64)
+        sel = slice(None) if idx is None else idx
+        for term in self.color:
+            u, v, du, dv = project_rays_camera(term.start, term.direction[sel], d, self.width, self.height)
+            offsets = np.zeros((1, 2)) if term.offsets is None else np.asarray(term.offsets, np.float64)
+            _color_kernel(np.ascontiguousarray(term.image, np.float64), u, v, du, dv, offsets,
+                          np.ascontiguousarray(term.ref, np.float64), rows, float(self.color_saturation),
+                          float(np.sqrt(self.color_weight)), r_out, j_out, sums, col0)
+            col0 += term.ref.shape[1]
+
+
+@numba.njit(parallel=True, cache=True)
+def _color_kernel(image, u, v, du, dv, offsets, ref, rows, s, lam, r_out, j_out, sums, col0):
+    """Colour residuals ``lam s tanh((I_k(x + o) - I_C) / s)`` of M pixels and P patch offsets, with their
+    derivatives per metre, sampled by exact bilinear interpolation (columns wrap, rows clamp; where clamped the
+    row derivative is 0), as :func:`reconstruction.camera.resample.bilinear_with_gradient` does.
+
+    Args:
+        image: (H, W, c) float64 intensities in [0, 1] of camera k.
+        u, v, du, dv: (M,) projections of the pixels into k (pixels) and their derivatives (pixels per metre).
+        offsets: (P, 2) float64 patch offsets (du, dv), pixels.
+        ref: (N, P c) C's intensities per pixel of the problem, channels fastest; ``rows`` (M,) int64 picks them.
+        s, lam: saturation (intensity) and ``sqrt(color_weight)``.
+        r_out, j_out: (M, >= col0 + P c) outputs written at columns ``col0...``, or (0, 0) to skip them.
+        sums: (M, 3) float64, ``sum r^2``, ``sum J r``, ``sum J^2`` added in place.
+    """
+    h, w, c = image.shape
+    write = r_out.shape[0] > 0
+    for i in numba.prange(u.shape[0]):
+        row = rows[i]
+        cost = 0.0
+        grad = 0.0
+        hess = 0.0
+        for k in range(offsets.shape[0]):
+            uu = u[i] + offsets[k, 0]
+            v_raw = v[i] + offsets[k, 1]
+            vv = min(max(v_raw, 0.0), h - 1.0)
+            u0 = np.floor(uu)
+            fu = uu - u0
+            i0 = np.int64(u0) % w
+            i1 = (i0 + 1) % w
+            r0 = min(np.int64(np.floor(vv)), h - 2)
+            fv = vv - r0
+            inside = v_raw > 0.0 and v_raw < h - 1.0
+            for ch in range(c):
+                p00 = image[r0, i0, ch]
+                p01 = image[r0, i1, ch]
+                p10 = image[r0 + 1, i0, ch]
+                p11 = image[r0 + 1, i1, ch]
+                top = p00 + fu * (p01 - p00)
+                bottom = p10 + fu * (p11 - p10)
+                value = top + fv * (bottom - top)
+                d_du = (p01 - p00) + fv * ((p11 - p10) - (p01 - p00))
+                d_dv = bottom - top if inside else 0.0
+                th = np.tanh((value - ref[row, k * c + ch]) / s)
+                r = lam * s * th
+                jac = lam * (1.0 - th * th) * (d_du * du[i] + d_dv * dv[i])
+                if write:
+                    r_out[i, col0 + k * c + ch] = r
+                    j_out[i, col0 + k * c + ch] = jac
+                cost += r * r
+                grad += jac * r
+                hess += jac * jac
+        sums[i, 0] += cost
+        sums[i, 1] += grad
+        sums[i, 2] += hess
 
 
 def levenberg_marquardt(problem: RefineProblem, d0: np.ndarray, d_min: float = 0.05, d_max: float = 100.0,
@@ -264,14 +346,14 @@ def levenberg_marquardt(problem: RefineProblem, d0: np.ndarray, d_min: float = 0
     lam = np.full(d.shape, lam0)
     active = np.arange(d.size) if only is None else np.flatnonzero(only)
     cost, g, h = (np.zeros(d.size) for _ in range(3))
-    cost[active], g[active], h[active] = _normal_terms(*problem.residuals(d[active], active))
+    cost[active], g[active], h[active] = problem.normal_terms(d[active], active)
     iterations = 0
     while active.size and iterations < max_iters:
         iterations += 1
         ga, ha, cost_prev, before = g[active], h[active], cost[active], d[active]
         step = -ga / np.maximum(ha * (1.0 + lam[active]), 1e-30)
         trial = np.clip(before + step, d_min, d_max)
-        cost_new, g_new, h_new = _normal_terms(*problem.residuals(trial, active))
+        cost_new, g_new, h_new = problem.normal_terms(trial, active)
         better = cost_new <= cost_prev
         acc = active[better]
         d[acc], cost[acc], g[acc], h[acc] = trial[better], cost_new[better], g_new[better], h_new[better]
