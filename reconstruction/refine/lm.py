@@ -285,6 +285,7 @@ def _color_kernel(image, u, v, du, dv, offsets, ref, rows, s, lam, r_out, j_out,
         s, lam: saturation (intensity) and ``sqrt(color_weight)``.
         r_out, j_out: (M, >= col0 + P c) outputs written at columns ``col0...``, or (0, 0) to skip them.
         sums: (M, 3) float64, ``sum r^2``, ``sum J r``, ``sum J^2`` added in place.
+    A pixel whose projection is not finite gets NaN residuals and sums.
     """
     h, w, c = image.shape
     write = r_out.shape[0] > 0
@@ -296,6 +297,13 @@ def _color_kernel(image, u, v, du, dv, offsets, ref, rows, s, lam, r_out, j_out,
         for k in range(offsets.shape[0]):
             uu = u[i] + offsets[k, 0]
             v_raw = v[i] + offsets[k, 1]
+            if not (np.isfinite(uu) and np.isfinite(v_raw)):  # NaN residuals: never an index from NaN
+                for ch in range(c):
+                    if write:
+                        r_out[i, col0 + k * c + ch] = np.nan
+                        j_out[i, col0 + k * c + ch] = np.nan
+                cost = grad = hess = np.nan
+                continue
             vv = min(max(v_raw, 0.0), h - 1.0)
             u0 = np.floor(uu)
             fu = uu - u0

@@ -75,7 +75,7 @@ def test_colour_jacobian_matches_finite_differences():
     problem, d_true = _problem(3, 3, seed=1)
     d = d_true * 0.9
     h = 1e-7  # metres
-    r0, j = problem.residuals(d)
+    _, j = problem.residuals(d)
     r_plus, _ = problem.residuals(d + h)
     r_minus, _ = problem.residuals(d - h)
     fd = (r_plus - r_minus) / (2 * h)
@@ -91,3 +91,18 @@ def test_all_pixels_and_an_index_give_the_same_rows():
     r_idx, j_idx = problem.residuals(d_true[idx], idx)
     np.testing.assert_array_equal(r_idx, r_all[idx])
     np.testing.assert_array_equal(j_idx, j_all[idx])
+
+
+def test_a_nan_distance_gives_nan_residuals_not_a_crash():
+    """The kernel never indexes the image with a NaN projection: the pixel's residuals and sums are NaN, the
+    others unchanged."""
+    problem, d_true = _problem(1, 3, seed=3)
+    d = d_true.copy()
+    d[4] = np.nan
+    r, j = problem.residuals(d)
+    r_ok, _ = problem.residuals(d_true)
+    n_geo = len(problem.pairs)
+    assert np.isnan(r[4, n_geo:]).all() and np.isnan(j[4, n_geo:]).all()
+    np.testing.assert_array_equal(np.delete(r, 4, axis=0), np.delete(r_ok, 4, axis=0))
+    cost, _, _ = problem.normal_terms(d)
+    assert np.isnan(cost[4]) and np.isfinite(np.delete(cost, 4)).all()
