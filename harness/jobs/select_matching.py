@@ -55,6 +55,7 @@ from reconstruction.methods.registry import (
     fused_method,
     gated_method,
     get_methods,
+    mirror_method,
 )
 from reconstruction.methods.sweep import SweepMethod
 from reconstruction.sweep.planes import PlaneParams
@@ -120,7 +121,7 @@ def candidate_methods(only: Sequence[str] | None = None) -> list[Method]:
     base = fused_method()
     average = get_methods(["dis-rect:average"])[0]
     out: list[Method] = [SweepMethod(), base, SweepMethod(planes=WALL_PLANES, label="sweep-walls"), adaptive_method(),
-                         gated_method()]
+                         gated_method(), mirror_method()]
     for label, (planes, prior) in CANDIDATE_PRIORS.items():
         sweep = base.sweep if planes is None else dataclasses.replace(base.sweep, planes=planes)
         out.append(FusedMethod(flow=average if label in AVERAGE_PRIOR else base.flow, sweep=sweep, prior=prior,

@@ -217,7 +217,8 @@ def room_bounds(frame, cost_params: CostParams, plane_params: PlaneParams, sgm: 
     cost, heights, inv_d = _sphere_costs(coarse, cost_params, plane_params, pairs, seconds, prefix="coarse_")
     label, conf, a_z, _ = _aggregate(coarse, cost, heights, inv_d, cost_params, plane_params, sgm, seconds,
                                      prefix="coarse_")
-    z_floor, z_ceil = dominant_planes(label, cost_params.levels, heights, plane_params.bound_min_share)
+    z_floor, z_ceil = dominant_planes(label, cost_params.levels, heights, plane_params.bound_min_share,
+                                      plane_params.mirror_tolerance)
     d = labels_to_distance(label, inv_d, heights, a_z, cost_params.d_min_m, cost_params.d_max_m)
     yaw, walls = None, []
     if plane_params.wall_labels > 0:

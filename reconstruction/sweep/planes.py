@@ -39,6 +39,9 @@ class PlaneParams:
         wall_spread: relative half-width of a wall's family (0.1 = offsets from 0.9 to 1.1 times the wall's).
         wall_min_share: share of the coarse pass's pixels a wall must cover to be used (and the wall direction's
             votes within 3 degrees must reach).
+        mirror_tolerance: the coarse pass's floor (ceiling) is taken as the ceiling's (floor's) mirror image in a
+            nearer plane when it lies within this fraction of its height of that image (:func:`dominant_planes`;
+            0 = no test).
     """
 
     per_side: int = 32
@@ -52,6 +55,7 @@ class PlaneParams:
     wall_labels: int = 0
     wall_spread: float = 0.1
     wall_min_share: float = 0.01
+    mirror_tolerance: float = 0.0
 
 
 def plane_heights(params: PlaneParams) -> np.ndarray:
@@ -284,36 +288,74 @@ def bound_wall_costs(cost: np.ndarray, first: int, a_z: np.ndarray, a_n: np.ndar
                  offsets.astype(np.float64), float(z_low), float(z_high), np.uint16(max_cost))
 
 
-def dominant_planes(label: np.ndarray, levels: int, heights: np.ndarray, min_share: float):
+def _mode_height(sel: np.ndarray, centre: float, heights: np.ndarray) -> float:
+    """|height| (m) of the labels within one label of ``centre`` on one side: their median, interpolated in log |h|
+    between the side's (per,) ``heights``."""
+    near = sel[np.abs(sel - centre) <= 1.0]
+    return float(np.exp(np.interp(np.median(near), np.arange(heights.size), np.log(np.abs(heights)))))
+
+
+def dominant_planes(label: np.ndarray, levels: int, heights: np.ndarray, min_share: float,
+                    mirror_tolerance: float = 0.0):
     """Floor and ceiling heights: the most frequent winning plane label below and above C.
+
+    A polished floor shows the ceiling's mirror image at ``2 z_floor - z_ceiling``: on a plain glossy floor that
+    virtual plane can win more pixels than the floor itself.  With ``mirror_tolerance > 0`` a side's mode is
+    replaced by a plane nearer to C on the same side (its own labels winning at least ``min_share``) when the
+    mode lies within ``mirror_tolerance * |mode|`` of the other side's mirror image in that nearer plane; of
+    several such planes, the one winning the most pixels.  The floor is checked against the ceiling found, then
+    the ceiling against the (checked) floor.
 
     Args:
         label: (H, W) fractional winning labels (plane labels from ``levels`` on).
         heights: (P,) plane heights, metres (below C first, then above, as :func:`plane_heights`).
-        min_share: a side's mode must win at least this share of all pixels to count.
+        min_share: a side's mode must win at least this share of all pixels to count (the mode and its two
+            neighbouring labels together).
+        mirror_tolerance: relative tolerance of the mirror test (0 = no test).
     Returns:
         ``(z_floor, z_ceiling)`` metres relative to C (-inf / inf where none is dominant); each is the median
         height of the pixels within one label of the mode (sub-level heights interpolated in log |h|).
     """
     per = heights.size // 2
-    out = []
     if per == 0:
         return -np.inf, np.inf
     p = label.ravel() - levels
+    min_count = min_share * label.size
+    sides = []  # per side: (labels on the side relative to its first, window counts, mode) or None
+    out = []
     for side, sign in ((0, -1.0), (1, 1.0)):
         lo = side * per
         sel = p[(p >= lo - 0.5) & (p < lo + per - 0.5)] - lo
         if sel.size == 0:
+            sides.append(None)
             out.append(sign * np.inf)
             continue
         counts = np.bincount(np.clip(np.rint(sel).astype(np.int64), 0, per - 1), minlength=per)
+        window = np.convolve(counts, np.ones(3, np.int64), mode="same")  # label k and its two neighbours
         mode = int(np.argmax(counts))
-        near = sel[np.abs(sel - mode) <= 1.0]
-        if counts[max(mode - 1, 0):mode + 2].sum() < min_share * label.size:
+        if window[mode] < min_count:
+            sides.append(None)
             out.append(sign * np.inf)
             continue
-        mag = np.exp(np.interp(np.median(near), np.arange(per), np.log(np.abs(heights[lo:lo + per]))))
-        out.append(sign * mag)
+        sides.append((sel, window, mode))
+        out.append(sign * _mode_height(sel, mode, heights[lo:lo + per]))
+    if mirror_tolerance > 0:
+        for side in (0, 1):
+            other = out[1 - side]
+            if sides[side] is None or not np.isfinite(other):
+                continue
+            sel, window, mode = sides[side]
+            side_heights = heights[side * per:(side + 1) * per]
+            sign = -1.0 if side == 0 else 1.0
+            best = None
+            for k in range(mode - 2):  # nearer planes whose windows do not overlap the mode's
+                if window[k] < min_count or (best is not None and window[k] <= window[best[0]]):
+                    continue
+                z = sign * _mode_height(sel, k, side_heights)
+                if abs(2.0 * z - other - out[side]) <= mirror_tolerance * abs(out[side]):
+                    best = (k, z)
+            if best is not None:
+                out[side] = best[1]
     return out[0], out[1]
 
 
