@@ -62,7 +62,7 @@ def test_reference_rows_are_never_chosen():
 def test_candidates_are_sweep_fused_and_the_fused_variants_sharing_one_flow():
     methods = sel.candidate_methods()
     labels = [m.label for m in methods]
-    assert labels[:5] == ["sweep", "fused", "sweep-walls", "fused-adaptive", "fused-gated"]
+    assert labels[:6] == ["sweep", "fused", "sweep-walls", "fused-adaptive", "fused-gated", "fused-mirror"]
     assert len(set(labels)) == len(labels)
     keys = {m.group_key for m in methods if hasattr(m, "group_key")}
     assert len(keys) == 1  # one group: the flow once per frame for every fused candidate

@@ -29,7 +29,7 @@ def test_builtin_labels_are_stable_and_unique():
     labels = [m.label for m in builtin_methods()]
     assert len(labels) == len(set(labels))
     for label in ("dis-rect:gradient", "deepflow-plain:average", "oracle-rect:color", "farneback-plain:angle",
-                  "fused-gated", "fused-adaptive", "fused", "sweep"):
+                  "fused-gated", "fused-mirror", "fused-adaptive", "fused", "sweep"):
         assert label in labels
     assert [m.label for m in default_methods()] == [
         "fused-gated", "fused", "dis-rect:average", "dis-rect:angle", "dis-rect:gradient", "dis-rect:color",
