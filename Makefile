@@ -21,7 +21,7 @@ setup: $(STAMP) ## create .venv and install tri360 with its pinned dependencies
 render: $(STAMP) ## render the default scene set (classroom, 3 viewpoints, 1000x500) into $(DATA)/
 	$(TRI) render --scene classroom --viewpoints 3 --out $(DATA)
 
-evaluate: $(STAMP) ## render the default scene if missing, evaluate the default methods (fused-gated, fused, dis-rect:*, deepflow-plain:*), write $(RESULTS)/ and print one row per method (MAE, median, delta<1.10, seconds; best first)
+evaluate: $(STAMP) ## render the default scene if missing, evaluate the default methods (fused-mirror, fused, dis-rect:*, deepflow-plain:*), write $(RESULTS)/ and print one row per method (MAE, median, delta<1.10, seconds; best first)
 	$(TRI) render --scene classroom --viewpoints 1 --out $(DATA)
 	$(TRI) evaluate $(DATA) --out $(RESULTS)
 
@@ -40,7 +40,7 @@ test: $(STAMP) browser ## run the whole test suite (fast tests, Blender renders,
 test-fast: $(STAMP) ## the tests that need no Blender render, browser or Dask cluster
 	$(PY) -m pytest -q -m "not blender and not browser and not cluster"
 
-bench: $(STAMP) ## timings and peak memory: flow pipeline stages (+ LM vs scipy), the default method (fused-gated) at 1000x500 and 4000x2000 beside fused, the default classroom render (3 times), Dask render speed-up, suite frame render time vs the default frame
+bench: $(STAMP) ## timings and peak memory: flow pipeline stages (+ LM vs scipy), the default method (fused-mirror) at 1000x500 and 4000x2000 beside fused, the default classroom render (3 times), Dask render speed-up, suite frame render time vs the default frame
 	$(PY) -m harness.jobs.bench
 	$(PY) -m harness.jobs.bench_sweep
 	$(PY) -m harness.jobs.bench_render

@@ -2,12 +2,12 @@
 
 The data set (:func:`build_dataset`) is one real Cycles frame of ``classroom`` and two ray-cast
 ``synthetic_box`` frames, all ``REGRESSION_WIDTH`` x ``REGRESSION_WIDTH / 2``.  It is evaluated
-(:func:`run_regression`) with the default method (``fused-adaptive``), the previous one (``fused``), tri360's flow
+(:func:`run_regression`) with the default method (``DEFAULT_METHOD``), ``fused``, tri360's flow
 configuration (``DEFAULT_FLOW``, rectified) and the paper's (DeepFlow on plain equirect images) over every variant.
 
 A bounds file (``--bounds``; the repository's is ``tests/regression_bounds.json``, which ``make regress-update``
 rewrites and the tests read) holds an upper bound on the MAE (metres, mean over that scene's frames) per scene x
-configuration label (``dis-rect``) x variant, and per scene x method label (``fused-adaptive``, ``fused``) x
+configuration label (``dis-rect``) x variant, and per scene x method label (the default, ``fused``) x
 ``final``: the measured MAE x (1 + margin).  :func:`check` reports every bound exceeded,
 every key missing on either side, and every configuration whose best refined variant does not beat ``average``
 on a scene (unless the file waives that scene/configuration, with a reason; a waiver that is no longer needed is
@@ -78,7 +78,7 @@ def build_dataset(root: Path | str, width: int = REGRESSION_WIDTH, samples: int 
     return root
 
 
-#: the methods besides the flow configurations: the default and the previous one (kept with its numbers)
+#: the methods besides the flow configurations: the default and ``fused`` (kept with its numbers)
 REGRESSION_METHODS = (DEFAULT_METHOD, "fused")
 
 

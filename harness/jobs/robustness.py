@@ -63,8 +63,8 @@ KIND = "robustness"
 """The ``kind`` key's value that makes a study file a robustness study."""
 KEYS = ("kind", "data", "frames", "method", "seed", "levels")
 """The keys of a robustness study file."""
-DEFAULT_METHODS = ("fused-gated", "fused", "sweep", "dis-rect:gradient")
-"""The methods when the file names none: the default method (``fused-gated``), ``fused``, the sweep alone and
+DEFAULT_METHODS = ("fused-mirror", "fused", "sweep", "dis-rect:gradient")
+"""The methods when the file names none: the default method (``fused-mirror``), ``fused``, the sweep alone and
 tri360's flow pipeline with the paper's optimised variant.  The paper's set-up (``deepflow-plain:gradient``) can be
 named; it is not a default because OpenCV's DeepFlow takes up to about 80 s per frame, doubling a study's time."""
 ORIGINS = {"jpeg": 100}

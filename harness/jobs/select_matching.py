@@ -76,10 +76,11 @@ WALLS_COARSE3 = dataclasses.replace(WALL_PLANES, coarse_factor=3)
 
 #: the fused candidates besides the registered ``fused-adaptive`` (:func:`reconstruction.methods.registry.
 #: adaptive_method`: wall families, frame agreement 0.6-0.8; the first dev selection chose it under the candidate
-#: label ``fused-walls-f0.6-0.8``) and the default ``fused-gated`` (:func:`reconstruction.methods.registry.
-#: gated_method`; the dev selection with the time bound chose it under the candidate label
-#: ``fused-walls-k1-f0.5-0.7-avg-c0.5-2``): label -> (the sweep's plane families, prior weight per pixel), all on
-#: ``fused``'s flow and its sweep but for the planes (None: ``fused``'s, no walls;
+#: label ``fused-walls-f0.6-0.8``), ``fused-gated`` (:func:`reconstruction.methods.registry.gated_method`; the dev
+#: selection with the time bound chose it under the candidate label ``fused-walls-k1-f0.5-0.7-avg-c0.5-2``) and the
+#: default ``fused-mirror`` (``fused-gated`` with the room bound's mirror test; the third dev selection): label ->
+#: (the sweep's plane families, prior weight per pixel), all on ``fused``'s flow and its sweep but for the planes
+#: (None: ``fused``'s, no walls;
 #: :class:`reconstruction.methods.fused.PriorParams`, :class:`reconstruction.sweep.planes.PlaneParams`).
 #: A first look at 10 dev frames (classroom, seminar, lab) left out three more that were worse than ``sweep``
 #: pooled: the flow confidence alone, wall families alone, and wall families with the sweep-confidence power only.
@@ -108,10 +109,10 @@ REFERENCES = tuple(f"dis-rect:{v}" for v in DEFAULT_VARIANTS)
 
 
 def candidate_methods(only: Sequence[str] | None = None) -> list[Method]:
-    """``sweep``, ``fused``, the sweep with wall families (``sweep-walls``), ``fused-adaptive``, the default
-    ``fused-gated`` and one
-    fused method per :data:`CANDIDATE_PRIORS` entry (``fused``'s flow, or ``dis-rect:average`` for
-    :data:`AVERAGE_PRIOR`; ``fused``'s sweep with the entry's plane families).
+    """``sweep``, ``fused``, the sweep with wall families (``sweep-walls``), ``fused-adaptive``, ``fused-gated``,
+    the default ``fused-mirror`` (:func:`reconstruction.methods.registry.mirror_method`) and one fused method per
+    :data:`CANDIDATE_PRIORS` entry (``fused``'s flow, or ``dis-rect:average`` for :data:`AVERAGE_PRIOR`; ``fused``'s
+    sweep with the entry's plane families).
 
     Args:
         only: candidate labels to keep (None = all); the :data:`BASELINES` are always kept, first.

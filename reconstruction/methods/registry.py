@@ -1,9 +1,10 @@
 """The method registry: built-in methods plus outside ones (entry-point group ``tri360.methods``).
 
-Built in: ``fused-gated`` (the default: the sweep with wall-plane families and the unrefined flow distance as an
-SGM prior, gated by C's local contrast, by the plain sweep's confidence where the two disagree and by how much of
-the frame they agree on), ``fused-adaptive`` (the previous default: the refined flow distance, the frame gate
-only), ``fused`` (the default before that: the sweep with
+Built in: ``fused-mirror`` (the default: ``fused-gated`` whose room bound tells a polished floor's mirror image of
+the ceiling from the floor), ``fused-gated`` (the previous default: the sweep with wall-plane families and the
+unrefined flow distance as an SGM prior, gated by C's local contrast, by the plain sweep's confidence where the two
+disagree and by how much of the frame they agree on), ``fused-adaptive`` (the default before it: the refined flow
+distance, the frame gate only), ``fused`` (the default before that: the sweep with
 the refined flow distance as SGM prior, one constant weight), ``sweep`` (the trinocular sphere sweep alone), and every
 configuration of the paper's flow pipeline, labelled ``<flow>-<rect|plain>:<variant>``
 for each flow backend (:func:`reconstruction.flow.backends.discover_flows`, plus ``oracle``), rectified and
@@ -38,8 +39,8 @@ PAPER_CONFIG = ("deepflow", False)
 #: flow configurations evaluated by default: tri360's (rectified) and the paper's set-up
 DEFAULT_CONFIGS = [(DEFAULT_FLOW, True), PAPER_CONFIG]
 #: what ``tri360 reconstruct`` runs by default: the method ``python -m harness.jobs.select_matching`` chose on the
-#: dev split of suites/tri360-v1.toml with the time bound (docs/matching.md), :func:`gated_method`
-DEFAULT_METHOD = "fused-gated"
+#: dev split of suites/tri360-v1.toml with the time bound (docs/matching.md), :func:`mirror_method`
+DEFAULT_METHOD = "fused-mirror"
 #: the plane labels of ``fused-adaptive`` and ``fused-gated``: the sweep's horizontal planes plus 9 labels per wall
 #: found by the coarse pass
 WALL_PLANES = PlaneParams(wall_labels=9)
@@ -51,10 +52,10 @@ MIRROR_PLANES = dataclasses.replace(WALL_PLANES, mirror_tolerance=0.2)
 #: ``fused-adaptive``'s prior weight: ``fused``'s, scaled by the share of pixels where the flow and the plain coarse
 #: sweep agree within 5 %: 0 below 60 %, full above 80 % (:class:`reconstruction.methods.fused.PriorParams`)
 ADAPTIVE_PRIOR = PriorParams(frame_agreement_low=0.6, frame_agreement_high=0.8)
-#: the default ``fused-gated``'s prior weight: ``fused``'s, times a ramp of C's local contrast (0 below 0.5, full
-#: above 2 gray levels: no prior where there is no texture for the flow to follow), times ``1 - c_sweep`` where the
-#: flow and the plain coarse sweep disagree by more than 5 % (a confident sweep keeps its answer), times the frame's
-#: agreement share ramped from 0 at 50 % to full at 70 %
+#: ``fused-gated``'s (and the default ``fused-mirror``'s) prior weight: ``fused``'s, times a ramp of C's local
+#: contrast (0 below 0.5, full above 2 gray levels: no prior where there is no texture for the flow to follow), times
+#: ``1 - c_sweep`` where the flow and the plain coarse sweep disagree by more than 5 % (a confident sweep keeps its
+#: answer), times the frame's agreement share ramped from 0 at 50 % to full at 70 %
 GATED_PRIOR = PriorParams(contrast_low=0.5, contrast_high=2.0, sweep_confidence_power=1.0, frame_agreement_low=0.5,
                           frame_agreement_high=0.7)
 DEFAULT_VARIANTS = ("average", "angle", "gradient", "color")
@@ -111,8 +112,9 @@ def adaptive_method() -> FusedMethod:
 
 
 def gated_method() -> FusedMethod:
-    """``fused-gated`` (the default): the sweep with :data:`WALL_PLANES` and the ``{DEFAULT_FLOW}-rect:average``
-    distance (the flow pipeline without its LM: about 0.6 s less per 1000x500 frame than ``fused``'s) as prior,
+    """``fused-gated`` (the previous default): the sweep with :data:`WALL_PLANES` and the
+    ``{DEFAULT_FLOW}-rect:average`` distance (the flow pipeline without its LM: about 0.6 s less per 1000x500 frame
+    than ``fused``'s) as prior,
     weighted by :data:`GATED_PRIOR` (chosen on the suite's dev split, docs/matching.md).  The quality measures
     compare its distance with ``fused``'s refined flow distance (``quality_flow``; computed only when the quality
     is assessed): on the dev split that ranks pixels by error better than the unrefined prior
@@ -124,16 +126,18 @@ def gated_method() -> FusedMethod:
 
 
 def mirror_method() -> FusedMethod:
-    """``fused-mirror``: ``fused-gated`` with :data:`MIRROR_PLANES`, so that the room bound holds on polished floors
-    whose mirror image of the ceiling wins the coarse pass (docs/matching.md)."""
-    return dataclasses.replace(gated_method(), sweep=dataclasses.replace(gated_method().sweep, planes=MIRROR_PLANES),
+    """``fused-mirror`` (the default): ``fused-gated`` with :data:`MIRROR_PLANES`, so that the room bound holds on
+    polished floors whose mirror image of the ceiling wins the coarse pass (chosen on the suite's dev split,
+    docs/matching.md)."""
+    gated = gated_method()
+    return dataclasses.replace(gated, sweep=dataclasses.replace(gated.sweep, planes=MIRROR_PLANES),
                                label="fused-mirror")
 
 
 def builtin_methods() -> list[Method]:
-    """The default (``fused-gated``), ``fused-adaptive``, ``fused``, the trinocular sweep and every configuration of
-    the flow pipeline (all flows incl. the oracle, rectified and plain, all variants)."""
-    return [gated_method(), mirror_method(), adaptive_method(), fused_method(), SweepMethod(),
+    """The default (``fused-mirror``), ``fused-gated``, ``fused-adaptive``, ``fused``, the trinocular sweep and every
+    configuration of the flow pipeline (all flows incl. the oracle, rectified and plain, all variants)."""
+    return [mirror_method(), gated_method(), adaptive_method(), fused_method(), SweepMethod(),
             *flow_methods([*discover_flows()[0], ORACLE], [True, False])]
 
 
@@ -167,7 +171,7 @@ def get_methods(labels: Sequence[str]) -> list[Method]:
 def default_methods() -> list[Method]:
     """What ``tri360 evaluate`` reports by default: the default method (``DEFAULT_METHOD``), ``fused``, then tri360's
     flow pipeline and the paper's set-up, each with the paper's variants (:data:`DEFAULT_VARIANTS`)."""
-    out: list[Method] = [gated_method(), fused_method()]
+    out: list[Method] = [mirror_method(), fused_method()]
     for flow, rect in DEFAULT_CONFIGS:
         out.extend(flow_methods([flow], [rect], list(DEFAULT_VARIANTS)))
     return out

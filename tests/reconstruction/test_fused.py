@@ -21,6 +21,7 @@ from reconstruction.methods.registry import (
     flow_methods,
     fused_method,
     gated_method,
+    mirror_method,
 )
 from reconstruction.methods.sweep import sweep_distance, sweep_distances
 from reconstruction.refine.lm import get_variant
@@ -98,20 +99,29 @@ def test_fused_on_tilted_yawed_rig_with_rotated_r():
 @pytest.mark.parametrize("make", [lambda: make_synthetic_frame(240), lambda: tilted_frame(240)],
                          ids=["synthetic_box", "tilted_rig"])
 def test_the_default_and_the_previous_one_are_within_2_percent_on_small_exact_frames(make):
-    """``fused-gated`` (the default) and ``fused-adaptive`` on exact ray-cast 240x120 frames, upright and
+    """``fused-mirror`` (the default) and ``fused-gated`` on exact ray-cast 240x120 frames, upright and
     tilted/yawed with R yawed against C: MAE within 2 % of the mean distance (``fused-adaptive`` measured 1.14 % and
     1.22 %, against 1.36 % and 1.50 % for ``fused``; at 1000x500 see docs/matching.md)."""
     f = make()
     gt = f.distance["C"]
     ok = np.isfinite(gt)
-    for method in (gated_method(), adaptive_method()):
+    for method in (mirror_method(), gated_method()):
         out = method.run(f)
         assert np.abs(out.distance[ok] - gt[ok]).mean() <= 0.02 * gt[ok].mean(), method.label
 
 
-def test_the_default_is_the_gated_prior_from_the_unrefined_flow_with_wall_families():
+def test_the_default_is_fused_gated_with_the_mirror_test_of_the_room_bound():
+    cfg = json.loads(json.dumps(mirror_method().config()))
+    gated = json.loads(json.dumps(gated_method().config()))
+    assert cfg["kind"] == "fused" and cfg["label"] == "fused-mirror" == DEFAULT_METHOD
+    assert cfg["sweep"]["planes"]["mirror_tolerance"] == 0.2 and gated["sweep"]["planes"]["mirror_tolerance"] == 0.0
+    cfg["sweep"]["planes"]["mirror_tolerance"] = 0.0
+    assert {**cfg, "label": "fused-gated"} == gated
+
+
+def test_fused_gated_is_the_gated_prior_from_the_unrefined_flow_with_wall_families():
     cfg = json.loads(json.dumps(gated_method().config()))
-    assert cfg["kind"] == "fused" and cfg["label"] == "fused-gated" == DEFAULT_METHOD
+    assert cfg["kind"] == "fused" and cfg["label"] == "fused-gated"
     assert cfg["sweep"] == json.loads(json.dumps(adaptive_method().config()))["sweep"]
     assert cfg["sweep"]["planes"]["wall_labels"] == 9
     assert gated_method().flow.label == "dis-rect:average"  # no LM: no slower than fused
@@ -183,8 +193,8 @@ def test_default_evaluate_computes_the_flow_once_for_fused_and_the_flow_methods(
     same as alone (within 1 micrometre)."""
     f = make_synthetic_frame(120)
     methods = [m for m in default_methods()
-               if m.label in ("fused", "fused-gated") or m.label.startswith("dis-rect:")]
-    assert methods[0].label == DEFAULT_METHOD == "fused-gated"
+               if m.label in ("fused", "fused-mirror") or m.label.startswith("dis-rect:")]
+    assert methods[0].label == DEFAULT_METHOD == "fused-mirror"
     extra = FusedMethod(flow=methods[1].flow, prior=PriorParams(use_confidence=True), label="fused-conf")
     methods.append(extra)
     assert len(method_groups(methods)) == 1
@@ -201,8 +211,8 @@ def test_default_evaluate_computes_the_flow_once_for_fused_and_the_flow_methods(
     assert list(outs) == [m.label for m in methods]
     alone = fused_method().run(f)
     np.testing.assert_allclose(outs["fused"].distance, alone.distance, rtol=0, atol=1e-6)
-    np.testing.assert_allclose(outs["fused-gated"].distance, gated_method().run(f).distance, rtol=0, atol=1e-6)
-    assert outs["fused-gated"].seconds["flow"] == pytest.approx(outs["dis-rect:average"].total_seconds)
+    np.testing.assert_allclose(outs["fused-mirror"].distance, mirror_method().run(f).distance, rtol=0, atol=1e-6)
+    assert outs["fused-mirror"].seconds["flow"] == pytest.approx(outs["dis-rect:average"].total_seconds)
     assert outs["fused"].seconds["flow"] == pytest.approx(outs["dis-rect:gradient"].total_seconds)
     np.testing.assert_allclose(outs["dis-rect:gradient"].distance,
                                flow_methods(["dis"], [True], ["gradient"])[0].run(f).distance, rtol=0, atol=1e-6)

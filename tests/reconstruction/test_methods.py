@@ -32,7 +32,7 @@ def test_builtin_labels_are_stable_and_unique():
                   "fused-gated", "fused-mirror", "fused-adaptive", "fused", "sweep"):
         assert label in labels
     assert [m.label for m in default_methods()] == [
-        "fused-gated", "fused", "dis-rect:average", "dis-rect:angle", "dis-rect:gradient", "dis-rect:color",
+        "fused-mirror", "fused", "dis-rect:average", "dis-rect:angle", "dis-rect:gradient", "dis-rect:color",
         "deepflow-plain:average", "deepflow-plain:angle", "deepflow-plain:gradient", "deepflow-plain:color"]
 
 
