@@ -216,11 +216,31 @@ def _without_labels(config) -> object:
     return config
 
 
+#: parameters added after results sets were first written, with the value that reproduces what came before: a
+#: stored configuration without the key ran that way (a sweep's ``planes.mirror_tolerance``: no mirror test)
+_ADDED_KEYS = {"mirror_tolerance": 0.0}
+
+
+def _with_added_keys(stored, wanted) -> object:
+    """``stored`` with every key of :data:`_ADDED_KEYS` that ``wanted`` has at the same place and ``stored`` lacks
+    set to its earlier value."""
+    if isinstance(stored, dict) and isinstance(wanted, dict):
+        out = {k: _with_added_keys(v, wanted.get(k)) for k, v in stored.items()}
+        out.update({k: v for k, v in _ADDED_KEYS.items() if k in wanted and k not in stored})
+        return out
+    if isinstance(stored, list) and isinstance(wanted, list) and len(stored) == len(wanted):
+        return [_with_added_keys(a, b) for a, b in zip(stored, wanted, strict=True)]
+    return stored
+
+
 def config_difference(stored, wanted) -> str | None:
     """The first place where two method configurations (as JSON, every method ``label`` and a fused method's
-    ``quality_flow`` ignored: they do not change the distance; ``kind`` looked at first) differ:
+    ``quality_flow`` ignored: they do not change the distance; ``kind`` looked at first; a key of
+    :data:`_ADDED_KEYS` missing from ``stored`` read as its earlier value) differ:
     ``"sweep.planes.wall_labels: 9 vs 0"`` (``stored`` first), or None when they are equal."""
-    return _difference(_without_labels(jsonio.to_jsonable(stored)), _without_labels(jsonio.to_jsonable(wanted)), "")
+    wanted = _without_labels(jsonio.to_jsonable(wanted))
+    stored = _with_added_keys(_without_labels(jsonio.to_jsonable(stored)), wanted)
+    return _difference(stored, wanted, "")
 
 
 def _difference(a, b, where: str) -> str | None:

@@ -207,6 +207,19 @@ def test_configurations_compare_without_their_label():
     assert config_difference(fused.config(), checked.config()) is None
 
 
+
+def test_a_configuration_written_before_a_parameter_was_added_reads_as_its_earlier_value():
+    """Results sets from before ``planes.mirror_tolerance`` existed ran without the mirror test: usable for a method
+    with the test off, not for one with it on."""
+    from reconstruction.methods.registry import gated_method, mirror_method
+
+    old = json.loads(json.dumps(gated_method().config()))
+    del old["sweep"]["planes"]["mirror_tolerance"]
+    assert config_difference(old, gated_method().config()) is None
+    assert config_difference(old, mirror_method().config()) == "sweep.planes.mirror_tolerance: 0.0 vs 0.2"
+    assert config_difference(gated_method().config(), old) == "sweep.planes.mirror_tolerance: present vs absent"
+
+
 def test_rank_correlation_counts_nan_as_most_uncertain():
     err = np.array([0.1, 0.2, 0.3, 0.4])
     assert rank_correlation(np.array([1.0, 2.0, 3.0, np.nan]), err) == pytest.approx(1.0, abs=1e-12)
