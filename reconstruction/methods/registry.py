@@ -114,11 +114,10 @@ def adaptive_method() -> FusedMethod:
 def gated_method() -> FusedMethod:
     """``fused-gated`` (the previous default): the sweep with :data:`WALL_PLANES` and the
     ``{DEFAULT_FLOW}-rect:average`` distance (the flow pipeline without its LM: about 0.6 s less per 1000x500 frame
-    than ``fused``'s) as prior,
-    weighted by :data:`GATED_PRIOR` (chosen on the suite's dev split, docs/matching.md).  The quality measures
-    compare its distance with ``fused``'s refined flow distance (``quality_flow``; computed only when the quality
-    is assessed): on the dev split that ranks pixels by error better than the unrefined prior
-    (docs/real-captures.md)."""
+    than ``fused``'s) as prior, weighted by :data:`GATED_PRIOR` (chosen on the suite's dev split,
+    docs/matching.md).  The quality measures compare its distance with ``fused``'s refined flow distance
+    (``quality_flow``; computed only when the quality is assessed): on the dev split that ranks pixels by error
+    better than the unrefined prior (docs/real-captures.md)."""
     base = fused_method()
     return FusedMethod(flow=flow_methods([DEFAULT_FLOW], [True], ["average"])[0],
                        sweep=dataclasses.replace(base.sweep, planes=WALL_PLANES), prior=GATED_PRIOR,
