@@ -21,6 +21,12 @@ threads, exit callbacks, freeing modules; about half a second with Dask loaded),
 default action part-way through it, so that a Ctrl-C there killed the process without a word although every output
 was complete.  Ignored, the exit status stays the command's own.
 
+When a command with local workers is interrupted, the process pool's semaphores are not unlinked by the command;
+multiprocessing's resource tracker (a process of its own, sharing stderr) unlinks them after the command has exited
+and warns about each "leaked semaphore" on stderr, after the command's one line.  :func:`guard` silences exactly that
+warning in the processes multiprocessing starts (the tracker among them): it adds a ``-W`` option for it to
+``sys.warnoptions``, which they inherit.
+
 This module imports nothing heavy, so that it can be the first thing a command loads.
 """
 
@@ -32,8 +38,8 @@ import signal
 import sys
 from collections.abc import Callable, Iterator
 
-__all__ = ["EXIT_INTERRUPTED", "EXIT_TERMINATED", "Terminated", "interrupted_line", "exit_status", "guard",
-           "release", "sigterm_as_interrupt", "finished", "run_main"]
+__all__ = ["EXIT_INTERRUPTED", "EXIT_TERMINATED", "TRACKER_WARNINGS", "Terminated", "interrupted_line", "exit_status",
+           "guard", "release", "sigterm_as_interrupt", "finished", "run_main"]
 
 EXIT_INTERRUPTED = 130
 EXIT_TERMINATED = 128 + signal.SIGTERM
@@ -45,6 +51,8 @@ class Terminated(KeyboardInterrupt):
 
 
 _guard: dict[str, object] = {}  # the handler installed by guard() and the one it replaced
+#: the warnings filter (``-W`` syntax) for multiprocessing's resource tracker's report of the semaphores it unlinks
+TRACKER_WARNINGS = "ignore::UserWarning:multiprocessing.resource_tracker"
 
 
 def interrupted_line(prog: str, exc: BaseException | None = None) -> str:
@@ -67,7 +75,10 @@ def _terminated(signum, frame) -> None:
 def guard(prog: str) -> bool:
     """Catch Ctrl-C from now until :func:`release`: ``<prog>: interrupted while starting (nothing was done)`` and
     exit status 130.  False (and nothing changed) when SIGINT does not have Python's default handler or this is
-    not the main thread."""
+    not the main thread.  In any case the processes multiprocessing starts from now on get :data:`TRACKER_WARNINGS`
+    (module docstring)."""
+    if TRACKER_WARNINGS not in sys.warnoptions:
+        sys.warnoptions.append(TRACKER_WARNINGS)
     if signal.getsignal(signal.SIGINT) is not signal.default_int_handler:
         return False
     line = f"{prog}: interrupted while starting (nothing was done)\n".encode()

@@ -103,3 +103,21 @@ def test_sigterm_during_a_render_removes_its_partial_frame_and_exits_143(tmp_pat
     assert stderr.splitlines() == ["tri360 render: terminated (finished outputs are complete; partial ones were "
                                    "removed)"], stderr
     assert not [p for p in out.rglob("*") if "partial" in p.name], sorted(out.rglob("*"))
+
+
+@pytest.mark.parametrize("guarded", [False, True])
+def test_the_resource_trackers_leaked_semaphore_warning_is_silenced_after_guard(guarded):
+    """An interrupted command leaves its worker pool's semaphores to multiprocessing's resource tracker, which unlinks
+    them after the command has exited and used to warn on stderr, after the command's one line.  The child here
+    leaks one semaphore the same way (it exits without unlinking it): the warning appears without ``guard`` and not
+    with it."""
+    code = ("from harness.jobs import startup\n"
+            + ("startup.guard('x')\n" if guarded else "")
+            + "import multiprocessing, os\n"
+              "lock = multiprocessing.get_context('spawn').Lock()\n"
+              "os._exit(0)\n")
+    # stderr is read to its end: the tracker holds it open until it has finished its report
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
+                         cwd=Path(__file__).resolve().parents[2])
+    assert out.returncode == 0
+    assert ("leaked semaphore" in out.stderr) is not guarded, out.stderr
