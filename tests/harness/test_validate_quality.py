@@ -207,7 +207,6 @@ def test_configurations_compare_without_their_label():
     assert config_difference(fused.config(), checked.config()) is None
 
 
-
 def test_a_configuration_written_before_a_parameter_was_added_reads_as_its_earlier_value():
     """Results sets from before ``planes.mirror_tolerance`` existed ran without the mirror test: usable for a method
     with the test off, not for one with it on."""
