@@ -183,10 +183,12 @@ def test_local_cluster_listens_on_loopback_only_and_renders_the_same_frames(sequ
     mine_before = {(c.laddr.ip, c.laddr.port) for c in me.net_connections(kind="inet")
                    if c.status == psutil.CONN_LISTEN}
     with DaskExecutor(ClusterOptions(workers=2)) as ex:
-        # Python's resource tracker and fork server (whose children the workers are) live as long as we do
+        # Python's resource tracker and fork server (whose children the workers are) live as long as we do.  They
+        # are told apart by the code they run: every process multiprocessing starts also carries this process's
+        # -W options in its command line, and once a CLI test ran guard() in-process, those name the tracker.
         procs = [p for p in me.children(recursive=True) if p.pid not in before
-                 and "resource_tracker" not in " ".join(p.cmdline())
-                 and not (p.ppid() == me.pid and "forkserver" in " ".join(p.cmdline()))]
+                 and "multiprocessing.resource_tracker import main" not in " ".join(p.cmdline())
+                 and not (p.ppid() == me.pid and "multiprocessing.forkserver import main" in " ".join(p.cmdline()))]
         assert len(procs) >= 2  # the worker processes (and their nannies' children)
         listening = {(c.laddr.ip, c.laddr.port) for p in [me, *procs] for c in p.net_connections(kind="inet")
                      if c.status == psutil.CONN_LISTEN} - mine_before
