@@ -46,6 +46,7 @@ from reconstruction.methods.flow_pipeline import (
     refine_variant,
     variant_problem,
 )
+from reconstruction.methods.registry import PAPER_CONFIG
 from reconstruction.refine.lm import RefineConfig, RefineProblem, discover_variants, levenberg_marquardt
 from reconstruction.refine.triangulate import TriangulationLimits
 from scenes.model import choose_viewpoints
@@ -283,14 +284,14 @@ def main(argv: list[str] | None = None) -> int:
     peak_reconstruct = _peak_mb()
 
     prep = prepare(frame, DEFAULT_FLOW, True, limits)
-    deep = {k: match_pair(frame, k, "deepflow", True).seconds for k in PAIRS}
+    deep = {k: match_pair(frame, k, PAPER_CONFIG[0], PAPER_CONFIG[1]).seconds for k in PAIRS}
 
     out("")
     out("stage times, seconds (staged replay | inside reconstruct()):")
     for k in PAIRS:
         out(f"  flow {DEFAULT_FLOW} {k:<14s} {prep.seconds[f'flow_{k}']:8.3f} | {result.seconds[f'flow_{k}']:8.3f}")
     for k in PAIRS:
-        out(f"  flow deepflow {k:<9s} {deep[k]:8.3f} |        - (paper's flow, for comparison)")
+        out(f"  flow {PAPER_CONFIG[0]} {k:<9s} {deep[k]:8.3f} |        - (the paper's set-up, for comparison)")
     out(f"  triangulate            {prep.seconds['triangulate']:8.3f} | {result.seconds['triangulate']:8.3f}")
     out(f"  average                {prep.seconds['average']:8.3f} | {result.seconds['average']:8.3f}")
     stage_s = {}

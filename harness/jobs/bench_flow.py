@@ -1,4 +1,4 @@
-"""Benchmark of DeepMatching and the faithful DeepFlow at 1000x500: time and peak memory per pair and per frame.
+"""Benchmark of DeepMatching and DeepFlow as published at 1000x500: time and peak memory per pair and per frame.
 
 Run as ``python -m harness.jobs.bench_flow`` (``make bench``).  On a frame (``--frame DIR``, or a synthetic_box
 frame rendered by the numpy ray-caster) it runs, each in a fresh child process so that its peak RSS is its own:
@@ -6,11 +6,11 @@ frame rendered by the numpy ray-caster) it runs, each in a fresh child process s
 1. DeepMatching of the plain equirect C-R pair, both directions with the reciprocal check
    (:func:`reconstruction.flow.deepmatching.deep_matching_both`);
 2. DeepFlow's variational part for that pair, given those matches (:func:`reconstruction.flow.deepflow.deep_flow`);
-3. the whole ``deepflowdm`` flow stage of a frame as the paper's set-up runs it: both pairs (C-U, C-R), forward and
-   backward flow, plain equirect (:func:`reconstruction.flow.matching.match_pair`).
+3. the whole ``deepflow`` flow stage of a frame as the paper's set-up runs it: both pairs (C-U, C-R), forward and
+   backward flow, rectified (:func:`reconstruction.flow.matching.match_pair`).
 
 It prints each figure (wall and CPU seconds: on a shared machine the CPU time over the core count is the better
-estimate of the time on free cores) and the goals -- a frame's ``deepflowdm`` flow stage within
+estimate of the time on free cores) and the goals -- a frame's ``deepflow`` flow stage within
 ``--max-seconds`` (60) and
 ``--max-gb`` (4 GB) -- and exits with status 1 when a goal fails.  Times are wall-clock on a possibly shared
 machine: upper bounds.  The first run also compiles the numba kernels (cached on disk afterwards); a warm-up on a
@@ -54,7 +54,7 @@ def _child(stage: str, frame_dir: str, width: int, queue) -> None:
         deep_flow(a, b, DeepFlowParams(), matches=m)
         info = {}
     else:
-        info = {k: match_pair(frame, k, "deepflowdm", rectify=False).seconds for k in PAIRS}
+        info = {k: match_pair(frame, k, "deepflow", rectify=True).seconds for k in PAIRS}
     seconds, cpu_s = time.perf_counter() - start, time.process_time() - cpu
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024 ** 2  # KiB on Linux -> GB
     queue.put({"seconds": seconds, "cpu_s": cpu_s, "peak_gb": peak, "warmup_peak_gb": base, **info})

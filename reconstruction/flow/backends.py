@@ -5,8 +5,8 @@ from image 0 to image 1).  Equirect images wrap around: :func:`equirect_flow` pa
 columns copied from the opposite edge before calling the backend, so correspondences that cross the
 left/right seam are found, then crops the result back to ``W`` columns.
 
-A backend that handles the wrap itself (``wraps=True``: its solver treats columns as periodic, e.g. the
-faithful ``deepflowdm``) gets the images unpadded.
+A backend that handles the wrap itself (``wraps=True``: its solver treats columns as periodic, e.g.
+``deepflow``, DeepFlow as published) gets the images unpadded.
 
 ``oracle`` is not an image backend: it is the exact correspondence from ground-truth distance and lives in
 :mod:`reconstruction.flow.matching`.  Outside packages add backends through the entry-point group
@@ -28,11 +28,19 @@ from reconstruction.flow.deepflow import DeepFlowParams, deep_flow
 from reconstruction.flow.deepmatching import DeepMatchingParams, Matches, deep_matching_both
 from reconstruction.plugins import merge_registry, unknown_name_message
 
-__all__ = ["FlowBackend", "ORACLE", "builtin_flows", "discover_flows", "get_flow", "available_flows", "equirect_flow"]
+__all__ = ["FlowBackend", "ORACLE", "RENAMED_FLOWS", "renamed_flow_note", "builtin_flows", "discover_flows",
+           "get_flow", "available_flows", "equirect_flow"]
 
 
 ENTRY_POINT_GROUP = "tri360.flows"
 ORACLE = "oracle"
+#: flow names that tri360 no longer accepts -> the name of the same backend now (an unknown-name message names it)
+RENAMED_FLOWS = {"deepflowdm": "deepflow"}
+
+
+def renamed_flow_note(name: str) -> str:
+    """``"flow deepflowdm is now called deepflow"`` for a name of :data:`RENAMED_FLOWS`, else ``""``."""
+    return f"flow {name} is now called {RENAMED_FLOWS[name]}" if name in RENAMED_FLOWS else ""
 
 
 @dataclass(frozen=True)
@@ -67,8 +75,8 @@ def _gray(img: np.ndarray) -> np.ndarray:
     return img if img.ndim == 2 else cv2.cvtColor(img, cv2.COLOR_RGB2GRAY)
 
 
-def _cvdeepflow(img0, img1):
-    """OpenCV's DeepFlow: only the variational part of Weinzaepfel et al. 2013 (no matching term)."""
+def _opencv_deepflow(img0, img1):
+    """OpenCV's DeepFlow: only the variational part of Weinzaepfel et al. 2013 (no DeepMatching, no matching term)."""
     return cv2.optflow.createOptFlow_DeepFlow().calc(_gray(img0), _gray(img1), None)
 
 
@@ -103,7 +111,8 @@ def _dm_params(downscale, ngh_rad_x, ngh_rad_y, wrap) -> DeepMatchingParams:
 
 
 def _deepflow(img0, img1, downscale=1, ngh_rad_x=0, ngh_rad_y=0, wrap=True):
-    """Faithful DeepFlow (Weinzaepfel et al. 2013): DeepMatching + variational energy with matching term."""
+    """DeepFlow as published (Weinzaepfel et al. 2013): DeepMatching + the variational energy with its matching
+    term."""
     dm = _dm_params(downscale, ngh_rad_x, ngh_rad_y, wrap)
     matches = cached_matches(img0, img1, dm)
     return deep_flow(img0, img1, DeepFlowParams(wrap=bool(wrap), matching=dm), matches=matches)
@@ -179,11 +188,12 @@ def builtin_flows() -> list[FlowBackend]:
     # plain) runs with finite output, measured on synthetic frames: DIS fails below 16 ("Incorrect size of input"),
     # RLOF below 60 (it tries to allocate gigabytes)
     out = [
-        FlowBackend("deepflowdm", _deepflow, "DeepFlow with DeepMatching (Weinzaepfel et al. 2013), as published",
+        FlowBackend("deepflow", _deepflow, "DeepFlow as published (Weinzaepfel et al. 2013): DeepMatching + the "
+                    "variational energy with its matching term; periodic in longitude",
                     params={"downscale": 1, "ngh_rad_x": 0, "ngh_rad_y": 0, "wrap": True}, min_width=60,
                     wraps=True),
-        FlowBackend("deepflow", _cvdeepflow, "OpenCV DeepFlow (variational part only), the paper's flow so far",
-                    min_width=8),
+        FlowBackend("deepflow-opencv", _opencv_deepflow, "OpenCV's DeepFlow: the variational energy only (no "
+                    "DeepMatching, no matching term), on images padded at the seam", min_width=8),
         FlowBackend("epicflow", _epicflow, "DeepMatching + OpenCV edge-aware interpolation + variational refinement",
                     params={"downscale": 1, "ngh_rad_x": 0, "ngh_rad_y": 0, "wrap": True, "pad": 32},
                     min_width=60, wraps=True),
@@ -220,6 +230,8 @@ def get_flow(name: str) -> FlowBackend:
     """Look up an image flow backend; raises ValueError listing the known names."""
     flows, errors = discover_flows()
     if name not in flows:
+        if renamed_flow_note(name):
+            raise ValueError(renamed_flow_note(name))
         raise ValueError(unknown_name_message("flow", name, sorted([*flows, ORACLE]), errors, "flow plugins"))
     return flows[name]
 

@@ -1,14 +1,9 @@
 """The method registry: built-in methods plus outside ones (entry-point group ``tri360.methods``).
 
-Built in: ``fused-mirror`` (the default: ``fused-gated`` whose room bound tells a polished floor's mirror image of
-the ceiling from the floor), ``fused-gated`` (the previous default: the sweep with wall-plane families and the
-unrefined flow distance as an SGM prior, gated by C's local contrast, by the plain sweep's confidence where the two
-disagree and by how much of the frame they agree on), ``fused-adaptive`` (the default before it: the refined flow
-distance, the frame gate only), ``fused`` (the default before that: the sweep with
-the refined flow distance as SGM prior, one constant weight), ``sweep`` (the trinocular sphere sweep alone), and every
-configuration of the paper's flow pipeline, labelled ``<flow>-<rect|plain>:<variant>``
-for each flow backend (:func:`reconstruction.flow.backends.discover_flows`, plus ``oracle``), rectified and
-plain, and each of ``average`` and the refinement variants (:func:`reconstruction.refine.lm.discover_variants`).
+Built in: the named methods of :data:`PRESETS` (one line each on what it does; ``tri360 methods`` lists them), and
+every configuration of the paper's flow pipeline, labelled ``<flow>-<rect|plain>:<variant>`` for each flow backend
+(:func:`reconstruction.flow.backends.discover_flows`, plus ``oracle``), rectified and plain, and each of
+``average`` and the refinement variants (:func:`reconstruction.refine.lm.discover_variants`).
 An outside package declares methods with an entry point that loads to a :class:`Method`, a list of them,
 or a function returning them.  Nothing is registered at import time: :func:`discover_methods` builds the
 registry each time it is called.
@@ -17,9 +12,10 @@ registry each time it is called.
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 
-from reconstruction.flow.backends import ORACLE, discover_flows
+from reconstruction.flow.backends import ORACLE, RENAMED_FLOWS, discover_flows, renamed_flow_note
 from reconstruction.methods.base import Method
 from reconstruction.methods.flow_pipeline import DEFAULT_FLOW, FlowMethod
 from reconstruction.methods.fused import FusedMethod, PriorParams
@@ -31,12 +27,13 @@ from reconstruction.sweep.planes import PlaneParams
 __all__ = ["ENTRY_POINT_GROUP", "DEFAULT_CONFIGS", "DEFAULT_METHOD", "DEFAULT_VARIANTS", "PAPER_CONFIG",
            "WALL_PLANES", "ADAPTIVE_PRIOR", "GATED_PRIOR", "builtin_methods", "discover_methods", "get_methods",
            "MIRROR_PLANES", "flow_methods", "default_methods", "fused_method", "adaptive_method", "gated_method",
-           "mirror_method"]
+           "mirror_method", "Preset", "PRESETS", "renamed_label_note"]
 
 ENTRY_POINT_GROUP = "tri360.methods"
-#: the paper's set-up: DeepFlow on plain equirect pairs
-PAPER_CONFIG = ("deepflow", False)
-#: flow configurations evaluated by default: tri360's (rectified) and the paper's set-up
+#: the paper's set-up: DeepFlow as published (DeepMatching + the DeepFlow energy) on rectified pairs (the baseline
+#: rotated to the polar axis); ``deepflow-plain`` is the ablation on the unrotated images
+PAPER_CONFIG = ("deepflow", True)
+#: flow configurations evaluated by default: tri360's and the paper's set-up, both on rectified pairs
 DEFAULT_CONFIGS = [(DEFAULT_FLOW, True), PAPER_CONFIG]
 #: what ``tri360 reconstruct`` runs by default: the method ``python -m harness.jobs.select_matching`` chose on the
 #: dev split of suites/tri360-v1.toml with the time bound (docs/matching.md), :func:`mirror_method`
@@ -79,6 +76,8 @@ def flow_methods(flows: Sequence[str], rectify: Sequence[bool],
     variants = ["average", *known_variants] if variants is None else list(variants)
     for name in flows:
         if name != ORACLE and name not in known_flows:
+            if name in RENAMED_FLOWS:
+                raise ValueError(renamed_flow_note(name))
             raise ValueError(f"unknown flow {name!r} (known: {', '.join(sorted([*known_flows, ORACLE]))})"
                              + _plugin_note(flow_errors))
     for name in variants:
@@ -133,11 +132,46 @@ def mirror_method() -> FusedMethod:
                                label="fused-mirror")
 
 
+@dataclass(frozen=True)
+class Preset:
+    """A named built-in method.
+
+    Attributes:
+        label: its label (``--method``).
+        build: makes the method.
+        description: one line: what it does and how it differs from the other presets.
+    """
+
+    label: str
+    build: Callable[[], Method]
+    description: str
+
+
+#: the named built-in methods, the default (:data:`DEFAULT_METHOD`) among them; every flow-pipeline configuration
+#: (``<flow>-<rect|plain>:<variant>``) is built in as well (:func:`flow_methods`)
+PRESETS = (
+    Preset("fused-mirror", mirror_method,
+           "the sweep over spheres, floor/ceiling and wall planes with the unrefined dis-rect distance as SGM prior, "
+           "weighted by C's texture, the sweep's confidence and how much of the frame the two agree on; its room "
+           "bound tells a polished floor's mirror image of the ceiling from the floor"),
+    Preset("fused-gated", gated_method,
+           "fused-mirror without the mirror test: on a polished floor the ceiling's mirror image can set the room "
+           "bound's floor"),
+    Preset("fused-adaptive", adaptive_method,
+           "the sweep over spheres, floor/ceiling and wall planes with the refined dis-rect:gradient distance as SGM "
+           "prior, weighted only by how much of the frame flow and sweep agree on"),
+    Preset("fused", fused_method,
+           "the sweep over spheres and floor/ceiling planes (no wall planes) with the refined dis-rect:gradient "
+           "distance as SGM prior at one constant weight"),
+    Preset("sweep", SweepMethod,
+           "the trinocular sphere sweep with SGM over spheres and floor/ceiling planes alone: no flow, no prior"),
+)
+
+
 def builtin_methods() -> list[Method]:
-    """The default (``fused-mirror``), ``fused-gated``, ``fused-adaptive``, ``fused``, the trinocular sweep and every
-    configuration of the flow pipeline (all flows incl. the oracle, rectified and plain, all variants)."""
-    return [mirror_method(), gated_method(), adaptive_method(), fused_method(), SweepMethod(),
-            *flow_methods([*discover_flows()[0], ORACLE], [True, False])]
+    """The :data:`PRESETS`, then every configuration of the flow pipeline (all flows incl. the oracle, rectified and
+    plain, all variants)."""
+    return [*(p.build() for p in PRESETS), *flow_methods([*discover_flows()[0], ORACLE], [True, False])]
 
 
 def discover_methods() -> tuple[dict[str, Method], dict[str, str]]:
@@ -150,27 +184,45 @@ def discover_methods() -> tuple[dict[str, Method], dict[str, str]]:
                           key=lambda m: m.label)
 
 
+def renamed_label_note(label: str) -> str:
+    """For a flow-pipeline label whose flow was renamed (:data:`reconstruction.flow.backends.RENAMED_FLOWS`), e.g.
+    ``deepflowdm-rect:gradient``: ``"deepflowdm-rect:gradient is now called deepflow-rect:gradient"``; else ``""``."""
+    for old, new in RENAMED_FLOWS.items():
+        for rect in ("rect", "plain"):
+            prefix = f"{old}-{rect}:"
+            if label.startswith(prefix):
+                return f"{label} is now called {new}-{rect}:{label[len(prefix):]}"
+    return ""
+
+
 def get_methods(labels: Sequence[str]) -> list[Method]:
     """Methods by label.
 
     Raises:
-        ValueError: naming the unknown labels, with the registered outside methods and the label pattern of
-            the built-in ones.
+        ValueError: naming the unknown labels (a renamed one with its name now), the named built-in methods,
+            the label pattern of the flow pipeline and the registered plugins' methods.
     """
     methods, errors = discover_methods()
     bad = [x for x in labels if x not in methods]
     if bad:
-        outside = sorted(k for k, m in methods.items() if not isinstance(m, FlowMethod))
-        raise ValueError(f"unknown method(s) {', '.join(bad)} (built-in labels are FLOW-rect:VARIANT or "
-                         f"FLOW-plain:VARIANT, e.g. dis-rect:gradient; outside methods: "
-                         f"{', '.join(outside) or 'none'})" + _plugin_note(errors))
+        renamed = [renamed_label_note(x) for x in bad if renamed_label_note(x)]
+        if len(renamed) == len(bad):
+            raise ValueError("; ".join(renamed))
+        named = [p.label for p in PRESETS]
+        plugins = sorted(k for k, m in methods.items() if not isinstance(m, FlowMethod) and k not in named)
+        raise ValueError(f"unknown method(s) {', '.join(bad)} (named methods: {', '.join(named)}; the flow pipeline: "
+                         f"FLOW-rect:VARIANT or FLOW-plain:VARIANT, e.g. dis-rect:gradient; plugins' methods: "
+                         f"{', '.join(plugins) or 'none'}; 'tri360 methods' lists them all)"
+                         + (f"; {'; '.join(renamed)}" if renamed else "") + _plugin_note(errors))
     return [methods[x] for x in dict.fromkeys(labels)]
 
 
 def default_methods() -> list[Method]:
-    """What ``tri360 evaluate`` reports by default: the default method (``DEFAULT_METHOD``), ``fused``, then tri360's
-    flow pipeline and the paper's set-up, each with the paper's variants (:data:`DEFAULT_VARIANTS`)."""
-    out: list[Method] = [mirror_method(), fused_method()]
+    """What ``tri360 evaluate`` runs by default: the default method (:data:`DEFAULT_METHOD`), the sweep, then
+    tri360's flow pipeline and the paper's set-up (:data:`DEFAULT_CONFIGS`, both on rectified pairs), each with the
+    paper's variants (:data:`DEFAULT_VARIANTS`)."""
+    presets = {p.label: p for p in PRESETS}
+    out: list[Method] = [presets[DEFAULT_METHOD].build(), presets["sweep"].build()]
     for flow, rect in DEFAULT_CONFIGS:
         out.extend(flow_methods([flow], [rect], list(DEFAULT_VARIANTS)))
     return out

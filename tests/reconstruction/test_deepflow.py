@@ -106,4 +106,4 @@ def test_wrapping_backends_get_unpadded_images():
     equirect_flow(FlowBackend("w", fake, wraps=True), img, img, 8)
     equirect_flow(FlowBackend("p", fake), img, img, 8)
     assert seen == [(8, 16, 3), (8, 32, 3)]
-    assert get_flow("deepflowdm").wraps and get_flow("epicflow").wraps and not get_flow("deepflow").wraps
+    assert get_flow("deepflow").wraps and get_flow("epicflow").wraps and not get_flow("deepflow-opencv").wraps

@@ -12,6 +12,8 @@ from reconstruction.flow.backends import FlowBackend, builtin_flows, discover_fl
 from reconstruction.methods.base import Method, MethodOutput, flow_fields, run_methods
 from reconstruction.methods.flow_pipeline import FlowMethod
 from reconstruction.methods.registry import (
+    DEFAULT_METHOD,
+    PRESETS,
     builtin_methods,
     default_methods,
     discover_methods,
@@ -28,12 +30,26 @@ OTHER_BUILTINS = [m.label for m in builtin_methods() if not isinstance(m, FlowMe
 def test_builtin_labels_are_stable_and_unique():
     labels = [m.label for m in builtin_methods()]
     assert len(labels) == len(set(labels))
-    for label in ("dis-rect:gradient", "deepflow-plain:average", "oracle-rect:color", "farneback-plain:angle",
-                  "fused-gated", "fused-mirror", "fused-adaptive", "fused", "sweep"):
+    for label in ("dis-rect:gradient", "deepflow-rect:average", "deepflow-plain:average", "deepflow-opencv-plain:color",
+                  "oracle-rect:color", "farneback-plain:angle", "fused-gated", "fused-mirror", "fused-adaptive",
+                  "fused", "sweep"):
         assert label in labels
     assert [m.label for m in default_methods()] == [
-        "fused-mirror", "fused", "dis-rect:average", "dis-rect:angle", "dis-rect:gradient", "dis-rect:color",
-        "deepflow-plain:average", "deepflow-plain:angle", "deepflow-plain:gradient", "deepflow-plain:color"]
+        "fused-mirror", "sweep", "dis-rect:average", "dis-rect:angle", "dis-rect:gradient", "dis-rect:color",
+        "deepflow-rect:average", "deepflow-rect:angle", "deepflow-rect:gradient", "deepflow-rect:color"]
+    # the paper's set-up is DeepFlow as published (DeepMatching, periodic in longitude) on rectified pairs
+    paper = get_methods(["deepflow-rect:gradient"])[0]
+    assert paper.rectify and paper.flow.wraps and paper.flow.params["wrap"] is True
+    assert not get_methods(["deepflow-opencv-rect:gradient"])[0].flow.wraps
+
+
+def test_presets_are_the_named_builtins_each_described_in_one_line():
+    labels = [p.label for p in PRESETS]
+    assert DEFAULT_METHOD in labels and len(labels) == len(set(labels))
+    assert [m.label for m in builtin_methods() if not isinstance(m, FlowMethod)] == labels
+    for p in PRESETS:
+        assert p.build().label == p.label
+        assert p.description and "\n" not in p.description and "default" not in p.description, p.label
 
 
 def test_flow_method_fields_and_config_are_json():
@@ -46,8 +62,18 @@ def test_flow_method_fields_and_config_are_json():
 
 
 def test_unknown_names_are_one_clear_message():
-    with pytest.raises(ValueError, match="unknown method.*nope-rect:x.*dis-rect:gradient"):
+    with pytest.raises(ValueError, match="unknown method.*nope-rect:x.*named methods: fused-mirror, .*sweep.*"
+                                         "dis-rect:gradient.*tri360 methods") as err:
         get_methods(["nope-rect:x"])
+    assert "outside" not in str(err.value) and "\n" not in str(err.value)
+    # a renamed flow: one line naming the label now
+    with pytest.raises(ValueError, match=r"^deepflowdm-rect:gradient is now called deepflow-rect:gradient$"):
+        get_methods(["deepflowdm-rect:gradient"])
+    with pytest.raises(ValueError, match=r"^flow deepflowdm is now called deepflow$"):
+        flow_methods(["deepflowdm"], [True])
+    with pytest.raises(ValueError, match="unknown method.*nope.*deepflowdm-plain:average is now called "
+                                         "deepflow-plain:average"):
+        get_methods(["nope", "deepflowdm-plain:average"])
     with pytest.raises(ValueError, match="unknown flow 'nope'.*dis"):
         flow_methods(["nope"], [True])
     with pytest.raises(ValueError, match="unknown variant 'bogus'.*gradient"):

@@ -43,7 +43,7 @@ def _good_values() -> dict:
     """Two scenes x two configurations where every refined variant beats average."""
     out = {}
     for scene, n in (("room", 1), ("box", 2)):
-        for flow, rect in (("dis", True), ("deepflow", False)):
+        for flow, rect in (("dis", True), ("deepflow-opencv", False)):
             for v, mae in zip(VARIANTS, (0.30, 0.20, 0.21, 0.25), strict=True):
                 out[(scene, flow, rect, v)] = [mae] * n
     return out
@@ -71,9 +71,9 @@ def test_check_bound_is_on_the_mean_over_frames():
 def test_check_reports_a_bound_exceeded():
     values = _good_values()
     bounds = _bounds_for(values)
-    values[("room", "deepflow", False, "gradient")] = [0.26]  # bound 0.21 x 1.15 = 0.2415 m
+    values[("room", "deepflow-opencv", False, "gradient")] = [0.26]  # bound 0.21 x 1.15 = 0.2415 m
     problems = check(_table(values), bounds)
-    assert problems == ["room/deepflow-plain/gradient: MAE 0.2600 m > bound 0.2415 m (+7.7%)"]
+    assert problems == ["room/deepflow-opencv-plain/gradient: MAE 0.2600 m > bound 0.2415 m (+7.7%)"]
 
 
 def test_check_reports_nan_mae():
@@ -87,11 +87,11 @@ def test_check_reports_nan_mae():
 def test_check_reports_missing_keys_both_ways():
     values = _good_values()
     bounds = _bounds_for(values)
-    del values[("box", "deepflow", False, "color")]  # a bound without a result
+    del values[("box", "deepflow-opencv", False, "color")]  # a bound without a result
     values[("box", "farneback", True, "average")] = [0.5]  # a result without a bound
     values[("box", "farneback", True, "angle")] = [0.4]
     problems = check(_table(values), bounds)
-    assert "box/deepflow-plain/color: no result (bound 0.2875 m)" in problems
+    assert "box/deepflow-opencv-plain/color: no result (bound 0.2875 m)" in problems
     assert any(p.startswith("box/farneback-rect/average: no bound (measured 0.5000 m") for p in problems)
     assert any(p.startswith("box/farneback-rect/angle: no bound") for p in problems)
     assert len(problems) == 3, problems
@@ -128,22 +128,22 @@ def test_check_reports_refined_not_beating_average():
 def test_waiver_excuses_refined_not_beating_average_but_not_the_bounds():
     values = _good_values()
     for v in ("angle", "gradient", "color"):
-        values[("room", "deepflow", False, v)] = [0.35]
+        values[("room", "deepflow-opencv", False, v)] = [0.35]
     bounds = _bounds_for(values)
-    waivers = {"room/deepflow-plain": "known: outliers"}
+    waivers = {"room/deepflow-opencv-plain": "known: outliers"}
     assert check(_table(values), bounds, waivers=waivers) == []
-    values[("room", "deepflow", False, "color")] = [0.45]  # bound 0.35 x 1.15 = 0.4025 m still applies
+    values[("room", "deepflow-opencv", False, "color")] = [0.45]  # bound 0.35 x 1.15 = 0.4025 m still applies
     assert check(_table(values), bounds, waivers=waivers) == [
-        "room/deepflow-plain/color: MAE 0.4500 m > bound 0.4025 m (+11.8%)"]
+        "room/deepflow-opencv-plain/color: MAE 0.4500 m > bound 0.4025 m (+11.8%)"]
 
 
 def test_stale_waiver_is_reported_and_dropped_on_update():
     values = _good_values()
-    waivers = {"room/dis-rect": "was worse once", "box/deepflow-plain": "still worse", "gone/dis-rect": "x"}
+    waivers = {"room/dis-rect": "was worse once", "box/deepflow-opencv-plain": "still worse", "gone/dis-rect": "x"}
     for v in ("angle", "gradient", "color"):
-        values[("box", "deepflow", False, v)] = [0.4, 0.4]
+        values[("box", "deepflow-opencv", False, v)] = [0.4, 0.4]
     data = make_bounds(_table(values), waivers=waivers)
-    assert data["waivers"] == {"box/deepflow-plain": "still worse"}
+    assert data["waivers"] == {"box/deepflow-opencv-plain": "still worse"}
     problems = check(_table(values), data["bounds"], waivers=waivers)
     assert problems == ["room/dis-rect: waiver no longer needed, best refined variant angle (MAE 0.2000 m) beats "
                         "average (0.3000 m); remove it (make regress-update)"]
@@ -229,7 +229,7 @@ def test_measured_text_lists_every_bounds_key():
     values = _good_values()
     lines = measured_text(_table(values)).splitlines()
     assert len(lines) == len(values)
-    assert lines[0].split() == ["box/deepflow-plain/angle", "0.2000"]  # metres, sorted by key
+    assert lines[0].split() == ["box/deepflow-opencv-plain/angle", "0.2000"]  # metres, sorted by key
 
 
 def test_main_needs_a_bounds_file(capsys):
