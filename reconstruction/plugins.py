@@ -7,16 +7,40 @@ entries plus what outside packages declare in their ``pyproject.toml``::
     my_method = "my_package.tri360_plugin:METHODS"   # an object, a list of objects, or a callable returning them
 
 A plugin that fails to load never hides the others: its error is returned next to the entries, keyed by
-its source, so that commands can warn about it and unknown-name errors can mention it.
+its source, so that commands can warn about it and unknown-name errors can mention it.  An outside entry never
+replaces another: one whose name a built-in entry or an earlier plugin already holds is refused, reported the
+same way (naming the plugin and who holds the name), and asking for that name is an error
+(:func:`shadow_message`), never a silent choice between the two.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field
 from importlib.metadata import entry_points
 from typing import Any
 
-__all__ = ["load_entry_points", "merge_registry", "unknown_name_message"]
+__all__ = ["Registry", "load_entry_points", "collect_registry", "merge_registry", "unknown_name_message",
+           "shadow_message"]
+
+
+@dataclass
+class Registry:
+    """A registry's entries and where the outside ones come from.
+
+    Attributes:
+        entries: entries by name (the built-ins, then the accepted outside entries).
+        errors: error message by plugin source: plugins that failed to load and outside entries refused because
+            their name was taken.
+        sources: plugin source (``entry point NAME (VALUE)``) of each accepted outside entry, by name.
+        refused: by name, ``(plugin source, holder)`` of each refused outside entry; holder is ``"built in"`` or
+            the source of the plugin that holds the name.
+    """
+
+    entries: dict[str, Any] = field(default_factory=dict)
+    errors: dict[str, str] = field(default_factory=dict)
+    sources: dict[str, str] = field(default_factory=dict)
+    refused: dict[str, tuple[str, str]] = field(default_factory=dict)
 
 
 def _items(obj: Any) -> list:
@@ -51,18 +75,49 @@ def load_entry_points(group: str, accept: Callable[[Any], bool],
     return found, errors
 
 
+def collect_registry(builtins: Iterable[Any], group: str, accept: Callable[[Any], bool], what: str,
+                     key: Callable[[Any], str], found: list[tuple[str, Any]] | None = None,
+                     errors: dict[str, str] | None = None) -> Registry:
+    """Built-in entries plus those of ``group``'s entry points, by ``key(entry)``.  An outside entry whose name is
+    taken (by a built-in or by a plugin loaded before it) is refused: it stays out, and ``errors`` names it.
+
+    Args:
+        found, errors: the loaded outside entries ``[(source, entry)]`` and load errors, when the caller loaded
+            them (default: :func:`load_entry_points` of ``group``).
+    """
+    if found is None:
+        found, errors = load_entry_points(group, accept, what)
+    reg = Registry(errors=dict(errors or {}))
+    for b in builtins:
+        reg.entries[key(b)] = b
+    for source, item in found:
+        name = key(item)
+        if name in reg.entries:
+            holder = reg.sources.get(name, "built in")
+            reg.refused[name] = (source, holder)
+            taken = "the built-in one" if holder == "built in" else holder
+            reg.errors[source] = (f"refused: it provides {what} {name!r}, a name {taken} already has "
+                                  "(an outside entry never replaces another; rename it)")
+            continue
+        reg.entries[name] = item
+        reg.sources[name] = source
+    return reg
+
+
 def merge_registry(builtins: Iterable[Any], group: str, accept: Callable[[Any], bool], what: str,
                    key: Callable[[Any], str]) -> tuple[dict[str, Any], dict[str, str]]:
-    """Built-in entries plus those of ``group``'s entry points, by ``key(entry)``; later ones win.
+    """:func:`collect_registry` as ``(entries by key, errors by source)``: built-ins first, an outside entry with a
+    name that is taken is refused (in the errors)."""
+    reg = collect_registry(builtins, group, accept, what, key)
+    return reg.entries, reg.errors
 
-    Returns:
-        ``(entries by key, errors by source)``.
-    """
-    out = {key(b): b for b in builtins}
-    found, errors = load_entry_points(group, accept, what)
-    for _source, item in found:
-        out[key(item)] = item
-    return out, errors
+
+def shadow_message(what: str, name: str, reg: Registry) -> str:
+    """One line for asking for a name that a refused plugin also provides (:attr:`Registry.refused`)."""
+    source, holder = reg.refused[name]
+    held = "a built-in one" if holder == "built in" else f"the one of {holder}"
+    return (f"{what} {name!r}: {source} also provides one, refused because {held} has that name; rename the "
+            f"outside {what} or uninstall its package")
 
 
 def unknown_name_message(what: str, name: str, known, errors: dict[str, str], failed: str = "plugins") -> str:

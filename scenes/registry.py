@@ -14,7 +14,7 @@ import importlib
 import pkgutil
 
 import scenes.families
-from reconstruction.plugins import load_entry_points, unknown_name_message
+from reconstruction.plugins import Registry, collect_registry, load_entry_points, shadow_message, unknown_name_message
 from scenes.model import RENDERERS, RESERVED_PARAMETERS, SceneEntry, SceneError
 
 __all__ = ["ENTRY_POINT_GROUP", "RENDERERS", "RESERVED_PARAMETERS", "SceneEntry", "SceneError", "discover",
@@ -33,13 +33,8 @@ def _collect(obj, source: str) -> list[SceneEntry]:
     return out
 
 
-def discover() -> tuple[dict[str, SceneEntry], dict[str, str]]:
-    """Find every scene: files in this package, then entry points.
-
-    Returns:
-        ``(entries by name, errors by source)``; a file that raises on import is reported in ``errors``
-        rather than hiding the other scenes.
-    """
+def _registry() -> Registry:
+    """The scene files of this package, then the entry points; an outside scene whose name is taken is refused."""
     entries: dict[str, SceneEntry] = {}
     errors: dict[str, str] = {}
     for info in sorted(pkgutil.iter_modules(scenes.families.__path__), key=lambda i: i.name):
@@ -56,21 +51,35 @@ def discover() -> tuple[dict[str, SceneEntry], dict[str, str]]:
         for entry in found:
             entries[entry.name] = entry
     found, ep_errors = load_entry_points(ENTRY_POINT_GROUP, lambda e: isinstance(e, SceneEntry), "SceneEntry")
-    errors.update(ep_errors)
-    for source, entry in found:
-        entry = _collect(entry, source)[0]
-        entries[entry.name] = entry
-    return entries, errors
+    return collect_registry(entries.values(), ENTRY_POINT_GROUP, lambda e: isinstance(e, SceneEntry), "scene",
+                            key=lambda e: e.name, found=[(src, _collect(e, src)[0]) for src, e in found],
+                            errors={**errors, **ep_errors})
+
+
+def discover() -> tuple[dict[str, SceneEntry], dict[str, str]]:
+    """Find every scene: files in this package, then entry points.
+
+    Returns:
+        ``(entries by name, errors by source)``; a file that raises on import is reported in ``errors``
+        rather than hiding the other scenes, and so is an outside scene whose name a built-in (or an earlier
+        plugin's) scene has: it is refused, never replacing the other.
+    """
+    reg = _registry()
+    return reg.entries, reg.errors
 
 
 def get_scene(name: str) -> tuple[SceneEntry, str]:
     """Resolve ``"family"`` or ``"family:preset"`` -> (entry, preset name).
 
     Raises:
-        SceneError: naming the unknown scene and listing the known ones (and any scene file that failed).
+        SceneError: naming the unknown scene and listing the known ones (and any scene file that failed), or a
+            name that a refused outside scene also has (naming its plugin).
     """
     family, _, preset = name.partition(":")
-    entries, errors = discover()
+    reg = _registry()
+    entries, errors = reg.entries, reg.errors
+    if family in reg.refused:
+        raise SceneError(shadow_message("scene", family, reg))
     if family not in entries:
         raise SceneError(unknown_name_message("scene", family, sorted(entries), errors, "scene files"))
     entry = entries[family]

@@ -19,6 +19,7 @@ from harness.data.predictions import FORMAT, prediction_dir, read_method_info, r
 from harness.jobs.cluster import ClusterOptions
 from harness.jobs.evaluate import evaluate, select_frames
 from reconstruction.methods.base import MethodOutput
+from reconstruction.methods.registry import builtin_methods
 
 __all__ = ["PredictionMethod", "prediction_methods", "score"]
 
@@ -41,8 +42,8 @@ class PredictionMethod:
     label_source: str = "--method"
 
     def config(self) -> dict:
-        return {"kind": "predictions", "format": FORMAT, "label": self.label, "root": str(self.root.resolve()),
-                "method.json": self.info}
+        return {"kind": "predictions", "format": FORMAT, "label": self.label, "label_source": self.label_source,
+                "root": str(self.root.resolve()), "method.json": self.info}
 
     def run(self, frame) -> MethodOutput:
         pred = read_prediction(self.root, frame.scene, frame.viewpoint, frame.width, frame.height)
@@ -55,11 +56,17 @@ def prediction_methods(pred_roots: Sequence[Path], names: Sequence[str] | None =
     Every label is an outside name (``--method``, an outside ``method.json``, a folder's name) and is checked with
     :func:`harness.data.names.check_name` before it can become part of a path.
 
+    A ``--method`` name that differs from the root's ``method.json`` name is used and recorded beside it
+    (``config()``: ``label_source`` and the method.json); one that is a built-in method's label is refused unless
+    the root's method.json names that method: the results would credit a built-in with someone else's predictions.
+
     Raises:
         UserError: a missing root, a count of names different from the count of roots, duplicate labels, an unsafe
-            label (naming where it came from), or a malformed method.json.
+            label (naming where it came from), a built-in label that the method.json contradicts, or a malformed
+            method.json.
     """
     roots = [Path(r) for r in pred_roots]
+    builtin = {m.label for m in builtin_methods()} if names is not None else set()
     if names is not None and len(names) != len(roots):
         raise UserError(f"--method gives {len(names)} name(s) for {len(roots)} predictions root(s); give one name "
                         "per root, in the same order")
@@ -71,6 +78,11 @@ def prediction_methods(pred_roots: Sequence[Path], names: Sequence[str] | None =
         info = read_method_info(root)
         if names is not None:
             label, source = names[i], "--method"
+            if label in builtin and info.get("name") != label:
+                held = (f"names method {info['name']!r}" if info.get("name") else "names no method"
+                        if (root / "method.json").is_file() else "is missing")
+                raise UserError(f"--method {label}: a built-in method's label, but {root / 'method.json'} {held}; "
+                                "name these predictions after the method that made them")
         elif info.get("name"):
             label, source = info["name"], f"{root / 'method.json'} (name)"
         else:

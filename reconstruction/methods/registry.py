@@ -20,7 +20,7 @@ from reconstruction.methods.base import Method
 from reconstruction.methods.flow_pipeline import DEFAULT_FLOW, FlowMethod
 from reconstruction.methods.fused import FusedMethod, PriorParams
 from reconstruction.methods.sweep import SweepMethod
-from reconstruction.plugins import merge_registry
+from reconstruction.plugins import collect_registry, merge_registry, shadow_message
 from reconstruction.refine.lm import discover_variants
 from reconstruction.sweep.planes import PlaneParams
 
@@ -178,7 +178,8 @@ def discover_methods() -> tuple[dict[str, Method], dict[str, str]]:
     """Every method: the built-ins plus entry points of group ``tri360.methods``.
 
     Returns:
-        ``(methods by label, errors by plugin source)``.
+        ``(methods by label, errors by plugin source)``; an outside method whose label is taken (by a built-in
+        or an earlier plugin) is refused and reported in the errors.
     """
     return merge_registry(builtin_methods(), ENTRY_POINT_GROUP, lambda m: isinstance(m, Method), "Method",
                           key=lambda m: m.label)
@@ -200,16 +201,24 @@ def get_methods(labels: Sequence[str]) -> list[Method]:
 
     Raises:
         ValueError: naming the unknown labels (a renamed one with its name now), the named built-in methods,
-            the label pattern of the flow pipeline and the registered plugins' methods.
+            the label pattern of the flow pipeline and the registered plugins' methods (each with its plugin); or a
+            label that a refused plugin also provides (naming the plugin: an outside method never replaces a
+            built-in or another plugin's).
     """
-    methods, errors = discover_methods()
+    reg = collect_registry(builtin_methods(), ENTRY_POINT_GROUP, lambda m: isinstance(m, Method), "Method",
+                           key=lambda m: m.label)
+    methods, errors = reg.entries, reg.errors
+    for x in labels:
+        if x in reg.refused:
+            raise ValueError(shadow_message("method", x, reg))
     bad = [x for x in labels if x not in methods]
     if bad:
         renamed = [renamed_label_note(x) for x in bad if renamed_label_note(x)]
         if len(renamed) == len(bad):
             raise ValueError("; ".join(renamed))
         named = [p.label for p in PRESETS]
-        plugins = sorted(k for k, m in methods.items() if not isinstance(m, FlowMethod) and k not in named)
+        plugins = sorted(f"{k} ({reg.sources[k]})" if k in reg.sources else k
+                         for k, m in methods.items() if not isinstance(m, FlowMethod) and k not in named)
         raise ValueError(f"unknown method(s) {', '.join(bad)} (named methods: {', '.join(named)}; the flow pipeline: "
                          f"FLOW-rect:VARIANT or FLOW-plain:VARIANT, e.g. dis-rect:gradient; plugins' methods: "
                          f"{', '.join(plugins) or 'none'}; 'tri360 methods' lists them all)"
