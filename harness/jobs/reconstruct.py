@@ -34,9 +34,9 @@ from harness.data.predictions import (
     write_prediction,
 )
 from harness.data.provenance import software
-from harness.jobs.evaluate import checked_maps
+from harness.jobs.evaluate import checked_maps, methods_view, run_blind
 from harness.jobs.progress import progress_bar
-from reconstruction.methods.base import Method, MethodOutput, reference_distance, run_methods, with_references
+from reconstruction.methods.base import Method, MethodOutput, reference_distance, with_references
 from reconstruction.quality import assess
 from reports.metrics import summary
 from reports.pointcloud import ply_bytes, point_grid
@@ -46,7 +46,8 @@ __all__ = ["run_with_progress", "reconstruct_to", "check_one_method"]
 
 def run_with_progress(frame, methods: Sequence[Method], desc: str, progress: bool = True,
                       on_stage: Callable[[str], None] | None = None) -> dict[str, MethodOutput]:
-    """:func:`run_methods` with a stage progress bar; a method's ValueError (e.g. the oracle without ground
+    """:func:`harness.jobs.evaluate.run_blind` (no method but the oracle sees ground truth) with a stage progress
+    bar; a method's ValueError (e.g. the oracle without ground
     truth) becomes a :class:`UserError` naming the frame."""
     with progress_bar(None, desc=desc, unit="stage", enabled=progress, leave=False) as bar:
         def note(name):
@@ -55,7 +56,7 @@ def run_with_progress(frame, methods: Sequence[Method], desc: str, progress: boo
             if on_stage is not None:
                 on_stage(name)
         try:
-            return run_methods(frame, methods, on_stage=note)
+            return run_blind(frame, methods, on_stage=note)
         except ValueError as exc:
             raise UserError(f"{frame.path or frame.scene + '/' + frame.viewpoint}: {exc}") from None
 
@@ -125,7 +126,7 @@ def reconstruct_to(frame_dir: Path, out: Path, method: Method, progress: bool = 
             "method": method.label, "config": method.config(), "seconds": output.seconds, "info": output.info,
             "software": software()}
     quality_maps, info["quality"] = assess(frame, output.distance, output.confidence,
-                                           reference_distance(frame, method, outputs))
+                                           reference_distance(methods_view(frame), method, outputs))
     if frame.has_ground_truth:
         info["metrics"] = summary(output.distance, frame.distance["C"], output.confidence)
     method_info = _method_info(method)

@@ -81,11 +81,19 @@ from harness.data.provenance import software
 from harness.data.results import map_paths, read_config, read_results_set
 from harness.jobs import perturbations as P
 from harness.jobs import startup
-from harness.jobs.evaluate import FrameRef, checked_maps, frame_labels, scorable_frame, select_frames
+from harness.jobs.evaluate import (
+    FrameRef,
+    checked_maps,
+    frame_labels,
+    methods_view,
+    run_blind,
+    scorable_frame,
+    select_frames,
+)
 from harness.jobs.perturb import checked_perturbation
 from harness.jobs.progress import progress_bar
 from reconstruction.camera.rig import CAMERA_NAMES
-from reconstruction.methods.base import Method, reference_distance, run_methods, with_references
+from reconstruction.methods.base import Method, reference_distance, with_references
 from reconstruction.methods.registry import get_methods
 from reconstruction.quality import (
     CALIBRATION_THRESHOLD,
@@ -574,9 +582,9 @@ def _run(method: Method, frame, reference: bool = True) -> tuple[np.ndarray, np.
     ``reference``) of ``frame``, float32 as ``evaluate`` stores them (shapes checked by
     :func:`harness.jobs.evaluate.checked_maps`)."""
     try:
-        outputs = run_methods(frame, with_references([method]) if reference else [method])
+        outputs = run_blind(frame, with_references([method]) if reference else [method])
         output = outputs[method.label]
-        ref = reference_distance(frame, method, outputs) if reference else None
+        ref = reference_distance(methods_view(frame), method, outputs) if reference else None
     except ValueError as exc:
         raise UserError(f"{frame.path}: {exc}") from None
     d, conf = checked_maps(frame, method, output)

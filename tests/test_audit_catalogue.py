@@ -1,0 +1,249 @@
+"""The audit of the newer surfaces (plugins, ground truth, perturb, import, suites, validate_quality, robustness
+studies), one section per command.
+
+A failing case ends with exit status 2, exactly one line on stderr (``tri360 <command>: error: ...`` or the
+job's :class:`harness.data.errors.UserError`) naming the culprit, no traceback, and nothing written or changed.
+Frames are tiny ``synthetic_box`` frames ray-cast in numpy (``tests.helpers``).
+"""
+
+from __future__ import annotations
+
+import json
+import stat
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import reconstruction.plugins
+from harness.cli import main
+from harness.data.atomic import parse_staging_name
+from harness.data.exr import read_distance_exr
+from harness.data.frame import write_frame
+from harness.data.predictions import write_method_info, write_prediction
+from harness.jobs.cluster import ClusterOptions
+from harness.jobs.evaluate import evaluate, evaluate_task
+from reconstruction.methods.base import MethodOutput
+from reconstruction.methods.flow_pipeline import FlowMethod
+from reconstruction.methods.registry import discover_methods, flow_methods, get_methods
+from scenes.model import SceneEntry
+from scenes.registry import discover, get_scene
+from tests.helpers import make_synthetic_frame
+
+# ----------------------------------------------------------------------------------------------- machinery
+
+
+def run_cli(argv: list[str]) -> int:
+    """``tri360 argv`` in-process -> exit status (argparse's own exit included)."""
+    try:
+        return main([str(a) for a in argv])
+    except SystemExit as exc:
+        return exc.code if isinstance(exc.code, int) else 1
+
+
+def snapshot(root: Path) -> dict[str, tuple]:
+    """Every entry under ``root``: directories by existence, files by (size, mtime)."""
+    out = {}
+    for p in sorted(root.rglob("*")):
+        st = p.lstat()
+        out[str(p.relative_to(root))] = ("dir",) if stat.S_ISDIR(st.st_mode) else ("file", st.st_size,
+                                                                                  st.st_mtime_ns)
+    return out
+
+
+def staging_leftovers(root: Path) -> list[str]:
+    return [str(p.relative_to(root)) for p in root.rglob(".*") if parse_staging_name(p.name) is not None]
+
+
+def expect_refusal(argv: list, capfd, tree: Path, *culprits: str) -> str:
+    """Run ``tri360 argv``: status 2, one error line naming every culprit, nothing under ``tree`` changed."""
+    capfd.readouterr()
+    before = snapshot(tree)
+    code = run_cli(argv)
+    out, err = capfd.readouterr()
+    lines = [line for line in (out + err).splitlines() if line.strip()]
+    assert code == 2, f"exit status {code}; output: {lines}"
+    assert len(lines) == 1 and lines[0].startswith(f"tri360 {argv[0]}: error: "), lines
+    for c in culprits:
+        assert str(c) in lines[0], f"{c!r} not named in {lines[0]!r}"
+    assert snapshot(tree) == before, "a refused command wrote or changed files"
+    assert staging_leftovers(tree) == []
+    return lines[0]
+
+
+class FakeEntryPoint:
+    """Stands in for an ``importlib.metadata.EntryPoint``."""
+
+    def __init__(self, name: str, value: str, obj):
+        self.name, self.value, self._obj = name, value, obj
+
+    def load(self):
+        return self._obj
+
+
+def install_plugins(monkeypatch, group: str, *eps: FakeEntryPoint) -> None:
+    monkeypatch.setattr(reconstruction.plugins, "entry_points",
+                        lambda group=None, _g=group: list(eps) if group == _g else [])
+
+
+class Peeker:
+    """An outside method that tries every way to the answer: ``frame.distance``, then the distance files in
+    ``frame.path``; it returns C's true distance if it finds it, else a constant 1 m."""
+
+    def __init__(self, label: str = "peeker"):
+        self.label = label
+
+    def config(self) -> dict:
+        return {"kind": "peeker"}
+
+    def run(self, frame) -> MethodOutput:
+        found = getattr(frame, "distance", {}).get("C")
+        path = getattr(frame, "path", None)
+        if found is None and path is not None and (Path(path) / "C.distance.exr").is_file():
+            found = read_distance_exr(Path(path) / "C.distance.exr")
+        if found is not None:
+            return MethodOutput(np.asarray(found, np.float32).copy(), info={"saw_ground_truth": True})
+        return MethodOutput(np.full((frame.height, frame.width), 1.0, np.float32))
+
+
+class Scribbler(Peeker):
+    """An outside method that overwrites the images it is handed (what is scored must not change)."""
+
+    def run(self, frame) -> MethodOutput:
+        for img in frame.images.values():
+            img[...] = 0
+        return super().run(frame)
+
+
+class OracleImpostor(FlowMethod):
+    """A plugin's subclass of the flow pipeline that calls its flow ``oracle`` to be handed ground truth."""
+
+
+@pytest.fixture(scope="module")
+def root(tmp_path_factory):
+    """A data root with one 64x32 synthetic_box frame."""
+    r = tmp_path_factory.mktemp("audit") / "data"
+    write_frame(make_synthetic_frame(64), r)
+    return r
+
+
+# ------------------------------------------------------------------------------------------------ evaluate
+
+
+class TestEvaluateHidesGroundTruth:
+    def test_an_outside_method_cannot_read_ground_truth_in_process(self, root, tmp_path):
+        table = evaluate(root, tmp_path / "res", [Peeker(), *flow_methods(["oracle"], [True], ["average"])],
+                         report=False, progress=False)
+        mae = table.set_index("method").mae_m
+        # a constant 1 m in a room of walls 1-4 m away: far from 0; the oracle still gets its ground truth
+        assert mae["peeker"] > 0.3
+        assert mae["oracle-rect:average"] < 0.05
+
+    def test_the_task_a_dask_worker_runs_hides_it_too(self, root, tmp_path):
+        (tmp_path / "stage").mkdir()
+        frame = str(root / "synthetic_box" / "vp000")
+        rows = evaluate_task(frame, [Peeker()], str(tmp_path / "stage"))["rows"]
+        assert rows["peeker"][0]["mae_m"] > 0.3
+
+    def test_a_method_overwriting_its_images_does_not_change_what_is_scored(self, root, tmp_path):
+        honest = evaluate(root, tmp_path / "a", [Peeker()], report=False, progress=False)
+        scribbled = evaluate(root, tmp_path / "b", [Scribbler()], report=False, progress=False)
+        cols = ["mae_m", "rmse_m", "valid_px"]
+        assert honest[cols].to_dict("records") == scribbled[cols].to_dict("records")
+        regions_a = (tmp_path / "a" / "regions.csv").read_text()
+        assert regions_a.replace("peeker", "x") == (tmp_path / "b" / "regions.csv").read_text().replace("peeker", "x")
+
+    def test_a_subclass_calling_its_flow_oracle_is_not_handed_ground_truth(self, root, tmp_path, capfd):
+        impostor = OracleImpostor("oracle")
+        with pytest.raises(Exception, match="needs ground-truth distance"):
+            evaluate(root, tmp_path / "res", [impostor], report=False, progress=False)
+
+    def test_reconstruct_hides_it_as_well(self, root, tmp_path, monkeypatch):
+        install_plugins(monkeypatch, "tri360.methods", FakeEntryPoint("peek", "peek_pkg:M", Peeker()))
+        assert run_cli(["reconstruct", root / "synthetic_box" / "vp000", "--method", "peeker", "--out",
+                        tmp_path / "preds", "--quiet"]) == 0
+        info = json.loads((tmp_path / "preds/synthetic_box/vp000/reconstruction.json").read_text())
+        assert info["info"] == {} and info["metrics"]["mae_m"] > 0.3
+
+    def test_an_outside_method_plugin_cannot_read_it_through_the_command(self, root, tmp_path, monkeypatch):
+        install_plugins(monkeypatch, "tri360.methods", FakeEntryPoint("peek", "peek_pkg:M", Peeker()))
+        assert run_cli(["evaluate", root, "--method", "peeker", "--out", tmp_path / "res", "--no-report",
+                        "--quiet"]) == 0
+        row = (tmp_path / "res" / "results.csv").read_text().splitlines()
+        header, values = row[0].split(","), row[1].split(",")
+        assert float(values[header.index("mae_m")]) > 0.3
+
+
+@pytest.mark.cluster
+def test_evaluate_on_dask_workers_hides_ground_truth(root, tmp_path, dask_cluster):
+    table = evaluate(root, tmp_path / "res", [Peeker()], report=False, progress=False,
+                     cluster=ClusterOptions(scheduler=dask_cluster.address))
+    assert table.set_index("method").mae_m["peeker"] > 0.3
+
+
+# ------------------------------------------------------------------------------------------------- plugins
+
+
+class TestPluginsCannotShadow:
+    def test_a_method_plugin_with_a_built_in_label_is_refused_and_named(self, monkeypatch):
+        install_plugins(monkeypatch, "tri360.methods", FakeEntryPoint("evil", "evil_pkg:M", Peeker("fused-mirror")))
+        methods, errors = discover_methods()
+        assert not isinstance(methods["fused-mirror"], Peeker)
+        (source, message), = errors.items()
+        assert "evil_pkg:M" in source and "fused-mirror" in message and "refused" in message
+        with pytest.raises(ValueError, match=r"evil_pkg:M.*refused"):
+            get_methods(["fused-mirror"])
+
+    def test_a_second_plugin_with_a_taken_label_is_refused(self, monkeypatch):
+        install_plugins(monkeypatch, "tri360.methods", FakeEntryPoint("a", "a_pkg:M", Peeker("mine")),
+                        FakeEntryPoint("b", "b_pkg:M", Peeker("mine")))
+        reg = reconstruction.plugins.collect_registry([], "tri360.methods", lambda m: True, "Method",
+                                                      key=lambda m: m.label)
+        assert reg.sources == {"mine": "entry point a (a_pkg:M)"}
+        assert reg.refused == {"mine": ("entry point b (b_pkg:M)", "entry point a (a_pkg:M)")}
+        with pytest.raises(ValueError, match=r"b_pkg:M.*a_pkg:M"):
+            get_methods(["mine"])
+
+    def test_an_unknown_label_lists_each_outside_method_with_its_plugin(self, monkeypatch):
+        install_plugins(monkeypatch, "tri360.methods", FakeEntryPoint("peek", "peek_pkg:M", Peeker()))
+        with pytest.raises(ValueError, match=r"peeker \(entry point peek \(peek_pkg:M\)\)"):
+            get_methods(["nonesuch"])
+
+    def test_the_command_refuses_the_shadowed_label_in_one_line(self, root, tmp_path, monkeypatch, capfd):
+        install_plugins(monkeypatch, "tri360.methods", FakeEntryPoint("evil", "evil_pkg:M", Peeker("fused-mirror")))
+        expect_refusal(["reconstruct", root / "synthetic_box" / "vp000", "--out", tmp_path / "preds"], capfd,
+                       tmp_path, "fused-mirror", "evil_pkg:M")
+
+    def test_a_scene_plugin_named_like_a_built_in_is_refused(self, monkeypatch, capfd, tmp_path):
+        corridor = get_scene("corridor")[0]
+        fake = SceneEntry(**{**corridor.__dict__, "description": "not the built-in", "source": ""})
+        install_plugins(monkeypatch, "tri360.scenes", FakeEntryPoint("c", "c_pkg:SCENES", fake))
+        entries, errors = discover()
+        assert entries["corridor"].description == corridor.description
+        assert any("c_pkg:SCENES" in k and "corridor" in v for k, v in errors.items())
+        with pytest.raises(Exception, match=r"c_pkg:SCENES"):
+            get_scene("corridor")
+        expect_refusal(["render", "--scene", "corridor", "--width", "64", "--renderer", "raycast", "--out",
+                        tmp_path / "r"], capfd, tmp_path, "corridor", "c_pkg:SCENES")
+
+
+# --------------------------------------------------------------------------------------------------- score
+
+
+class TestScoreLabels:
+    @pytest.fixture()
+    def preds(self, root, tmp_path):
+        p = tmp_path / "preds"
+        write_prediction(p, "synthetic_box", "vp000", np.full((32, 64), 2.0, np.float32))
+        write_method_info(p, {"name": "mine", "description": "a constant"})
+        return p
+
+    def test_a_built_in_label_contradicting_method_json_is_refused(self, root, preds, tmp_path, capfd):
+        expect_refusal(["score", preds, "--data", root, "--method", "fused", "--out", tmp_path / "res"], capfd,
+                       tmp_path, "--method fused", str(preds / "method.json"), "'mine'")
+
+    def test_another_name_is_used_and_recorded_beside_method_json(self, root, preds, tmp_path):
+        assert run_cli(["score", preds, "--data", root, "--method", "renamed", "--out", tmp_path / "res",
+                        "--no-report", "--quiet"]) == 0
+        cfg = json.loads((tmp_path / "res" / "config.json").read_text())["methods"]["renamed"]
+        assert cfg["label_source"] == "--method" and cfg["method.json"]["name"] == "mine"
