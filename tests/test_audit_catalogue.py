@@ -18,9 +18,12 @@ import pytest
 import reconstruction.plugins
 from harness.cli import main
 from harness.data.atomic import parse_staging_name
+from harness.data.errors import UserError
 from harness.data.exr import read_distance_exr
 from harness.data.frame import write_frame
+from harness.data.outputs import MARKER, check_output, mark_output, output_kind
 from harness.data.predictions import write_method_info, write_prediction
+from harness.jobs import validate_quality
 from harness.jobs.cluster import ClusterOptions
 from harness.jobs.evaluate import evaluate, evaluate_task
 from reconstruction.methods.base import MethodOutput
@@ -247,3 +250,66 @@ class TestScoreLabels:
                         "--no-report", "--quiet"]) == 0
         cfg = json.loads((tmp_path / "res" / "config.json").read_text())["methods"]["renamed"]
         assert cfg["label_source"] == "--method" and cfg["method.json"]["name"] == "mine"
+
+
+# ------------------------------------------------------------------------- output kinds (validate_quality, study)
+
+
+def robustness_dir(path: Path, legacy: bool = False) -> Path:
+    """A finished robustness study as ``study`` writes it (``legacy``: marked ``study``, as before the kinds split)."""
+    (path / "data" / "none-0").mkdir(parents=True)
+    (path / "results" / "none-0").mkdir(parents=True)
+    (path / "points.json").write_text(json.dumps([{"kind": "none", "level": 0, "data": "data/none-0",
+                                                   "results": "results/none-0"}]))
+    (path / "robustness.csv").write_text("kind,level\nnone,0\n")
+    (path / "robustness.md").write_text("# study\n")
+    mark_output(path, "robustness")
+    if legacy:
+        raw = json.loads((path / MARKER).read_text())
+        (path / MARKER).write_text(json.dumps({**raw, "kind": "study"}))
+    return path
+
+
+def grid_dir(path: Path) -> Path:
+    """A finished grid study, marked as the study command marks it."""
+    (path / "data").mkdir(parents=True)
+    (path / "points.json").write_text(json.dumps([{"rid": "r0", "eid": "e0"}]))
+    (path / "study.csv").write_text("width\n64\n")
+    mark_output(path, "study")
+    return path
+
+
+class TestOutputKinds:
+    @pytest.mark.parametrize("legacy", [False, True], ids=["marked", "marked-before-the-split"])
+    def test_validate_quality_never_replaces_a_robustness_study(self, root, tmp_path, capfd, legacy):
+        study = robustness_dir(tmp_path / "study", legacy)
+        before = snapshot(tmp_path)
+        capfd.readouterr()
+        code = validate_quality.main([str(root), "--method", "sweep", "--out", str(study), "--quiet"])
+        _, err = capfd.readouterr()
+        assert code == 2 and len(err.strip().splitlines()) == 1, err
+        assert str(study) in err and "robustness study" in err
+        assert snapshot(tmp_path) == before
+
+    def test_a_grid_study_is_not_accepted_into_a_robustness_study(self, tmp_path):
+        study = robustness_dir(tmp_path / "study", legacy=True)
+        with pytest.raises(UserError, match="robustness study"):
+            check_output(study, "study")
+        assert check_output(study, "robustness") == study
+
+    def test_a_robustness_study_is_not_accepted_into_a_grid_study(self, tmp_path):
+        grid = grid_dir(tmp_path / "grid")
+        assert output_kind(grid) == "study"
+        with pytest.raises(UserError, match="grid study"):
+            check_output(grid, "robustness")
+
+    def test_a_validation_is_its_own_kind(self, tmp_path):
+        v = tmp_path / "v"
+        v.mkdir()
+        (v / "validation.json").write_text("{}")
+        (v / "validation.md").write_text("x\n")
+        assert output_kind(v) == "validation"
+        assert check_output(v, "validation") == v
+        for kind in ("study", "robustness", "results"):
+            with pytest.raises(UserError, match="quality validation"):
+                check_output(v, kind)

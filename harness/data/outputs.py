@@ -1,16 +1,22 @@
 """Output locations: what a command may write into, checked before any work; result sets swapped in whole.
 
 **Only what tri360 wrote is ever replaced.**  Every output directory carries a marker, ``.tri360-output.json`` =
-``{"format": "tri360-output/1", "kind": KIND, "entries": [top-level names tri360 wrote]}``, of one of four kinds
-(:data:`KINDS`): ``data`` (a data root of frames: ``render``), ``predictions`` (a ``tri360-pred/1`` root:
-``reconstruct``), ``results`` (a results set: ``evaluate``, ``score``, ``report``) and ``study`` (``study``).
+``{"format": "tri360-output/1", "kind": KIND, "entries": [top-level names tri360 wrote]}``, of one of six kinds
+(:data:`KINDS`): ``data`` (a data root of frames: ``render``, ``perturb``, ``import``), ``predictions`` (a
+``tri360-pred/1`` root: ``reconstruct``), ``results`` (a results set: ``evaluate``, ``score``, ``report``),
+``study`` (a grid study: ``study``), ``robustness`` (a robustness study: ``study`` with a robustness study file)
+and ``validation`` (``validate_quality``).  No command replaces another kind's output: a validation is not a
+study, a grid study not a robustness study.  A marker written when the three shared the kind ``study`` is read by
+content (``robustness.csv`` or robustness points: a robustness study; ``validation.json``/``validation.csv``: a
+validation).
 :func:`check_output` lets a command write into ``path`` only when it is
 
 - absent, or an empty directory (staging leftovers of killed tri360 runs do not count), or
 - a directory of the same kind that tri360 wrote: its marker says so, or -- directories written before markers
   existed -- its content does (a results set: ``results.csv`` or a ``tri360-results/1`` ``config.json``; a data
   root: ``<scene>/<viewpoint>/frame.json``; a predictions root: a ``tri360-pred/1`` ``method.json`` or
-  ``<scene>/<viewpoint>/distance.exr``; a study: ``points.json``), and it holds nothing else than what tri360
+  ``<scene>/<viewpoint>/distance.exr``; a study: ``points.json``; a validation: ``validation.json`` or
+  ``validation.csv``), and it holds nothing else than what tri360
   writes there (:func:`foreign_entries`: in a data root only ``<scene>/<viewpoint>/`` directories of a frame's
   files, in a predictions root only those of predictions and ``method.json``, in a results set or a study only
   the names they write);
@@ -41,7 +47,9 @@ __all__ = ["MARKER", "MARKER_FORMAT", "KINDS", "RESULTS_FORMAT", "check_output",
 
 MARKER = ".tri360-output.json"
 MARKER_FORMAT = "tri360-output/1"
-KINDS = {"data": "data root", "predictions": "predictions root", "results": "results set", "study": "study directory"}
+KINDS = {"data": "data root", "predictions": "predictions root", "results": "results set",
+         "study": "grid study directory", "robustness": "robustness study directory",
+         "validation": "quality validation directory"}
 """The kinds of output directory -> what the messages call them."""
 
 #: what ``evaluate``/``score`` and ``report`` write at the top of a results set (directories: not looked into)
@@ -53,8 +61,10 @@ RESULTS_DIRS = frozenset({"maps", "figures", "clouds"})
 #: what a frame directory holds (``tri360-frame/1``, the render log, per-camera maps of a later format)
 _FRAME_FILE_RE = re.compile(r"^(frame\.json|render_log\.json|[CUR]\.png|[CUR]\.[A-Za-z0-9_]+\.(exr|png))$")
 PREDICTION_FILES = frozenset({"distance.exr", "confidence.exr", "quality.exr", "cloud.ply", "reconstruction.json"})
-STUDY_FILES = frozenset({"points.json", "study.csv", "study.md", "robustness.csv", "robustness.md"})
+STUDY_FILES = frozenset({"points.json", "study.csv", "study.md"})
+ROBUSTNESS_FILES = frozenset({"points.json", "robustness.csv", "robustness.md"})
 STUDY_DIRS = frozenset({"data", "results"})
+VALIDATION_FILES = frozenset({"validation.csv", "calibration.csv", "validation.json", "validation.md"})
 OS_LITTER = frozenset({".DS_Store", "Thumbs.db", "desktop.ini"})
 """Folder-view files of macOS / Windows: nobody's data, so they neither make a directory foreign nor non-empty."""
 RESULTS_FORMAT = "tri360-results/1"
@@ -170,10 +180,13 @@ def foreign_entries(path: Path, kind: str, listed: Iterable[str] = ()) -> list[s
     if kind == "results":
         return [n for n in top if n not in listed and not (n in RESULTS_FILES and (path / n).is_file())
                 and not (n in RESULTS_DIRS and (path / n).is_dir())]
-    if kind == "study":
-        return [n for n in top if n not in listed and not ((n in STUDY_FILES or n.endswith(".png"))
+    if kind in ("study", "robustness"):
+        files = STUDY_FILES if kind == "study" else ROBUSTNESS_FILES
+        return [n for n in top if n not in listed and not ((n in files or n.endswith(".png"))
                                                            and (path / n).is_file())
                 and not (n in STUDY_DIRS and (path / n).is_dir())]
+    if kind == "validation":
+        return [n for n in top if n not in listed and not (n in VALIDATION_FILES and (path / n).is_file())]
     raise ValueError(f"unknown output kind {kind!r}")
 
 
@@ -183,14 +196,17 @@ def output_kind(path: Path) -> str | None:
     path = Path(path)
     marker = read_marker(path)
     if marker is not None:
-        return marker["kind"]
+        return _study_kind(path) if marker["kind"] == "study" else marker["kind"]
     if not path.is_dir():
         return None
     if (path / "results.csv").is_file() or _json_format(path / "config.json") == RESULTS_FORMAT:
         return "results"
+    if (path / "validation.json").is_file() or (path / "validation.csv").is_file():
+        return "validation"
     if (path / "points.json").is_file() and ((path / "data").is_dir() or (path / "results").is_dir()
-                                             or (path / "study.csv").is_file()):
-        return "study"
+                                             or (path / "study.csv").is_file()
+                                             or (path / "robustness.csv").is_file()):
+        return _study_kind(path)
     if _json_format(path / "method.json") == PRED_FORMAT:
         return "predictions"
     for a in _entries(path):
@@ -202,6 +218,27 @@ def output_kind(path: Path) -> str | None:
                 if (pa / b / "distance.exr").is_file():
                     return "predictions"
     return None
+
+
+def _robustness_points(path: Path) -> bool:
+    """True if ``path`` is a robustness study's ``points.json`` (a list of points naming a perturbation kind)."""
+    try:
+        if path.stat().st_size > 1 << 22:
+            return False
+        raw = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, ValueError):
+        return False
+    return isinstance(raw, list) and bool(raw) and all(isinstance(p, dict) and "kind" in p for p in raw)
+
+
+def _study_kind(path: Path) -> str:
+    """Which of the kinds once marked ``study`` ``path`` is, by its content: ``robustness``, ``validation`` or
+    ``study`` (a grid study)."""
+    if (path / "robustness.csv").is_file() or _robustness_points(path / "points.json"):
+        return "robustness"
+    if (path / "validation.json").is_file() or (path / "validation.csv").is_file():
+        return "validation"
+    return "study"
 
 
 # ------------------------------------------------------------------------------------------------- the check

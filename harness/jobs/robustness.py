@@ -13,7 +13,7 @@ A robustness study is a TOML file that ``tri360 study`` recognises by ``kind = "
     rotation = [0.1, 0.25, 0.5, 1.0]
     jpeg = [95, 80, 60, 40]
 
-:func:`run_robustness` writes into ``out`` (a study directory):
+:func:`run_robustness` writes into ``out`` (a robustness study directory):
 
 - ``data/unperturbed/``: the chosen frames as they are (a copy, so that the unperturbed frames are evaluated
   like every other point: one data root, one results set), ``data/<kind>-<level>/``: the frames perturbed with
@@ -65,8 +65,8 @@ KEYS = ("kind", "data", "frames", "method", "seed", "levels")
 """The keys of a robustness study file."""
 DEFAULT_METHODS = ("fused-mirror", "fused", "sweep", "dis-rect:gradient")
 """The methods when the file names none: the default method (``fused-mirror``), ``fused``, the sweep alone and
-tri360's flow pipeline with the paper's optimised variant.  The paper's set-up (``deepflow-plain:gradient``) can be
-named; it is not a default because OpenCV's DeepFlow takes up to about 80 s per frame, doubling a study's time."""
+tri360's flow pipeline with the paper's optimised variant.  The paper's set-up (``deepflow-rect:gradient``) can be
+named; it is not a default because DeepFlow as published takes about 50 s per 1000x500 frame."""
 ORIGINS = {"jpeg": 100}
 """Per kind whose severity grows as its level falls, the level the unperturbed frames stand at in tables, plots and
 the doubling level (JPEG quality 100: the closest to no compression); every other kind: 0."""
@@ -271,7 +271,7 @@ def _results_reusable(results: Path, labels: tuple[str, ...], expected: dict[tup
 
 def run_robustness(study_path: Path, out: Path, cluster: ClusterOptions | None = None,
                    progress: bool = True) -> pd.DataFrame:
-    """Run (or resume, or extend) a robustness study into study directory ``out`` (see the module doc).
+    """Run (or resume, or extend) a robustness study into robustness study directory ``out`` (see the module doc).
 
     Returns:
         The ``robustness.csv`` table.
@@ -286,7 +286,7 @@ def run_robustness(study_path: Path, out: Path, cluster: ClusterOptions | None =
     spec = load_robustness(study_path)
     refs = _select(spec)
     out = Path(out)
-    check_output(out, "study", [study_path, spec.data, *(r.path for r in refs)])
+    check_output(out, "robustness", [study_path, spec.data, *(r.path for r in refs)])
     points = plan_points(spec)
     wanted = {(r.scene, r.viewpoint) for r in refs}
     for p in points:  # frames of another selection would be evaluated with these: refuse before any work
@@ -340,7 +340,7 @@ def run_robustness(study_path: Path, out: Path, cluster: ClusterOptions | None =
              f"```toml\n{spec.text.strip()}\n```")
     atomic_write_text(out / "robustness.md", robustness_markdown(f"Robustness study `{spec.path.name}`", intro,
                                                                  tables, units, origins, plots))
-    mark_output(out, "study")
+    mark_output(out, "robustness")
     return table
 
 

@@ -36,8 +36,8 @@ on a data root of frames with ground truth (a suite's split: ``tri360 render --s
    flagged and the perturbed one is.  The summary also gives the threshold that separates most of the checked
    frames (:func:`choose_threshold`): how ``CALIBRATION_THRESHOLD`` is chosen on the dev split.
 
-``DIR`` (a study directory: absent, empty or one tri360 wrote; built in a staging directory and swapped in whole)
-gets
+``DIR`` (a quality validation directory: absent, empty or one validate_quality wrote, never a study; built in a
+staging directory and swapped in whole) gets
 
 - ``validation.csv``: one row per frame: ``scene, viewpoint, family, width, height, scored_px`` (pixels with
   ground truth), ``valid_px`` (of those, validly predicted: the pixels ranked), ``mae_m`` (as ``evaluate`` scores
@@ -607,7 +607,7 @@ def validate_quality(data_root: Path, method_label: str, out: Path, results: Pat
     """Run both checks of the module doc on ``data_root`` and write ``out``.
 
     Everything is checked before the first method runs: the options, the method, the frames and their ground
-    truth, the reused results set, and ``out`` (:func:`harness.data.outputs.check_output`: a study directory
+    truth, the reused results set, and ``out`` (:func:`harness.data.outputs.check_output`: a validation directory
     that is not an input, inside one or around one).
 
     Args:
@@ -637,7 +637,7 @@ def validate_quality(data_root: Path, method_label: str, out: Path, results: Pat
         raise UserError("--results-label needs --results (the results set whose maps it names)")
     refs, skipped = ground_truth_frames(data_root, frames)
     results = None if results is None else Path(results)
-    check_output(out, "study", [data_root, *(r.path for r in refs), *([results] if results else [])])
+    check_output(out, "validation", [data_root, *(r.path for r in refs), *([results] if results else [])])
     renderers = {}
     for ref in refs:  # every frame and its ground truth, before any work
         renderers[(ref.scene, ref.viewpoint)] = scorable_frame(ref.path).renderer
@@ -711,7 +711,7 @@ def validate_quality(data_root: Path, method_label: str, out: Path, results: Pat
                           pd.DataFrame(calib_rows, columns=calib_columns).to_csv(index=False))
         atomic_write_text(stage / "validation.json", jsonio.dumps(result))
         atomic_write_text(stage / "validation.md", text)
-        mark_output(stage, "study")
+        mark_output(stage, "validation")
     return result, text
 
 
@@ -719,7 +719,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog=f"python -m harness.jobs.{PROG}", description=__doc__.splitlines()[0])
     parser.add_argument("data_root", type=Path, metavar="DATA_ROOT", help="data root of frames with ground truth")
     parser.add_argument("--method", required=True, metavar="LABEL", help="registered method label (e.g. fused)")
-    parser.add_argument("--out", type=Path, required=True, metavar="DIR", help="output directory (a study directory)")
+    parser.add_argument("--out", type=Path, required=True, metavar="DIR",
+                        help="output directory (absent, empty or one validate_quality wrote)")
     parser.add_argument("--results", type=Path, default=None, metavar="RESULTS_SET",
                         help="read C's distance maps from this tri360 evaluate results set instead of running the "
                              "method (for the ranking; its config.json must record LABEL's configuration)")

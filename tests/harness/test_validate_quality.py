@@ -97,7 +97,7 @@ def test_outputs_exist_and_parse(data, validated):
     assert -1.0 <= summary["ranking"]["all"]["pooled"]["rho:uncertainty"] <= 1.0
     md = (out / "validation.md").read_text()
     assert text == md and "| box_room | box_room/vp000 |" in md and "## Calibration check" in md
-    assert read_marker(out)["kind"] == "study"
+    assert read_marker(out)["kind"] == "validation"
 
 
 def test_calibration_check_flags_the_rotated_frames(validated):
