@@ -21,7 +21,7 @@ setup: $(STAMP) ## create .venv and install tri360 with its pinned dependencies
 render: $(STAMP) ## render the default scene set (classroom, 3 viewpoints, 1000x500) into $(DATA)/
 	$(TRI) render --scene classroom --viewpoints 3 --out $(DATA)
 
-evaluate: $(STAMP) ## render the default scene if missing, evaluate the default methods (fused-mirror, fused, dis-rect:*, deepflow-plain:*), write $(RESULTS)/ and print one row per method (MAE, median, delta<1.10, seconds; best first)
+evaluate: $(STAMP) ## render the default scene if missing, evaluate the default methods (fused-mirror, sweep, dis-rect:*, deepflow-rect:*; tri360 methods lists them), write $(RESULTS)/ and print one row per method (MAE, median, delta<1.10, seconds; best first)
 	$(TRI) render --scene classroom --viewpoints 1 --out $(DATA)
 	$(TRI) evaluate $(DATA) --out $(RESULTS)
 

@@ -55,6 +55,7 @@ import pandas as pd
 
 from reconstruction.camera.equirect import bearing_grid
 from reconstruction.methods.flow_pipeline import config_label
+from reconstruction.methods.registry import PAPER_CONFIG
 from reports import html as H
 from reports import plots
 from reports.metrics import scored_pixels, sparsification_curves
@@ -85,7 +86,7 @@ __all__ = ["Part", "FramePart", "PLY_CHOICES", "DEFAULT_CLOUD_POINTS", "OTHER_KE
            "SECTION_NOTE", "section_sample", "leaderboard_part", "flow_mae_part", "breakdown_part",
            "sparsification_part", "frame_part", "quality_part", "capture_part", "report_html"]
 
-#: which point clouds become PLY files: every method, only the paper set-up (deepflow-plain) or none
+#: which point clouds become PLY files: every method, only the paper set-up (deepflow-rect) or none
 PLY_CHOICES = ("all", "paper", "none")
 #: points per cloud drawn in the scatter views (the same seeded pixel subsample for every cloud of a frame)
 DEFAULT_CLOUD_POINTS = 20000
@@ -243,7 +244,8 @@ def _cloud_groups(rows: Mapping[str, Mapping], labels: Sequence[str]) -> list[tu
     for flow, rect in config_order((r["flow"], r["rectify"]) for r in flow_rows):
         members = {r["variant"]: r["method"] for r in flow_rows if r["flow"] == flow and r["rectify"] == rect}
         members = {v: members[v] for v in variant_order(members)}
-        groups.append((config_label(flow, rect), config_title(flow, rect), flow == "deepflow" and not rect, members))
+        groups.append((config_label(flow, rect), config_title(flow, rect), (flow, bool(rect)) == PAPER_CONFIG,
+                       members))
     others = {m: m for m in labels if not rows[m]["flow"]}
     if others:
         groups.append((OTHER_KEY, "other methods", False, others))
@@ -504,7 +506,7 @@ def _leaderboard_html(board: pd.DataFrame, have_regions: bool) -> str:
             "and AUSE. Lower is better except for &delta; &lt; 1.10 and coverage; a missing or invalid prediction "
             "counts with error = true distance. Click a column header to sort (best first, click again to "
             "reverse); highlighted: the best value of the column. Shaded rows: the paper's own Fig. 4 MAEs (one "
-            "1000x500 classroom frame of theirs, DeepFlow on plain equirect pairs), quoted, <strong>not computed by "
+            "1000x500 classroom frame of theirs, DeepFlow), quoted, <strong>not computed by "
             "tri360</strong>. Regions: docs/metrics.md" + ("" if have_regions else " (no regions.csv: empty)")
             + ". Also as " + H.link("leaderboard.csv", "leaderboard.csv") + " and "
             + H.link("leaderboard.md", "leaderboard.md") + ".</p>")

@@ -13,6 +13,7 @@ import numpy as np
 import pandas as pd
 
 from reconstruction.methods.flow_pipeline import config_label
+from reconstruction.methods.registry import PAPER_CONFIG
 from reconstruction.quality import CALIBRATION_THRESHOLD
 from reports.regions import REGION_NAMES
 from reports.schema import QUALITY_COLUMNS, unscored_rows
@@ -44,20 +45,21 @@ __all__ = [
 ]
 
 
-#: The paper's own Fig. 4 figures (mean absolute error, metres; one 1000x500 Blender classroom frame,
-#: DeepFlow on plain equirect pairs).  Quoted for reference, never computed by tri360.
+#: The paper's own Fig. 4 figures (mean absolute error, metres; one 1000x500 Blender classroom frame of theirs,
+#: DeepFlow).  Quoted for reference, never computed by tri360.
 PAPER_MAE_M = {"average": 0.14337, "gradient": 0.10906, "color": 0.10902}
 PAPER_LABEL = "paper's figures (Fig. 4, quoted; not computed by tri360)"
 
-FLOW_ORDER = ["deepflow", "dis", "farneback", "rlof", "oracle"]
+FLOW_ORDER = ["deepflow", "deepflow-opencv", "dis", "farneback", "rlof", "oracle"]
 VARIANT_ORDER = ["average", "angle", "gradient", "color"]
 
 
 def config_title(flow: str, rectify: bool) -> str:
     """Human title of a flow configuration: its label (``reconstruction.methods.flow_pipeline.config_label``,
-    e.g. ``dis-rect``), plus ``" (paper set-up)"`` for DeepFlow on plain (unrectified) pairs."""
+    e.g. ``dis-rect``), plus ``" (paper set-up)"`` for the paper's set-up
+    (``reconstruction.methods.registry.PAPER_CONFIG``: ``deepflow-rect``)."""
     label = config_label(flow, bool(rectify))
-    return f"{label} (paper set-up)" if flow == "deepflow" and not rectify else label
+    return f"{label} (paper set-up)" if (flow, bool(rectify)) == PAPER_CONFIG else label
 
 
 def config_order(pairs) -> list[tuple[str, bool]]:
@@ -155,7 +157,7 @@ def variant_mae_table(results: pd.DataFrame) -> pd.DataFrame:
             row["frames"] = len(sub)
             rows.append(row)
     for variant, mae in PAPER_MAE_M.items():
-        row = {"source": "paper", "configuration": PAPER_LABEL, "flow": "deepflow", "rectify": False,
+        row = {"source": "paper", "configuration": PAPER_LABEL, "flow": PAPER_CONFIG[0], "rectify": PAPER_CONFIG[1],
                "variant": variant}
         for scene in scenes:
             row[f"{scene} mae_m"] = float("nan")
@@ -198,7 +200,7 @@ def mae_markdown(table: pd.DataFrame) -> str:
         "Pixels with no surface are not scored; a missing or invalid prediction counts with",
         "error = true distance.",
         "The last three rows are the paper's own Fig. 4 numbers (one 1000x500 Blender classroom frame,",
-        "DeepFlow on plain equirect pairs), quoted, not computed by tri360; their reductions are computed",
+        "DeepFlow), quoted, not computed by tri360; their reductions are computed",
         "here from those MAEs (the paper's text quotes 23.93 % and 23.95 %).",
         "",
         "| " + " | ".join(_md_cell(c) for c in disp.columns) + " |",
@@ -286,7 +288,7 @@ def leaderboard_table(results: pd.DataFrame, regions: pd.DataFrame | None = None
         ``variant``, ``frames``, ``suite_id``, ``split``, the :data:`LEADERBOARD_OVERALL` columns (metres / shares
         0..1), the family and tag columns (metres) and ``mae_<region>`` for each of :data:`LEADERBOARD_REGIONS`
         (metres).  tri360 rows sorted by ``mae_m``
-        (NaN last), then one row per :data:`PAPER_MAE_M` entry, labelled ``paper: deepflow-plain:<variant>`` (MAE
+        (NaN last), then one row per :data:`PAPER_MAE_M` entry, labelled ``paper: deepflow-rect:<variant>`` (MAE
         only; every other number NaN).
     """
     kinds = kinds or {}
@@ -323,8 +325,8 @@ def leaderboard_table(results: pd.DataFrame, regions: pd.DataFrame | None = None
         table = table.sort_values("mae_m", kind="stable", na_position="last")
     paper = []
     for variant, mae in PAPER_MAE_M.items():
-        row = {"source": "paper", "method": f"paper: {config_label('deepflow', False)}:{variant}",
-               "kind": PAPER_KIND, "flow": "deepflow", "rectify": False, "variant": variant, "frames": 1,
+        row = {"source": "paper", "method": f"paper: {config_label(*PAPER_CONFIG)}:{variant}",
+               "kind": PAPER_KIND, "flow": PAPER_CONFIG[0], "rectify": PAPER_CONFIG[1], "variant": variant, "frames": 1,
                "suite_id": "", "split": ""}
         row.update({col: float("nan") for col, _ in LEADERBOARD_OVERALL})
         row.update({c: float("nan") for plain, weighted, _ in groups for c in (plain, weighted)})
@@ -408,7 +410,7 @@ def leaderboard_markdown(table: pd.DataFrame) -> str:
         "MAE and the shares; the pixel-weighted mean of the per-frame values for median, p90 and AUSE.",
         "Shares in %; lower is better except for δ < 1.10 and coverage.  A missing or invalid prediction",
         "counts with error = true distance.  Rows of kind \"quoted from the paper\" are the paper's own Fig. 4 MAEs",
-        "(one 1000x500 classroom frame of theirs, DeepFlow on plain equirect pairs), not computed by tri360.",
+        "(one 1000x500 classroom frame of theirs, DeepFlow), not computed by tri360.",
         "Columns marked \"solid-angle weighted\" weight every pixel by the solid angle it covers (cos latitude,",
         "as Pano3D recommends: equirect pixels near the poles cover less of the sphere) and pool frames by their",
         "scored solid angle; every other column weighs each pixel the same.",

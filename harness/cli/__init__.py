@@ -18,14 +18,15 @@ import argparse
 import sys
 
 from harness import __version__
-from harness.cli import evaluate, import_, perturb, reconstruct, render, report, score, study
+from harness.cli import evaluate, import_, list_methods, perturb, reconstruct, render, report, score, study
 from harness.cli import scenes as scenes_cmd
 from harness.data.errors import UserError
 from scenes.registry import SceneError
 
 EXIT_USAGE = 2
 
-COMMANDS = {"render": render, "scenes": scenes_cmd, "reconstruct": reconstruct, "evaluate": evaluate,
+COMMANDS = {"render": render, "scenes": scenes_cmd, "methods": list_methods, "reconstruct": reconstruct,
+            "evaluate": evaluate,
             "score": score, "report": report, "study": study, "perturb": perturb, "import": import_}
 
 

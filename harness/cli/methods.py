@@ -8,8 +8,8 @@ from pathlib import Path
 from harness.jobs.options import MethodSelection
 from reconstruction.flow.backends import available_flows
 from reconstruction.methods.base import Method
-from reconstruction.methods.flow_pipeline import DEFAULT_FLOW, available_variants
-from reconstruction.methods.registry import DEFAULT_METHOD
+from reconstruction.methods.flow_pipeline import DEFAULT_FLOW, FlowMethod, available_variants, config_label
+from reconstruction.methods.registry import DEFAULT_CONFIGS, DEFAULT_METHOD, DEFAULT_VARIANTS, default_methods
 
 __all__ = ["add_method_options", "add_results_options", "selected_methods"]
 
@@ -19,10 +19,13 @@ def add_method_options(parser: argparse.ArgumentParser, multiple: bool) -> None:
     flows = ", ".join(available_flows())
     variants = ", ".join(available_variants())
     if multiple:
+        named = [m.label for m in default_methods() if not isinstance(m, FlowMethod)]
+        configs = ", ".join(f"{config_label(f, r)}:*" for f, r in DEFAULT_CONFIGS)
         parser.add_argument("--method", nargs="+", default=None, metavar="LABEL",
-                            help="methods by label, e.g. dis-rect:gradient deepflow-plain:average, or outside methods' "
-                                 "labels (default: fused, then tri360's flow pipeline and the paper's set-up with the "
-                                 "paper's variants average, angle, gradient, color)")
+                            help="methods by label, e.g. fused-mirror dis-rect:gradient deepflow-rect:average, or "
+                                 f"plugins' labels; 'tri360 methods' lists them (default: {', '.join(named)}, then "
+                                 f"{configs}: tri360's flow pipeline and the paper's set-up, each with the variants "
+                                 f"{', '.join(DEFAULT_VARIANTS)})")
         parser.add_argument("--flow", nargs="+", default=None, metavar="NAME",
                             help=f"instead of --method: flow-pipeline methods with these flows ({flows})")
         parser.add_argument("--variants", nargs="+", default=None, metavar="NAME",
@@ -37,7 +40,7 @@ def add_method_options(parser: argparse.ArgumentParser, multiple: bool) -> None:
                             help=f"with --flow: the variant ({variants}; default gradient)")
     parser.add_argument("--rectify", action=argparse.BooleanOptionalAction, default=None,
                         help="with --flow: flow on rectified pairs (baseline = polar axis; the default) or, with "
-                             "--no-rectify, on the plain equirect images as the paper does")
+                             "--no-rectify, on the plain equirect images (an ablation)")
 
 
 def add_results_options(parser: argparse.ArgumentParser, what: str) -> None:

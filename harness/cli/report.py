@@ -21,7 +21,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "data root or a predictions root is refused)")
     parser.add_argument("--ply", choices=PLY_CHOICES, default="all",
                         help="which point clouds to write as PLY: every configuration, only the paper set-up "
-                             "(deepflow-plain), or none")
+                             "(deepflow-rect), or none")
     parser.add_argument("--cloud-points", type=int, default=DEFAULT_CLOUD_POINTS, metavar="N",
                         help="points per cloud in the Fig. 3 style scatter views (a seeded subsample)")
 

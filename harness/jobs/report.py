@@ -173,7 +173,7 @@ def build_report(results_dir, *, ply: str = "all", cloud_points: int = DEFAULT_C
 
     Args:
         results_dir: directory written by ``tri360 evaluate`` / ``tri360 score``.
-        ply: "all" (a PLY per frame and method, plus ground truth), "paper" (only the deepflow-plain
+        ply: "all" (a PLY per frame and method, plus ground truth), "paper" (only the deepflow-rect
             configuration, plus ground truth) or "none".
         cloud_points: points per cloud drawn in the scatter views (same seeded pixel subsample for all).
     Returns:

@@ -7,7 +7,7 @@ import pytest
 
 from harness.cli import main
 from harness.data.exr import read_float_map
-from reconstruction.methods.registry import DEFAULT_METHOD
+from reconstruction.methods.registry import DEFAULT_METHOD, PRESETS
 from reports.schema import RESULT_COLUMNS
 
 
@@ -73,3 +73,33 @@ def test_unknown_flow_is_one_line(synthetic_root, tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "unknown flow 'nope'" in err[0] and "dis" in err[0]
     assert not (tmp_path / "r").exists()
+
+
+@pytest.mark.parametrize("argv, line", [
+    (["evaluate", "{root}", "--method", "deepflowdm-rect:gradient"],
+     "tri360 evaluate: error: deepflowdm-rect:gradient is now called deepflow-rect:gradient"),
+    (["evaluate", "{root}", "--flow", "deepflowdm"], "tri360 evaluate: error: flow deepflowdm is now called deepflow"),
+    (["reconstruct", "{root}/synthetic_box/vp000", "--out", "{out}", "--flow", "deepflowdm"],
+     "tri360 reconstruct: error: flow deepflowdm is now called deepflow"),
+])
+def test_renamed_labels_name_their_new_one(argv, line, synthetic_root, tmp_path, capsys):
+    argv = [a.replace("{root}", str(synthetic_root)).replace("{out}", str(tmp_path / "p")) for a in argv]
+    assert main(argv) == 2
+    assert capsys.readouterr().err.strip().splitlines() == [line]
+    assert not (tmp_path / "p").exists()
+
+
+def test_methods_lists_presets_flows_variants_and_defaults(capsys):
+    assert main(["methods"]) == 0
+    out = capsys.readouterr().out
+    lines = out.splitlines()
+    named = lines[1:1 + len(PRESETS)]
+    assert [ln.split()[0] for ln in named] == [p.label + ("*" if p.label == DEFAULT_METHOD else "") for p in PRESETS]
+    for p, ln in zip(PRESETS, named, strict=True):
+        assert ln.endswith(p.description)
+    flows = {ln.split()[0]: ln for ln in lines if ln.startswith("    ")}
+    assert {"deepflow", "deepflow-opencv", "dis", "oracle", "average", "gradient"} <= set(flows)
+    assert "as published" in flows["deepflow"] and "paper's set-up: deepflow-rect" in flows["deepflow"]
+    assert "OpenCV" in flows["deepflow-opencv"] and "tri360's flow" in flows["dis"]
+    assert ("'tri360 evaluate' runs by default: fused-mirror, sweep, dis-rect:{average,angle,gradient,color}, "
+            "deepflow-rect:{average,angle,gradient,color}") in lines

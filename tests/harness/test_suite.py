@@ -299,7 +299,7 @@ def test_leaderboard_pools_families_and_tags_by_pixels_and_solid_angle():
     assert r["mae_tag:reflective"] == pytest.approx(r["mae_family:lab"], abs=1e-12)
     assert r["mae_sw_tag:far"] == pytest.approx((0.6 * 3 + 0.4 * 2) / 5, abs=1e-12)  # pooled by solid angle
     assert r["mae_sw_m"] == pytest.approx((0.2 * 1 + 0.6 * 3 + 0.4 * 2) / 6, abs=1e-12)
-    assert np.isnan(board.loc["paper: deepflow-plain:average", "mae_family:lab"])
+    assert np.isnan(board.loc["paper: deepflow-rect:average", "mae_family:lab"])
     cols = list(board.columns)
     assert cols.index("mae_family:lab") < cols.index("mae_tag:reflective") < cols.index("mae_textureless")
 

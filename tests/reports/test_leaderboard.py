@@ -106,7 +106,7 @@ def test_leaderboard_pools_frames_by_scored_pixels():
     assert t.loc["m0", "mae_textureless"] == pytest.approx((0.2 * 10 + 0.4 * 30) / 40, abs=1e-12)
     assert np.isnan(t.loc["m0", "mae_pole"])  # no row for that region at all
     assert t.loc["m1", "kind"] == "predictions" and t.loc["m0", "kind"] == ""
-    assert list(t.index) == ["m0", "m1", *(f"paper: deepflow-plain:{v}" for v in PAPER_MAE_M)]  # by MAE, then paper
+    assert list(t.index) == ["m0", "m1", *(f"paper: deepflow-rect:{v}" for v in PAPER_MAE_M)]  # by MAE, then paper
     paper = t[t["source"] == "paper"]
     assert paper["mae_m"].tolist() == list(PAPER_MAE_M.values())
     assert paper.drop(columns=["mae_m", "frames"]).select_dtypes("number").isna().all().all()  # MAE only
@@ -185,7 +185,7 @@ def test_leaderboard_files_and_html(mixed):
     # sort keys: full precision numbers, empty where there is no value (the paper rows beyond MAE)
     first = parser.rows[0]
     assert float(first[keys.index("mae_m")][2]) == pytest.approx(ours["mae_m"].iloc[0], abs=1e-15)
-    paper_row = next(r for r in parser.rows if r[0][0] == "paper: deepflow-plain:gradient")
+    paper_row = next(r for r in parser.rows if r[0][0] == "paper: deepflow-rect:gradient")
     assert paper_row[keys.index("mae_m")][0] == "0.10906" and paper_row[keys.index("median_m")][2] == ""
 
 

@@ -31,7 +31,7 @@ from reports.tables import variant_mae_table
 
 W, H = 64, 32
 VARIANTS = {"average": 0.08, "gradient": 0.05, "color": 0.04}  # relative noise per variant
-CONFIGS = [("deepflow", False), ("dis", True)]
+CONFIGS = [("deepflow", True), ("dis", True)]
 #: methods that are not the flow pipeline (make_results(others=True)): label -> (relative noise, with confidence?)
 OTHERS = {"matcher": (0.03, True), "outside": (0.06, False)}
 
@@ -163,7 +163,7 @@ def test_ply_parses_back_with_the_right_vertex_count(report):
     gt_pts, gt_col = _read_ply(res / "clouds/room/v0/ground_truth.ply")
     assert gt_pts.shape == (W * H - 5, 3)  # the 5 sky pixels are dropped
     assert gt_col.dtype == np.uint8
-    pts, col = _read_ply(res / "clouds/room/v0/deepflow-plain/average.ply")
+    pts, col = _read_ply(res / "clouds/room/v0/deepflow-rect/average.ply")
     assert pts.shape == (W * H - 5 - 4, 3)  # sky and the 4 pixels without prediction dropped
     # points lie inside the box room (3 x 4 m half-widths, floor -1.2, ceiling 1.8) up to float32 rounding
     assert np.all(np.abs(gt_pts[:, 0]) <= 3.0 + 1e-4) and np.all(np.abs(gt_pts[:, 1]) <= 4.0 + 1e-4)
@@ -211,7 +211,7 @@ def test_variant_mae_table_reduction_against_average(report):
         assert np.isnan(mine.loc["average", "room reduction_pct"])
     # the CLI prints the leaderboard, then the MAE table
     assert outcome.markdown == (res / "leaderboard.md").read_text() + "\n" + (res / "mae.md").read_text()
-    assert "deepflow-plain (paper set-up)" in outcome.markdown
+    assert "deepflow-rect (paper set-up)" in outcome.markdown
     assert "dis-rect |" in outcome.markdown
 
 
@@ -261,7 +261,7 @@ def test_ply_paper_only_and_none(tmp_path):
     (res / "breakdown.csv").unlink()  # not needed here; saves two plots
     build_report(res, ply="paper", cloud_points=100)
     assert sorted(p.relative_to(res).as_posix() for p in res.rglob("*.ply")) == sorted(
-        ["clouds/room/v0/ground_truth.ply"] + [f"clouds/room/v0/deepflow-plain/{v}.ply" for v in VARIANTS])
+        ["clouds/room/v0/ground_truth.ply"] + [f"clouds/room/v0/deepflow-rect/{v}.ply" for v in VARIANTS])
     for p in res.rglob("*.ply"):
         p.unlink()
     build_report(res, ply="none", cloud_points=100)
@@ -352,7 +352,7 @@ def test_cli_prints_the_table(tmp_path, capsys):
     res = make_results(tmp_path)
     assert main(["report", str(res), "--ply", "none", "--cloud-points", "50"]) == 0
     printed = capsys.readouterr().out
-    assert "| deepflow-plain (paper set-up) | gradient |" in printed
+    assert "| deepflow-rect (paper set-up) | gradient |" in printed
     assert "report.html" in printed
     assert main(["report", str(tmp_path / "missing")]) == 2
     assert "does not exist" in capsys.readouterr().err
