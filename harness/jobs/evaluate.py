@@ -434,7 +434,7 @@ def evaluate(data_root: Path, out: Path, methods: Sequence[Method], scenes: Sequ
                       regions_table(rrows) if scored else None, frames=frames_index,
                       config=results_config(methods, frames_config, data_root, started, suite))
         if report:
-            build_report(stage)
+            build_report(stage, location=out)
         mark_output(stage, "results")
     return table
 

@@ -168,11 +168,15 @@ def _frame_parts(rs: ResultsSet, order: list[str], ply: str, cloud_points: int,
         yield part
 
 
-def build_report(results_dir, *, ply: str = "all", cloud_points: int = DEFAULT_CLOUD_POINTS) -> ReportOutcome:
+def build_report(results_dir, *, ply: str = "all", cloud_points: int = DEFAULT_CLOUD_POINTS,
+                 location=None) -> ReportOutcome:
     """Write every report output into ``results_dir`` (the file tree: ``reports.sections``).
 
     Args:
         results_dir: directory written by ``tri360 evaluate`` / ``tri360 score``.
+        location: where the results set will be read from, named at the top of ``report.html`` (default:
+            ``results_dir``; ``evaluate`` builds the set in a staging directory and passes the ``--out`` it is
+            swapped into).
         ply: "all" (a PLY per frame and method, plus ground truth), "paper" (only the deepflow-rect
             configuration, plus ground truth) or "none".
         cloud_points: points per cloud drawn in the scatter views (same seeded pixel subsample for all).
@@ -231,7 +235,8 @@ def build_report(results_dir, *, ply: str = "all", cloud_points: int = DEFAULT_C
                                     f"not for {missing}; its sparsification curve pools only the former")
     spars = put(sparsification_part(out.sparsification)) if len(scored) else Part()
     page = report_html(results, out.problems, leaderboard=board, sparsification=spars, flow=flow,
-                       breakdown=breakdown, frames=frames, source=str(d.resolve()),
+                       breakdown=breakdown, frames=frames,
+                       source=str(Path(location if location is not None else d).resolve()),
                        generated=time.strftime("%Y-%m-%d %H:%M:%S"), quality=quality)
     atomic_write_text(out.html_path, page)
     out.files.append(out.html_path)

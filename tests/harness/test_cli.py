@@ -103,3 +103,13 @@ def test_methods_lists_presets_flows_variants_and_defaults(capsys):
     assert "OpenCV" in flows["deepflow-opencv"] and "tri360's flow" in flows["dis"]
     assert ("'tri360 evaluate' runs by default: fused-mirror, sweep, dis-rect:{average,angle,gradient,color}, "
             "deepflow-rect:{average,angle,gradient,color}") in lines
+
+
+def test_report_names_the_results_set_where_it_lives(synthetic_root, tmp_path, capsys):
+    """evaluate builds the set in a hidden staging directory and swaps it in: the page names --out, not the stage."""
+    out = tmp_path / "res"
+    assert main(["evaluate", str(synthetic_root), "--out", str(out), "--flow", "oracle", "--variants", "average",
+                 "--quiet"]) == 0
+    page = (out / "report.html").read_text()
+    header = next(ln for ln in page.splitlines() if "results: " in ln)
+    assert f"results: {out.resolve()} &middot;" in header and "partial" not in header
