@@ -12,9 +12,11 @@ import json
 import stat
 from pathlib import Path
 
+import cv2
 import numpy as np
 import pytest
 
+import harness.jobs.perturb
 import reconstruction.plugins
 from harness.cli import main
 from harness.data.atomic import parse_staging_name
@@ -313,3 +315,145 @@ class TestOutputKinds:
         for kind in ("study", "robustness", "results"):
             with pytest.raises(UserError, match="quality validation"):
                 check_output(v, kind)
+
+
+# ------------------------------------------------------------------------------ import (and every image reader)
+
+RIG = Path(__file__).resolve().parents[1] / "examples" / "rig_paper_L_0.4m.json"
+
+
+@pytest.fixture(scope="module")
+def jpegs(tmp_path_factory):
+    """C, U and R of a 128x64 synthetic_box frame as JPEG files."""
+    tmp = tmp_path_factory.mktemp("jpg")
+    frame = make_synthetic_frame(128)
+    out = {}
+    for n in "CUR":
+        ok, buf = cv2.imencode(".jpg", cv2.cvtColor(frame.images[n], cv2.COLOR_RGB2BGR),
+                               [cv2.IMWRITE_JPEG_QUALITY, 95])
+        out[n] = tmp / f"{n}.jpg"
+        out[n].write_bytes(buf.tobytes())
+    return out
+
+
+def copy_images(jpegs, where: Path) -> list[Path]:
+    where.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for n in "CUR":
+        (where / f"{n}.jpg").write_bytes(jpegs[n].read_bytes())
+        paths.append(where / f"{n}.jpg")
+    return paths
+
+
+class TestImport:
+    def test_a_jpeg_with_200_bytes_overwritten_mid_file_is_refused(self, jpegs, tmp_path, capfd):
+        c, u, r = copy_images(jpegs, tmp_path / "in")
+        raw = bytearray(c.read_bytes())
+        mid = len(raw) // 2
+        raw[mid:mid + 200] = np.random.default_rng(0).integers(0, 256, 200, dtype=np.uint8).tobytes()
+        c.write_bytes(bytes(raw))
+        expect_refusal(["import", c, u, r, "--rig", RIG, "--out", tmp_path / "d" / "s" / "v"], capfd, tmp_path,
+                       str(c), "corrupt JPEG")
+
+    def test_a_truncated_jpeg_is_refused(self, jpegs, tmp_path, capfd):
+        c, u, r = copy_images(jpegs, tmp_path / "in")
+        c.write_bytes(c.read_bytes()[: c.stat().st_size * 2 // 3])
+        expect_refusal(["import", c, u, r, "--rig", RIG, "--out", tmp_path / "d" / "s" / "v"], capfd, tmp_path,
+                       str(c), "corrupt JPEG")
+
+    def test_a_tiny_png_claiming_60000_by_30000_pixels_is_refused_before_decoding(self, jpegs, tmp_path, capfd):
+        c, u, r = copy_images(jpegs, tmp_path / "in")
+        png = bytearray(cv2.imencode(".png", np.zeros((32, 64, 3), np.uint8))[1].tobytes())
+        png[16:24] = (60000).to_bytes(4, "big") + (30000).to_bytes(4, "big")
+        huge = tmp_path / "in" / "huge.png"
+        huge.write_bytes(bytes(png[:429]))
+        expect_refusal(["import", huge, u, r, "--rig", RIG, "--out", tmp_path / "d" / "s" / "v"], capfd, tmp_path,
+                       str(huge), "60000x30000")
+
+    def test_a_width_beyond_this_machine_is_refused(self, jpegs, tmp_path, capfd):
+        c, u, r = copy_images(jpegs, tmp_path / "in")
+        expect_refusal(["import", c, u, r, "--rig", RIG, "--out", tmp_path / "d" / "s" / "v", "--width", "2000000"],
+                       capfd, tmp_path, "--width 2000000")
+
+    def test_images_of_different_sizes_are_refused_even_with_width(self, jpegs, tmp_path, capfd):
+        c, u, r = copy_images(jpegs, tmp_path / "in")
+        small = cv2.resize(cv2.imread(str(u)), (96, 48))
+        cv2.imwrite(str(u), small)
+        expect_refusal(["import", c, u, r, "--rig", RIG, "--out", tmp_path / "d" / "s" / "v", "--width", "64"],
+                       capfd, tmp_path, "differ in size", str(u))
+
+    @pytest.mark.parametrize("r_position", [[0.0, 0.0, -0.4], [0.02, 0.0, -0.4], [0.0, 0.0, 0.4]],
+                             ids=["colinear-L", "near-colinear", "same-direction"])
+    def test_a_colinear_rig_is_refused(self, jpegs, tmp_path, capfd, r_position):
+        c, u, r = copy_images(jpegs, tmp_path / "in")
+        rig = json.loads(RIG.read_text())
+        rig["cameras"]["R"]["position"] = r_position
+        if r_position == [0.0, 0.0, 0.4]:
+            rig["cameras"]["U"]["position"] = [0.0, 0.0, 0.2]
+            rig["baseline_m"] = 0.3
+        bad = tmp_path / "in" / "rig.json"
+        bad.write_text(json.dumps(rig))
+        line = expect_refusal(["import", c, u, r, "--rig", bad, "--out", tmp_path / "d" / "s" / "v"], capfd,
+                              tmp_path, str(bad), "colinear")
+        assert "Traceback" not in line
+
+
+class TestImageReading:
+    def test_every_command_reading_a_frame_refuses_an_oversized_png_header(self, root, tmp_path, capfd):
+        data = tmp_path / "data"
+        write_frame(make_synthetic_frame(64), data)
+        png = bytearray((data / "synthetic_box/vp000/U.png").read_bytes())
+        png[16:24] = (60000).to_bytes(4, "big") + (30000).to_bytes(4, "big")
+        (data / "synthetic_box/vp000/U.png").write_bytes(bytes(png))
+        expect_refusal(["evaluate", data, "--out", tmp_path / "res", "--method", "sweep"], capfd, tmp_path,
+                       str(data / "synthetic_box/vp000/U.png"), "60000x30000")
+        expect_refusal(["reconstruct", data / "synthetic_box/vp000", "--out", tmp_path / "p", "--method", "sweep"],
+                       capfd, tmp_path, "U.png", "60000x30000")
+
+    def test_a_png_with_a_broken_chunk_is_refused(self, tmp_path, capfd):
+        data = tmp_path / "data"
+        write_frame(make_synthetic_frame(64), data)
+        p = data / "synthetic_box/vp000/C.png"
+        raw = bytearray(p.read_bytes())
+        raw[len(raw) // 2:len(raw) // 2 + 40] = bytes(40)
+        p.write_bytes(bytes(raw))
+        expect_refusal(["evaluate", data, "--out", tmp_path / "res", "--method", "sweep"], capfd, tmp_path,
+                       str(p), "corrupt PNG")
+
+
+# ---------------------------------------------------------------------------------------------------- perturb
+
+
+class TestPerturb:
+    def test_two_frame_directories_naming_one_frame_are_refused(self, tmp_path, capfd):
+        data = tmp_path / "data"
+        src = write_frame(make_synthetic_frame(64), data)
+        twin = data / "elsewhere" / "vp000"
+        twin.parent.mkdir()
+        twin.mkdir()
+        for f in src.iterdir():
+            (twin / f.name).write_bytes(f.read_bytes())
+        expect_refusal(["perturb", data, "--out", tmp_path / "out", "--apply", "noise=2"], capfd, tmp_path,
+                       "vp000", "frame.json")
+
+    def test_an_interrupt_while_replacing_a_perturbed_root_leaves_the_previous_one_whole(self, tmp_path,
+                                                                                         monkeypatch):
+        data = tmp_path / "data"
+        write_frame(make_synthetic_frame(64), data)
+        write_frame(make_synthetic_frame(64, viewpoint=1), data)
+        out = tmp_path / "out"
+        assert run_cli(["perturb", data, "--out", out, "--apply", "noise=2"]) == 0
+        before = snapshot(out)
+        calls = []
+        real = harness.jobs.perturb.write_frame
+
+        def interrupted(frame, root):
+            calls.append(frame.viewpoint)
+            if len(calls) == 2:
+                raise KeyboardInterrupt
+            return real(frame, root)
+
+        monkeypatch.setattr(harness.jobs.perturb, "write_frame", interrupted)
+        assert run_cli(["perturb", data, "--out", out, "--apply", "noise=4"]) == 130
+        assert calls == ["vp000", "vp001"]
+        assert snapshot(out) == before and staging_leftovers(tmp_path) == []

@@ -15,8 +15,9 @@ place, so an interrupted write never leaves a directory that looks like a comple
 writers of one frame each leave a complete frame (the last one wins).
 
 Besides shapes and types, the rig itself is checked: finite numbers, orthonormal proper rotations, no two
-cameras closer than :data:`MIN_CAMERA_SEPARATION_M`, and ``|U - C|`` and ``|R - C|`` within
-:func:`baseline_tolerance_m` of ``baseline_m``.
+cameras closer than :data:`MIN_CAMERA_SEPARATION_M`, no colinear or nearly colinear cameras (the baselines
+``U - C`` and ``R - C`` at least :data:`MIN_BASELINE_ANGLE_DEG` from one line), and ``|U - C|`` and ``|R - C|``
+within :func:`baseline_tolerance_m` of ``baseline_m``.
 """
 
 from __future__ import annotations
@@ -52,6 +53,7 @@ __all__ = [
 
 FORMAT = "tri360-frame/1"
 MIN_CAMERA_SEPARATION_M = 1e-3  # two camera centres closer than this (metres) are "the same place"
+MIN_BASELINE_ANGLE_DEG = 20.0  # U - C and R - C closer than this to one line (degrees) are colinear cameras
 BASELINE_REL_TOL = 0.01  # |U - C| and |R - C| may differ from baseline_m by 1 % ...
 BASELINE_ABS_TOL_M = 1e-3  # ... or by 1 mm, whichever is larger
 ROTATION_TOL = 1e-5  # max |R^T R - I| entry and |det R - 1|
@@ -142,6 +144,12 @@ def _check_rig(meta_path: Path, cameras: dict[str, CameraPose], baseline_m: floa
             _require(gap >= MIN_CAMERA_SEPARATION_M, meta_path,
                      f"impossible rig: cameras {a} and {b} coincide ({gap * 1000:.3g} mm apart, "
                      f"minimum {MIN_CAMERA_SEPARATION_M * 1000:g} mm)")
+    t_u, t_r = (cameras[k].position - cameras["C"].position for k in ("U", "R"))
+    cos = float(np.dot(t_u, t_r) / (np.linalg.norm(t_u) * np.linalg.norm(t_r)))
+    angle = math.degrees(math.acos(min(1.0, max(-1.0, cos))))
+    _require(MIN_BASELINE_ANGLE_DEG <= angle <= 180.0 - MIN_BASELINE_ANGLE_DEG, meta_path,
+             f"impossible rig: U - C and R - C are {angle:.3g} degrees apart, colinear cameras (the two baselines "
+             f"must be {MIN_BASELINE_ANGLE_DEG:g} to {180 - MIN_BASELINE_ANGLE_DEG:g} degrees apart; 90 in an L rig)")
     tol = baseline_tolerance_m(baseline_m)
     for k in ("U", "R"):
         gap = float(np.linalg.norm(cameras[k].position - cameras["C"].position))

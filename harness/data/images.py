@@ -2,11 +2,16 @@
 
 libpng reports a damaged file by printing ``libpng error: ...`` to file descriptor 2 and OpenCV returns
 ``None``; the decode therefore runs with native output captured (:mod:`harness.data.native`) and a failure
-becomes one :class:`FrameError` naming the file (quoting libpng's reason).
+becomes one :class:`FrameError` naming the file (quoting libpng's reason).  libjpeg decodes a damaged JPEG
+anyway, printing ``Corrupt JPEG data: ...`` or ``Premature end of JPEG file``: a JPEG whose decode printed
+anything, or that has no end-of-image marker, is refused the same way.  The size a PNG or JPEG header claims is
+checked before decoding (at most :data:`MAX_IMAGE_SIDE` pixels a side and :data:`MAX_IMAGE_PIXELS` in all), so a
+small file claiming a huge image is one line, not an allocation failure.
 """
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import cv2
@@ -16,9 +21,49 @@ from harness.data.atomic import atomic_write_bytes
 from harness.data.errors import FrameError
 from harness.data.native import first_library_message, native_output_captured
 
-__all__ = ["PNG_SIGNATURE", "read_png", "write_png"]
+__all__ = ["PNG_SIGNATURE", "JPEG_SIGNATURE", "MAX_IMAGE_SIDE", "MAX_IMAGE_PIXELS", "header_size", "read_png",
+           "write_png"]
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+JPEG_SIGNATURE = b"\xff\xd8"
+MAX_IMAGE_SIDE = 32768
+"""The widest (or tallest) image tri360 reads, pixels."""
+MAX_IMAGE_PIXELS = 1 << 28
+"""The most pixels tri360 reads in one image (268 M: 3 x 256 MiB decoded; a 23170 x 11585 equirect)."""
+#: what libjpeg prints about a damaged file it decodes anyway ("Corrupt JPEG data: ...", "Premature end of JPEG file")
+_LIBJPEG_COMPLAINT = re.compile(r"JPEG|Corrupt|Premature|Invalid|Bogus")
+#: JPEG start-of-frame markers (SOF0-SOF15 without DHT C4, JPG C8 and DAC CC): their segment holds the size
+_JPEG_SOF = frozenset(range(0xC0, 0xD0)) - {0xC4, 0xC8, 0xCC}
+
+
+def header_size(raw: bytes) -> tuple[int, int] | None:
+    """``(width, height)`` that a PNG (IHDR) or JPEG (start-of-frame segment) header claims, or None for other
+    formats and headers too short or malformed to say."""
+    if raw[:8] == PNG_SIGNATURE:
+        if len(raw) < 24 or raw[12:16] != b"IHDR":
+            return None
+        return int.from_bytes(raw[16:20], "big"), int.from_bytes(raw[20:24], "big")
+    if raw[:2] == JPEG_SIGNATURE:
+        i = 2
+        while i + 4 <= len(raw):
+            if raw[i] != 0xFF:
+                return None
+            marker = raw[i + 1]
+            if marker == 0xFF:  # fill byte
+                i += 1
+                continue
+            if marker in (0x01, *range(0xD0, 0xD8)):  # markers without a segment
+                i += 2
+                continue
+            length = int.from_bytes(raw[i + 2:i + 4], "big")
+            if marker in _JPEG_SOF:
+                if i + 9 > len(raw):
+                    return None
+                return int.from_bytes(raw[i + 7:i + 9], "big"), int.from_bytes(raw[i + 5:i + 7], "big")
+            if marker == 0xDA or length < 2:  # start of scan before any frame header
+                return None
+            i += 2 + length
+    return None
 
 
 def write_png(path: Path, image: np.ndarray) -> None:
@@ -42,8 +87,10 @@ def read_png(path: Path) -> np.ndarray:
     Grey images are repeated to three channels; an alpha channel is dropped.
 
     Raises:
-        FrameError: naming ``path``: missing, a directory, empty, "truncated or corrupt PNG file" (a PNG
-            signature but undecodable data), not an image at all, or not 8-bit.
+        FrameError: naming ``path``: missing, a directory, empty, a header claiming more than
+            :data:`MAX_IMAGE_SIDE` / :data:`MAX_IMAGE_PIXELS`, "truncated or corrupt PNG file" (a PNG signature but
+            undecodable data), "truncated or corrupt JPEG file" (libjpeg complained, or no end-of-image marker),
+            not an image at all, or not 8-bit.
     """
     path = Path(path)
     if not path.exists():
@@ -56,13 +103,30 @@ def read_png(path: Path) -> np.ndarray:
         raise FrameError(f"{path}: cannot be read ({exc.strerror or exc})") from None
     if raw.size == 0:
         raise FrameError(f"{path}: file is empty (not a readable image)")
+    head = raw[:1 << 16].tobytes()
+    size = header_size(head)
+    if size is not None and (max(size) > MAX_IMAGE_SIDE or size[0] * size[1] > MAX_IMAGE_PIXELS or min(size) < 1):
+        raise FrameError(f"{path}: header claims a {size[0]}x{size[1]} image; tri360 reads images of 1 to "
+                         f"{MAX_IMAGE_SIDE} pixels a side and at most {MAX_IMAGE_PIXELS} pixels")
+    is_jpeg = head[:2] == JPEG_SIGNATURE
     with native_output_captured() as captured:
-        img = cv2.imdecode(raw, cv2.IMREAD_UNCHANGED)
+        try:
+            img = cv2.imdecode(raw, cv2.IMREAD_UNCHANGED)
+        except cv2.error as exc:  # e.g. OpenCV's own size limit in a format without a header we parse
+            img, reason = None, str(exc).strip().splitlines()[-1] if str(exc).strip() else "OpenCV error"
+        else:
+            reason = ""
+    why = first_library_message(captured.text, path) or reason
     if img is None:
-        why = first_library_message(captured.text, path)
-        if raw[: len(PNG_SIGNATURE)].tobytes() == PNG_SIGNATURE:
+        if head[: len(PNG_SIGNATURE)] == PNG_SIGNATURE:
             raise FrameError(f"{path}: truncated or corrupt PNG file" + (f" ({why})" if why else ""))
-        raise FrameError(f"{path}: not a readable image (no PNG signature, and no other format OpenCV reads)")
+        if is_jpeg:
+            raise FrameError(f"{path}: truncated or corrupt JPEG file" + (f" ({why})" if why else ""))
+        raise FrameError(f"{path}: not a readable image (no PNG signature, and no other format OpenCV reads)"
+                         + (f" ({why})" if why else ""))
+    if is_jpeg and (_LIBJPEG_COMPLAINT.search(captured.text) or b"\xff\xd9" not in raw.tobytes()):
+        raise FrameError(f"{path}: truncated or corrupt JPEG file ("
+                         + (why or "no end-of-image marker") + ")")
     captured.release()
     if img.dtype != np.uint8:
         raise FrameError(f"{path}: must be 8-bit, got {img.dtype}")

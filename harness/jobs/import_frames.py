@@ -23,6 +23,7 @@ from harness.data.images import read_png
 from harness.data.names import check_name
 from harness.data.outputs import check_output, mark_output
 from harness.data.provenance import software
+from harness.jobs.render import max_width
 from reconstruction.camera.rig import CAMERA_NAMES, CameraPose
 
 __all__ = ["RIG_FORMAT", "read_rig", "import_frame"]
@@ -78,7 +79,7 @@ def read_rig(path: Path) -> tuple[dict[str, CameraPose], float, dict]:
     return poses, float(baseline), raw
 
 
-def _load(path: Path, label: str, width: int | None) -> tuple[np.ndarray, list[int]]:
+def _load(path: Path, label: str) -> tuple[np.ndarray, list[int]]:
     try:
         img = read_png(path)
     except FrameError as exc:
@@ -86,9 +87,14 @@ def _load(path: Path, label: str, width: int | None) -> tuple[np.ndarray, list[i
     h, w = img.shape[:2]
     if w != 2 * h:
         raise UserError(f"{path}: an equirectangular image needs width == 2 * height, got {w}x{h}")
-    if width is not None and width != w:
-        img = cv2.resize(img, (width, width // 2), interpolation=cv2.INTER_AREA if width < w else cv2.INTER_CUBIC)
     return img, [w, h]
+
+
+def _resized(img: np.ndarray, width: int | None) -> np.ndarray:
+    w = img.shape[1]
+    if width is None or width == w:
+        return img
+    return cv2.resize(img, (width, width // 2), interpolation=cv2.INTER_AREA if width < w else cv2.INTER_CUBIC)
 
 
 def import_frame(images: dict[str, Path], rig: Path, out: Path, width: int | None = None) -> Path:
@@ -99,7 +105,9 @@ def import_frame(images: dict[str, Path], rig: Path, out: Path, width: int | Non
         rig: a ``tri360-rig/1`` file.
         out: the frame directory to write; its parent's parent is the data root (checked with
             :func:`check_output`, kind ``data``).
-        width: resize to this width (even, >= 60); None keeps the images' size.
+        width: resize to this width (even, >= 60, at most what this machine can reconstruct:
+            :func:`harness.jobs.render.max_width`); None keeps the images' size.  The three images must be of one
+            size either way.
     Returns:
         The frame directory written.
     Raises:
@@ -108,6 +116,8 @@ def import_frame(images: dict[str, Path], rig: Path, out: Path, width: int | Non
     out = Path(out)
     if width is not None and (width < MIN_WIDTH or width % 2):
         raise UserError(f"--width must be even and at least {MIN_WIDTH}, got {width}")
+    if width is not None and width > max_width():
+        raise UserError(f"--width {width} is more than this machine can reconstruct (at most {max_width()})")
     scene = check_name(out.parent.name, "--out (scene directory)")
     viewpoint = check_name(out.name, "--out (viewpoint directory)")
     root = out.parent.parent
@@ -115,11 +125,12 @@ def import_frame(images: dict[str, Path], rig: Path, out: Path, width: int | Non
     check_output(root, "data", [*images.values(), Path(rig)])
     loaded, sizes = {}, {}
     for name in CAMERA_NAMES:
-        loaded[name], sizes[name] = _load(images[name], name, width)
+        loaded[name], sizes[name] = _load(images[name], name)
     shapes = {loaded[n].shape for n in CAMERA_NAMES}
     if len(shapes) != 1:
         raise UserError("the three images differ in size: " + ", ".join(
             f"{n} {sizes[n][0]}x{sizes[n][1]} ({images[n]})" for n in CAMERA_NAMES))
+    loaded = {n: _resized(loaded[n], width) for n in CAMERA_NAMES}
     h, w = loaded["C"].shape[:2]
     renderer = {"name": "import", "sources": {n: {"path": str(Path(images[n]).resolve()),
                                                   "sha256": _sha256(images[n]), "size": sizes[n]}

@@ -18,11 +18,11 @@ import hashlib
 from pathlib import Path
 
 from harness.data.errors import FrameError, UserError
-from harness.data.frame import Frame, find_frames, read_frame, validate_metadata, write_frame
-from harness.data.names import check_name
-from harness.data.outputs import check_output, mark_output
+from harness.data.frame import Frame, find_frames, frame_dir, read_frame, validate_metadata, write_frame
+from harness.data.outputs import check_output, mark_output, staged_directory
 from harness.data.provenance import software
 from harness.jobs import perturbations as P
+from harness.jobs.evaluate import select_frames
 from reconstruction.camera.rig import CAMERA_NAMES
 
 __all__ = ["parse_applies", "perturb_frame", "checked_perturbation", "perturb_root", "frame_hash"]
@@ -134,13 +134,17 @@ def checked_perturbation(d: Path, frame: Frame, applies: list[tuple[str, float |
 def perturb_root(data: Path, out: Path, applies: list[tuple[str, float | int]], seed: int) -> list[Path]:
     """Perturb every frame under data root (or frame directory) ``data`` into data root ``out``.
 
-    Every source frame is read and checked before anything is written; each derived frame is written atomically.
+    Every source frame is read and checked before anything is written (two frame directories naming the same
+    scene and viewpoint are refused, as ``evaluate`` refuses them); the whole data root is built in a hidden
+    staging directory beside ``out`` and swapped in at the end, so an interrupted run leaves the previous ``out``
+    as it was, never a mix of old and new frames.
 
     Returns:
         The frame directories written.
     Raises:
-        UserError: no frames under ``data``, a malformed frame (named), an unsafe name, an unusable ``out``
-            (:func:`check_output`), or a perturbed rig that would be impossible (named).
+        UserError: no frames under ``data``, a malformed frame (named), an unsafe name, two frames with one
+            identity (named), an unusable ``out`` (:func:`check_output`), or a perturbed rig that would be
+            impossible (named).
     """
     data, out = Path(data), Path(out)
     if not data.is_dir():
@@ -151,18 +155,14 @@ def perturb_root(data: Path, out: Path, applies: list[tuple[str, float | int]], 
     if not dirs:
         raise UserError(f"{data}: no frames found (no <scene>/<viewpoint>/frame.json under it)")
     check_output(out, "data", [data, *dirs])
-    frames = []
-    for d in dirs:
-        frame = read_frame(d)
-        check_name(frame.scene, f"{d / 'frame.json'} (scene)")
-        check_name(frame.viewpoint, f"{d / 'frame.json'} (viewpoint)")
-        frames.append((d, frame))
+    dirs = [r.path for r in select_frames(data)]  # names checked, one frame per scene/viewpoint
+    frames = [(d, read_frame(d)) for d in dirs]
     derived = [checked_perturbation(d, frame, applies, seed, out) for d, frame in frames]  # all before writing
-    written = []
-    for new in derived:
-        try:
-            written.append(write_frame(new, out))
-        except FrameError as exc:
-            raise UserError(f"perturbed frame {new.scene}/{new.viewpoint} is invalid: {exc}") from None
-        mark_output(out, "data")
-    return written
+    with staged_directory(out) as stage:
+        for new in derived:
+            try:
+                write_frame(new, stage)
+            except FrameError as exc:
+                raise UserError(f"perturbed frame {new.scene}/{new.viewpoint} is invalid: {exc}") from None
+        mark_output(stage, "data")
+    return [frame_dir(out, new.scene, new.viewpoint) for new in derived]
