@@ -1,7 +1,8 @@
 """Figures of the report, each returned as PNG bytes (matplotlib's object API on Agg; no pyplot state).
 
-* :func:`fig4_mae`: paper Fig. 4 style bars, MAE per variant grouped by configuration, min-max error bars.
-* :func:`error_maps`: ground-truth distance and ``|pred - gt|`` per method on one shared colour scale.
+* :func:`fig4_mae`: paper Fig. 4 style bars: the paper's quoted classroom bars beside tri360's on the classroom, then
+  every frame by configuration and variant, with the default method; min-max error bars.
+* :func:`error_maps`: ground-truth distance and ``|pred - gt|`` per method, each on its own colour scale.
 * :func:`breakdown_lines`: error against a breakdown quantity (angle to a baseline, distance, texture).
 * :func:`cloud_views`: paper Fig. 3 style top-down and side sections of point clouds.
 * :func:`sparsification_plot`: MAE against the fraction of least-confident pixels removed, with the oracle.
@@ -14,6 +15,7 @@ from __future__ import annotations
 
 import io
 import math
+import textwrap
 
 import numpy as np
 import pandas as pd
@@ -23,12 +25,13 @@ from matplotlib.figure import Figure
 from matplotlib.patches import Patch
 from matplotlib.ticker import FormatStrFormatter
 
+from reconstruction.methods.registry import DEFAULT_METHOD, PAPER_CONFIG
 from reports.metrics import score_pixels, scored_pixels
-from reports.tables import PAPER_MAE_M, config_order, config_title, variant_order
+from reports.tables import PAPER_MAE_M, config_order, config_title, paper_scene_rows, variant_order
 
-__all__ = ["variant_colors", "png_bytes", "fig4_mae", "error_maps", "breakdown_lines", "breakdown_groups",
-           "cloud_views", "CLOUD_VIEWS", "sparsification_plot", "region_masks", "REGION_PANELS",
-           "CAPTURE_MAPS", "capture_maps"]
+__all__ = ["variant_colors", "png_bytes", "fig4_mae", "fig4_figure", "error_maps", "error_figure", "error_scale",
+           "breakdown_lines", "breakdown_groups", "cloud_views", "CLOUD_VIEWS", "sparsification_plot", "region_masks",
+           "REGION_PANELS", "CAPTURE_MAPS", "capture_maps", "METHOD_BAR_COLOR"]
 
 #: resolution of every PNG tri360 draws (report figures and study plots), dots per inch
 DPI = 90
@@ -53,58 +56,115 @@ def png_bytes(fig: Figure) -> bytes:
 # ------------------------------------------------------------------------------------------------ Fig. 4
 
 
-def fig4_mae(results: pd.DataFrame) -> bytes:
-    """Paper Fig. 4 style bar chart.
+#: colour of a bar of a method that is not the flow pipeline (the default method) in :func:`fig4_mae`
+METHOD_BAR_COLOR = (0.3, 0.3, 0.3, 1.0)
+
+
+def _bar_groups(ax, groups: list[tuple[str, dict[str, pd.Series], bool]], colors: dict) -> None:
+    """Draw groups of bars: ``(x label, {bar name: per-frame MAEs (or one quoted value)}, quoted?)``; bar height =
+    mean (NaN if any frame's is), error bar = min..max over frames (none for one value), quoted bars hatched."""
+    width = 0.8 / max(1, max((len(bars) for _, bars, _ in groups), default=1))
+    labelled = set()
+    for i, (_, bars, quoted) in enumerate(groups):
+        for j, name in enumerate(bars):
+            v = pd.to_numeric(bars[name], errors="coerce")
+            mean = float(v.mean(skipna=False))
+            x = i + (j - (len(bars) - 1) / 2) * width
+            err = None if len(v) < 2 else [[mean - float(v.min())], [float(v.max()) - mean]]
+            ax.bar([x], [mean], width, color=colors.get(name, METHOD_BAR_COLOR), yerr=err, capsize=2,
+                   hatch="//" if quoted else None, edgecolor="0.25" if quoted else None,
+                   label=None if quoted or name in labelled else name,
+                   error_kw={"elinewidth": 0.8, "ecolor": "0.2"})
+            if not quoted:
+                labelled.add(name)
+            if math.isfinite(mean):
+                ax.annotate(f"{mean:.3f}", (x, mean), xytext=(0, 2), textcoords="offset points", ha="center",
+                            va="bottom", fontsize=6, rotation=90)
+    ax.set_xticks(range(len(groups)), [g[0] for g in groups], fontsize=7.5)
+    ax.set_xlim(-0.6, len(groups) - 0.4)
+    ax.set_ylabel("mean absolute error of distance (m)", fontsize=8)
+    ax.set_ylim(0, ax.get_ylim()[1] * 1.15)
+    ax.grid(axis="y", alpha=0.3)
+
+
+def fig4_figure(results: pd.DataFrame, default_method: str = DEFAULT_METHOD) -> Figure:
+    """The figure of :func:`fig4_mae`."""
+    flow = results[results["flow"] != ""]
+    variants = variant_order([*flow["variant"], *PAPER_MAE_M])
+    colors = variant_colors(variants)
+    own = results[results["method"] == default_method]
+
+    def config_groups(rows: pd.DataFrame, suffix: str) -> list:
+        rows_flow = rows[rows["flow"] != ""]
+        out = []
+        for f, r in config_order(zip(rows_flow["flow"], rows_flow["rectify"], strict=True)):
+            conf = rows_flow[(rows_flow["flow"] == f) & (rows_flow["rectify"] == r)]
+            out.append((config_title(f, r).replace(" (", "\n(") + suffix,
+                        {v: conf.loc[conf["variant"] == v, "mae_m"] for v in variant_order(conf["variant"])}, False))
+        return out
+
+    classroom = results[paper_scene_rows(results)]
+    panels = []
+    if len(classroom):
+        paper = classroom[(classroom["flow"] == PAPER_CONFIG[0]) & (classroom["rectify"] == PAPER_CONFIG[1])]
+        n = len(set(zip(classroom["scene"], classroom["viewpoint"], strict=True)))
+        ours = f"{config_title(*PAPER_CONFIG)}".replace(" (", "\n(")
+        groups = [("paper Fig. 4:\ntheir classroom (quoted)", {v: pd.Series([m]) for v, m in PAPER_MAE_M.items()},
+                   True),
+                  (f"{ours}\nour classroom" + ("" if len(paper) else "\n(not in these results)"),
+                   {v: paper.loc[paper["variant"] == v, "mae_m"] for v in PAPER_MAE_M
+                    if (paper["variant"] == v).any()}, False)]
+        mine = own[paper_scene_rows(own)]
+        if len(mine):
+            groups.append((f"{default_method}\n(the default)\nour classroom", {default_method: mine["mae_m"]}, False))
+        panels.append((f"the classroom: the paper's Fig. 4 (their frame, 1000x500) beside tri360 (our {n} "
+                       f"frame{'s' if n != 1 else ''})", groups))
+    n_all = len(set(zip(results["scene"], results["viewpoint"], strict=True)))
+    groups = config_groups(results, "")
+    if len(own):
+        groups.append((f"{default_method}\n(the default)", {default_method: own["mae_m"]}, False))
+    scenes = sorted(set(results["scene"]))
+    panels.append((f"tri360 on every frame of these results ({n_all}; scenes: "
+                   f"{', '.join(scenes[:6])}{', ...' if len(scenes) > 6 else ''})"
+                   + ("" if len(classroom) else "; no classroom frame, so the paper's figures (their classroom) are "
+                      "not drawn"), groups))
+    widths = [max(2, len(g)) for _, g in panels]
+    fig = Figure(figsize=(max(7.0, 1.9 * sum(widths) + 1.0), 5.8), layout="constrained")
+    fig.suptitle("MAE per variant: bars = mean of the per-frame MAE, error bars = min-max over frames; hatched: the "
+                 "paper's own figures, quoted", fontsize=9)
+    axes = fig.subplots(1, len(panels), squeeze=False, width_ratios=widths).ravel()
+    handles = {}
+    for ax, (head, groups), w in zip(axes, panels, widths, strict=True):
+        _bar_groups(ax, groups, colors)
+        ax.set_title(textwrap.fill(head, max(30, int(w * 24))), fontsize=8.5)
+        for h, label in zip(*ax.get_legend_handles_labels(), strict=True):
+            handles.setdefault(label, h)
+    handles = {k: handles[k] for k in sorted(handles, key=lambda k: (k not in colors, variants.index(k)
+                                                                     if k in colors else 0))}
+    if any(quoted for _, groups in panels for _, _, quoted in groups):
+        handles["the paper's own figures (quoted)"] = Patch(facecolor="white", hatch="//", edgecolor="0.25")
+    if handles:
+        fig.legend(list(handles.values()), list(handles), loc="outside lower center", ncols=min(len(handles), 7),
+                   fontsize=8)
+    return fig
+
+
+def fig4_mae(results: pd.DataFrame, default_method: str = DEFAULT_METHOD) -> bytes:
+    """Paper Fig. 4 style bar charts.
 
     Args:
-        results: the validated ``results.csv`` table (``harness.data.results.read_results``).
+        results: the validated ``results.csv`` table (``harness.data.results.read_results``): flow-pipeline rows and
+            any others (of those only ``default_method``'s are drawn).
+        default_method: the label of the method drawn beside the flow pipeline.
     Returns:
-        PNG: one group of bars per flow/rectify configuration, one bar per variant with height = mean of
-        the per-frame MAE (metres) over all frames, error bars = min..max of the per-frame MAE; a last,
-        hatched group shows the paper's own Fig. 4 numbers.
+        PNG.  When the results hold classroom frames (:func:`reports.tables.paper_scene_rows`), a first panel puts
+        the paper's quoted Fig. 4 bars (their classroom frame; hatched) beside tri360's paper set-up
+        (``PAPER_CONFIG``) for the same variants on our classroom frames, and ``default_method`` there.  A second
+        panel shows every frame: one group per flow configuration, one bar per variant, and ``default_method``;
+        the paper's figures are never drawn beside other scenes.  Bars: mean of the per-frame MAE (metres);
+        error bars: min..max over frames.
     """
-    configs = config_order(zip(results["flow"], results["rectify"], strict=True))
-    variants = variant_order([*results["variant"], *PAPER_MAE_M])
-    colors = variant_colors(variants)
-    g = results.groupby(["flow", "rectify", "variant"])["mae_m"]
-    # a NaN MAE of any frame makes the mean NaN: a missing metric never silently shrinks the set of frames
-    stats = pd.DataFrame({"mean": g.apply(lambda s: s.mean(skipna=False)), "min": g.min(), "max": g.max(),
-                          "count": g.size()})
-    n_groups = len(configs) + 1
-    fig = Figure(figsize=(max(7.0, 1.1 * n_groups * max(1, len(variants)) * 0.45 + 2), 5.2),
-                 layout="constrained")
-    ax = fig.add_subplot()
-    width = 0.8 / len(variants)
-    labels = [config_title(f, r).replace(" (", "\n(") for f, r in configs] + ["paper Fig. 4\n(quoted)"]
-    for j, variant in enumerate(variants):
-        xs, ys, lo, hi = [], [], [], []
-        for i, (flow, rect) in enumerate(configs):
-            if (flow, rect, variant) in stats.index:
-                s = stats.loc[(flow, rect, variant)]
-                xs.append(i + (j - (len(variants) - 1) / 2) * width)
-                ys.append(s["mean"])
-                lo.append(s["mean"] - s["min"])
-                hi.append(s["max"] - s["mean"])
-        if xs:
-            ax.bar(xs, ys, width, color=colors[variant], label=variant, yerr=[lo, hi], capsize=2,
-                   error_kw={"elinewidth": 0.8, "ecolor": "0.2"})
-            for x, y in zip(xs, ys, strict=True):
-                ax.annotate(f"{y:.3f}", (x, y), xytext=(0, 2), textcoords="offset points", ha="center",
-                            va="bottom", fontsize=6, rotation=90)
-        if variant in PAPER_MAE_M:
-            x = len(configs) + (j - (len(variants) - 1) / 2) * width
-            ax.bar([x], [PAPER_MAE_M[variant]], width, color=colors[variant], hatch="//", edgecolor="0.25")
-            ax.annotate(f"{PAPER_MAE_M[variant]:.5f}", (x, PAPER_MAE_M[variant]), xytext=(0, 2),
-                        textcoords="offset points", ha="center", va="bottom", fontsize=6, rotation=90)
-    ax.set_xticks(range(n_groups), labels, fontsize=8)
-    ax.set_ylabel("mean absolute error of distance (m)")
-    ax.set_title("MAE per variant and configuration\nbars: mean over frames; error bars: min-max over frames;"
-                 " hatched: the paper's own figures (quoted)", fontsize=9)
-    ax.set_ylim(0, ax.get_ylim()[1] * 1.12)
-    ax.grid(axis="y", alpha=0.3)
-    if ax.get_legend_handles_labels()[0]:
-        ax.legend(fontsize=8, ncols=min(len(variants), 6), loc="upper left")
-    return png_bytes(fig)
+    return png_bytes(fig4_figure(results, default_method))
 
 
 # ------------------------------------------------------------------------------------------- error maps
@@ -116,20 +176,16 @@ def _overlay(mask: np.ndarray, rgba) -> np.ndarray:
     return img
 
 
-def error_maps(gt: np.ndarray, preds: dict[str, np.ndarray], title: str, ncols: int | None = None) -> bytes:
-    """Ground truth and the absolute error maps of several predictions (methods or variants) of one frame.
+def error_scale(errors: np.ndarray) -> float:
+    """The top of one error panel's colour scale: the 99th percentile of its finite errors (metres; at least 1 mm,
+    1 m when there is none), so that each method's own error structure fills its scale."""
+    e = np.asarray(errors, dtype=np.float64)
+    e = e[np.isfinite(e)]
+    return max(float(np.percentile(e, 99)), 1e-3) if e.size else 1.0
 
-    Args:
-        gt: (H, W) true distance, metres (+inf = no surface).
-        preds: label -> (H, W) predicted distance, metres (NaN / inf / <= 0 = invalid), in panel order.
-        title: figure title.
-        ncols: panels per row (default: 2 up to 3 predictions, else 3).
-    Returns:
-        PNG: first panel the ground-truth distance (viridis, own colour bar, metres); then one panel of
-        ``|pred - gt|`` per prediction (magma), all on one shared colour scale from 0 to the 99th percentile of
-        the pooled errors of all panels (one colour bar, metres; larger errors saturate).  Light grey: no surface
-        (not scored); magenta: invalid prediction (scored with error = gt).  Each panel title gives its MAE.
-    """
+
+def error_figure(gt: np.ndarray, preds: dict[str, np.ndarray], title: str, ncols: int | None = None) -> Figure:
+    """The figure of :func:`error_maps` (its axes: ground truth first, then one per prediction, then unused ones)."""
     gt = np.asarray(gt, dtype=np.float64)
     scored = scored_pixels(gt)
     errs, invalid, maes = {}, {}, {}
@@ -142,17 +198,15 @@ def error_maps(gt: np.ndarray, preds: dict[str, np.ndarray], title: str, ncols: 
         inv[mask] = ~valid
         invalid[v] = inv
         maes[v] = float(e.mean()) if e.size else float("nan")
-    pooled = np.concatenate([e[np.isfinite(e)] for e in errs.values()] or [np.zeros(0)])
-    vmax = float(np.percentile(pooled, 99)) if pooled.size else 1.0
-    vmax = max(vmax, 1e-3)
     n = 1 + len(preds)
     if ncols is None:
         ncols = 1 if n == 1 else (2 if n <= 4 else 3)
     nrows = math.ceil(n / ncols)
     panel_w = 6.2 if ncols <= 2 else 4.8
-    fig = Figure(figsize=(panel_w * ncols + 1.2, panel_w / 2 * nrows + 0.4 * nrows + 0.6), layout="constrained")
-    fig.suptitle(f"{title}\nlight grey: no surface (not scored); magenta: no valid prediction "
-                 "(scored with error = true distance)", fontsize=9)
+    fig = Figure(figsize=(panel_w * ncols + 1.2 * ncols, panel_w / 2 * nrows + 0.4 * nrows + 0.6),
+                 layout="constrained")
+    fig.suptitle(f"{title}\neach error panel on its own colour scale (0 to its 99th percentile); light grey: no "
+                 "surface (not scored); magenta: no valid prediction (scored with error = true distance)", fontsize=9)
     axes = fig.subplots(nrows, ncols, squeeze=False).ravel()
     for ax in axes[n:]:
         ax.set_axis_off()
@@ -163,20 +217,34 @@ def error_maps(gt: np.ndarray, preds: dict[str, np.ndarray], title: str, ncols: 
     axes[0].set_title("ground truth distance", fontsize=9)
     fig.colorbar(im, ax=axes[0], label="distance (m)", shrink=0.9, extend="max")
     err_cmap = colormaps["magma"].with_extremes(bad=NO_SURFACE_RGBA, over=colormaps["magma"](1.0))
-    err_axes = []
-    im = None
     for ax, v in zip(axes[1:n], preds, strict=True):
-        im = ax.imshow(errs[v], cmap=err_cmap, vmin=0, vmax=vmax, interpolation="nearest")
+        im = ax.imshow(errs[v], cmap=err_cmap, vmin=0, vmax=error_scale(errs[v]), interpolation="nearest")
         if invalid[v].any():
             ax.imshow(_overlay(invalid[v], NO_PREDICTION_RGBA), interpolation="nearest")
         ax.set_title(f"|pred - gt|: {v} (MAE {maes[v]:.4f} m)", fontsize=9)
-        err_axes.append(ax)
+        fig.colorbar(im, ax=ax, label="absolute error (m)", shrink=0.9, extend="max")
     for ax in axes[:n]:
         ax.set_xticks([])
         ax.set_yticks([])
-    if im is not None:
-        fig.colorbar(im, ax=err_axes, label="absolute error (m), shared scale", shrink=0.9, extend="max")
-    return png_bytes(fig)
+    return fig
+
+
+def error_maps(gt: np.ndarray, preds: dict[str, np.ndarray], title: str, ncols: int | None = None) -> bytes:
+    """Ground truth and the absolute error maps of several predictions (methods or variants) of one frame.
+
+    Args:
+        gt: (H, W) true distance, metres (+inf = no surface).
+        preds: label -> (H, W) predicted distance, metres (NaN / inf / <= 0 = invalid), in panel order.
+        title: figure title.
+        ncols: panels per row (default: 2 up to 3 predictions, else 3).
+    Returns:
+        PNG: first panel the ground-truth distance (viridis, own colour bar, metres); then one panel of
+        ``|pred - gt|`` per prediction (magma), each on its own colour scale from 0 to :func:`error_scale` of its
+        errors (the 99th percentile; its own colour bar, metres; larger errors saturate), so that a method whose
+        errors are a hundredth of another's still shows where they lie.  Light grey: no surface (not scored);
+        magenta: invalid prediction (scored with error = gt).  Each panel title gives its MAE.
+    """
+    return png_bytes(error_figure(gt, preds, title, ncols))
 
 
 # -------------------------------------------------------------------------------------------- breakdown

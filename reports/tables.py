@@ -22,6 +22,8 @@ __all__ = [
     "suite_text",
     "PAPER_MAE_M",
     "PAPER_LABEL",
+    "PAPER_FAMILY",
+    "paper_scene_rows",
     "config_title",
     "config_order",
     "variant_order",
@@ -49,6 +51,8 @@ __all__ = [
 #: DeepFlow).  Quoted for reference, never computed by tri360.
 PAPER_MAE_M = {"average": 0.14337, "gradient": 0.10906, "color": 0.10902}
 PAPER_LABEL = "paper's figures (Fig. 4, quoted; not computed by tri360)"
+#: the scene family of the paper's Fig. 4 frame
+PAPER_FAMILY = "classroom"
 
 FLOW_ORDER = ["deepflow", "deepflow-opencv", "dis", "farneback", "rlof", "oracle"]
 VARIANT_ORDER = ["average", "angle", "gradient", "color"]
@@ -60,6 +64,16 @@ def config_title(flow: str, rectify: bool) -> str:
     (``reconstruction.methods.registry.PAPER_CONFIG``: ``deepflow-rect``)."""
     label = config_label(flow, bool(rectify))
     return f"{label} (paper set-up)" if (flow, bool(rectify)) == PAPER_CONFIG else label
+
+
+def paper_scene_rows(results: pd.DataFrame) -> pd.Series:
+    """Rows of frames of the paper's scene (:data:`PAPER_FAMILY`, the classroom): by the ``family`` column where a
+    row names one, else by the scene name."""
+    scene = results["scene"].astype(str) == PAPER_FAMILY
+    if "family" not in results.columns:
+        return scene
+    family = results["family"].fillna("").astype(str)
+    return (family == PAPER_FAMILY) | ((family == "") & scene)
 
 
 def config_order(pairs) -> list[tuple[str, bool]]:

@@ -84,7 +84,7 @@ def test_frame_part_holds_every_figure_and_cloud(frame):
 def test_frame_part_ply_choices_and_problems(frame):
     rows, preds, _ = _methods(frame)
     none = frame_part(frame, rows, preds, ply="none", cloud_points=100)
-    assert not [k for k in none.files if k.endswith(".ply")] and "PLY" not in none.html
+    assert not [k for k in none.files if k.endswith(".ply")] and "PLY point clouds" not in none.html  # not base64
     paper = frame_part(frame, rows, preds, ply="paper", cloud_points=100)  # no deepflow-rect here
     assert [k for k in paper.files if k.endswith(".ply")] == ["clouds/room/v0/ground_truth.ply"]
     with pytest.raises(ValueError, match="ply must be one of"):
