@@ -9,14 +9,16 @@ from __future__ import annotations
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
+from types import SimpleNamespace
 
 import cv2
 import numpy as np
 
 from reconstruction.camera.equirect import bearing_grid
-from reconstruction.flow.backends import FlowBackend
+from reconstruction.flow.backends import ORACLE, FlowBackend
 from reconstruction.flow.matching import PairMatch, match_pair
 from reconstruction.methods.base import MethodOutput
+from reconstruction.photometry import NO_CALIBRATION, PhotometricParams, aligned_frame
 from reconstruction.refine.lm import (
     ColorTerm,
     RefineConfig,
@@ -42,6 +44,9 @@ __all__ = ["DEFAULT_FLOW", "PAIRS", "Reconstruction", "reconstruct", "available_
 
 DEFAULT_FLOW = "dis"  # chosen by measurement, see docs/refinement.md
 PAIRS = ("U", "R")
+PREPASS_FLOW = "dis"
+"""The flow of the photometric pre-pass (on rectified, reduced images), whatever the configured flow: it only needs
+correspondences good enough to fit a smooth gain field, fast."""
 
 
 def available_variants() -> list[str]:
@@ -336,7 +341,8 @@ def refine_variant(frame, prep: Prepared, config: RefineConfig, start: np.ndarra
 def reconstruct(frame, flow: str | FlowBackend = DEFAULT_FLOW, rectify: bool = True,
                 variants: Sequence[str | RefineConfig] | None = None,
                 limits: TriangulationLimits = TriangulationLimits(),
-                on_stage: Callable[[str], None] | None = None) -> Reconstruction:
+                on_stage: Callable[[str], None] | None = None,
+                photometric: PhotometricParams = NO_CALIBRATION) -> Reconstruction:
     """Reconstruct camera C's per-pixel distance from a frame's three images.
 
     Args:
@@ -347,6 +353,11 @@ def reconstruct(frame, flow: str | FlowBackend = DEFAULT_FLOW, rectify: bool = T
             :class:`RefineConfig` (default: all of :func:`available_variants`).
         limits: when a pair's estimate counts as invalid, and the distance clamp.
         on_stage: optional callback called with each stage name before it runs (progress display).
+        photometric: photometric self-calibration (:mod:`reconstruction.photometry`; stage ``photometric``): U's
+            and R's per-channel gains against C from the same pixels, then (``prepass_factor`` > 1, not for the
+            oracle) the gain field from the correspondences of a :data:`PREPASS_FLOW` pass on reduced images; the
+            flow runs on the corrected images; the colour variants' LM uses images corrected again from the
+            ``average`` distance's correspondences (stage ``photometric_color``).
     Returns:
         A :class:`Reconstruction`.
     Raises:
@@ -358,8 +369,24 @@ def reconstruct(frame, flow: str | FlowBackend = DEFAULT_FLOW, rectify: bool = T
                                    for v in variants if v != "average")}
     h, w = frame.height, frame.width
     note = on_stage or (lambda _s: None)
+    seconds = {}
+    raw = frame
+    if photometric.mode != "none":
+        note("photometric")
+        start = time.perf_counter()
+        frame, _ = aligned_frame(raw, photometric)  # per-channel gains from the same pixels
+        if photometric.prepass_factor > 1 and flow != ORACLE:  # the field from a reduced flow pass's matches
+            small = reduced_frame(frame, photometric.prepass_factor)
+            d_small = prepare(small, PREPASS_FLOW, True, limits).d0.reshape(small.height, small.width)
+            d_full = cv2.resize(d_small.astype(np.float32), (w, h), interpolation=cv2.INTER_NEAREST)
+            frame, _ = aligned_frame(raw, photometric, distance=d_full)
+        seconds["photometric"] = time.perf_counter() - start
     prep = prepare(frame, flow, rectify, limits, note)
-    out = Reconstruction(seconds=dict(prep.seconds))
+    out = Reconstruction(seconds={**seconds, **prep.seconds})
+    if photometric.mode != "none" and any(c.color_weight > 0 for c in configs.values()):
+        start = time.perf_counter()
+        frame, _ = aligned_frame(raw, photometric, distance=prep.d0.reshape(h, w))
+        out.seconds["photometric_color"] = time.perf_counter() - start
     for k in PAIRS:
         out.pair_distance[k] = prep.d_pair[k].reshape(h, w).astype(np.float32)
         out.pair_valid[k] = prep.valid[k].reshape(h, w)
@@ -380,6 +407,14 @@ def reconstruct(frame, flow: str | FlowBackend = DEFAULT_FLOW, rectify: bool = T
 # ------------------------------------------------------------------------------------------ as a Method
 
 
+def reduced_frame(frame, factor: int):
+    """A frame-like view of ``frame`` with images ``factor`` times smaller (area averaging; same poses)."""
+    w, h = frame.width // factor, frame.height // factor
+    images = {k: cv2.resize(v, (w, h), interpolation=cv2.INTER_AREA) for k, v in frame.images.items()}
+    return SimpleNamespace(width=w, height=h, cameras=frame.cameras, images=images, baseline_m=frame.baseline_m,
+                           distance={})
+
+
 def config_label(flow: str, rectify: bool) -> str:
     """Label of a flow configuration, e.g. ``dis-rect`` or ``deepflow-plain``."""
     return f"{flow}-{'rect' if rectify else 'plain'}"
@@ -394,12 +429,15 @@ class FlowMethod:
         rectify: flow on rectified pairs (True) or on the plain equirect images (False, the paper).
         refine: the refinement variant, or None for ``average`` (the paper's "before optimisation").
         limits: triangulation validity limits and distance clamp.
+        photometric: photometric self-calibration of U and R against C before the flow and the colour terms
+            (:class:`reconstruction.photometry.PhotometricParams`; mode ``"none"`` = the images as they are).
     """
 
     flow: FlowBackend | str
     rectify: bool = True
     refine: RefineConfig | None = None
     limits: TriangulationLimits = TriangulationLimits()
+    photometric: PhotometricParams = PhotometricParams()
 
     @property
     def flow_name(self) -> str:
@@ -417,13 +455,13 @@ class FlowMethod:
     def group_key(self) -> tuple:
         """Methods with equal keys share the flow, triangulation and ``average`` stages."""
         flow = self.flow if isinstance(self.flow, str) else (self.flow.name, repr(sorted(self.flow.params.items())))
-        return ("flow-pipeline", flow, self.rectify, self.limits)
+        return ("flow-pipeline", flow, self.rectify, self.limits, self.photometric)
 
     def config(self) -> dict:
         flow = {"name": self.flow} if isinstance(self.flow, str) else self.flow.config()
         return {"kind": "flow-pipeline", "label": self.label, "flow": flow, "rectify": self.rectify,
                 "variant": self.variant, "refine": None if self.refine is None else self.refine.config(),
-                "triangulation": asdict(self.limits)}
+                "triangulation": asdict(self.limits), "photometric": asdict(self.photometric)}
 
     def run(self, frame) -> MethodOutput:
         return self.run_group(frame, [self])[self.label]
@@ -436,10 +474,13 @@ class FlowMethod:
 
     def outputs(self, result: Reconstruction, members: Sequence[FlowMethod]) -> dict[str, MethodOutput]:
         """The outputs of ``members`` (variants of this configuration) from one :func:`reconstruct` result."""
-        shared = {k: result.seconds[k] for k in ("flow_U", "flow_R", "triangulate", "average")}
+        shared = {k: result.seconds[k] for k in ("photometric", "flow_U", "flow_R", "triangulate", "average")
+                  if k in result.seconds}
         outs = {}
         for m in members:
             own = {m.variant: result.seconds[m.variant]} if m.refine is not None else {}
+            if m.refine is not None and m.refine.color_weight > 0 and "photometric_color" in result.seconds:
+                own["photometric_color"] = result.seconds["photometric_color"]
             seconds = {**shared, **own}
             seconds["total"] = sum(seconds.values())
             info = {"lm_iterations": result.iterations[m.variant]} if m.refine is not None else {}
@@ -471,7 +512,7 @@ def run_flow_group(frame, members: Sequence,
         raise ValueError("methods of different flow configurations in one group: "
                          + ", ".join(m.label for m in members))
     wanted = [m.refine if m.refine is not None else "average" for m in flows]
-    result = reconstruct(frame, head.flow, head.rectify, wanted, head.limits, on_stage)
+    result = reconstruct(frame, head.flow, head.rectify, wanted, head.limits, on_stage, head.photometric)
     flow_outs = head.outputs(result, flows)
     outs = {m.label: flow_outs[m.label] for m in own}
     by_type: dict[type, list] = {}

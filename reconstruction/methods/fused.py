@@ -226,7 +226,8 @@ class FusedMethod:
                 else:
                     priors.append((flow.distance, weight, m.prior.truncate_levels))
             s = batch[0].sweep
-            results = sweep_distances(frame, s.cost, s.planes, s.sgm, s.post, s.pairs, priors)
+            align = flow_outputs[batch[0].flow.label].distance  # the correspondences of the self-calibration
+            results = sweep_distances(frame, s.cost, s.planes, s.sgm, s.post, s.pairs, priors, s.photometric, align)
             for m, (d, conf, seconds, info) in zip(batch, results, strict=True):
                 flow = flow_outputs[m.flow.label]
                 seconds = {"flow": flow.total_seconds, **{k: v for k, v in seconds.items() if k != "total"}}

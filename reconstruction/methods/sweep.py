@@ -17,6 +17,7 @@ import numpy as np
 from reconstruction.camera.equirect import bearing_grid
 from reconstruction.methods.base import MethodOutput
 from reconstruction.methods.flow_pipeline import fill_edge_aware
+from reconstruction.photometry import NO_CALIBRATION, PhotometricParams, aligned_frame
 from reconstruction.sweep.cost import CostParams, build_cost_volume, gray_float, inverse_distances
 from reconstruction.sweep.planes import (
     PlaneParams,
@@ -231,10 +232,16 @@ def room_bounds(frame, cost_params: CostParams, plane_params: PlaneParams, sgm: 
 
 
 def sweep_distances(frame, cost_params: CostParams, plane_params: PlaneParams, sgm: SgmParams,
-                    post: PostParams, pairs=("U", "R"), priors=(None,)):
+                    post: PostParams, pairs=("U", "R"), priors=(None,),
+                    photometric: PhotometricParams = NO_CALIBRATION,
+                    align_distance: np.ndarray | None = None):
     """Run the sweep on a frame once per prior, sharing the room-bound pass and the sphere cost volume.
 
     Args:
+        photometric: photometric self-calibration of U and R against C (:mod:`reconstruction.photometry`; stage
+            ``photometric``): from the correspondences of ``align_distance`` ((H, W) metres, e.g. the flow
+            prior's) when given; otherwise pixel by pixel before the coarse pass and again from the coarse pass's
+            distance before the full-resolution volume.
         priors: each None (the plain sweep) or ``(distance, weight, truncate_levels)``: (H, W) prior distances of C
             (metres; e.g. the flow pipeline's), (H, W) float32 weight in cost units per label and the truncation
             in labels, added to the sphere labels before aggregation
@@ -248,11 +255,23 @@ def sweep_distances(frame, cost_params: CostParams, plane_params: PlaneParams, s
         time of copying the shared volume for this prior, 0 for the last, which takes the volume itself).
     """
     shared = {}
+    raw = frame
+    calibrate = photometric.mode != "none"
+    if calibrate:
+        t = _clock()
+        frame, _ = aligned_frame(raw, photometric, distance=align_distance)
+        _lap(shared, "photometric", t)
     bounds, yaw, walls, coarse = (-np.inf, np.inf), None, [], None
     if (plane_params.room_bound or plane_params.wall_labels > 0 or any(callable(p) for p in priors)) \
             and plane_params.per_side > 0:
         z_floor, z_ceil, yaw, walls, coarse = room_bounds(frame, cost_params, plane_params, sgm, pairs, shared)
         bounds = (z_floor, z_ceil)
+        if calibrate and align_distance is None:  # the coarse pass's distance gives the correspondences
+            t = _clock()
+            d_coarse = cv2.resize(np.asarray(coarse[0], np.float32), (raw.width, raw.height),
+                                  interpolation=cv2.INTER_NEAREST)
+            frame, _ = aligned_frame(raw, photometric, distance=d_coarse)
+            _lap(shared, "photometric_refit", t)
         if any(callable(p) for p in priors):  # only the gated priors read the coarse maps
             size = (frame.width, frame.height)
             coarse = tuple(cv2.resize(np.asarray(a, np.float32), size, interpolation=cv2.INTER_LINEAR)
@@ -320,6 +339,9 @@ class SweepMethod:
         sgm: aggregation penalties (:class:`SgmParams`: cost units, gray levels).
         post: fill and median (:class:`PostParams`).
         pairs: the pairs used ("U", "R"); one pair only is an ablation.
+        label: the method's label.
+        photometric: photometric self-calibration of U and R against C before matching
+            (:class:`reconstruction.photometry.PhotometricParams`; mode ``"none"`` = the images as they are).
     """
 
     cost: CostParams = field(default_factory=CostParams)
@@ -328,11 +350,14 @@ class SweepMethod:
     post: PostParams = field(default_factory=PostParams)
     pairs: tuple[str, ...] = ("U", "R")
     label: str = "sweep"
+    photometric: PhotometricParams = PhotometricParams()
 
     def config(self) -> dict:
         return {"kind": "sweep", "label": self.label, "cost": asdict(self.cost), "planes": asdict(self.planes),
-                "sgm": asdict(self.sgm), "post": asdict(self.post), "pairs": list(self.pairs)}
+                "sgm": asdict(self.sgm), "post": asdict(self.post), "pairs": list(self.pairs),
+                "photometric": asdict(self.photometric)}
 
     def run(self, frame) -> MethodOutput:
-        d, conf, seconds, info = sweep_distance(frame, self.cost, self.planes, self.sgm, self.post, self.pairs)
+        d, conf, seconds, info = sweep_distances(frame, self.cost, self.planes, self.sgm, self.post, self.pairs,
+                                                 [None], self.photometric)[0]
         return MethodOutput(distance=d, confidence=conf, seconds=seconds, info=info)

@@ -3,6 +3,7 @@ the flow pipeline's per-pixel confidence."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import numpy as np
@@ -24,10 +25,19 @@ from reconstruction.methods.registry import (
     mirror_method,
 )
 from reconstruction.methods.sweep import sweep_distance, sweep_distances
+from reconstruction.photometry import NO_CALIBRATION
 from reconstruction.refine.lm import get_variant
 from reconstruction.sweep.planes import add_prior
 from tests.helpers import make_synthetic_frame
 from tests.reconstruction.test_sweep import tilted_frame
+
+
+def uncalibrated(m: FusedMethod) -> FusedMethod:
+    """``m`` without photometric self-calibration: the plain sweep then sees exactly the images the fused sweep
+    sees (with it, the fused sweep fits the gain field from its prior's correspondences, the plain sweep from its
+    coarse pass's)."""
+    return dataclasses.replace(m, flow=dataclasses.replace(m.flow, photometric=NO_CALIBRATION),
+                               sweep=dataclasses.replace(m.sweep, photometric=NO_CALIBRATION))
 
 
 @pytest.fixture(scope="module")
@@ -77,13 +87,14 @@ def test_fused_beats_or_matches_both_parts_on_exact_frame(frame):
 
 
 def test_fused_config_is_json_and_prior_weight_zero_is_the_plain_sweep(frame):
-    m = fused_method()
+    m = uncalibrated(fused_method())
     cfg = json.loads(json.dumps(m.config()))
     assert cfg["kind"] == "fused" and cfg["flow"]["label"] == "dis-rect:gradient" and cfg["prior"]["weight"] > 0
     small = make_synthetic_frame(120)
     plain = m.sweep.run(small).distance
-    off = FusedMethod(flow=m.flow, prior=PriorParams(weight=0.0)).run(small).distance
+    off = FusedMethod(flow=m.flow, sweep=m.sweep, prior=PriorParams(weight=0.0)).run(small).distance
     np.testing.assert_array_equal(plain, off)
+    assert cfg["sweep"]["photometric"]["mode"] == "none"
 
 
 def test_fused_on_tilted_yawed_rig_with_rotated_r():
@@ -246,11 +257,11 @@ def test_a_frame_whose_flow_disagrees_with_the_coarse_sweep_gets_the_plain_sweep
     """The gate uses the coarse room-bound pass (no extra aggregation); when the frame's agreement is below the
     ramp the prior is off and fused gives exactly the plain sweep; a gate that always passes gives fused."""
     f = make_synthetic_frame(120)
-    m = fused_method()
-    never = FusedMethod(flow=m.flow, prior=PriorParams(frame_agreement_low=0.9995, frame_agreement_high=0.9999),
-                        label="never")
-    always = FusedMethod(flow=m.flow, prior=PriorParams(frame_agreement_low=-2.0, frame_agreement_high=-1.0),
-                         label="always")
+    m = uncalibrated(fused_method())
+    never = FusedMethod(flow=m.flow, sweep=m.sweep, label="never",
+                        prior=PriorParams(frame_agreement_low=0.9995, frame_agreement_high=0.9999))
+    always = FusedMethod(flow=m.flow, sweep=m.sweep, label="always",
+                         prior=PriorParams(frame_agreement_low=-2.0, frame_agreement_high=-1.0))
     outs = run_methods(f, [m, never, always])
     np.testing.assert_allclose(outs["never"].distance, m.sweep.run(f).distance, rtol=0, atol=1e-6)
     np.testing.assert_allclose(outs["always"].distance, outs["fused"].distance, rtol=0, atol=1e-6)

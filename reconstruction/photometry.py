@@ -1,0 +1,278 @@
+"""Photometric self-calibration: make U's and R's images look as if taken with C's exposure, white balance and
+lens fall-off, from the frame's own pixels.
+
+Real rigs are three cameras that meter exposure and white balance each on their own and whose lenses darken
+towards their edges, each a little differently.  A matching cost that compares intensities across cameras reads
+such a difference as a distance.  This module estimates, for each other camera K, a smooth gain field relative to C
+in linear light,
+
+    ln K_c(p) - ln C_c(p) = a_c + sum_j beta_j * phi_j(b(p))
+
+per colour channel ``c`` (``a_c``: exposure and white balance) plus one achromatic field over the bearing ``b(p)``
+of pixel p in the camera's own frame (``phi_j``: the monomials of ``(x, y, z)`` up to :attr:`PhotometricParams.
+degree` and ``|x|, |y|, |z|``, which follow the kink of two back-to-back fisheyes' fall-off at their seam whatever
+the lenses' axis), and divides it out.  C's image is never changed.
+
+The log ratio is taken between pixels that see the same surface point: at the same pixel (:func:`align_images`
+without a distance: the cameras share their orientation and are 0.3-0.4 m apart, so most pixels see nearly the
+same surface, and a robust fit ignores the rest) or, given a distance map of C, between C's pixel and where its
+point projects into K (``distance=``: correct for near surfaces too).  Only pixels that are neither dark (noise)
+nor near saturation in either camera count, on images reduced by :attr:`PhotometricParams.factor` (area
+averaging in linear light); the fit is iteratively reweighted least squares with Tukey's biweight.
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import asdict, dataclass
+
+import cv2
+import numpy as np
+
+from reconstruction.camera.equirect import bearing_grid
+
+MAX_FIT_PIXELS = 40000
+"""The fit uses at most this many pixels (evenly strided): the field has at most 30 coefficients."""
+
+__all__ = ["NO_CALIBRATION", "PhotometricParams", "srgb_to_linear", "linear_to_srgb", "basis", "fit_gain",
+           "align_images",
+           "aligned_frame"]
+
+
+@dataclass(frozen=True)
+class PhotometricParams:
+    """How :func:`align_images` estimates each camera's gain relative to C.
+
+    Attributes:
+        mode: ``"none"`` (images as they are) or ``"gain-field"`` (per-channel gain and an achromatic field).
+        degree: highest degree of the bearing monomials of the field fitted from correspondences given by a
+            distance map (0 = one gain per channel only).
+        pixel_degree: the same when pixels are compared at the same place (no distance map): parallax biases a
+            field fitted that way, so by default only the per-channel gains are.
+        prepass_factor: the flow pipeline fits the field from the correspondences of a flow pass on images
+            reduced by this factor (after the per-channel gains), then computes its flow on the corrected images;
+            1 = no pre-pass (gains only before the flow).
+        ridge: weight of the penalty ``ridge * |beta|^2`` per sample (keeps the field flat where few pixels say
+            otherwise; natural-log units).
+        factor: images reduced by this factor before the fit (area averaging in linear light).
+        dark, bright: linear-light levels in [0, 1] below / above which a pixel (any channel, either camera) is not
+            used: noise dominates below, clipping above.
+        tukey_c: Tukey biweight constant, in units of the residuals' robust standard deviation (1.4826 MAD).
+        iterations: reweighting iterations.
+        max_log_gain: the field's |log gain| is clipped to this (natural log; 2.0 = a factor of 7.4).
+    """
+
+    mode: str = "gain-field"
+    degree: int = 2
+    pixel_degree: int = 0
+    prepass_factor: int = 2
+    ridge: float = 0.0
+    factor: int = 4
+    dark: float = 0.01
+    bright: float = 0.9
+    tukey_c: float = 4.685
+    iterations: int = 8
+    max_log_gain: float = 2.0
+
+    def __post_init__(self):
+        if self.mode not in ("none", "gain-field"):
+            raise ValueError(f"photometric mode must be 'none' or 'gain-field', got {self.mode!r}")
+        for name in ("degree", "pixel_degree"):
+            if not 0 <= getattr(self, name) <= 6:
+                raise ValueError(f"photometric {name} must be in 0..6, got {getattr(self, name)}")
+        if not self.ridge >= 0:
+            raise ValueError(f"photometric ridge must be >= 0, got {self.ridge}")
+        if self.prepass_factor < 1:
+            raise ValueError(f"photometric prepass_factor must be >= 1, got {self.prepass_factor}")
+        if self.factor < 1:
+            raise ValueError(f"photometric factor must be >= 1, got {self.factor}")
+        if not 0.0 <= self.dark < self.bright <= 1.0:
+            raise ValueError(f"photometric dark {self.dark} and bright {self.bright} must satisfy 0 <= dark < "
+                             "bright <= 1")
+
+
+NO_CALIBRATION = PhotometricParams(mode="none")
+"""The images as they are (no self-calibration)."""
+
+
+_S = np.arange(256, dtype=np.float64) / 255.0
+_SRGB_TABLE = np.where(_S <= 0.04045, _S / 12.92, ((_S + 0.055) / 1.055) ** 2.4)
+
+
+def srgb_to_linear(img: np.ndarray) -> np.ndarray:
+    """(...) uint8 sRGB -> float64 linear light in [0, 1] (IEC 61966-2-1), through a 256-entry table."""
+    return _SRGB_TABLE[np.asarray(img, dtype=np.uint8)]
+
+
+def linear_to_srgb(linear: np.ndarray) -> np.ndarray:
+    """Linear light (..., 3) -> 8-bit sRGB uint8: clip to [0, 1] (NaN -> 0), IEC 61966-2-1, round half up."""
+    x = np.clip(np.nan_to_num(np.asarray(linear, dtype=np.float64), nan=0.0), 0.0, 1.0)
+    s = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1.0 / 2.4) - 0.055)
+    return np.floor(s * 255.0 + 0.5).astype(np.uint8)
+
+
+def basis(bearings: np.ndarray, degree: int) -> np.ndarray:
+    """The field's basis functions at camera-frame bearings.
+
+    Args:
+        bearings: (..., 3) unit bearings in the camera's frame.
+        degree: highest monomial degree (0: no field).
+    Returns:
+        (..., J) float64: every monomial ``x^i y^j z^k`` with ``1 <= i + j + k <= degree`` whose ``z`` power is at
+        most 1 (``z^2 = 1 - x^2 - y^2`` makes the others redundant), then ``|x|, |y|, |z|`` (when degree >= 1).
+    """
+    b = np.asarray(bearings, dtype=np.float64)
+    x, y, z = b[..., 0], b[..., 1], b[..., 2]
+    cols = []
+    for total in range(1, degree + 1):
+        for i, j, k in itertools.product(range(total + 1), repeat=3):
+            if i + j + k == total and k <= 1:
+                cols.append(x ** i * y ** j * z ** k)
+    if degree >= 1:
+        cols += [np.abs(x), np.abs(y), np.abs(z)]
+    if not cols:
+        return np.zeros((*b.shape[:-1], 0))
+    return np.stack(cols, axis=-1)
+
+
+def fit_gain(ratio: np.ndarray, phi: np.ndarray, params: PhotometricParams) -> tuple[np.ndarray, np.ndarray, dict]:
+    """Robust fit of ``ratio[n, c] = a_c + phi[n] @ beta``.
+
+    Args:
+        ratio: (N, 3) log ratios of K over C per channel (natural log) at N usable pixels.
+        phi: (N, J) basis values there (:func:`basis`).
+    Returns:
+        ``(a, beta, info)``: (3,) per-channel log gains, (J,) field coefficients, and the fit's ``pixels`` and
+        robust residual ``sigma`` (natural log).
+    """
+    n, j = phi.shape
+    if n < 10 * (3 + j):
+        return np.zeros(3), np.zeros(j), {"pixels": int(n), "sigma": float("nan")}
+    # one design matrix for the three channels: rows (n, c), columns a_0, a_1, a_2, beta
+    design = np.zeros((n * 3, 3 + j))
+    for c in range(3):
+        design[c::3, c] = 1.0
+        design[c::3, 3:] = phi
+    target = ratio.reshape(-1).astype(np.float64)
+    # start from the per-channel medians (robust to the parallax outliers)
+    a0 = np.median(ratio, axis=0)
+    coef = np.concatenate([a0, np.zeros(j)])
+    w = np.ones(target.size)
+    sigma = float("nan")
+    for _ in range(params.iterations):
+        res = target - design @ coef
+        sigma = 1.4826 * float(np.median(np.abs(res - np.median(res)))) + 1e-6
+        u = res / (params.tukey_c * sigma)
+        w = np.where(np.abs(u) < 1.0, (1.0 - u * u) ** 2, 0.0)
+        sw = np.sqrt(w)
+        a = design * sw[:, None]
+        reg = np.full(3 + j, 1e-6)
+        reg[3:] += params.ridge * max(float(w.sum()), 1.0)
+        ata = a.T @ a + np.diag(reg)
+        coef = np.linalg.solve(ata, a.T @ (target * sw))
+    return coef[:3], coef[3:], {"pixels": int(n), "sigma": sigma, "inliers": float((w > 0).mean())}
+
+
+def _reduce(lin: np.ndarray, factor: int) -> np.ndarray:
+    if factor == 1:
+        return lin
+    h, w = lin.shape[:2]
+    return cv2.resize(lin, (w // factor, h // factor), interpolation=cv2.INTER_AREA)
+
+
+def _sample_projection(lin_k: np.ndarray, rot_k: np.ndarray, pos_k: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Bilinear samples (..., 3) of K's equirect image ``lin_k`` where world ``points`` (..., 3) project."""
+    h, w = lin_k.shape[:2]
+    v = (np.asarray(points, np.float64) - pos_k) @ rot_k  # camera frame of K (rotation: world-from-camera)
+    norm = np.linalg.norm(v, axis=-1, keepdims=True)
+    v = v / np.maximum(norm, 1e-12)
+    lam = np.arctan2(v[..., 0], v[..., 1])
+    phi = np.arcsin(np.clip(v[..., 2], -1.0, 1.0))
+    u = (lam + np.pi) * w / (2 * np.pi) - 0.5
+    row = (np.pi / 2 - phi) * h / np.pi - 0.5
+    pad = 2
+    padded = np.concatenate([lin_k[:, -pad:], lin_k, lin_k[:, :pad]], axis=1)
+    return cv2.remap(padded, (u + pad).astype(np.float32), row.astype(np.float32), cv2.INTER_LINEAR,
+                     borderMode=cv2.BORDER_REPLICATE)
+
+
+def step(n: int, most: int = MAX_FIT_PIXELS) -> int:
+    """Stride that keeps at most ``most`` of ``n`` samples."""
+    return max(1, -(-n // most))
+
+
+def align_images(images: dict, cameras: dict, params: PhotometricParams = PhotometricParams(),
+                 distance: np.ndarray | None = None, others=("U", "R")) -> tuple[dict, dict]:
+    """U's and R's images corrected to C's exposure, white balance and fall-off (module doc).
+
+    Args:
+        images: (H, W, 3) uint8 sRGB image per camera name.
+        cameras: pose per camera name (``position`` (3,) metres, ``rotation`` (3, 3) world-from-camera).
+        params: the fit (:class:`PhotometricParams`); mode ``"none"`` returns the images unchanged.
+        distance: (H, W) distance of C, metres, or None: pixel pairs by projection (else the same pixel).
+        others: the cameras to correct.
+    Returns:
+        ``(images, info)``: new dict (C's array and any camera not corrected are the same objects) and per camera
+        the fitted ``gain_rgb`` (the mean gain of K relative to C per channel), ``field_range`` (min and max of the
+        achromatic field's gain), ``pixels`` and ``sigma``.
+    """
+    out = dict(images)
+    if params.mode == "none":
+        return out, {}
+    f = params.factor
+    lin_c = _reduce(srgb_to_linear(images["C"]).astype(np.float32), f)
+    h, w = lin_c.shape[:2]
+    info = {}
+    phi_small = basis(bearing_grid(w, h), params.degree if distance is not None else params.pixel_degree)
+    if distance is not None:
+        d_small = _reduce(np.asarray(distance, np.float32), f)
+        world = bearing_grid(w, h, cameras["C"].rotation) * d_small[..., None] + np.asarray(cameras["C"].position)
+    for k in others:
+        lin_k_full = srgb_to_linear(images[k]).astype(np.float32)
+        lin_k = _reduce(lin_k_full, f)
+        if distance is not None:
+            sample = _sample_projection(lin_k, np.asarray(cameras[k].rotation, np.float64),
+                                        np.asarray(cameras[k].position, np.float64), world)
+            ok_geo = np.isfinite(d_small) & (d_small > 0)
+        else:
+            sample = lin_k
+            ok_geo = np.ones((h, w), bool)
+        usable = ok_geo & np.all((lin_c > params.dark) & (lin_c < params.bright), axis=-1) \
+            & np.all((sample > params.dark) & (sample < params.bright), axis=-1)
+        ratio = np.log(sample[usable]) - np.log(lin_c[usable])
+        a, beta, fit = fit_gain(ratio[::step(ratio.shape[0])], phi_small[usable][::step(ratio.shape[0])], params)
+        field = phi_small @ beta if beta.size else np.zeros((h, w))
+        field = np.clip(field, -params.max_log_gain, params.max_log_gain)
+        mean_field = float(np.mean(field))
+        full_h, full_w = images[k].shape[:2]
+        field_full = cv2.resize(field.astype(np.float32), (full_w, full_h), interpolation=cv2.INTER_LINEAR)
+        gain = np.exp(-(field_full[..., None] + a.astype(np.float32)))
+        out[k] = linear_to_srgb(lin_k_full * gain)
+        info[k] = {"gain_rgb": np.exp(a + mean_field).tolist(),
+                   "field_range": [float(np.exp(field.min() - mean_field)), float(np.exp(field.max() - mean_field))],
+                   **fit}
+    return out, info
+
+
+def aligned_frame(frame, params: PhotometricParams, distance: np.ndarray | None = None):
+    """A shallow copy of ``frame`` (any object with ``images`` and ``cameras``) whose images are
+    :func:`align_images`'s, and the fit's info; ``frame`` itself is unchanged."""
+    images, info = align_images(frame.images, frame.cameras, params, distance)
+    clone = _FrameView(frame, images)
+    return clone, info
+
+
+class _FrameView:
+    """``frame`` with other images: every other attribute is read from ``frame``."""
+
+    def __init__(self, frame, images: dict):
+        self._frame = frame
+        self.images = images
+
+    def __getattr__(self, name):
+        return getattr(self._frame, name)
+
+
+def params_config(params: PhotometricParams) -> dict:
+    """The JSON-able configuration of ``params``."""
+    return asdict(params)
