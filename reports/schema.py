@@ -29,9 +29,10 @@ FLOW_COLUMNS = ["flow", "rectify", "variant"]
 CORE_METRIC_COLUMNS = ["mae_m", "rmse_m", "median_m", "absrel", "delta1", "outlier_rate", "valid_px", "seconds"]
 #: every metric of reports.metrics.summary, then ``ause`` (empty where the method gives no confidence)
 METRIC_COLUMNS = [*CORE_METRIC_COLUMNS, *(k for k in SUMMARY_KEYS if k not in CORE_METRIC_COLUMNS), "ause"]
-#: what the frame is (its scene family, difficulty tags joined by ``;``) and, for a suite's split, the suite id and
-#: split (empty otherwise); older results sets lack them
-SUITE_COLUMNS = ["family", "tags", "suite_id", "split"]
+#: what the frame is (its scene family, difficulty tags joined by ``;``, the condition of its cameras: ``ideal`` or
+#: the name of a derived condition such as ``captured``) and, for a suite's split, the suite id and split (empty
+#: otherwise); older results sets lack them
+SUITE_COLUMNS = ["family", "tags", "suite_id", "split", "condition"]
 #: the ground-truth-free quality figures of a prediction (``reconstruction.quality.assess``: medians of its per-pixel
 #: maps over the validly predicted pixels, and the calibration check's score), written for frames without ground
 #: truth (real captures) and empty for scored frames; older results sets lack them

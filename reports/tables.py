@@ -237,6 +237,8 @@ SOLID_ANGLE_COLUMNS = {"mae_sw_m", "median_sw_m"}
 #: prefixes of the per-family and per-difficulty-tag MAE columns (plain and solid-angle weighted)
 FAMILY_PREFIX, TAG_PREFIX = "mae_family:", "mae_tag:"
 FAMILY_SW_PREFIX, TAG_SW_PREFIX = "mae_sw_family:", "mae_sw_tag:"
+#: the "family" of every frame in a leaderboard whose frames come under several conditions (``all@captured``)
+ALL_FAMILIES = "all"
 #: regions with an MAE column of their own (``all`` is ``mae_m``)
 LEADERBOARD_REGIONS = tuple(r for r in REGION_NAMES if r != "all")
 #: leaderboard columns shown as percentages (shares 0..1 in leaderboard.csv)
@@ -263,12 +265,22 @@ def pixel_weighted(values, weights) -> float:
 
 def _groups(results: pd.DataFrame) -> list[tuple[str, str, pd.Series]]:
     """``(plain column, weighted column, row mask)`` for every family and every difficulty tag in ``results``
-    (families in order of appearance, then tags in order of appearance)."""
+    (families in order of appearance, then tags in order of appearance).  When the frames come under more than one
+    condition (column ``condition``: ``ideal`` and ``captured``), every frame under each condition
+    (``all@<condition>``) and each family under each condition (``<family>@<condition>``) instead of the families."""
     if "family" not in results.columns:
         return []
     fam = results["family"].fillna("").astype(str)
     tags = results["tags"].fillna("").astype(str).str.split(";") if "tags" in results.columns else None
-    out = [(FAMILY_PREFIX + f, FAMILY_SW_PREFIX + f, fam == f) for f in dict.fromkeys(fam) if f]
+    cond = results["condition"].fillna("").astype(str) if "condition" in results.columns else None
+    conditions = [c for c in dict.fromkeys(cond) if c] if cond is not None else []
+    if len(conditions) > 1:  # each family under each condition, after every frame under each condition
+        out = [(FAMILY_PREFIX + f"{ALL_FAMILIES}@{c}", FAMILY_SW_PREFIX + f"{ALL_FAMILIES}@{c}", cond == c)
+               for c in conditions]
+        out += [(FAMILY_PREFIX + f"{f}@{c}", FAMILY_SW_PREFIX + f"{f}@{c}", (fam == f) & (cond == c))
+                for f in dict.fromkeys(fam) if f for c in conditions]
+    else:
+        out = [(FAMILY_PREFIX + f, FAMILY_SW_PREFIX + f, fam == f) for f in dict.fromkeys(fam) if f]
     if tags is not None:
         names = dict.fromkeys(t for ts in tags for t in ts if t)
         out += [(TAG_PREFIX + t, TAG_SW_PREFIX + t, tags.map(lambda ts, t=t: t in ts).astype(bool)) for t in names]
@@ -290,7 +302,9 @@ def leaderboard_table(results: pd.DataFrame, regions: pd.DataFrame | None = None
 
     When the rows name their family and difficulty tags (``family``, ``tags``), ``mae_family:<family>`` and
     ``mae_tag:<tag>`` (then ``mae_sw_family:...``, ``mae_sw_tag:...``, solid-angle weighted) pool the MAE over the
-    frames of that family or tag (NaN where the method has none); ``suite_id`` and ``split`` name the suite split
+    frames of that family or tag (NaN where the method has none); rows of several conditions (``condition``) give
+    ``mae_family:all@<condition>`` and ``mae_family:<family>@<condition>`` instead of the family columns;
+    ``suite_id`` and ``split`` name the suite split
     the results were measured on (empty outside a suite; "mixed" if the rows disagree).
 
     Args:

@@ -35,6 +35,7 @@ from harness.data.errors import FrameError
 from harness.data.exr import read_distance_exr, write_distance_exr
 from harness.data.images import read_png, write_png
 from harness.data.names import MAX_NAME_LENGTH, NAME_CHARACTERS, is_safe_name
+from harness.data.photometric import Photometric
 from reconstruction.camera.rig import CAMERA_NAMES, CameraPose
 
 __all__ = [
@@ -73,6 +74,8 @@ class Frame:
             empty when the frame has no ground truth.
         renderer: free-form provenance.
         path: directory the frame was read from, if any.
+        photometric: per camera name, what the camera did to the light (:class:`harness.data.photometric.
+            Photometric`; ``frame.json``'s ``cameras.<name>.photometric``); a camera without one is ideal.
     """
 
     scene: str
@@ -85,6 +88,7 @@ class Frame:
     distance: dict[str, np.ndarray] = field(default_factory=dict)
     renderer: dict = field(default_factory=dict)
     path: Path | None = None
+    photometric: dict[str, Photometric] = field(default_factory=dict)
 
     @property
     def has_ground_truth(self) -> bool:
@@ -98,7 +102,9 @@ class Frame:
             "width": int(self.width),
             "height": int(self.height),
             "baseline_m": float(self.baseline_m),
-            "cameras": {name: self.cameras[name].to_json() for name in CAMERA_NAMES},
+            "cameras": {name: {**self.cameras[name].to_json(),
+                               **({"photometric": self.photometric[name].to_json()}
+                                  if name in self.photometric else {})} for name in CAMERA_NAMES},
             "renderer": self.renderer,
         }
 
@@ -188,7 +194,25 @@ def validate_metadata(meta: dict, meta_path: Path) -> dict[str, CameraPose]:
         _require(isinstance(meta["renderer"], dict), meta_path, "'renderer' must be an object")
     cameras = {name: _parse_pose(meta_path, name, meta["cameras"][name]) for name in CAMERA_NAMES}
     _check_rig(meta_path, cameras, b)
+    parse_photometric(meta, meta_path)
     return cameras
+
+
+def parse_photometric(meta: dict, meta_path: Path) -> dict[str, Photometric]:
+    """The cameras' photometric records of a ``frame.json`` (cameras without one are left out).
+
+    Raises:
+        FrameError: naming ``meta_path`` and the camera, for a malformed record.
+    """
+    out = {}
+    for name in CAMERA_NAMES:
+        raw = meta["cameras"][name]
+        if isinstance(raw, dict) and "photometric" in raw:
+            try:
+                out[name] = Photometric.from_json(raw["photometric"], f"cameras.{name}.photometric")
+            except ValueError as exc:
+                raise FrameError(f"{meta_path}: {exc}") from None
+    return out
 
 
 def _check_distance(where: Path, d: np.ndarray, w: int, h: int) -> None:
@@ -266,7 +290,7 @@ def read_frame(directory: Path, load_distance: bool = True) -> Frame:
             distance[name] = d
     return Frame(scene=meta["scene"], viewpoint=meta["viewpoint"], width=w, height=h,
                  baseline_m=float(meta["baseline_m"]), cameras=cameras, images=images, distance=distance,
-                 renderer=meta.get("renderer", {}), path=directory)
+                 renderer=meta.get("renderer", {}), path=directory, photometric=parse_photometric(meta, meta_path))
 
 
 def frame_dir(root: Path, scene: str, viewpoint: str) -> Path:

@@ -34,6 +34,7 @@ render settings' names and defaults come from the caller (``harness.jobs.suite``
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import json
 import math
@@ -44,14 +45,18 @@ from pathlib import Path
 
 from harness.data.errors import UserError
 from harness.data.names import check_name
+from harness.data.photometric import AXES, CameraDistribution, gamma_of
 from scenes.model import DIFFICULTY_TAGS, RENDERERS, SceneEntry
 from scenes.registry import discover
 
-__all__ = ["FORMAT", "SPLITS", "SuiteRig", "SuiteEntry", "SuiteFrame", "Suite", "load_suite", "suite_id"]
+__all__ = ["FORMAT", "SPLITS", "IDEAL", "SuiteRig", "SuiteEntry", "SuiteFrame", "Suite", "load_suite", "suite_id"]
 
 FORMAT = "tri360-suite/1"
 SPLITS = ("dev", "test")
-TOP_KEYS = ("format", "name", "description", "render", "frames")
+TOP_KEYS = ("format", "name", "description", "render", "frames", "conditions")
+IDEAL = "ideal"
+"""The condition of the rendered frames themselves: three identical, perfectly exposed cameras."""
+CONDITION_KEYS = tuple(f.name for f in dataclasses.fields(CameraDistribution))
 ENTRY_KEYS = ("family", "preset", "seed", "viewpoints", "split", "name", "params", "renderer", "tags", "rig")
 RIG_KEYS = ("baseline_m", "height_m", "tilt_max_rad")
 #: render settings a suite may not fix: ``threads`` changes no pixel (this machine's choice), ``seed`` is each
@@ -92,14 +97,27 @@ class SuiteEntry:
 
 @dataclass(frozen=True)
 class SuiteFrame:
-    """One frame of a suite: its group and viewpoint index; it lives in ``<root>/<entry.name>/<viewpoint>``."""
+    """One frame of a suite: its group, viewpoint index and condition; it lives in
+    ``<root>/<entry.name>/<viewpoint>`` (the rendered frame, condition ``ideal``) or
+    ``<root>/<entry.name>.<condition>/<viewpoint>`` (its twin under another condition, derived from it)."""
 
     entry: SuiteEntry
     index: int
+    condition: str = IDEAL
 
     @property
     def scene(self) -> str:
-        return self.entry.name
+        return self.entry.name if self.condition == IDEAL else f"{self.entry.name}.{self.condition}"
+
+    @property
+    def twin_seed(self) -> int:
+        """The seed of this frame's twins (the group's seed and the viewpoint index: unique within a suite)."""
+        return self.entry.seed * MAX_VIEWPOINTS + self.index
+
+    @property
+    def source(self) -> SuiteFrame:
+        """The rendered frame a twin is derived from (itself for an ideal frame)."""
+        return SuiteFrame(self.entry, self.index)
 
     @property
     def viewpoint(self) -> str:
@@ -117,7 +135,8 @@ class Suite:
     Attributes:
         path: the file.  name, description: from the file.  render: every render setting (the file's over the
         defaults, without :data:`MACHINE_SETTINGS`).  entries: the frame groups in file order.  code_versions:
-        family -> code version (``SceneEntry.code_version``).  id: :func:`suite_id`.
+        family -> code version (``SceneEntry.code_version``).  id: :func:`suite_id`.  conditions: the conditions
+        beside ``ideal`` (name -> the distribution its cameras are drawn from), in file order.
     """
 
     path: Path
@@ -127,6 +146,11 @@ class Suite:
     entries: tuple[SuiteEntry, ...]
     code_versions: Mapping
     id: str
+    conditions: Mapping[str, CameraDistribution] = field(default_factory=dict)
+
+    def condition_names(self) -> list[str]:
+        """``ideal`` and the declared conditions, in that order."""
+        return [IDEAL, *self.conditions]
 
     def splits(self) -> list[str]:
         return [s for s in SPLITS if any(e.split == s for e in self.entries)]
@@ -138,16 +162,18 @@ class Suite:
         out = [SuiteFrame(e, i) for e in self.entries if e.split == split for i in range(e.viewpoints)]
         if not out:
             raise UserError(f"{self.path}: split {split!r} has no frames")
-        return out
+        return out + [SuiteFrame(f.entry, f.index, c) for c in self.conditions for f in out]
 
     def describe(self, split: str) -> dict:
-        """What results record about the suite: ``{format, name, id, split, file, frames: [{scene, viewpoint,
-        family, preset, seed, tags}]}``."""
+        """What results record about the suite: ``{format, name, id, split, file, code_versions, render,
+        conditions, frames: [{scene, viewpoint, family, preset, seed, tags, condition}]}``."""
         return {"format": FORMAT, "name": self.name, "id": self.id, "split": split,
                 "file": str(Path(self.path).resolve()), "code_versions": dict(self.code_versions),
                 "render": dict(self.render),
+                "conditions": {k: dataclasses.asdict(v) for k, v in self.conditions.items()},
                 "frames": [{"scene": f.scene, "viewpoint": f.viewpoint, "family": f.entry.family,
-                            "preset": f.entry.preset, "seed": f.entry.seed, "tags": list(f.entry.tags)}
+                            "preset": f.entry.preset, "seed": f.entry.seed, "tags": list(f.entry.tags),
+                            "condition": f.condition}
                            for f in self.frames(split)]}
 
 
@@ -262,6 +288,47 @@ def _entry(path: Path, i: int, raw, scenes: dict[str, SceneEntry], errors: dict[
                       rig=_rig(path, where, table.get("rig", {})))
 
 
+def _pair(path: Path, where: str, value, lo: float, hi: float, integer: bool = False) -> tuple:
+    ok = isinstance(value, list) and len(value) == 2 and all(
+        (_is_int(x) if integer else _is_number(x)) and lo <= x <= hi for x in value) and value[0] <= value[1]
+    if not ok:
+        kind = "whole numbers" if integer else "numbers"
+        _fail(path, where, f"must be [low, high], {kind} with {lo:g} <= low <= high <= {hi:g}, got {value!r}")
+    return (int(value[0]), int(value[1])) if integer else (float(value[0]), float(value[1]))
+
+
+def _condition(path: Path, name, raw) -> CameraDistribution:
+    """One ``[conditions.<name>]`` table -> its :class:`CameraDistribution` (defaults for what it leaves out)."""
+    where = f"[conditions.{name}]"
+    check_name(name, f"{path}: {where}")
+    if name == IDEAL:
+        _fail(path, where, "'ideal' is the rendered frames' own condition; name the other one otherwise")
+    table = _check_keys(path, where, raw, CONDITION_KEYS)
+    d = CameraDistribution()
+    values = {}
+    for key, hi in (("exposure_stops", 8.0), ("white_balance", 10.0)):
+        v = table.get(key, getattr(d, key))
+        if not _is_number(v) or not 0 <= v <= hi:
+            _fail(path, f"{where} {key}", f"must be a number in [0, {hi:g}], got {v!r}")
+        values[key] = float(v)
+    for key, hi in (("vignetting", 0.999), ("noise_grey_levels", 128.0), ("rotation_deg", 45.0),
+                    ("translation_mm", 1000.0)):
+        values[key] = _pair(path, f"{where} {key}", table.get(key, list(getattr(d, key))), 0.0, hi)
+    q = _pair(path, f"{where} jpeg_quality", table.get("jpeg_quality", list(d.jpeg_quality)), 0, 100, integer=True)
+    if q[0] == 0 and q[1] != 0:
+        _fail(path, f"{where} jpeg_quality", f"is [0, 0] (no compression) or a range of qualities 1-100, got {list(q)}")
+    values["jpeg_quality"] = q
+    axis = table.get("vignetting_axis", d.vignetting_axis)
+    if axis not in AXES:
+        _fail(path, f"{where} vignetting_axis", f"must be one of {', '.join(AXES)}, got {axis!r}")
+    values["vignetting_axis"] = axis
+    response = table.get("response", d.response)
+    if not isinstance(response, str) or not (response == "srgb" or gamma_of(response) is not None):
+        _fail(path, f"{where} response", f"must be 'srgb' or 'gamma-G' with G in [1, 4], got {response!r}")
+    values["response"] = response
+    return CameraDistribution(**values)
+
+
 def suite_id(file_bytes: bytes, code_versions: Mapping, render: Mapping) -> str:
     """``"sha256:<16 hex>"`` of the suite file's bytes, every family's code version and the render settings.
 
@@ -330,6 +397,10 @@ def load_suite(path: Path, render_defaults: Mapping, scenes: dict[str, SceneEntr
         i = next(i for i, e in enumerate(entries) if e.split == "test" and e.seed == shared[0])
         _fail(path, f"frames[{i}] seed", f"seed {shared[0]} is used by both splits (dev and test must share no "
                                          f"seed{'; also ' + ', '.join(map(str, shared[1:])) if shared[1:] else ''})")
+    raw_conditions = raw.get("conditions", {})
+    if not isinstance(raw_conditions, dict):
+        _fail(path, "conditions", "must be a table of [conditions.<name>] tables")
+    conditions = {k: _condition(path, k, v) for k, v in raw_conditions.items()}
     code_versions = {e.family: scenes[e.family].code_version for e in entries}
     return Suite(path=path, name=name, description=description, render=render, entries=tuple(entries),
-                 code_versions=code_versions, id=suite_id(data, code_versions, render))
+                 code_versions=code_versions, id=suite_id(data, code_versions, render), conditions=conditions)

@@ -57,6 +57,7 @@ from harness.data.names import check_name
 from harness.data.outputs import RESULTS_FORMAT, check_output, mark_output, staged_directory
 from harness.data.provenance import software
 from harness.data.results import map_paths, quality_map_path, write_results
+from harness.data.suite import IDEAL
 from harness.jobs.cluster import ClusterOptions, Executor, executor_for, is_distributed
 from harness.jobs.report import build_report
 from reconstruction.flow.backends import ORACLE
@@ -261,21 +262,29 @@ def results_config(methods: Sequence[Method], frames: list, data_root: Path, sta
 
 
 def frame_labels(frames: list[dict], suite: dict | None = None) -> dict[tuple[str, str], dict]:
-    """``(scene, viewpoint) -> {family, tags, suite_id, split}`` of each evaluated frame (``frames``: the
-    ``config.json`` entries): the suite's record when given, else the family the frame's provenance names and
-    that family's registered difficulty tags (``SceneEntry.tags``); tags joined by ``;``."""
+    """``(scene, viewpoint) -> {family, tags, suite_id, split, condition}`` of each evaluated frame (``frames``: the
+    ``config.json`` entries): the suite's record when given, else the family the frame's provenance names, that
+    family's registered difficulty tags (``SceneEntry.tags``; joined by ``;``) and the condition its provenance
+    records (``renderer.condition.name``; without one ``ideal`` for a rendered frame, empty for an imported or
+    perturbed one)."""
     if suite:
         known = {(f["scene"], f["viewpoint"]): f for f in suite["frames"]}
         return {k: {"family": f["family"], "tags": ";".join(f["tags"]), "suite_id": suite["id"],
-                    "split": suite["split"]} for k, f in known.items()}
+                    "split": suite["split"], "condition": f.get("condition", IDEAL)} for k, f in known.items()}
     entries = discover()[0]
     out = {}
     for info in frames:
-        scene = info["renderer"].get("scene") if isinstance(info.get("renderer"), dict) else None
+        renderer = info["renderer"] if isinstance(info.get("renderer"), dict) else {}
+        scene = renderer.get("scene")
         family = scene.get("family") if isinstance(scene, dict) and isinstance(scene.get("family"), str) else ""
         tags = getattr(entries[family], "tags", ()) if family in entries else ()
+        record = renderer.get("condition")
+        if isinstance(record, dict):
+            condition = str(record.get("name", ""))
+        else:  # a rendered frame without a condition record: ideal cameras; an imported capture: not known
+            condition = "" if renderer.get("name") == "import" or "perturbation" in renderer else IDEAL
         out[(info["scene"], info["viewpoint"])] = {"family": family, "tags": ";".join(tags), "suite_id": "",
-                                                  "split": ""}
+                                                  "split": "", "condition": condition}
     return out
 
 

@@ -35,9 +35,10 @@ from collections.abc import Callable
 import cv2
 import numpy as np
 
-from harness.render.base import srgb_encode
+from harness.data.photometric import noise_parameters
 from reconstruction.camera.equirect import bearing_grid, pixel_to_bearing
 from reconstruction.camera.rig import CameraPose
+from reconstruction.photometry import linear_to_srgb, srgb_to_linear
 
 __all__ = ["KINDS", "ORDER", "parse_level", "srgb_to_linear", "linear_to_srgb", "rotation_about",
            "perturb_pose_rotation", "perturb_pose_translation", "exposure", "white_balance", "noise", "jpeg",
@@ -54,7 +55,6 @@ ORDER = ("rotation", "translation", "glare", "soiling", "vignetting", "exposure"
 """The order perturbations are applied in, whatever the command line's: poses, then light on its way through the
 lens (glare, soiling, vignetting), then the sensor (exposure, white balance, noise), then compression."""
 
-SHOT_FRACTION = 0.8  # share of the noise variance at mid-grey that is shot (Poisson) noise
 GLARE_SIGMA_DEG = 8.0
 GLARE_VEIL = 1.0 / 20.0
 
@@ -91,18 +91,6 @@ def generator(seed: int, kind: str, camera: str) -> np.random.Generator:
 
 
 # ------------------------------------------------------------------------------------------------- colour
-
-
-def srgb_to_linear(img: np.ndarray) -> np.ndarray:
-    """(..., 3) uint8 sRGB -> float64 linear light in [0, 1] (IEC 61966-2-1)."""
-    s = np.asarray(img, dtype=np.float64) / 255.0
-    return np.where(s <= 0.04045, s / 12.92, ((s + 0.055) / 1.055) ** 2.4)
-
-
-def linear_to_srgb(lin: np.ndarray) -> np.ndarray:
-    """float linear light (clipped to [0, 1]) -> uint8 sRGB: the renderers' one encoder,
-    :func:`harness.render.base.srgb_encode`, so a perturbed image is encoded exactly as a rendered one."""
-    return srgb_encode(lin)
 
 
 # -------------------------------------------------------------------------------------------------- poses
@@ -151,15 +139,6 @@ def white_balance(img: np.ndarray, level: float, rng: np.random.Generator) -> tu
     g = rng.uniform(-1.0, 1.0, size=2)
     gains = np.array([(1.0 + level) ** g[0], 1.0, (1.0 + level) ** g[1]])
     return linear_to_srgb(srgb_to_linear(img) * gains), {"gains_rgb": gains.tolist()}
-
-
-def noise_parameters(grey_levels: float) -> tuple[float, float]:
-    """``(a, b)`` of the linear-light noise variance ``a * x + b`` whose sRGB standard deviation at mid-grey is
-    ``grey_levels`` (8-bit levels), :data:`SHOT_FRACTION` of it shot noise."""
-    x_mid = float(srgb_to_linear(np.array([128], np.uint8))[0])
-    slope = 1.055 / 2.4 * x_mid ** (1.0 / 2.4 - 1.0)  # d sRGB / d linear at mid-grey (sRGB in [0, 1])
-    var = (grey_levels / 255.0 / slope) ** 2
-    return SHOT_FRACTION * var / x_mid, (1.0 - SHOT_FRACTION) * var
 
 
 def noise(img: np.ndarray, grey_levels: float, rng: np.random.Generator) -> tuple[np.ndarray, dict]:

@@ -26,11 +26,13 @@ import pandas as pd
 
 from harness.data.atomic import clean_stale_partials
 from harness.data.errors import UserError
-from harness.data.frame import frame_dir, is_complete
+from harness.data.frame import frame_dir, is_complete, read_frame, write_frame
 from harness.data.outputs import check_output, ensure_output_dir, mark_output
-from harness.data.suite import Suite, SuiteFrame, load_suite
+from harness.data.suite import IDEAL, Suite, SuiteFrame, load_suite
+from harness.jobs.captured import captured_twin
 from harness.jobs.cluster import ClusterOptions
 from harness.jobs.evaluate import FrameRef, evaluate, select_frames
+from harness.jobs.progress import progress_bar
 from harness.jobs.render import DEFAULTS, RenderItem, check_width, differences, render_items
 from harness.jobs.score import score
 from harness.render.base import RenderSettings, identity
@@ -101,15 +103,34 @@ def plan(suite: Suite, split: str, threads: int = 0) -> list[PlannedFrame]:
             raise UserError(f"{suite.path}: {e.name}: {exc}") from None
         ident = identity(e.renderer, backend.pixel_settings, settings, spec, e.rig.baseline_m)
         out += [PlannedFrame(SuiteFrame(e, i), spec, rig, e.renderer, settings, ident) for i, rig in enumerate(rigs)]
-    return out
+    rendered = {(p.frame.entry.name, p.frame.index): p for p in out}
+    twins = [dataclasses.replace(rendered[(f.entry.name, f.index)], frame=f) for f in frames if f.condition != IDEAL]
+    return out + twins
 
 
-def _stored_differences(d: Path, p: PlannedFrame) -> list[str]:
+def _stored_differences(d: Path, p: PlannedFrame, suite: Suite) -> list[str]:
+    """What differs between the frame stored in ``d`` and the planned one (a twin: also its condition record)."""
     try:
         meta = json.loads((d / "frame.json").read_text(encoding="utf-8"))
     except (OSError, json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise UserError(f"{d / 'frame.json'}: unreadable ({exc})") from None
-    return differences(meta, p.identity, p.rig)
+    condition = p.frame.condition
+    record = meta.get("renderer", {}).get("condition") if isinstance(meta.get("renderer"), dict) else None
+    if condition == IDEAL:
+        if record is not None:
+            return [f"condition {record.get('name') if isinstance(record, dict) else record!r} (now ideal)"]
+        return differences(meta, p.identity, p.rig)
+    want = {"name": condition, "seed": p.frame.twin_seed,
+            "distribution": json.loads(json.dumps(dataclasses.asdict(suite.conditions[condition])))}
+    if not isinstance(record, dict):
+        return [f"no {condition} condition recorded (now {condition})"]
+    out = [f"condition {k} {record.get(k)!r} (now {v!r})" for k, v in want.items() if record.get(k) != v]
+    try:  # compare the rendered frame it came from: the true poses of U and R, C's told pose
+        source = {**meta, "renderer": {k: v for k, v in meta["renderer"].items() if k != "condition"},
+                  "cameras": {**meta["cameras"], **record["true_cameras"]}, "baseline_m": record["true_baseline_m"]}
+    except (KeyError, TypeError, AttributeError):
+        return [*out, "the condition record has no true_cameras"]
+    return out + differences(source, p.identity, p.rig)
 
 
 def render_suite(path: Path, split: str, out_root: Path, threads: int = DEFAULTS.threads, force: bool = False,
@@ -137,7 +158,7 @@ def render_suite(path: Path, split: str, out_root: Path, threads: int = DEFAULTS
     for p in planned:
         d = frame_dir(out_root, p.frame.scene, p.frame.viewpoint)
         if not force and is_complete(d):
-            diff = _stored_differences(d, p)
+            diff = _stored_differences(d, p, suite)
             if diff:
                 raise UserError(f"{d} holds a frame rendered with other settings than suite {suite.name} "
                                 f"({suite.id}) asks: {'; '.join(diff)}; use --force to re-render it or choose "
@@ -150,12 +171,17 @@ def render_suite(path: Path, split: str, out_root: Path, threads: int = DEFAULTS
     for d in scene_dirs:
         ensure_output_dir(d)
         clean_stale_partials(d)  # hidden half-written frames of killed runs
+    rendered_todo = [p for p in todo if p.frame.condition == IDEAL]
+    twins_todo = [p for p in todo if p.frame.condition != IDEAL]
     if not todo:
         mark_output(out_root, "data")
         return dirs
     try:
-        _render(suite, split, todo, out_root, progress, verbose, cluster)
+        if rendered_todo:
+            _render(suite, split, rendered_todo, out_root, progress, verbose, cluster)
         mark_output(out_root, "data")
+        if twins_todo:
+            _derive_twins(suite, split, twins_todo, out_root, progress)
     except BaseException:
         for d in created:  # an interrupted first render leaves no empty directories behind
             try:
@@ -164,6 +190,18 @@ def render_suite(path: Path, split: str, out_root: Path, threads: int = DEFAULTS
                 pass
         raise
     return dirs
+
+
+def _derive_twins(suite: Suite, split: str, todo: list[PlannedFrame], out_root: Path, progress: bool) -> None:
+    """Write each twin (:func:`harness.jobs.captured.captured_twin`) of a rendered frame of ``out_root``."""
+    with progress_bar(len(todo), f"{suite.name} {split}: captured twins", enabled=progress) as bar:
+        for p in todo:
+            src = frame_dir(out_root, p.frame.source.scene, p.frame.viewpoint)
+            frame = read_frame(src)
+            twin = captured_twin(frame, suite.conditions[p.frame.condition], p.frame.twin_seed, p.frame.condition)
+            twin.scene = p.frame.scene
+            write_frame(twin, out_root)
+            bar.update(1)
 
 
 def _render(suite: Suite, split: str, todo: list[PlannedFrame], out_root: Path, progress: bool, verbose: bool,
@@ -195,7 +233,7 @@ def check_suite_data(suite: Suite, split: str, data_root: Path) -> list[FrameRef
                             "the data root must hold exactly the split's frames (render each split into a data "
                             "root of its own)")
     for key, p in wanted.items():
-        diff = _stored_differences(by_key[key].path, p)
+        diff = _stored_differences(by_key[key].path, p, suite)
         if diff:
             raise UserError(f"{by_key[key].path}: frame {p.frame.label} was not rendered with the settings of suite "
                             f"{suite.name} ({suite.id}): {'; '.join(diff)}")

@@ -30,6 +30,7 @@ from harness.data.frame import Frame
 from harness.data.jsonio import to_jsonable
 from harness.data.provenance import source_commit
 from reconstruction.camera.rig import CAMERA_NAMES, CameraPose, Rig
+from reconstruction.photometry import linear_to_srgb
 from scenes.model import SceneSpec
 
 __all__ = ["RenderSettings", "Renderer", "BaseRenderer", "RenderError", "OnCamera", "srgb_encode", "provenance",
@@ -117,14 +118,10 @@ SETTING_NAMES = tuple(f.name for f in fields(RenderSettings))
 
 
 def srgb_encode(linear: np.ndarray) -> np.ndarray:
-    """Scene-linear RGB (..., 3) -> 8-bit sRGB (..., 3) uint8.
-
-    Clip to [0, 1] (NaN -> 0), IEC 61966-2-1 transfer function, round half up.  For Cycles' Combined pass this
-    is Blender's own 'Standard' view transform at exposure 0, gamma 1, no look.
-    """
-    x = np.clip(np.nan_to_num(np.asarray(linear, dtype=np.float64), nan=0.0), 0.0, 1.0)
-    s = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1.0 / 2.4) - 0.055)
-    return np.floor(s * 255.0 + 0.5).astype(np.uint8)
+    """Scene-linear RGB (..., 3) -> 8-bit sRGB (..., 3) uint8 (:func:`reconstruction.photometry.linear_to_srgb`:
+    clip to [0, 1] (NaN -> 0), IEC 61966-2-1 transfer function, round half up).  For Cycles' Combined pass this
+    is Blender's own 'Standard' view transform at exposure 0, gamma 1, no look."""
+    return linear_to_srgb(linear)
 
 
 # -------------------------------------------------------------------------------------------- provenance

@@ -1,0 +1,77 @@
+"""The ``captured`` condition: a frame's twin as a real rig would have recorded it.
+
+From an ideal frame (rendered with identical, perfectly exposed cameras), :func:`captured_twin` derives the same
+scene and viewpoint seen through three cameras that each meter their own exposure and white balance, whose lenses
+darken towards their edges, whose sensors add noise and whose encoders compress (each camera's
+:class:`harness.data.photometric.Photometric`, drawn from a :class:`harness.render.camera.CameraDistribution`),
+and whose calibration is slightly off (U's and R's told orientation and position; C's is exact, so C's ground
+truth stays exact).  No second render: the ideal images are transformed in linear light
+(:func:`harness.render.camera.apply`).
+
+The twin records each camera's ``photometric`` in ``frame.json`` and, in ``renderer.condition``, the condition's
+name, the distribution, the seed, the calibration error drawn and the true poses of U and R (``true_cameras``,
+``true_baseline_m``): U's and R's distance maps are those of their true poses.  Deterministic: the same frame,
+distribution and seed give byte-identical twins.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import zlib
+
+import numpy as np
+
+from harness.data.frame import Frame
+from harness.data.photometric import CameraDistribution
+from harness.jobs import perturbations as P
+from harness.render.camera import apply
+from reconstruction.camera.rig import CAMERA_NAMES
+
+__all__ = ["CONDITIONS", "captured_twin", "twin_generator"]
+
+CONDITIONS = ("ideal", "captured")
+"""The conditions of a suite split: the rendered frames and their captured twins."""
+
+
+def twin_generator(seed: int, part: str, camera: str) -> np.random.Generator:
+    """The random stream of one part (``"photometric"``, ``"rotation"``, ``"translation"``) of one camera."""
+    return np.random.default_rng([int(seed), zlib.crc32(b"captured"), zlib.crc32(part.encode()),
+                                  zlib.crc32(camera.encode())])
+
+
+def captured_twin(frame: Frame, dist: CameraDistribution, seed: int, name: str = "captured") -> Frame:
+    """``frame`` as a real rig would have recorded it (module doc); ``frame`` is unchanged.
+
+    Args:
+        frame: an ideal frame (no camera carries a photometric record).
+        dist: the distribution the cameras are drawn from.
+        seed: the twin's seed (each camera and part has its own stream, :func:`twin_generator`).
+        name: the condition's name, recorded in ``renderer.condition``.
+    Raises:
+        ValueError: ``frame`` is already a captured frame (its cameras carry photometric records).
+    """
+    if frame.photometric:
+        raise ValueError(f"{frame.scene}/{frame.viewpoint} already records its cameras' photometry: derive the "
+                         "captured twin from the ideal frame")
+    photometric = {k: dist.draw(twin_generator(seed, "photometric", k)) for k in CAMERA_NAMES}
+    images = {k: apply(frame.images[k], photometric[k]) for k in CAMERA_NAMES}
+    cameras = dict(frame.cameras)
+    drawn: dict = {}
+    for k in ("U", "R"):
+        rng = twin_generator(seed, "rotation", k)
+        deg = float(rng.uniform(*dist.rotation_deg))
+        if deg > 0:
+            cameras[k], drawn.setdefault(k, {})["rotation"] = P.perturb_pose_rotation(cameras[k], deg, rng)
+        rng = twin_generator(seed, "translation", k)
+        mm = float(rng.uniform(*dist.translation_mm))
+        if mm > 0:
+            cameras[k], drawn.setdefault(k, {})["translation"] = P.perturb_pose_translation(cameras[k], mm, rng)
+    told = [float(np.linalg.norm(cameras[k].position - cameras["C"].position)) for k in ("U", "R")]
+    baseline = float(np.mean(told))
+    record = {"name": name, "seed": int(seed), "distribution": dataclasses.asdict(dist), "calibration_error": drawn,
+              "true_cameras": {k: frame.cameras[k].to_json() for k in ("U", "R")},
+              "true_baseline_m": float(frame.baseline_m)}
+    renderer = {**frame.renderer, "condition": record}
+    return Frame(scene=frame.scene, viewpoint=frame.viewpoint, width=frame.width, height=frame.height,
+                 baseline_m=baseline, cameras=cameras, images=images, distance=dict(frame.distance),
+                 renderer=renderer, photometric=photometric)
