@@ -4,9 +4,11 @@ time, and peak memory (RSS) at 1000x500 and 4000x2000, each run in a child proce
 
     python -m harness.jobs.bench_sweep [--runs 3] [--big-width 4000] [--method LABEL] [--baseline LABEL|none]
 
-``--method`` is any registered label (default: the default method); ``--baseline`` (default ``fused``) is timed in
-the same run, one run of each in turn, so that both see the same load.  Goals (exit status 1 when one is missed,
-so ``make bench`` fails): the method's median wall time at 1000x500 at most the baseline's, and its peak RSS at
+``--method`` is any registered label (default: the default method) or a fused method's label with ``-raw``
+(:func:`reconstruction.methods.registry.uncalibrated`: no photometric self-calibration); ``--baseline`` (default
+``fused-mirror-raw``, the default's matching without self-calibration) is timed in the same run, one run of each
+in turn, so that both see the same load.  Goals (exit status 1 when one is missed, so ``make bench`` fails): the
+method's median wall time at 1000x500 at most :data:`GOAL_TIME_FACTOR` times the baseline's, and its peak RSS at
 1000x500 at most :data:`GOAL_PEAK_GB`.
 
 Each stage is reported as wall seconds and process CPU seconds (all threads): on a shared machine the wall time
@@ -31,12 +33,24 @@ import numpy as np
 from harness.jobs import startup
 from harness.jobs.bench import report_goals
 from harness.render.raycast import render_frame
-from reconstruction.methods.registry import DEFAULT_METHOD, get_methods
+from reconstruction.methods.fused import FusedMethod
+from reconstruction.methods.registry import DEFAULT_METHOD, get_methods, uncalibrated
 from scenes.model import choose_viewpoints
 from scenes.registry import get_scene
 
 BASE_WIDTH = 1000
 GOAL_PEAK_GB = 1.0  # peak RSS of the method at 1000x500, GB
+GOAL_TIME_FACTOR = 1.2  # the method's median wall time at 1000x500 over the baseline's in the same run
+DEFAULT_BASELINE = f"{DEFAULT_METHOD}-raw"
+
+
+def bench_method(label: str):
+    """A registered method, or ``<fused label>-raw``: that method without photometric self-calibration."""
+    if label.endswith("-raw"):
+        base = get_methods([label[:-len("-raw")]])[0]
+        if isinstance(base, FusedMethod):
+            return uncalibrated(base)
+    return get_methods([label])[0]
 
 
 def bench_frame(width: int):
@@ -57,7 +71,7 @@ def child(width: int, runs: int, method_name: str = DEFAULT_METHOD) -> None:
     """Run the method ``runs`` times on a ``width`` frame; print one JSON line with per-stage seconds per run
     (wall, and ``<stage>_cpu`` process CPU seconds) and the process's peak RSS (``peak_gb``)."""
     frame = bench_frame(width)
-    method = get_methods([method_name])[0]
+    method = bench_method(method_name)
     out = []
     for _ in range(runs):
         t, c = time.perf_counter(), time.process_time()
@@ -85,15 +99,17 @@ def main(argv=None) -> int:
     ap.add_argument("--big-width", type=int, default=4000, help="width of the memory run (0 = skip)")
     ap.add_argument("--method", default=DEFAULT_METHOD,
                     help=f"the method to time, by label (default: {DEFAULT_METHOD}, what `tri360 reconstruct` runs)")
-    ap.add_argument("--baseline", default="fused",
-                    help="method timed in the same run for the time goal (default: fused; 'none' = no baseline)")
+    ap.add_argument("--baseline", default=DEFAULT_BASELINE,
+                    help=f"method timed in the same run for the time goal (default: {DEFAULT_BASELINE}, the default "
+                         "without photometric self-calibration; 'none' = no baseline)")
     ap.add_argument("--child", type=int, default=0, help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.child:
         child(args.child, args.runs, args.method)
         return 0
     try:
-        get_methods([args.method] + ([args.baseline] if args.baseline != "none" else []))
+        for label in [args.method] + ([args.baseline] if args.baseline != "none" else []):
+            bench_method(label)
     except ValueError as exc:
         print(f"bench_sweep: {exc}", file=sys.stderr)
         return 2
@@ -127,8 +143,9 @@ def main(argv=None) -> int:
               f"{peak[args.method]:.2f} GB")]
     if len(labels) > 1:
         t, b = med(args.method, "wall"), med(args.baseline, "wall")
-        goals.append((t <= b, f"{args.method} at {BASE_WIDTH}x{BASE_WIDTH // 2} no slower than {args.baseline} "
-                              f"(same run, median wall): {t:.2f} s vs {b:.2f} s ({t / b:.2f} x)"))
+        goals.append((t <= GOAL_TIME_FACTOR * b,
+                      f"{args.method} at {BASE_WIDTH}x{BASE_WIDTH // 2} at most {GOAL_TIME_FACTOR:g} x {args.baseline} "
+                      f"(same run, median wall): {t:.2f} s vs {b:.2f} s ({t / b:.2f} x)"))
     print("goals vs measured:")
     return report_goals(goals)
 

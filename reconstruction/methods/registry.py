@@ -20,6 +20,7 @@ from reconstruction.methods.base import Method
 from reconstruction.methods.flow_pipeline import DEFAULT_FLOW, FlowMethod
 from reconstruction.methods.fused import FusedMethod, PriorParams
 from reconstruction.methods.sweep import SweepMethod
+from reconstruction.photometry import NO_CALIBRATION, PhotometricParams
 from reconstruction.plugins import collect_registry, merge_registry, shadow_message
 from reconstruction.refine.lm import discover_variants
 from reconstruction.sweep.planes import PlaneParams
@@ -27,7 +28,7 @@ from reconstruction.sweep.planes import PlaneParams
 __all__ = ["ENTRY_POINT_GROUP", "DEFAULT_CONFIGS", "DEFAULT_METHOD", "DEFAULT_VARIANTS", "PAPER_CONFIG",
            "WALL_PLANES", "ADAPTIVE_PRIOR", "GATED_PRIOR", "builtin_methods", "discover_methods", "get_methods",
            "MIRROR_PLANES", "flow_methods", "default_methods", "fused_method", "adaptive_method", "gated_method",
-           "mirror_method", "Preset", "PRESETS", "renamed_label_note"]
+           "mirror_method", "Preset", "PRESETS", "renamed_label_note", "with_photometric", "uncalibrated"]
 
 ENTRY_POINT_GROUP = "tri360.methods"
 #: the paper's set-up: DeepFlow as published (DeepMatching + the DeepFlow energy) on rectified pairs (the baseline
@@ -130,6 +131,23 @@ def mirror_method() -> FusedMethod:
     gated = gated_method()
     return dataclasses.replace(gated, sweep=dataclasses.replace(gated.sweep, planes=MIRROR_PLANES),
                                label="fused-mirror")
+
+
+def with_photometric(method: FusedMethod, params: PhotometricParams, label: str) -> FusedMethod:
+    """``method`` with the photometric self-calibration ``params`` in its flow, its sweep and its quality flow,
+    relabelled ``label``."""
+    quality = method.quality_flow
+    return dataclasses.replace(
+        method, flow=dataclasses.replace(method.flow, photometric=params),
+        sweep=dataclasses.replace(method.sweep, photometric=params), label=label,
+        quality_flow=None if quality is None else dataclasses.replace(quality, photometric=params))
+
+
+def uncalibrated(method: FusedMethod) -> FusedMethod:
+    """``method`` matching the images as they are (no photometric self-calibration), labelled ``<label>-raw``: the
+    ablation that shows what the self-calibration does (on ideal cameras it changes little; on cameras that meter
+    each on their own it is what keeps the sweep working)."""
+    return with_photometric(method, NO_CALIBRATION, f"{method.label}-raw")
 
 
 @dataclass(frozen=True)

@@ -39,6 +39,9 @@ class CostParams:
         blur_px: Gaussian sigma applied to the gray images before matching, pixels (0 = none).
         gradient_weight: weight of the summed absolute gradient differences against the intensity difference
             (dimensionless; gradients are gray levels per pixel).
+        intensity_weight: weight of the absolute intensity difference (dimensionless; what is left of a gain
+            difference between the cameras after the photometric self-calibration acts on it, the gradients much
+            less).
         truncate: per-pair cost truncation, gray levels (robustness to reflections and occlusions).
         box_px: side of the box filter applied to each cost slice in C's grid, pixels (1 = none).
         scale: quantisation, uint16 cost units per gray level.
@@ -50,6 +53,7 @@ class CostParams:
     levels: int = 160
     blur_px: float = 0.0
     gradient_weight: float = 2.0
+    intensity_weight: float = 1.0
     truncate: float = 30.0
     box_px: int = 1
     scale: float = 8.0
@@ -75,12 +79,12 @@ def gray_float(image: np.ndarray, blur_px: float) -> np.ndarray:
     return np.ascontiguousarray(g)
 
 
-def _features(gray_rect: np.ndarray, gradient_weight: float) -> np.ndarray:
-    """(H, W) rectified gray -> (3, H, W) float32: intensity and weighted d/du (wrapping), d/dv."""
+def _features(gray_rect: np.ndarray, gradient_weight: float, intensity_weight: float = 1.0) -> np.ndarray:
+    """(H, W) rectified gray -> (3, H, W) float32: weighted intensity and weighted d/du (wrapping), d/dv."""
     gu = 0.5 * (np.roll(gray_rect, -1, axis=1) - np.roll(gray_rect, 1, axis=1))
     gv = np.zeros_like(gray_rect)
     gv[1:-1] = 0.5 * (gray_rect[2:] - gray_rect[:-2])
-    return np.stack([gray_rect, gradient_weight * gu, gradient_weight * gv]).astype(np.float32)
+    return np.stack([intensity_weight * gray_rect, gradient_weight * gu, gradient_weight * gv]).astype(np.float32)
 
 
 @dataclass
@@ -120,8 +124,9 @@ def prepare_pair(frame, name: str, gray: dict, params: CostParams) -> PairWarp:
     base = np.asarray(cam_k.position, np.float64) - np.asarray(cam_c.position, np.float64)
     b = float(np.linalg.norm(base))
     rect = rectifying_rotation(base, cam_c.rotation)
-    ref = _features(warp_equirect(gray["C"], rect, cam_c.rotation), params.gradient_weight)
-    other = _features(warp_equirect(gray[name], rect, cam_k.rotation), params.gradient_weight)
+    ref = _features(warp_equirect(gray["C"], rect, cam_c.rotation), params.gradient_weight, params.intensity_weight)
+    other = _features(warp_equirect(gray[name], rect, cam_k.rotation), params.gradient_weight,
+                      params.intensity_weight)
     theta = np.pi * (np.arange(h) + 0.5) / h
     bear = bearing_grid(w, h, cam_c.rotation)
     cos_b = bear @ (base / b)
