@@ -76,7 +76,7 @@ def candidate_methods(only: Sequence[str] | None = None) -> list[Method]:
     unknown = [x for x in (only or ()) if x not in CANDIDATES]
     if unknown:
         raise UserError(f"unknown candidate(s) {', '.join(unknown)} (candidates: {', '.join(CANDIDATES)})")
-    base = mirror_method()
+    base = mirror_method()  # the candidates set the intensity weight themselves
     out: list[Method] = [SweepMethod(), fused_method(), uncalibrated(base)]
     for label, (params, intensity) in CANDIDATES.items():
         if only is None or label in only:

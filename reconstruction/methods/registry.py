@@ -23,11 +23,13 @@ from reconstruction.methods.sweep import SweepMethod
 from reconstruction.photometry import NO_CALIBRATION, PhotometricParams
 from reconstruction.plugins import collect_registry, merge_registry, shadow_message
 from reconstruction.refine.lm import discover_variants
+from reconstruction.sweep.cost import CostParams
 from reconstruction.sweep.planes import PlaneParams
 
 __all__ = ["ENTRY_POINT_GROUP", "DEFAULT_CONFIGS", "DEFAULT_METHOD", "DEFAULT_VARIANTS", "PAPER_CONFIG",
            "WALL_PLANES", "ADAPTIVE_PRIOR", "GATED_PRIOR", "builtin_methods", "discover_methods", "get_methods",
-           "MIRROR_PLANES", "flow_methods", "default_methods", "fused_method", "adaptive_method", "gated_method",
+           "MIRROR_PLANES", "MIRROR_INTENSITY_WEIGHT",
+           "flow_methods", "default_methods", "fused_method", "adaptive_method", "gated_method",
            "mirror_method", "Preset", "PRESETS", "renamed_label_note", "with_photometric", "uncalibrated"]
 
 ENTRY_POINT_GROUP = "tri360.methods"
@@ -36,8 +38,10 @@ ENTRY_POINT_GROUP = "tri360.methods"
 PAPER_CONFIG = ("deepflow", True)
 #: flow configurations evaluated by default: tri360's and the paper's set-up, both on rectified pairs
 DEFAULT_CONFIGS = [(DEFAULT_FLOW, True), PAPER_CONFIG]
-#: what ``tri360 reconstruct`` runs by default: the method ``python -m harness.jobs.select_matching`` chose on the
-#: dev split of suites/tri360-v1.toml with the time bound (docs/matching.md), :func:`mirror_method`
+#: what ``tri360 reconstruct`` runs by default, :func:`mirror_method`: its matching chosen by
+#: ``python -m harness.jobs.select_matching`` on the dev split of suites/tri360-v1.toml (docs/matching.md), its
+#: photometric self-calibration and intensity weight by ``python -m harness.jobs.select_photometric`` on the dev split
+#: of suites/tri360-v2.toml under both conditions (docs/photometry.md)
 DEFAULT_METHOD = "fused-mirror"
 #: the plane labels of ``fused-adaptive`` and ``fused-gated``: the sweep's horizontal planes plus 9 labels per wall
 #: found by the coarse pass
@@ -47,6 +51,10 @@ WALL_PLANES = PlaneParams(wall_labels=9)
 #: mirror image: the nearer plane is the floor; likewise for the ceiling).  20 % is about two plane-label spacings
 #: (the 32 heights per side are 9.5 % apart); on the dev split the mirrored floors it corrects lie 12-14 % off.
 MIRROR_PLANES = dataclasses.replace(WALL_PLANES, mirror_tolerance=0.2)
+#: ``fused-mirror``'s weight of the intensity difference in the sweep cost (the gradients' is 2): chosen by
+#: ``python -m harness.jobs.select_photometric`` among 1, 0.5 and 0.25 on the dev split under both conditions
+#: (docs/photometry.md)
+MIRROR_INTENSITY_WEIGHT = 0.25
 #: ``fused-adaptive``'s prior weight: ``fused``'s, scaled by the share of pixels where the flow and the plain coarse
 #: sweep agree within 5 %: 0 below 60 %, full above 80 % (:class:`reconstruction.methods.fused.PriorParams`)
 ADAPTIVE_PRIOR = PriorParams(frame_agreement_low=0.6, frame_agreement_high=0.8)
@@ -104,7 +112,7 @@ def fused_method() -> FusedMethod:
 
 
 def adaptive_method() -> FusedMethod:
-    """``fused-adaptive`` (the previous default): ``fused``'s flow prior in the sweep with :data:`WALL_PLANES`,
+    """``fused-adaptive``: ``fused``'s flow prior in the sweep with :data:`WALL_PLANES`,
     weighted by :data:`ADAPTIVE_PRIOR` (chosen on the suite's dev split, docs/matching.md)."""
     base = fused_method()
     return FusedMethod(flow=base.flow, sweep=dataclasses.replace(base.sweep, planes=WALL_PLANES),
@@ -112,7 +120,7 @@ def adaptive_method() -> FusedMethod:
 
 
 def gated_method() -> FusedMethod:
-    """``fused-gated`` (the previous default): the sweep with :data:`WALL_PLANES` and the
+    """``fused-gated``: the sweep with :data:`WALL_PLANES` and the
     ``{DEFAULT_FLOW}-rect:average`` distance (the flow pipeline without its LM: about 0.6 s less per 1000x500 frame
     than ``fused``'s) as prior, weighted by :data:`GATED_PRIOR` (chosen on the suite's dev split,
     docs/matching.md).  The quality measures compare its distance with ``fused``'s refined flow distance
@@ -126,10 +134,13 @@ def gated_method() -> FusedMethod:
 
 def mirror_method() -> FusedMethod:
     """``fused-mirror`` (the default): ``fused-gated`` with :data:`MIRROR_PLANES`, so that the room bound holds on
-    polished floors whose mirror image of the ceiling wins the coarse pass (chosen on the suite's dev split,
-    docs/matching.md)."""
+    polished floors whose mirror image of the ceiling wins the coarse pass, and the sweep cost's intensity term
+    weighted :data:`MIRROR_INTENSITY_WEIGHT` (what a gain difference between the cameras leaves after the
+    self-calibration weighs less against the gradients); chosen on the dev split of suites/tri360-v2.toml under
+    both conditions (docs/photometry.md)."""
     gated = gated_method()
-    return dataclasses.replace(gated, sweep=dataclasses.replace(gated.sweep, planes=MIRROR_PLANES),
+    cost = dataclasses.replace(gated.sweep.cost, intensity_weight=MIRROR_INTENSITY_WEIGHT)
+    return dataclasses.replace(gated, sweep=dataclasses.replace(gated.sweep, planes=MIRROR_PLANES, cost=cost),
                                label="fused-mirror")
 
 
@@ -144,10 +155,12 @@ def with_photometric(method: FusedMethod, params: PhotometricParams, label: str)
 
 
 def uncalibrated(method: FusedMethod) -> FusedMethod:
-    """``method`` matching the images as they are (no photometric self-calibration), labelled ``<label>-raw``: the
-    ablation that shows what the self-calibration does (on ideal cameras it changes little; on cameras that meter
-    each on their own it is what keeps the sweep working)."""
-    return with_photometric(method, NO_CALIBRATION, f"{method.label}-raw")
+    """``method`` matching the images as they are (no photometric self-calibration) with the sweep cost's default
+    intensity weight, labelled ``<label>-raw``: the ablation that shows what the self-calibration and the weight
+    chosen with it do (on cameras that meter each on their own they are what keeps the sweep working)."""
+    raw = with_photometric(method, NO_CALIBRATION, f"{method.label}-raw")
+    cost = dataclasses.replace(raw.sweep.cost, intensity_weight=CostParams().intensity_weight)
+    return dataclasses.replace(raw, sweep=dataclasses.replace(raw.sweep, cost=cost))
 
 
 @dataclass(frozen=True)
@@ -171,10 +184,11 @@ PRESETS = (
     Preset("fused-mirror", mirror_method,
            "the sweep over spheres, floor/ceiling and wall planes with the unrefined dis-rect distance as SGM prior, "
            "weighted by C's texture, the sweep's confidence and how much of the frame the two agree on; its room "
-           "bound tells a polished floor's mirror image of the ceiling from the floor"),
+           "bound tells a polished floor's mirror image of the ceiling from the floor; its cost weighs intensity "
+           "0.25 against gradients 2"),
     Preset("fused-gated", gated_method,
-           "fused-mirror without the mirror test: on a polished floor the ceiling's mirror image can set the room "
-           "bound's floor"),
+           "fused-mirror without the mirror test and with intensity weighted 1: on a polished floor the ceiling's "
+           "mirror image can set the room bound's floor"),
     Preset("fused-adaptive", adaptive_method,
            "the sweep over spheres, floor/ceiling and wall planes with the refined dis-rect:gradient distance as SGM "
            "prior, weighted only by how much of the frame flow and sweep agree on"),

@@ -1,0 +1,75 @@
+"""The selection of the default's photometric self-calibration: the method x condition x family table, the bounds
+and the rule, on hand-made results; the candidates and the uncalibrated reference."""
+
+from __future__ import annotations
+
+import pandas as pd
+import pytest
+
+from harness.data.errors import UserError
+from harness.jobs.select_photometric import CANDIDATES, REFERENCE, candidate_methods, choose, condition_table
+from reconstruction.methods.registry import MIRROR_INTENSITY_WEIGHT, mirror_method, uncalibrated
+from reconstruction.photometry import NO_CALIBRATION
+
+# method -> (ideal MAE, captured MAE) per family (two frames per family and condition, 1000 pixels each)
+MAE = {
+    "sweep": {"a": (0.30, 0.33), "b": (0.20, 0.22)},
+    "fused": {"a": (0.25, 0.27), "b": (0.30, 0.30)},
+    REFERENCE: {"a": (0.20, 2.00), "b": (0.20, 1.00)},
+    "fused-mirror-i1": {"a": (0.20, 0.23), "b": (0.21, 0.25)},  # ideal b 1.05 x the better baseline (0.20): ok
+    "fused-mirror-i0.5": {"a": (0.19, 0.25), "b": (0.19, 0.20)},  # captured a 1.32 x its ideal: not eligible
+    "fused-mirror-i0.25": {"a": (0.22, 0.23), "b": (0.20, 0.21)},  # ideal a 1.1 x the reference: not eligible
+}
+
+
+def results() -> pd.DataFrame:
+    rows = []
+    for method, fams in MAE.items():
+        for fam, (ideal, captured) in fams.items():
+            for cond, mae in (("ideal", ideal), ("captured", captured)):
+                for vp in ("vp000", "vp001"):
+                    rows.append({"scene": f"{fam}-s1" + ("" if cond == "ideal" else ".captured"), "viewpoint": vp,
+                                 "method": method, "flow": "", "rectify": "", "variant": "", "mae_m": mae,
+                                 "mae_sw_m": mae, "valid_px": 1000, "valid_sr": 12.0, "seconds": 1.0,
+                                 "family": fam, "tags": "", "suite_id": "", "split": "", "condition": cond})
+    return pd.DataFrame(rows)
+
+
+def test_table_bounds_and_choice():
+    table = condition_table(results())
+    assert table.loc["fused", "ideal:b"] == pytest.approx(0.30) and table.loc["sweep", "captured"] == pytest.approx(
+        0.275)
+    assert table.loc["fused-mirror-i1", "seconds"] == pytest.approx(8.0)
+    label, eligible, r = choose(table)
+    assert label == "fused-mirror-i1" and eligible
+    assert r.loc["fused-mirror-i0.5", "captured_family"] == pytest.approx(0.25 / 0.19 / 1.3)
+    assert r.loc["fused-mirror-i0.25", "ideal"] == pytest.approx(0.21 / 0.20 / 1.03)
+    assert r.loc["fused-mirror-i1", "ideal_family"] == pytest.approx(0.21 / 0.20 / 1.05)
+
+
+def test_no_eligible_candidate_gives_the_lowest_worst_ratio():
+    df = results()
+    df.loc[(df["method"] == "fused-mirror-i1") & (df["condition"] == "captured"), "mae_m"] = 0.5
+    label, eligible, r = choose(condition_table(df))
+    assert not eligible and label == r[r.index.isin(list(CANDIDATES))].max(axis=1).idxmin()
+
+
+def test_missing_reference_or_condition_is_refused():
+    df = results()
+    with pytest.raises(UserError, match=REFERENCE):
+        choose(condition_table(df[df["method"] != REFERENCE]))
+    with pytest.raises(UserError, match="captured"):
+        choose(condition_table(df[df["condition"] == "ideal"]))
+
+
+def test_candidates_and_the_reference():
+    methods = {m.label: m for m in candidate_methods()}
+    assert list(methods)[:3] == ["sweep", "fused", REFERENCE] and set(CANDIDATES) <= set(methods)
+    raw = methods[REFERENCE]
+    assert raw.flow.photometric == NO_CALIBRATION and raw.sweep.photometric == NO_CALIBRATION
+    assert raw.sweep.cost.intensity_weight == 1.0 and raw.quality_flow.photometric == NO_CALIBRATION
+    assert methods["fused-mirror-i0.25"].sweep.cost.intensity_weight == 0.25
+    assert mirror_method().sweep.cost.intensity_weight == MIRROR_INTENSITY_WEIGHT
+    assert uncalibrated(mirror_method()).label == "fused-mirror-raw"
+    with pytest.raises(UserError, match="candidates"):
+        candidate_methods(["fused-mirror-i7"])
