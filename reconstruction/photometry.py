@@ -24,15 +24,15 @@ averaging in linear light); the fit is iteratively reweighted least squares with
 from __future__ import annotations
 
 import itertools
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 
 import cv2
 import numpy as np
 
 from reconstruction.camera.equirect import bearing_grid
 
-MAX_FIT_PIXELS = 40000
-"""The fit uses at most this many pixels (evenly strided): the field has at most 30 coefficients."""
+MAX_FIT_PIXELS = 15000
+"""The fit uses at most this many pixels (evenly strided): the field of degree 2 has 11 coefficients."""
 
 __all__ = ["NO_CALIBRATION", "PhotometricParams", "srgb_to_linear", "linear_to_srgb", "basis", "fit_gain",
            "align_images",
@@ -104,10 +104,12 @@ def srgb_to_linear(img: np.ndarray) -> np.ndarray:
     return _SRGB_TABLE[np.asarray(img, dtype=np.uint8)]
 
 
-def linear_to_srgb(linear: np.ndarray) -> np.ndarray:
-    """Linear light (..., 3) -> 8-bit sRGB uint8: clip to [0, 1] (NaN -> 0), IEC 61966-2-1, round half up."""
-    x = np.clip(np.nan_to_num(np.asarray(linear, dtype=np.float64), nan=0.0), 0.0, 1.0)
-    s = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1.0 / 2.4) - 0.055)
+def linear_to_srgb(linear: np.ndarray, dtype=np.float64) -> np.ndarray:
+    """Linear light (..., 3) -> 8-bit sRGB uint8: clip to [0, 1] (NaN -> 0), IEC 61966-2-1, round half up, computed
+    in ``dtype`` (float32 is faster; a value within float32 rounding of a step between two codes may land on the
+    other one)."""
+    x = np.clip(np.nan_to_num(np.asarray(linear, dtype=dtype), nan=0.0), 0.0, 1.0)
+    s = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, dtype(1.0 / 2.4)) - 0.055)
     return np.floor(s * 255.0 + 0.5).astype(np.uint8)
 
 
@@ -247,7 +249,7 @@ def align_images(images: dict, cameras: dict, params: PhotometricParams = Photom
         full_h, full_w = images[k].shape[:2]
         field_full = cv2.resize(field.astype(np.float32), (full_w, full_h), interpolation=cv2.INTER_LINEAR)
         gain = np.exp(-(field_full[..., None] + a.astype(np.float32)))
-        out[k] = linear_to_srgb(lin_k_full * gain)
+        out[k] = linear_to_srgb(lin_k_full * gain, np.float32)
         info[k] = {"gain_rgb": np.exp(a + mean_field).tolist(),
                    "field_range": [float(np.exp(field.min() - mean_field)), float(np.exp(field.max() - mean_field))],
                    **fit}
@@ -271,8 +273,3 @@ class _FrameView:
 
     def __getattr__(self, name):
         return getattr(self._frame, name)
-
-
-def params_config(params: PhotometricParams) -> dict:
-    """The JSON-able configuration of ``params``."""
-    return asdict(params)

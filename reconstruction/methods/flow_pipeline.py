@@ -411,7 +411,8 @@ def reduced_frame(frame, factor: int):
     """A frame-like view of ``frame`` with images ``factor`` times smaller (area averaging; same poses)."""
     w, h = frame.width // factor, frame.height // factor
     images = {k: cv2.resize(v, (w, h), interpolation=cv2.INTER_AREA) for k, v in frame.images.items()}
-    return SimpleNamespace(width=w, height=h, cameras=frame.cameras, images=images, baseline_m=frame.baseline_m,
+    return SimpleNamespace(width=w, height=h, cameras=frame.cameras, images=images,
+                           baseline_m=getattr(frame, "baseline_m", None),
                            distance={})
 
 

@@ -9,14 +9,13 @@ from __future__ import annotations
 
 import time
 from dataclasses import asdict, dataclass, field
-from types import SimpleNamespace
 
 import cv2
 import numpy as np
 
 from reconstruction.camera.equirect import bearing_grid
 from reconstruction.methods.base import MethodOutput
-from reconstruction.methods.flow_pipeline import fill_edge_aware
+from reconstruction.methods.flow_pipeline import fill_edge_aware, reduced_frame
 from reconstruction.photometry import NO_CALIBRATION, PhotometricParams, aligned_frame
 from reconstruction.sweep.cost import CostParams, build_cost_volume, gray_float, inverse_distances
 from reconstruction.sweep.planes import (
@@ -142,13 +141,6 @@ def _median_wrap(d: np.ndarray, k: int) -> np.ndarray:
     return cv2.medianBlur(x, k)[:, pad:-pad]
 
 
-def _coarse_frame(frame, factor: int):
-    """A frame-like view of ``frame`` with images ``factor`` times smaller (same poses)."""
-    w, h = frame.width // factor, frame.height // factor
-    images = {k: cv2.resize(v, (w, h), interpolation=cv2.INTER_AREA) for k, v in frame.images.items()}
-    return SimpleNamespace(width=w, height=h, cameras=frame.cameras, images=images)
-
-
 def _sphere_costs(frame, cost_params: CostParams, plane_params: PlaneParams, pairs, seconds, prefix="",
                   wall_labels: int = 0):
     """The sphere cost volume with room for the plane family and ``wall_labels`` wall labels (stage ``cost``).
@@ -214,7 +206,7 @@ def room_bounds(frame, cost_params: CostParams, plane_params: PlaneParams, sgm: 
     relative to C (metres, -inf / inf if not found or without ``room_bound``; widened by ``bound_margin``), the
     walls' yaw (radians or None), the walls found (:func:`reconstruction.sweep.planes.dominant_walls`; none
     without ``wall_labels``) and the coarse pass's (distance (m), confidence) maps."""
-    coarse = _coarse_frame(frame, plane_params.coarse_factor)
+    coarse = reduced_frame(frame, plane_params.coarse_factor)
     cost, heights, inv_d = _sphere_costs(coarse, cost_params, plane_params, pairs, seconds, prefix="coarse_")
     label, conf, a_z, _ = _aggregate(coarse, cost, heights, inv_d, cost_params, plane_params, sgm, seconds,
                                      prefix="coarse_")
