@@ -9,7 +9,11 @@ Frames are tiny ``synthetic_box`` frames ray-cast in numpy (``tests.helpers``).
 from __future__ import annotations
 
 import json
+import os
+import shutil
 import stat
+import subprocess
+import sys
 from pathlib import Path
 
 import cv2
@@ -17,6 +21,7 @@ import numpy as np
 import pytest
 
 import harness.jobs.perturb
+import harness.jobs.suite
 import reconstruction.plugins
 from harness.cli import main
 from harness.data.atomic import parse_staging_name
@@ -28,6 +33,8 @@ from harness.data.predictions import write_method_info, write_prediction
 from harness.jobs import validate_quality
 from harness.jobs.cluster import ClusterOptions
 from harness.jobs.evaluate import evaluate, evaluate_task
+from harness.jobs.study import LIMIT_FRAMES
+from harness.jobs.suite import render_suite
 from reconstruction.methods.base import MethodOutput
 from reconstruction.methods.flow_pipeline import FlowMethod
 from reconstruction.methods.registry import discover_methods, flow_methods, get_methods
@@ -457,3 +464,170 @@ class TestPerturb:
         assert run_cli(["perturb", data, "--out", out, "--apply", "noise=4"]) == 130
         assert calls == ["vp000", "vp001"]
         assert snapshot(out) == before and staging_leftovers(tmp_path) == []
+
+
+# ------------------------------------------------------------------------------- argument errors (every command)
+
+
+class TestArgumentErrors:
+    @pytest.mark.parametrize("argv, culprit", [
+        (["render", "--bogus"], "--bogus"),
+        (["render", "--viewpoints", "two"], "--viewpoints"),
+        (["evaluate", "--split", "train"], "--split"),
+        (["score"], "required"),
+        (["perturb", "data", "--out", "o", "--nonsense", "1"], "--nonsense"),
+    ])
+    def test_an_argument_error_is_one_line_naming_the_command_and_help(self, argv, culprit, capfd, tmp_path):
+        line = expect_refusal(argv, capfd, tmp_path, culprit, f"`tri360 {argv[0]} --help`")
+        assert "usage:" not in line
+
+    def test_no_command_is_one_line_too(self, capfd):
+        capfd.readouterr()
+        assert run_cli([]) == 2
+        out, err = capfd.readouterr()
+        assert out == "" and err.strip().splitlines() == [
+            "tri360: error: the following arguments are required: COMMAND (see `tri360 --help`)"]
+
+
+# ------------------------------------------------------------------------------------------- render --suite
+
+SUITE = """\
+format = "tri360-suite/1"
+name = "audit"
+
+[render]
+width = 64
+
+[[frames]]
+family = "synthetic_box"
+seed = 11
+viewpoints = {viewpoints}
+split = "dev"
+"""
+
+
+def suite_file(where: Path, viewpoints: int) -> Path:
+    path = where / f"audit{viewpoints}.toml"
+    path.write_text(SUITE.format(viewpoints=viewpoints), encoding="utf-8")
+    return path
+
+
+def dead_pid() -> int:
+    """The pid of a process that has exited (a run killed with kill -9)."""
+    proc = subprocess.Popen([sys.executable, "-c", ""])
+    proc.wait()
+    return proc.pid
+
+
+def plant_partials(directory: Path, name: str) -> tuple[Path, Path]:
+    """A hidden staging directory of ``name`` in ``directory`` left by a dead process, and one of this (live)
+    process; returns both."""
+    directory.mkdir(parents=True, exist_ok=True)
+    dead = directory / f".{name}.partial-{dead_pid()}-0badf00d"
+    live = directory / f".{name}.partial-{os.getpid()}-12345678"
+    for d in (dead, live):
+        d.mkdir()
+        (d / "frame.json").write_text("{", encoding="utf-8")
+    return dead, live
+
+
+def no_plan(*args, **kwargs):
+    raise AssertionError("plan() built the scenes before the cheap check")
+
+
+class TestRenderSuite:
+    def test_more_than_100_frames_need_yes_before_any_scene_is_built(self, tmp_path, capfd, monkeypatch):
+        big = suite_file(tmp_path, LIMIT_FRAMES + 1)
+        monkeypatch.setattr(harness.jobs.suite, "plan", no_plan)
+        line = expect_refusal(["render", "--suite", big, "--split", "dev", "--out", tmp_path / "data"], capfd,
+                              tmp_path, str(big), f"{LIMIT_FRAMES + 1} frame(s)", f"more than {LIMIT_FRAMES}",
+                              "--yes")
+        assert "split dev" in line and not (tmp_path / "data").exists()
+
+    def test_with_yes_it_goes_on_to_plan(self, tmp_path, monkeypatch):
+        big = suite_file(tmp_path, LIMIT_FRAMES + 1)
+        planned = []
+        monkeypatch.setattr(harness.jobs.suite, "plan",
+                            lambda *a, **k: planned.append(a) or (_ for _ in ()).throw(UserError("stop here")))
+        assert run_cli(["render", "--suite", big, "--split", "dev", "--out", tmp_path / "data", "--yes"]) == 2
+        assert len(planned) == 1
+
+    def test_frames_already_complete_do_not_count(self, tmp_path):
+        small = suite_file(tmp_path, 2)
+        monkeypatch = pytest.MonkeyPatch()
+        with monkeypatch.context() as m:
+            m.setattr(harness.jobs.suite, "LIMIT_FRAMES", 1)
+            with pytest.raises(UserError, match="2 frame"):
+                render_suite(small, "dev", tmp_path / "data", progress=False)
+            m.setattr(harness.jobs.suite, "LIMIT_FRAMES", 2)
+            render_suite(small, "dev", tmp_path / "data", progress=False)
+            m.setattr(harness.jobs.suite, "LIMIT_FRAMES", 0)
+            assert len(render_suite(small, "dev", tmp_path / "data", progress=False)) == 2  # nothing left to do
+            with pytest.raises(UserError, match="2 frame"):
+                render_suite(small, "dev", tmp_path / "data", progress=False, force=True)
+
+    def test_a_rerun_removes_the_partials_of_a_killed_run(self, tmp_path):
+        small = suite_file(tmp_path, 2)
+        data = tmp_path / "data"
+        assert run_cli(["render", "--suite", small, "--split", "dev", "--out", data, "--quiet"]) == 0
+        in_scene = plant_partials(data / "synthetic_box-s11", "vp001")
+        at_root = plant_partials(data, "synthetic_box-s11")
+        assert run_cli(["render", "--suite", small, "--split", "dev", "--out", data, "--quiet"]) == 0
+        assert not in_scene[0].exists() and not at_root[0].exists()
+        assert in_scene[1].exists() and at_root[1].exists()  # a live process's are left alone
+
+
+# --------------------------------------------------------------------------------- evaluate / score --suite
+
+
+@pytest.fixture(scope="module")
+def suite_root(tmp_path_factory):
+    """A two-frame suite file and a data root holding exactly its dev split."""
+    tmp = tmp_path_factory.mktemp("auditsuite")
+    path = suite_file(tmp, 2)
+    render_suite(path, "dev", tmp / "data", progress=False)
+    return path, tmp / "data"
+
+
+class TestSuiteDataCheck:
+    @pytest.mark.parametrize("command", ["evaluate", "score"])
+    def test_a_missing_frame_is_named_before_any_scene_is_built(self, suite_root, tmp_path, capfd, monkeypatch,
+                                                                command):
+        data = tmp_path / "data"
+        shutil.copytree(suite_root[1], data)
+        shutil.rmtree(data / "synthetic_box-s11" / "vp001")
+        monkeypatch.setattr(harness.jobs.suite, "plan", no_plan)
+        argv = ([command, data] if command == "evaluate" else [command, tmp_path, "--data", data])
+        expect_refusal([*argv, "--suite", suite_root[0], "--split", "dev", "--out", tmp_path / "res"], capfd,
+                       tmp_path, "synthetic_box-s11/vp001 of suite audit (split dev) is missing")
+
+    def test_an_extra_frame_is_named_before_any_scene_is_built(self, suite_root, tmp_path, capfd, monkeypatch):
+        data = tmp_path / "data"
+        shutil.copytree(suite_root[1], data)
+        write_frame(make_synthetic_frame(64), data)
+        monkeypatch.setattr(harness.jobs.suite, "plan", no_plan)
+        expect_refusal(["evaluate", data, "--suite", suite_root[0], "--split", "dev", "--out", tmp_path / "res"],
+                       capfd, tmp_path, "synthetic_box/vp000 is not in suite audit split dev")
+
+
+# ------------------------------------------------------------- partials of killed evaluate / score / perturb
+
+
+class TestRerunRemovesPartials:
+    def test_evaluate(self, root, tmp_path):
+        dead, live = plant_partials(tmp_path, "res")
+        assert run_cli(["evaluate", root, "--out", tmp_path / "res", "--method", "dis-rect:average", "--no-report",
+                        "--quiet"]) == 0
+        assert not dead.exists() and live.exists()
+
+    def test_score(self, root, tmp_path):
+        preds = tmp_path / "preds"
+        write_prediction(preds, "synthetic_box", "vp000", np.full((32, 64), 2.0, np.float32))
+        dead, live = plant_partials(tmp_path, "res")
+        assert run_cli(["score", preds, "--data", root, "--out", tmp_path / "res", "--no-report", "--quiet"]) == 0
+        assert not dead.exists() and live.exists()
+
+    def test_perturb(self, root, tmp_path):
+        dead, live = plant_partials(tmp_path, "out")
+        assert run_cli(["perturb", root, "--out", tmp_path / "out", "--apply", "noise=2"]) == 0
+        assert not dead.exists() and live.exists()

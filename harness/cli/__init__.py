@@ -40,15 +40,30 @@ class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
         return super()._get_help_string(action)
 
 
+class ArgumentParser(argparse.ArgumentParser):
+    """An argument error is one line, ``tri360 CMD: error: ...`` and where to look, and exit status 2 (argparse
+    prints the whole usage block).  Subcommand parsers are made of the same class (``add_subparsers``)."""
+
+    def error(self, message: str):
+        self.exit(EXIT_USAGE, f"{self.prog}: error: {message} (see `{self.prog} --help`)\n")
+
+    def parse_args(self, args=None, namespace=None):
+        """As argparse's, but unrecognized arguments are reported by the command's parser (``tri360 CMD``)."""
+        ns, extra = self.parse_known_args(args, namespace)
+        if extra:
+            getattr(ns, "_parser", self).error(f"unrecognized arguments: {' '.join(extra)}")
+        return ns
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="tri360", description=__doc__.splitlines()[0].strip("`. "))
+    parser = ArgumentParser(prog="tri360", description=__doc__.splitlines()[0].strip("`. "))
     parser.add_argument("--version", action="version", version=f"tri360 {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for name, mod in COMMANDS.items():
         p = sub.add_parser(name, help=mod.HELP, description=mod.HELP,
                            formatter_class=HelpFormatter)
         mod.add_arguments(p)
-        p.set_defaults(_module=mod)
+        p.set_defaults(_module=mod, _parser=p)
     return parser
 
 

@@ -15,6 +15,7 @@ from harness.jobs.render import (
     render_frames,
     settings_from_options,
 )
+from harness.jobs.study import LIMIT_FRAMES
 from harness.jobs.suite import render_suite
 from harness.render.registry import available_renderers
 from reconstruction.camera.rig import DEFAULT_BASELINE_M
@@ -58,6 +59,8 @@ def add_arguments(parser) -> None:
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     parser.add_argument("--verbose", action="store_true", help="show Blender's own log output (on stderr)")
     add_suite_arguments(parser, "render")
+    parser.add_argument("--yes", action="store_true",
+                        help=f"with --suite: start a render of more than {LIMIT_FRAMES} frames (as `tri360 study`)")
     add_cluster_arguments(parser)
 
 
@@ -73,7 +76,8 @@ def run(args) -> int:
     if suite is not None:
         refuse_with_suite(args, SUITE_FIXED)
         dirs = render_suite(suite[0], suite[1], args.out, threads=args.threads, force=args.force,
-                            progress=not args.quiet, verbose=args.verbose, cluster=cluster_options(args))
+                            progress=not args.quiet, verbose=args.verbose, cluster=cluster_options(args),
+                            yes=args.yes)
         for d in dirs:
             print(os.fspath(d))
         return 0

@@ -35,6 +35,7 @@ from harness.jobs.evaluate import FrameRef, evaluate, select_frames
 from harness.jobs.progress import progress_bar
 from harness.jobs.render import DEFAULTS, RenderItem, check_width, differences, render_items
 from harness.jobs.score import score
+from harness.jobs.study import LIMIT_FRAMES
 from harness.render.base import RenderSettings, identity
 from harness.render.registry import get_renderer
 from reconstruction.camera.rig import Rig
@@ -134,8 +135,13 @@ def _stored_differences(d: Path, p: PlannedFrame, suite: Suite) -> list[str]:
 
 
 def render_suite(path: Path, split: str, out_root: Path, threads: int = DEFAULTS.threads, force: bool = False,
-                 progress: bool = True, verbose: bool = False, cluster: ClusterOptions | None = None) -> list[Path]:
+                 progress: bool = True, verbose: bool = False, cluster: ClusterOptions | None = None,
+                 yes: bool = False) -> list[Path]:
     """Render every frame of a suite's split into ``out_root`` (resumable); return the frame directories.
+
+    A split with more than :data:`harness.jobs.study.LIMIT_FRAMES` frames still to render (not complete in
+    ``out_root``; all of them with ``force``) needs ``yes``, as ``tri360 study`` does; this is checked from the
+    suite file before any scene is built.
 
     Args:
         path: the suite file.  split: ``"dev"`` or ``"test"``.
@@ -143,15 +149,21 @@ def render_suite(path: Path, split: str, out_root: Path, threads: int = DEFAULTS
         threads: Cycles threads, 0 = all (a machine setting, not part of the suite).
         force: re-render complete frames whatever they were rendered with.
         cluster: one Dask task per frame (``--workers`` / ``--scheduler``); None = in this process.
+        yes: start a render of more than :data:`~harness.jobs.study.LIMIT_FRAMES` frames.
     Raises:
-        UserError: see :func:`plan`; an existing frame rendered with other settings (naming it and the
-            differences; use ``force``); an unwritable output; a renderer failure.
+        UserError: too many frames without ``yes``; see :func:`plan`; an existing frame rendered with other
+            settings (naming it and the differences; use ``force``); an unwritable output; a renderer failure.
     """
     if threads < 0:
         raise UserError(f"--threads must be >= 0 (0 = all cores), got {threads}")
     if isinstance(cluster, ClusterOptions):
         cluster.check()
     suite = load(path)
+    todo_count = sum(force or not is_complete(frame_dir(Path(out_root), f.scene, f.viewpoint))
+                     for f in suite.frames(split))
+    if todo_count > LIMIT_FRAMES and not yes:
+        raise UserError(f"{suite.path}: split {split}: {todo_count} frame(s) to render into {out_root}, more than "
+                        f"{LIMIT_FRAMES} frames; pass --yes to start it")
     planned = plan(suite, split, threads)
     out_root = check_output(Path(out_root), "data")  # absent, empty or a data root tri360 wrote
     todo = []
@@ -170,7 +182,7 @@ def render_suite(path: Path, split: str, out_root: Path, threads: int = DEFAULTS
     created = [d for d in (*scene_dirs, out_root, *out_root.parents) if not d.exists()]
     for d in scene_dirs:
         ensure_output_dir(d)
-        clean_stale_partials(d)  # hidden half-written frames of killed runs
+    clean_stale_partials(out_root)  # hidden half-written frames and files of killed runs, anywhere in the root
     rendered_todo = [p for p in todo if p.frame.condition == IDEAL]
     twins_todo = [p for p in todo if p.frame.condition != IDEAL]
     if not todo:
@@ -218,20 +230,20 @@ def check_suite_data(suite: Suite, split: str, data_root: Path) -> list[FrameRef
             settings (and how), or anything :func:`harness.jobs.evaluate.select_frames` refuses.
     """
     data_root = Path(data_root)
-    planned = plan(suite, split)
     refs = select_frames(data_root)
     by_key = {(r.scene, r.viewpoint): r for r in refs}
-    wanted = {(p.frame.scene, p.frame.viewpoint): p for p in planned}
+    frames = {(f.scene, f.viewpoint): f for f in suite.frames(split)}  # from the file: no scene built yet
     how = f"render it with `tri360 render --suite {suite.path} --split {split} --out {data_root}`"
-    for key, p in wanted.items():
+    for key, f in frames.items():
         if key not in by_key:
-            raise UserError(f"{data_root / p.frame.scene / p.frame.viewpoint}: frame {p.frame.label} of suite "
+            raise UserError(f"{data_root / f.scene / f.viewpoint}: frame {f.label} of suite "
                             f"{suite.name} (split {split}) is missing from the data root; {how}")
     for r in refs:
-        if (r.scene, r.viewpoint) not in wanted:
+        if (r.scene, r.viewpoint) not in frames:
             raise UserError(f"{r.path}: frame {r.scene}/{r.viewpoint} is not in suite {suite.name} split {split}; "
                             "the data root must hold exactly the split's frames (render each split into a data "
                             "root of its own)")
+    wanted = {(p.frame.scene, p.frame.viewpoint): p for p in plan(suite, split)}
     for key, p in wanted.items():
         diff = _stored_differences(by_key[key].path, p, suite)
         if diff:
