@@ -22,6 +22,7 @@ from harness.render.base import RenderSettings
 from harness.render.registry import open_renderer
 from reconstruction.camera.equirect import bearing_grid
 from reconstruction.camera.rig import Rig
+from reconstruction.plugins import Registry
 from scenes.families.box_room import box_interior_distance
 from scenes.model import Box, Material, ModelFile, SceneSpec, choose_viewpoints
 from scenes.registry import SceneEntry, discover
@@ -232,7 +233,7 @@ def test_cli_unwritable_output_and_failing_scene(tmp_path, capsys, monkeypatch):
         raise ZeroDivisionError("bad layout")
 
     fake = {"broken": SceneEntry(name="broken", build=broken, source="scenes/broken.py")}
-    monkeypatch.setattr("scenes.registry.discover", lambda: (fake, {}))
+    monkeypatch.setattr("scenes.registry._registry", lambda: Registry(entries=fake))
     assert main(["render", "--scene", "broken", "--out", str(tmp_path), "--quiet"]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "scene 'broken' (scenes/broken.py) failed to build" in err
