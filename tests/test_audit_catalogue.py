@@ -8,6 +8,7 @@ Frames are tiny ``synthetic_box`` frames ray-cast in numpy (``tests.helpers``).
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import shutil
@@ -22,7 +23,9 @@ import pytest
 
 import harness.jobs.perturb
 import harness.jobs.suite
+import reconstruction.flow.backends
 import reconstruction.plugins
+import reconstruction.refine.lm
 from harness.cli import main
 from harness.data.atomic import parse_staging_name
 from harness.data.errors import UserError
@@ -225,6 +228,22 @@ class TestPluginsCannotShadow:
         install_plugins(monkeypatch, "tri360.methods", FakeEntryPoint("evil", "evil_pkg:M", Peeker("fused-mirror")))
         expect_refusal(["reconstruct", root / "synthetic_box" / "vp000", "--out", tmp_path / "preds"], capfd,
                        tmp_path, "fused-mirror", "evil_pkg:M")
+
+    def test_a_flow_or_variant_plugin_named_like_a_built_in_is_refused_when_asked_for(self, monkeypatch):
+        dis = reconstruction.flow.backends.get_flow("dis")
+        install_plugins(monkeypatch, "tri360.flows", FakeEntryPoint("f", "f_pkg:DIS", dataclasses.replace(dis)))
+        assert reconstruction.flow.backends.discover_flows()[0]["dis"] is not None
+        with pytest.raises(ValueError, match=r"flow 'dis'.*f_pkg:DIS.*refused") as info:
+            reconstruction.flow.backends.get_flow("dis")
+        assert "\n" not in str(info.value)
+        with pytest.raises(ValueError, match=r"f_pkg:DIS"):
+            flow_methods(["dis"], [True], ["average"])
+        gradient = reconstruction.refine.lm.get_variant("gradient")
+        install_plugins(monkeypatch, "tri360.variants", FakeEntryPoint("v", "v_pkg:G", dataclasses.replace(gradient)))
+        with pytest.raises(ValueError, match=r"variant 'gradient'.*v_pkg:G"):
+            reconstruction.refine.lm.get_variant("gradient")
+        with pytest.raises(ValueError, match=r"v_pkg:G"):
+            flow_methods(["dis"], [True], ["gradient"])
 
     def test_a_scene_plugin_named_like_a_built_in_is_refused(self, monkeypatch, capfd, tmp_path):
         corridor = get_scene("corridor")[0]

@@ -26,9 +26,10 @@ import numpy as np
 
 from reconstruction.flow.deepflow import DeepFlowParams, deep_flow
 from reconstruction.flow.deepmatching import DeepMatchingParams, Matches, deep_matching_both
-from reconstruction.plugins import merge_registry, unknown_name_message
+from reconstruction.plugins import Registry, collect_registry, shadow_message, unknown_name_message
 
-__all__ = ["FlowBackend", "ORACLE", "RENAMED_FLOWS", "renamed_flow_note", "builtin_flows", "discover_flows",
+__all__ = ["flow_registry", "refuse_shadowed_flow",
+           "FlowBackend", "ORACLE", "RENAMED_FLOWS", "renamed_flow_note", "builtin_flows", "discover_flows",
            "get_flow", "available_flows", "equirect_flow"]
 
 
@@ -211,14 +212,28 @@ def builtin_flows() -> list[FlowBackend]:
     return out
 
 
+def flow_registry() -> Registry:
+    """The built-in flow backends plus entry points of group ``tri360.flows`` (an outside backend whose name is taken
+    is refused: :attr:`reconstruction.plugins.Registry.refused`)."""
+    return collect_registry(builtin_flows(), ENTRY_POINT_GROUP, lambda b: isinstance(b, FlowBackend), "FlowBackend",
+                            key=lambda b: b.name)
+
+
 def discover_flows() -> tuple[dict[str, FlowBackend], dict[str, str]]:
     """Every image flow backend: the built-ins plus entry points of group ``tri360.flows``.
 
     Returns:
         ``(backends by name, errors by plugin source)``.
     """
-    return merge_registry(builtin_flows(), ENTRY_POINT_GROUP, lambda b: isinstance(b, FlowBackend), "FlowBackend",
-                          key=lambda b: b.name)
+    reg = flow_registry()
+    return reg.entries, reg.errors
+
+
+def refuse_shadowed_flow(name: str, reg: Registry | None = None) -> None:
+    """ValueError naming the plugin when a refused outside backend also has ``name`` (asking for it is ambiguous)."""
+    reg = flow_registry() if reg is None else reg
+    if name in reg.refused:
+        raise ValueError(shadow_message("flow", name, reg))
 
 
 def available_flows() -> list[str]:
@@ -228,7 +243,9 @@ def available_flows() -> list[str]:
 
 def get_flow(name: str) -> FlowBackend:
     """Look up an image flow backend; raises ValueError listing the known names."""
-    flows, errors = discover_flows()
+    reg = flow_registry()
+    refuse_shadowed_flow(name, reg)
+    flows, errors = reg.entries, reg.errors
     if name not in flows:
         if renamed_flow_note(name):
             raise ValueError(renamed_flow_note(name))

@@ -15,14 +15,21 @@ import dataclasses
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
-from reconstruction.flow.backends import ORACLE, RENAMED_FLOWS, discover_flows, renamed_flow_note
+from reconstruction.flow.backends import (
+    ORACLE,
+    RENAMED_FLOWS,
+    discover_flows,
+    flow_registry,
+    refuse_shadowed_flow,
+    renamed_flow_note,
+)
 from reconstruction.methods.base import Method
 from reconstruction.methods.flow_pipeline import DEFAULT_FLOW, FlowMethod
 from reconstruction.methods.fused import FusedMethod, PriorParams
 from reconstruction.methods.sweep import SweepMethod
 from reconstruction.photometry import NO_CALIBRATION, PhotometricParams
 from reconstruction.plugins import collect_registry, merge_registry, shadow_message
-from reconstruction.refine.lm import discover_variants
+from reconstruction.refine.lm import refuse_shadowed_variant, variant_registry
 from reconstruction.sweep.cost import CostParams
 from reconstruction.sweep.planes import PlaneParams
 
@@ -80,9 +87,14 @@ def flow_methods(flows: Sequence[str], rectify: Sequence[bool],
     Raises:
         ValueError: an unknown flow or variant name (the message lists the known ones).
     """
-    known_flows, flow_errors = discover_flows()
-    known_variants, variant_errors = discover_variants()
+    flow_reg, variant_reg = flow_registry(), variant_registry()
+    known_flows, flow_errors = flow_reg.entries, flow_reg.errors
+    known_variants, variant_errors = variant_reg.entries, variant_reg.errors
     variants = ["average", *known_variants] if variants is None else list(variants)
+    for name in flows:
+        refuse_shadowed_flow(name, flow_reg)
+    for name in variants:
+        refuse_shadowed_variant(name, variant_reg)
     for name in flows:
         if name != ORACLE and name not in known_flows:
             if name in RENAMED_FLOWS:

@@ -27,7 +27,7 @@ import numba
 import numpy as np
 
 from reconstruction.camera.equirect import project_rays_camera
-from reconstruction.plugins import merge_registry, unknown_name_message
+from reconstruction.plugins import Registry, collect_registry, shadow_message, unknown_name_message
 from reconstruction.refine.triangulate import PairGeometry, beta_of_distance
 
 __all__ = ["RefineConfig", "builtin_variants", "discover_variants", "get_variant", "RefineProblem",
@@ -128,13 +128,31 @@ def discover_variants() -> tuple[dict[str, RefineConfig], dict[str, str]]:
     Returns:
         ``(variants by name, errors by plugin source)``.
     """
-    return merge_registry(builtin_variants(), ENTRY_POINT_GROUP, lambda c: isinstance(c, RefineConfig),
-                          "RefineConfig", key=lambda c: c.name)
+    reg = variant_registry()
+    return reg.entries, reg.errors
+
+
+def variant_registry() -> Registry:
+    """The built-in variants plus entry points of group ``tri360.variants`` (an outside variant whose name is taken
+    is refused: :attr:`reconstruction.plugins.Registry.refused`)."""
+    return collect_registry(builtin_variants(), ENTRY_POINT_GROUP, lambda c: isinstance(c, RefineConfig),
+                            "RefineConfig", key=lambda c: c.name)
+
+
+def refuse_shadowed_variant(name: str, reg: Registry | None = None) -> None:
+    """ValueError naming the plugin when a refused outside variant also has ``name`` (asking for it is
+    ambiguous)."""
+    reg = variant_registry() if reg is None else reg
+    if name in reg.refused:
+        raise ValueError(shadow_message("variant", name, reg))
 
 
 def get_variant(name: str) -> RefineConfig:
-    """Look up a refinement variant; raises ValueError listing the known names."""
-    variants, errors = discover_variants()
+    """Look up a refinement variant; raises ValueError listing the known names, or naming the plugin when a refused
+    outside variant also has ``name``."""
+    reg = variant_registry()
+    refuse_shadowed_variant(name, reg)
+    variants, errors = reg.entries, reg.errors
     if name not in variants:
         raise ValueError(unknown_name_message("variant", name, ["average", *sorted(variants)], errors,
                                               "variant plugins"))
