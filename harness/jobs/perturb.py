@@ -25,7 +25,7 @@ from harness.jobs import perturbations as P
 from harness.jobs.evaluate import select_frames
 from reconstruction.camera.rig import CAMERA_NAMES
 
-__all__ = ["parse_applies", "perturb_frame", "checked_perturbation", "perturb_root", "frame_hash"]
+__all__ = ["parse_applies", "perturb_frame", "checked_perturbation", "perturb_root", "perturb_frames", "frame_hash"]
 
 
 def parse_applies(items: list[str], option: str = "--apply") -> list[tuple[str, float | int]]:
@@ -156,6 +156,18 @@ def perturb_root(data: Path, out: Path, applies: list[tuple[str, float | int]], 
         raise UserError(f"{data}: no frames found (no <scene>/<viewpoint>/frame.json under it)")
     check_output(out, "data", [data, *dirs])
     dirs = [r.path for r in select_frames(data)]  # names checked, one frame per scene/viewpoint
+    return perturb_frames(dirs, out, applies, seed)
+
+
+def perturb_frames(dirs: list[Path], out: Path, applies: list[tuple[str, float | int]], seed: int) -> list[Path]:
+    """Perturb the frames of ``dirs`` (frame directories, one per scene/viewpoint, already checked) into data root
+    ``out``, which afterwards holds exactly them (built in a staging directory and swapped in, as
+    :func:`perturb_root`).
+
+    Raises:
+        UserError: a malformed frame (named), or a perturbed rig that would be impossible (named).
+    """
+    out = Path(out)
     frames = [(d, read_frame(d)) for d in dirs]
     derived = [checked_perturbation(d, frame, applies, seed, out) for d, frame in frames]  # all before writing
     with staged_directory(out) as stage:

@@ -17,7 +17,7 @@ A robustness study is a TOML file that ``tri360 study`` recognises by ``kind = "
 
 - ``data/unperturbed/``: the chosen frames as they are (a copy, so that the unperturbed frames are evaluated
   like every other point: one data root, one results set), ``data/<kind>-<level>/``: the frames perturbed with
-  that one kind at that level (``tri360 perturb``, :func:`harness.jobs.perturb.perturb_root`, the file's seed);
+  that one kind at that level (``tri360 perturb``, :func:`harness.jobs.perturb.perturb_frames`, the file's seed);
 - ``results/unperturbed/``, ``results/<kind>-<level>/``: their results sets (``tri360 evaluate`` without report);
 - ``robustness.csv``: one row per (kind, level, method, frame) and the unperturbed rows (kind ``none``, level 0):
   ``kind, level, unit, method, frame, mae_m, median_m, valid_px`` and ``mae_sw_m, valid_sr`` when present;
@@ -53,7 +53,7 @@ from harness.jobs import perturbations as P
 from harness.jobs.cluster import ClusterOptions, open_executor
 from harness.jobs.evaluate import evaluate, scorable_frame, select_frames
 from harness.jobs.options import MethodSelection, annotations_of, typed_value
-from harness.jobs.perturb import checked_perturbation, frame_hash, parse_applies, perturb_root
+from harness.jobs.perturb import checked_perturbation, frame_hash, parse_applies, perturb_frames
 from reports.robustness import NONE_KIND, format_level, kind_table, level_plot, pooled_mae, robustness_markdown
 
 __all__ = ["KIND", "KEYS", "DEFAULT_METHODS", "ORIGINS", "RobustnessSpec", "Point", "is_robustness_study",
@@ -312,8 +312,9 @@ def run_robustness(study_path: Path, out: Path, cluster: ClusterOptions | None =
             if todo and progress:
                 what = "copy" if not p.applies else f"perturb {p.kind}={format_level(p.level)}"
                 print(f"robustness: {what} {len(todo)} frame(s) -> {data}", flush=True)
-            for r in todo:
-                perturb_root(r.path, data, p.applies, spec.seed)
+            if todo:  # the point's data root is built whole: every chosen frame (the reusable ones are the same)
+                check_output(data, "data", [r.path for r in refs])
+                perturb_frames([r.path for r in refs], data, p.applies, spec.seed)
             if not todo and _results_reusable(results, spec.methods, hashes, spec.seed, p):
                 if progress:
                     print(f"robustness: reuse {results}", flush=True)

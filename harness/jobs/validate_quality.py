@@ -59,6 +59,7 @@ one line and exit status 2, Ctrl-C one line and 130, and either way ``DIR`` is l
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import itertools
 import re
 import sys
@@ -95,6 +96,7 @@ from harness.jobs.progress import progress_bar
 from reconstruction.camera.rig import CAMERA_NAMES
 from reconstruction.methods.base import Method, reference_distance, with_references
 from reconstruction.methods.registry import get_methods
+from reconstruction.photometry import NO_CALIBRATION
 from reconstruction.quality import (
     CALIBRATION_THRESHOLD,
     FACTORS,
@@ -225,8 +227,10 @@ def _without_labels(config) -> object:
 
 
 #: parameters added after results sets were first written, with the value that reproduces what came before: a
-#: stored configuration without the key ran that way (a sweep's ``planes.mirror_tolerance``: no mirror test)
-_ADDED_KEYS = {"mirror_tolerance": 0.0}
+#: stored configuration without the key ran that way (a sweep's ``planes.mirror_tolerance``: no mirror test; its
+#: cost's ``intensity_weight``: 1; a method's ``photometric``: the images as they are)
+_ADDED_KEYS = {"mirror_tolerance": 0.0, "intensity_weight": 1.0,
+               "photometric": dataclasses.asdict(NO_CALIBRATION)}
 
 
 def _with_added_keys(stored, wanted) -> object:

@@ -113,7 +113,7 @@ def test_perturbed_frames_name_their_source_and_level(study, source):
 def test_rerun_reuses_every_frame_and_result(study, monkeypatch):
     path, out = study
     calls = []
-    monkeypatch.setattr(rob, "perturb_root", lambda *a, **k: calls.append(("perturb", a)))
+    monkeypatch.setattr(rob, "perturb_frames", lambda *a, **k: calls.append(("perturb", a)))
     monkeypatch.setattr(rob, "evaluate", lambda *a, **k: calls.append(("evaluate", a)))
     before = {p: p.stat().st_mtime_ns for d in ("data", "results") for p in (out / d).rglob("*") if p.is_file()}
     assert len(before) > 20

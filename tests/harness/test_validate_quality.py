@@ -210,13 +210,17 @@ def test_configurations_compare_without_their_label():
 def test_a_configuration_written_before_a_parameter_was_added_reads_as_its_earlier_value():
     """Results sets from before ``planes.mirror_tolerance`` existed ran without the mirror test: usable for a method
     with the test off, not for one with it on."""
-    from reconstruction.methods.registry import gated_method, mirror_method
+    from reconstruction.methods.registry import gated_method, mirror_method, uncalibrated
 
-    old = json.loads(json.dumps(gated_method().config()))
-    del old["sweep"]["planes"]["mirror_tolerance"]
-    assert config_difference(old, gated_method().config()) is None
-    assert config_difference(old, mirror_method().config()) == "sweep.planes.mirror_tolerance: 0.0 vs 0.2"
-    assert config_difference(gated_method().config(), old) == "sweep.planes.mirror_tolerance: present vs absent"
+    old = json.loads(json.dumps(uncalibrated(gated_method()).config()))  # as fused-gated ran before both
+    del old["sweep"]["planes"]["mirror_tolerance"], old["sweep"]["cost"]["intensity_weight"]
+    for part in ("flow", "sweep", "quality_flow"):
+        del old[part]["photometric"]
+    assert config_difference(old, uncalibrated(gated_method()).config()) is None
+    assert config_difference(old, gated_method().config()) == "flow.photometric.mode: 'none' vs 'gain-field'"
+    raw_mirror = uncalibrated(mirror_method()).config()
+    assert config_difference(old, raw_mirror) == "sweep.planes.mirror_tolerance: 0.0 vs 0.2"
+    assert config_difference(gated_method().config(), old) == "flow.photometric: present vs absent"
 
 
 def test_rank_correlation_counts_nan_as_most_uncertain():

@@ -122,12 +122,14 @@ def test_the_default_and_the_previous_one_are_within_2_percent_on_small_exact_fr
         assert np.abs(out.distance[ok] - gt[ok]).mean() <= 0.02 * gt[ok].mean(), method.label
 
 
-def test_the_default_is_fused_gated_with_the_mirror_test_of_the_room_bound():
+def test_the_default_is_fused_gated_with_the_mirror_test_and_a_lighter_intensity_term():
     cfg = json.loads(json.dumps(mirror_method().config()))
     gated = json.loads(json.dumps(gated_method().config()))
     assert cfg["kind"] == "fused" and cfg["label"] == "fused-mirror" == DEFAULT_METHOD
     assert cfg["sweep"]["planes"]["mirror_tolerance"] == 0.2 and gated["sweep"]["planes"]["mirror_tolerance"] == 0.0
+    assert cfg["sweep"]["cost"]["intensity_weight"] == 0.25 and gated["sweep"]["cost"]["intensity_weight"] == 1.0
     cfg["sweep"]["planes"]["mirror_tolerance"] = 0.0
+    cfg["sweep"]["cost"]["intensity_weight"] = 1.0
     assert {**cfg, "label": "fused-gated"} == gated
 
 
