@@ -4,7 +4,8 @@
   ``reports`` import only ``reconstruction``, ``harness`` imports all three (``TOP_LEVEL``);
 * inside, the layers ``LAYERS`` run one way (a module imports its own layer or the layers below it);
 * no cycles between sub-packages, no function-level import statements of project modules, ``bpy`` in one
-  module, ``reports`` touches no file, and the bottom packages import without Blender.
+  module, ``reports`` touches no file, the bottom packages import without Blender, and no module reads
+  ``sys.argv`` when it is imported.
 
 An import is an ``import`` / ``from ... import`` statement (relative ones resolved against the module's
 package) or a call of ``importlib.import_module`` / ``__import__`` with a string (a literal or a module-level
@@ -229,6 +230,53 @@ def test_relative_imports_resolve_against_the_package():
     assert mods == ["harness.data", "harness.data.exr", "harness.data.atomic", "harness.data.atomic.write"]
     mods = [i.module for i in imports_of("from .errors import UserError\n", "harness.data", is_package=True)]
     assert mods == ["harness.data.errors", "harness.data.errors.UserError"]
+
+
+def _is_main_block(node: ast.AST) -> bool:
+    """``if __name__ == "__main__":`` (what runs only when the module is the program)."""
+    t = node.test if isinstance(node, ast.If) else None
+    return (isinstance(t, ast.Compare) and isinstance(t.left, ast.Name) and t.left.id == "__name__"
+            and len(t.comparators) == 1 and isinstance(t.comparators[0], ast.Constant)
+            and t.comparators[0].value == "__main__")
+
+
+def _import_time_nodes(tree: ast.Module) -> Iterator[ast.AST]:
+    """Every node that runs when the module is imported: all but function bodies and the ``__main__`` block."""
+    todo: list[ast.AST] = list(tree.body)
+    while todo:
+        node = todo.pop()
+        if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef | ast.Lambda) or _is_main_block(node):
+            continue
+        yield node
+        todo.extend(ast.iter_child_nodes(node))
+
+
+def import_time_argv_reads(source: str) -> list[int]:
+    """The lines of ``source`` that read ``sys.argv`` / ``sys.orig_argv`` when the module is imported."""
+    names = ("argv", "orig_argv")
+    return sorted(n.lineno for n in _import_time_nodes(ast.parse(source))
+                  if (isinstance(n, ast.Attribute) and n.attr in names and isinstance(n.value, ast.Name)
+                      and n.value.id == "sys")
+                  or (isinstance(n, ast.ImportFrom) and n.module == "sys" and any(a.name in names for a in n.names)))
+
+
+def test_nothing_reads_the_command_line_at_import_time():
+    """What a process runs is read where it runs (a ``main``, an ``if __name__ == "__main__":`` block), never by
+    importing a module: importing a package does the same whatever the program."""
+    bad = [f"{p.relative_to(ROOT)}:{line}" for p in source_files() for line in
+           import_time_argv_reads(p.read_text(encoding="utf-8"))]
+    assert not bad, "sys.argv read at import time:\n" + "\n".join(bad)
+
+
+@pytest.mark.parametrize(("source", "lines"), [
+    ("import sys\nA = sys.argv[1:]\n", [2]),
+    ("import sys\nif 'x' in sys.orig_argv:\n    pass\n", [2]),
+    ("from sys import argv\n", [1]),
+    ("import sys\n\n\ndef main():\n    return sys.argv\n", []),
+    ("import sys\nif __name__ == '__main__':\n    print(sys.argv)\n", []),
+])
+def test_the_argv_check_catches_an_import_time_read(source, lines):
+    assert import_time_argv_reads(source) == lines
 
 
 def test_no_function_level_project_imports():

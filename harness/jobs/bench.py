@@ -21,6 +21,11 @@ Timings are wall-clock on a shared machine: expect noise of tens of percent.
 
 from __future__ import annotations
 
+from harness.jobs import startup
+
+if __name__ == "__main__":  # run as a script: Ctrl-C during the imports below is one line and 130
+    startup.guard("bench")
+
 import argparse
 import multiprocessing as mp
 import resource
@@ -33,7 +38,6 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from harness.data.frame import find_frames, read_frame, write_frame
-from harness.jobs import startup
 from harness.jobs.progress import track
 from harness.render.raycast import render_frame
 from reconstruction.flow.matching import match_pair

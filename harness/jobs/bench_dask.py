@@ -12,6 +12,11 @@ meaningful on an otherwise idle machine: the load average before each run is pri
 
 from __future__ import annotations
 
+from harness.jobs import startup
+
+if __name__ == "__main__":  # run as a script: Ctrl-C during the imports below is one line and 130
+    startup.guard("bench_dask")
+
 import argparse
 import os
 import sys
@@ -19,7 +24,6 @@ import tempfile
 import time
 from pathlib import Path
 
-from harness.jobs import startup
 from harness.jobs.bench import goals_status
 from harness.jobs.cluster import ClusterOptions
 from harness.jobs.executor import DaskExecutor

@@ -19,6 +19,11 @@ small frame in each child keeps compilation out of the figures.
 
 from __future__ import annotations
 
+from harness.jobs import startup
+
+if __name__ == "__main__":  # run as a script: Ctrl-C during the imports below is one line and 130
+    startup.guard("bench_flow")
+
 import argparse
 import json
 import multiprocessing as mp
@@ -28,7 +33,6 @@ import tempfile
 import time
 from pathlib import Path
 
-from harness.jobs import startup
 from harness.jobs.bench import load_or_render_frame, report_goals
 from reconstruction.flow.deepflow import DeepFlowParams, deep_flow
 from reconstruction.flow.deepmatching import DeepMatchingParams, deep_matching_both

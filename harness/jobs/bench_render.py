@@ -13,6 +13,11 @@ meaningful on an otherwise idle machine.
 
 from __future__ import annotations
 
+from harness.jobs import startup
+
+if __name__ == "__main__":  # run as a script: Ctrl-C during the imports below is one line and 130
+    startup.guard("bench_render")
+
 import argparse
 import json
 import os
@@ -22,7 +27,6 @@ import tempfile
 import time
 from pathlib import Path
 
-from harness.jobs import startup
 from harness.jobs.bench import goals_status
 from harness.jobs.render import DEFAULT_SCENE, DEFAULTS, RENDER_LOG
 

@@ -14,6 +14,11 @@ is then not the goal's).  ``--threads`` as for ``tri360 render``.  Only meaningf
 
 from __future__ import annotations
 
+from harness.jobs import startup
+
+if __name__ == "__main__":  # run as a script: Ctrl-C during the imports below is one line and 130
+    startup.guard("bench_suite")
+
 import argparse
 import dataclasses
 import os
@@ -23,7 +28,6 @@ import time
 from pathlib import Path
 
 from harness.data.errors import UserError
-from harness.jobs import startup
 from harness.jobs.render import DEFAULT_SCENE, DEFAULTS
 from harness.jobs.suite import PlannedFrame, load, plan
 from harness.render.registry import get_renderer

@@ -20,6 +20,11 @@ which exercises the same memory as a native 4000x2000 frame.
 
 from __future__ import annotations
 
+from harness.jobs import startup
+
+if __name__ == "__main__":  # run as a script: Ctrl-C during the imports below is one line and 130
+    startup.guard("bench_sweep")
+
 import argparse
 import json
 import resource
@@ -30,7 +35,6 @@ import time
 import cv2
 import numpy as np
 
-from harness.jobs import startup
 from harness.jobs.bench import report_goals
 from harness.render.raycast import render_frame
 from reconstruction.methods.fused import FusedMethod

@@ -22,6 +22,11 @@ reported too).
 
 from __future__ import annotations
 
+from harness.jobs import startup
+
+if __name__ == "__main__":  # run as a script: Ctrl-C during the imports below is one line and 130
+    startup.guard("regression")
+
 import argparse
 import datetime
 import json
@@ -35,7 +40,6 @@ from pathlib import Path
 import pandas as pd
 
 from harness.data.atomic import atomic_write_text
-from harness.jobs import startup
 from harness.jobs.evaluate import config_keys, evaluate
 from harness.jobs.render import render_frames
 from harness.render.base import RenderSettings

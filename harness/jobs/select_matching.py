@@ -30,6 +30,11 @@ look at the candidates that were not chosen.
 
 from __future__ import annotations
 
+from harness.jobs import startup
+
+if __name__ == "__main__":  # run as a script: Ctrl-C during the imports below is one line and 130
+    startup.guard("select_matching")
+
 import argparse
 import dataclasses
 import sys
@@ -43,7 +48,6 @@ from harness.data import jsonio
 from harness.data.atomic import atomic_write_text
 from harness.data.errors import UserError
 from harness.data.outputs import mark_output
-from harness.jobs import startup
 from harness.jobs.cluster import ClusterOptions
 from harness.jobs.suite import evaluate_suite
 from reconstruction.methods.base import Method

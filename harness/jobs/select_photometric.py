@@ -26,6 +26,11 @@ split once with the chosen candidate (``--candidates``).
 
 from __future__ import annotations
 
+from harness.jobs import startup
+
+if __name__ == "__main__":  # run as a script: Ctrl-C during the imports below is one line and 130
+    startup.guard("select_photometric")
+
 import argparse
 import dataclasses
 import sys
@@ -40,7 +45,6 @@ from harness.data.atomic import atomic_write_text
 from harness.data.errors import UserError
 from harness.data.outputs import mark_output
 from harness.data.suite import IDEAL
-from harness.jobs import startup
 from harness.jobs.cluster import ClusterOptions
 from harness.jobs.evaluate import evaluate
 from harness.jobs.suite import evaluate_suite

@@ -58,6 +58,11 @@ one line and exit status 2, Ctrl-C one line and 130, and either way ``DIR`` is l
 
 from __future__ import annotations
 
+from harness.jobs import startup
+
+if __name__ == "__main__":  # run as a script: Ctrl-C during the imports below is one line and 130
+    startup.guard("validate_quality")
+
 import argparse
 import dataclasses
 import itertools
@@ -81,7 +86,6 @@ from harness.data.outputs import check_output, mark_output, staged_directory
 from harness.data.provenance import software
 from harness.data.results import map_paths, read_config, read_results_set
 from harness.jobs import perturbations as P
-from harness.jobs import startup
 from harness.jobs.evaluate import (
     FrameRef,
     checked_maps,
