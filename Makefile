@@ -1,4 +1,5 @@
 # tri360 — every target sets up .venv by itself, so each works on a fresh machine with Python 3.11.
+# The tools (bench, regress-update) run as `python -m tools.…` from this directory (on sys.path with -m), as in README.md.
 PYTHON ?= python3.11
 VENV   := .venv
 PY     := $(VENV)/bin/python
@@ -41,15 +42,15 @@ test-fast: $(STAMP) ## the tests that need no Blender render, browser or Dask cl
 	$(PY) -m pytest -q -m "not blender and not browser and not cluster"
 
 bench: $(STAMP) ## timings and peak memory: flow pipeline stages (+ LM vs scipy), the default method (fused-mirror) at 1000x500 and 4000x2000 beside fused, the default classroom render (3 times), Dask render speed-up, suite frame render time vs the default frame
-	$(PY) -m harness.jobs.bench
-	$(PY) -m harness.jobs.bench_sweep
-	$(PY) -m harness.jobs.bench_render
-	$(PY) -m harness.jobs.bench_dask
-	$(PY) -m harness.jobs.bench_suite
-	$(PY) -m harness.jobs.bench_flow
+	$(PY) -m tools.bench.pipeline
+	$(PY) -m tools.bench.sweep
+	$(PY) -m tools.bench.render
+	$(PY) -m tools.bench.dask_speedup
+	$(PY) -m tools.bench.suite
+	$(PY) -m tools.bench.flow
 
 regress-update: $(STAMP) ## rewrite the CI regression bounds (tests/regression_bounds.json) from a fresh run
-	$(PY) -m harness.jobs.regression --bounds tests/regression_bounds.json --update
+	$(PY) -m tools.regression --bounds tests/regression_bounds.json --update
 
 clean: ## remove the venv, caches, rendered data and results
 	rm -rf $(VENV) .pytest_cache .ruff_cache $(RESULTS) build *.egg-info

@@ -21,7 +21,7 @@ The measures, all from C's predicted distance ``d`` and the frame's images and *
   :data:`UNCERTAINTY_FACTORS` that the prediction has (:func:`uncertainty_factors`, :func:`combine`): the
   geometric uncertainty, the method's ambiguity ``1 - confidence``, the disagreement plus
   :data:`DISAGREEMENT_FLOOR` and the square root of the residual uncertainty.  Which factors enter was chosen on
-  the suite's dev split by ``python -m harness.jobs.validate_quality`` (it ranks every subset;
+  the suite's dev split by ``python -m tools.research.validate_quality`` (it ranks every subset;
   docs/real-captures.md).
 - **pair agreement** (per pixel, unitless): no built-in method hands back its C-U and C-R distances separately,
   so this is a reprojection proxy: along each C ray, the distance in ``d * (1 + s)``, ``s`` in
@@ -57,14 +57,14 @@ CALIBRATION_STEP_DEG = 0.25
 """Rotation step of the calibration check's pose search, degrees."""
 CALIBRATION_THRESHOLD = 0.098
 """A calibration score (degrees) above this flags the frame's told poses as off: the threshold that
-``harness.jobs.validate_quality`` finds on the suite's dev split with ``fused-adaptive`` and 0.5 deg of rotation
+``tools.research.validate_quality`` finds on the suite's dev split with ``fused-adaptive`` and 0.5 deg of rotation
 error (0.0982, the middle of the gap between the highest exact and the lowest perturbed score;
 docs/real-captures.md)."""
 FACTORS = ("geometric", "ambiguity", "disagreement", "residual")
 """The factors the per-pixel ``uncertainty`` can be made of (:func:`uncertainty_factors`)."""
 UNCERTAINTY_FACTORS = ("geometric", "ambiguity", "disagreement", "residual")
 """The factors of the ``uncertainty`` map (those a prediction has; chosen on the suite's dev split by
-``harness.jobs.validate_quality``, docs/real-captures.md)."""
+``tools.research.validate_quality``, docs/real-captures.md)."""
 DISAGREEMENT_FLOOR = 0.02
 """Added to the disagreement factor (unitless, a relative distance difference of 2 %): two estimators that agree
 to better than that do not make a pixel more trustworthy than the other factors say."""

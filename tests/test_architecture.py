@@ -1,7 +1,8 @@
 """The layers of the code base, checked on the source (an AST walk):
 
 * at the top level one import direction: ``reconstruction`` imports no other project package, ``scenes`` and
-  ``reports`` import only ``reconstruction``, ``harness`` imports all three (``TOP_LEVEL``);
+  ``reports`` import only ``reconstruction``, ``harness`` imports all three (``TOP_LEVEL``); the ``tools/`` folder
+  (benchmarks, research scripts: not installed) may import every package, and no package imports it;
 * inside, the layers ``LAYERS`` run one way (a module imports its own layer or the layers below it);
 * no cycles between sub-packages, no function-level import statements of project modules, ``bpy`` in one
   module, ``reports`` touches no file, the bottom packages import without Blender, and no module reads
@@ -15,8 +16,10 @@ string constant): the lazy loads count for the direction too.
 from __future__ import annotations
 
 import ast
+import fnmatch
 import subprocess
 import sys
+import tomllib
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -25,6 +28,9 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("reconstruction", "scenes", "reports", "harness")
+#: the folder of the benchmarks and research scripts: not installed, run from the repository root, never imported
+#: by the packages
+TOOLS = "tools"
 #: top-level package -> the other project packages it may import
 TOP_LEVEL = {
     "reconstruction": set(),
@@ -170,6 +176,9 @@ def direction_violations(root: Path = ROOT) -> list[str]:
         for imp in imports(path, root):
             if imp.module.startswith("<"):
                 bad.setdefault((where, imp.line), f"{where}:{imp.line}: {imp.module}")
+            elif imp.module.split(".")[0] == TOOLS:
+                bad.setdefault((where, imp.line), f"{where}:{imp.line}: {mod} imports {imp.module} (the packages "
+                                                  f"never import {TOOLS}/)")
             elif not is_project(imp.module):
                 continue
             elif (other := imp.module.split(".")[0]) != pkg and other not in TOP_LEVEL[pkg]:
@@ -214,6 +223,9 @@ def _tree(tmp_path: Path, files: dict[str, str]) -> Path:
     ("reconstruction/x.py", "import scenes\n", "scenes"),
     ("harness/data/frame.py", "from ..jobs import report\n", "harness.jobs"),
     ("harness/data/frame.py", "from ..jobs.report import build_report\n", "harness.jobs.report"),
+    ("harness/jobs/report.py", "from tools.common import report_goals\n", "tools.common"),
+    ("reports/tables.py", "import importlib\nM = importlib.import_module('tools.bench.pipeline')\n",
+     "tools.bench.pipeline"),
 ])
 def test_the_direction_check_catches_a_wrong_import(tmp_path, rel, source, culprit):
     """The checker run on a small synthetic tree: one wrong import (statement, relative, importlib or __import__)
@@ -367,6 +379,37 @@ def test_no_cycles_between_subpackages():
     for n in sorted(graph):
         if n not in state:
             visit(n)
+
+
+def tool_files(root: Path = ROOT) -> list[Path]:
+    return sorted((root / TOOLS).rglob("*.py"))
+
+
+def test_the_tools_are_not_installed():
+    """``pyproject.toml`` installs the packages and not ``tools/`` (which is run from the repository root)."""
+    include = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]["packages"]["find"]["include"]
+    assert all(any(fnmatch.fnmatch(p, pattern) for pattern in include) for p in PACKAGES), include
+    assert not any(fnmatch.fnmatch(TOOLS, pattern) for pattern in include), include
+
+
+def test_the_tools_import_only_the_packages_and_each_other():
+    bad = [f"{p.relative_to(ROOT)}:{i.line}: {i.module}" for p in tool_files() for i in imports(p)
+           if i.module.startswith("<")
+           or ((ROOT / i.module.split(".")[0]).is_dir() and i.module.split(".")[0] not in (*PACKAGES, TOOLS))]
+    assert not bad, "\n".join(bad)
+
+
+def test_the_tools_import_from_the_repository_root():
+    """What ``make bench`` and ``make regress-update`` need: every tool module imports in a fresh interpreter started
+    in the repository root (``python -m tools...`` puts it on ``sys.path``), and the command line is read by none
+    of them (only a ``main`` or a ``__main__`` block reads it)."""
+    mods = [module_name(p) for p in tool_files()]
+    bad = [f"{p.relative_to(ROOT)}:{line}" for p in tool_files()
+           for line in import_time_argv_reads(p.read_text(encoding="utf-8"))]
+    assert not bad, "sys.argv read at import time:\n" + "\n".join(bad)
+    code = f"import importlib\nfor m in {mods!r}:\n    importlib.import_module(m)\n"
+    proc = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-2000:]
 
 
 @pytest.mark.parametrize("package", ["reconstruction", "scenes", "reports", "harness.cli"])

@@ -33,7 +33,6 @@ from harness.data.exr import read_distance_exr
 from harness.data.frame import write_frame
 from harness.data.outputs import MARKER, check_output, mark_output, output_kind
 from harness.data.predictions import write_method_info, write_prediction
-from harness.jobs import validate_quality
 from harness.jobs.cluster import ClusterOptions
 from harness.jobs.evaluate import evaluate, evaluate_task
 from harness.jobs.study import LIMIT_FRAMES
@@ -44,6 +43,7 @@ from reconstruction.methods.registry import discover_methods, flow_methods, get_
 from scenes.model import SceneEntry
 from scenes.registry import discover, get_scene
 from tests.helpers import make_synthetic_frame
+from tools.research import validate_quality
 
 # ----------------------------------------------------------------------------------------------- machinery
 

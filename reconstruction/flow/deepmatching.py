@@ -41,7 +41,7 @@ per-patch normalisation of the descriptor is a simplification: with the ninth di
 non-zero descriptor, and per-pixel unit vectors make every patch exactly unit-norm.
 
 Measured on this 2-core shared machine (numba, both cores), one 1000 x 500 equirect pair, both directions
-plus the verification: see ``docs/deepflow.md`` (``harness/jobs/bench_flow.py`` measures it).
+plus the verification: see ``docs/deepflow.md`` (``tools/bench/flow.py`` measures it).
 """
 
 from __future__ import annotations

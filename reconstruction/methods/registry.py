@@ -46,8 +46,8 @@ PAPER_CONFIG = ("deepflow", True)
 #: flow configurations evaluated by default: tri360's and the paper's set-up, both on rectified pairs
 DEFAULT_CONFIGS = [(DEFAULT_FLOW, True), PAPER_CONFIG]
 #: what ``tri360 reconstruct`` runs by default, :func:`mirror_method`: its matching chosen by
-#: ``python -m harness.jobs.select_matching`` on the dev split of suites/tri360-v1.toml (docs/matching.md), its
-#: photometric self-calibration and intensity weight by ``python -m harness.jobs.select_photometric`` on the dev split
+#: ``python -m tools.research.select_matching`` on the dev split of suites/tri360-v1.toml (docs/matching.md), its
+#: photometric self-calibration and intensity weight by ``python -m tools.research.select_photometric`` on the dev split
 #: of suites/tri360-v2.toml under both conditions (docs/photometry.md)
 DEFAULT_METHOD = "fused-mirror"
 #: the plane labels of ``fused-adaptive`` and ``fused-gated``: the sweep's horizontal planes plus 9 labels per wall
@@ -59,7 +59,7 @@ WALL_PLANES = PlaneParams(wall_labels=9)
 #: (the 32 heights per side are 9.5 % apart); on the dev split the mirrored floors it corrects lie 12-14 % off.
 MIRROR_PLANES = dataclasses.replace(WALL_PLANES, mirror_tolerance=0.2)
 #: ``fused-mirror``'s weight of the intensity difference in the sweep cost (the gradients' is 2): chosen by
-#: ``python -m harness.jobs.select_photometric`` among 1, 0.5 and 0.25 on the dev split under both conditions
+#: ``python -m tools.research.select_photometric`` among 1, 0.5 and 0.25 on the dev split under both conditions
 #: (docs/photometry.md)
 MIRROR_INTENSITY_WEIGHT = 0.25
 #: ``fused-adaptive``'s prior weight: ``fused``'s, scaled by the share of pixels where the flow and the plain coarse

@@ -32,10 +32,10 @@ def _loading_modules(pid: int) -> bool:
         return False
 
 
-def _interrupt_after_loading(cmd: list[str], delay_s: float) -> tuple[int, str]:
-    """Start ``cmd`` in its own session (SIGINT at its default action), wait until it loads its modules, sleep
-    ``delay_s`` and Ctrl-C its whole process group as a terminal does; its exit status and stderr."""
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+def _interrupt_after_loading(cmd: list[str], delay_s: float, cwd: Path | None = None) -> tuple[int, str]:
+    """Start ``cmd`` (in ``cwd``) in its own session (SIGINT at its default action), wait until it loads its
+    modules, sleep ``delay_s`` and Ctrl-C its whole process group as a terminal does; its exit status and stderr."""
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=cwd,
                             preexec_fn=sigint_default, start_new_session=True)
     try:
         deadline = time.monotonic() + 120
@@ -66,12 +66,12 @@ def test_ctrl_c_during_start_up_or_run_is_one_line_and_130(tmp_path, delay_s):
 
 @pytest.mark.parametrize("delay_s", [0.0, 0.05, 0.2])
 def test_ctrl_c_while_a_python_m_job_starts_is_one_line_and_130(tmp_path, delay_s):
-    """``python -m harness.jobs.<job>``: the job's imports (pandas, scipy, numba, OpenCV: over a second) run under
-    the same guard; the delays stay well inside them (the job itself would stop at once on its missing data
-    root, with status 2)."""
-    cmd = [sys.executable, "-m", "harness.jobs.validate_quality", str(tmp_path / "absent"), "--method", "sweep",
+    """``python -m tools.research.validate_quality`` from the repository root: the tool's imports (pandas, scipy,
+    numba, OpenCV: over a second) run under the same guard, installed by the tool itself as ``__main__``; the
+    delays stay well inside them (the tool would stop at once on its missing data root, with status 2)."""
+    cmd = [sys.executable, "-m", "tools.research.validate_quality", str(tmp_path / "absent"), "--method", "sweep",
            "--out", str(tmp_path / "out")]
-    code, stderr = _interrupt_after_loading(cmd, delay_s)
+    code, stderr = _interrupt_after_loading(cmd, delay_s, cwd=Path(__file__).resolve().parents[2])
     assert code == 130, (code, stderr)
     assert stderr.splitlines() == ["validate_quality: interrupted while starting (nothing was done)"], stderr
     assert not (tmp_path / "out").exists()

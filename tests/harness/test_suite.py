@@ -22,7 +22,6 @@ from harness.data.frame import read_frame
 from harness.data.predictions import write_prediction
 from harness.data.results import read_results
 from harness.data.suite import load_suite, suite_id
-from harness.jobs import bench_suite as bench
 from harness.jobs.render import DEFAULTS
 from harness.jobs.suite import check_suite_data, evaluate_suite, load, plan, render_suite
 from reconstruction.camera.equirect import bearing_grid, project
@@ -30,6 +29,7 @@ from reconstruction.methods.registry import get_methods
 from reports.tables import leaderboard_markdown, leaderboard_table
 from scenes.registry import discover
 from tests.helpers import render_scene
+from tools.bench import suite as bench
 
 DEFAULTS_DICT = dataclasses.asdict(DEFAULTS)
 

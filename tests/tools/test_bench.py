@@ -1,4 +1,4 @@
-"""The bench's comparison machinery (``harness.jobs.bench``) on a tiny frame: not speed, only that the vectorised LM
+"""The bench's comparison machinery (``tools.bench.pipeline``) on a tiny frame: not speed, only that the vectorised LM
 and the per-pixel scipy solve are compared on the pipeline's own problem and agree.
 
 Tolerance: ``AGREE_TOL_M`` = 1e-4 m, the bench's own "same result" criterion.  On the geometric stage both
@@ -13,10 +13,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from harness.jobs import bench, bench_render
 from reconstruction.methods.flow_pipeline import prepare, variant_problem
 from reconstruction.refine.lm import discover_variants
 from tests.helpers import make_synthetic_frame
+from tools import common
+from tools.bench import pipeline as bench
+from tools.bench import render as bench_render
 
 
 @pytest.fixture(scope="module")
@@ -72,12 +74,12 @@ def test_render_bench_times_the_render_command_end_to_end(capsys):
 
 
 def test_goals_status_fails_on_any_missed_goal():
-    assert bench.goals_status([True, True]) == 0
-    assert bench.goals_status([True, False]) == 1
+    assert common.goals_status([True, True]) == 0
+    assert common.goals_status([True, False]) == 1
 
 
 def test_report_goals_prints_one_line_per_goal_and_fails_on_a_missed_one():
     lines = []
-    assert bench.report_goals([(True, "a <= 1"), (False, "b <= 2")], lines.append) == 1
+    assert common.report_goals([(True, "a <= 1"), (False, "b <= 2")], lines.append) == 1
     assert lines == ["  [PASS] a <= 1", "  [FAIL] b <= 2"]
-    assert bench.report_goals([(True, "a")], lines.append) == 0
+    assert common.report_goals([(True, "a")], lines.append) == 0

@@ -1,6 +1,6 @@
 """Benchmark of DeepMatching and DeepFlow as published at 1000x500: time and peak memory per pair and per frame.
 
-Run as ``python -m harness.jobs.bench_flow`` (``make bench``).  On a frame (``--frame DIR``, or a synthetic_box
+Run as ``python -m tools.bench.flow`` (``make bench``).  On a frame (``--frame DIR``, or a synthetic_box
 frame rendered by the numpy ray-caster) it runs, each in a fresh child process so that its peak RSS is its own:
 
 1. DeepMatching of the plain equirect C-R pair, both directions with the reciprocal check
@@ -33,10 +33,10 @@ import tempfile
 import time
 from pathlib import Path
 
-from harness.jobs.bench import load_or_render_frame, report_goals
 from reconstruction.flow.deepflow import DeepFlowParams, deep_flow
 from reconstruction.flow.deepmatching import DeepMatchingParams, deep_matching_both
 from reconstruction.flow.matching import match_pair
+from tools.common import load_or_render_frame, report_goals
 
 PAIRS = ("U", "R")
 

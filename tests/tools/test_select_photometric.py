@@ -7,9 +7,9 @@ import pandas as pd
 import pytest
 
 from harness.data.errors import UserError
-from harness.jobs.select_photometric import CANDIDATES, REFERENCE, candidate_methods, choose, condition_table
 from reconstruction.methods.registry import MIRROR_INTENSITY_WEIGHT, mirror_method, uncalibrated
 from reconstruction.photometry import NO_CALIBRATION
+from tools.research.select_photometric import CANDIDATES, REFERENCE, candidate_methods, choose, condition_table
 
 # method -> (ideal MAE, captured MAE) per family (two frames per family and condition, 1000 pixels each)
 MAE = {

@@ -2,7 +2,7 @@
 
 Run as::
 
-    python -m harness.jobs.validate_quality DATA_ROOT --method LABEL --out DIR
+    python -m tools.research.validate_quality DATA_ROOT --method LABEL --out DIR
         [--results RESULTS_SET [--results-label LABEL2]] [--calibration-frames 10] [--rotation 0.5] [--seed 1]
         [--frames N] [--quiet]
 
@@ -724,7 +724,7 @@ def validate_quality(data_root: Path, method_label: str, out: Path, results: Pat
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog=f"python -m harness.jobs.{PROG}", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(prog=f"python -m tools.research.{PROG}", description=__doc__.splitlines()[0])
     parser.add_argument("data_root", type=Path, metavar="DATA_ROOT", help="data root of frames with ground truth")
     parser.add_argument("--method", required=True, metavar="LABEL", help="registered method label (e.g. fused)")
     parser.add_argument("--out", type=Path, required=True, metavar="DIR",

@@ -8,9 +8,9 @@ import pandas as pd
 import pytest
 
 from harness.data.outputs import read_marker
-from harness.jobs import select_matching as sel
 from harness.jobs.suite import render_suite
 from tests.harness.test_suite import MINI, write
+from tools.research import select_matching as sel
 
 
 def table(rows: dict[str, tuple[float, float, float]]) -> pd.DataFrame:

@@ -2,7 +2,7 @@
 time, and peak memory (RSS) at 1000x500 and 4000x2000, each run in a child process; beside it the same at
 1000x500 for a baseline method, measured in the same run, and the goals.
 
-    python -m harness.jobs.bench_sweep [--runs 3] [--big-width 4000] [--method LABEL] [--baseline LABEL|none]
+    python -m tools.bench.sweep [--runs 3] [--big-width 4000] [--method LABEL] [--baseline LABEL|none]
 
 ``--method`` is any registered label (default: the default method) or a fused method's label with ``-raw``
 (:func:`reconstruction.methods.registry.uncalibrated`: no photometric self-calibration); ``--baseline`` (default
@@ -31,21 +31,21 @@ import resource
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import cv2
 import numpy as np
 
-from harness.jobs.bench import report_goals
-from harness.render.raycast import render_frame
 from reconstruction.methods.fused import FusedMethod
 from reconstruction.methods.registry import DEFAULT_METHOD, get_methods, uncalibrated
-from scenes.model import choose_viewpoints
-from scenes.registry import get_scene
+from tools.common import report_goals, synthetic_box_frame
 
 BASE_WIDTH = 1000
 GOAL_PEAK_GB = 1.0  # peak RSS of the method at 1000x500, GB
 GOAL_TIME_FACTOR = 1.2  # the method's median wall time at 1000x500 over the baseline's in the same run
 DEFAULT_BASELINE = f"{DEFAULT_METHOD}-raw"
+#: the repository root, where ``python -m tools.bench.sweep`` finds ``tools``
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def bench_method(label: str):
@@ -58,11 +58,9 @@ def bench_method(label: str):
 
 
 def bench_frame(width: int):
-    """The synthetic_box vp000 frame, ray-cast at 1000 wide, images resized to ``width`` (H = width / 2)."""
-    entry, preset = get_scene("synthetic_box")
-    spec = entry.spec(preset, seed=0)
-    rig = choose_viewpoints(spec, 1, 0)[0]
-    frame = render_frame(spec, rig, BASE_WIDTH, "synthetic_box", "vp000", supersample=1)
+    """The synthetic_box vp000 frame (:func:`tools.common.synthetic_box_frame`), ray-cast at 1000 wide without
+    supersampling, images resized to ``width`` (H = width / 2)."""
+    frame = synthetic_box_frame(BASE_WIDTH, "vp000", supersample=1)
     if width != BASE_WIDTH:
         interp = cv2.INTER_CUBIC if width > BASE_WIDTH else cv2.INTER_AREA
         frame.images = {k: cv2.resize(v, (width, width // 2), interpolation=interp) for k, v in frame.images.items()}
@@ -89,9 +87,9 @@ def child(width: int, runs: int, method_name: str = DEFAULT_METHOD) -> None:
 
 def run_child(width: int, runs: int, method_name: str = DEFAULT_METHOD) -> tuple[dict, float]:
     """Run :func:`child` in a fresh process; returns its JSON result and its peak RSS in GB."""
-    proc = subprocess.run([sys.executable, "-m", "harness.jobs.bench_sweep", "--child", str(width),
+    proc = subprocess.run([sys.executable, "-m", "tools.bench.sweep", "--child", str(width),
                            "--runs", str(runs), "--method", method_name],
-                          capture_output=True, text=True, check=True)
+                          capture_output=True, text=True, check=True, cwd=ROOT)
     line = [x for x in proc.stdout.splitlines() if x.startswith("{")][-1]
     res = json.loads(line)
     return res, float(res["peak_gb"])

@@ -1,6 +1,6 @@
 """Benchmark of the Dask executor: a 2-worker ``LocalCluster`` against a 1-worker one, rendering the same frames.
 
-Run as ``python -m harness.jobs.bench_dask`` (part of ``make bench``).  It starts a ``LocalCluster`` of 1 worker,
+Run as ``python -m tools.bench.dask_speedup`` (part of ``make bench``).  It starts a ``LocalCluster`` of 1 worker,
 then one of 2 workers (127.0.0.1 only, 1 thread each, Cycles with ``--threads`` = that one thread, so both runs
 give each worker the same threads), renders ``--frames`` viewpoints of ``--scene`` on each (one Dask task per
 frame, scene built by each task, as ``tri360 render --workers N`` does) into a temporary data root, and prints the
@@ -24,11 +24,11 @@ import tempfile
 import time
 from pathlib import Path
 
-from harness.jobs.bench import goals_status
 from harness.jobs.cluster import ClusterOptions
 from harness.jobs.executor import DaskExecutor
 from harness.jobs.render import RENDER_LOG, render_frames
 from harness.render.base import RenderSettings
+from tools.common import goals_status
 
 __all__ = ["GOAL_SPEEDUP", "time_render", "main"]
 
@@ -51,7 +51,7 @@ def _files(root: Path) -> dict[str, bytes]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m harness.jobs.bench_dask", description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(prog="python -m tools.bench.dask_speedup", description=__doc__.splitlines()[0])
     ap.add_argument("--scene", default="classroom", help="scene to render (Cycles by default for classroom)")
     ap.add_argument("--frames", type=int, default=4, help="viewpoints rendered by each run")
     ap.add_argument("--width", type=int, default=400, help="panorama width, pixels")

@@ -1,6 +1,6 @@
 """Benchmark of a suite's render cost: the median suite frame's render time over today's default classroom frame.
 
-Run as ``python -m harness.jobs.bench_suite`` (part of ``make bench``; goal: ratio <= 1, the exit status is 1 when it
+Run as ``python -m tools.bench.suite`` (part of ``make bench``; goal: ratio <= 1, the exit status is 1 when it
 is not met).  Both are timed the same way, in this process, one after the other: open the renderer on the scene
 (for Cycles: start the worker, build the scene), render the three cameras, close it (nothing is written); the
 reference is ``tri360 render``'s default frame (``classroom``, its default preset and seed, viewpoint ``vp000``,
@@ -33,6 +33,7 @@ from harness.jobs.suite import PlannedFrame, load, plan
 from harness.render.registry import get_renderer
 from scenes.model import choose_viewpoints
 from scenes.registry import get_scene
+from tools.common import goals_status
 
 __all__ = ["GOAL_RATIO", "time_frame", "reference_frame", "main"]
 
@@ -69,7 +70,7 @@ def _selected(planned: list[PlannedFrame], every: bool) -> list[PlannedFrame]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m harness.jobs.bench_suite", description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(prog="python -m tools.bench.suite", description=__doc__.splitlines()[0])
     ap.add_argument("--suite", type=Path, default=DEFAULT_SUITE, help="suite file")
     ap.add_argument("--split", default="dev", help="split whose frames are timed")
     ap.add_argument("--all", action="store_true", help="time every frame of the split (default: one per family)")
@@ -101,7 +102,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"suite render: median frame {median:.1f} s ({min(times):.1f}-{max(times):.1f} s over {len(times)} "
           f"frames) / default {DEFAULT_SCENE} frame {t_ref:.1f} s = ratio {ratio:.2f} "
           f"[{'ok' if ok else 'NOT MET'}: goal <= {GOAL_RATIO:.0f}]", flush=True)
-    return 0 if ok else 1
+    return goals_status([ok])
 
 
 if __name__ == "__main__":

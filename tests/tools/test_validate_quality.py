@@ -1,4 +1,4 @@
-"""The validation job of the ground-truth-free quality measures (``python -m harness.jobs.validate_quality``) on
+"""The validation job of the ground-truth-free quality measures (``python -m tools.research.validate_quality``) on
 tiny ray-cast frames: its outputs, the calibration check, reuse of a results set's maps and the refusals."""
 
 from __future__ import annotations
@@ -17,7 +17,15 @@ from harness.data import jsonio
 from harness.data.frame import write_frame
 from harness.data.outputs import read_marker
 from harness.jobs.evaluate import evaluate
-from harness.jobs.validate_quality import (
+from harness.render.raycast import render_frame
+from reconstruction.methods.registry import fused_method
+from reconstruction.methods.sweep import SweepMethod
+from reconstruction.quality import CALIBRATION_THRESHOLD, FACTORS, UNCERTAINTY_FACTORS
+from reconstruction.sweep.planes import PlaneParams
+from scenes.model import choose_viewpoints
+from scenes.registry import get_scene
+from tests.helpers import make_synthetic_frame
+from tools.research.validate_quality import (
     MEASURES,
     calibration_choice,
     choose_subset,
@@ -28,14 +36,6 @@ from harness.jobs.validate_quality import (
     main,
     rank_correlation,
 )
-from harness.render.raycast import render_frame
-from reconstruction.methods.registry import fused_method
-from reconstruction.methods.sweep import SweepMethod
-from reconstruction.quality import CALIBRATION_THRESHOLD, FACTORS, UNCERTAINTY_FACTORS
-from reconstruction.sweep.planes import PlaneParams
-from scenes.model import choose_viewpoints
-from scenes.registry import get_scene
-from tests.helpers import make_synthetic_frame
 
 WIDTH = 200
 METHOD = "sweep"

@@ -14,10 +14,10 @@ every key missing on either side, and every configuration whose best refined var
 on a scene (unless the file waives that scene/configuration, with a reason; a waiver that is no longer needed is
 reported too).
 
-    python -m harness.jobs.regression --bounds FILE                 # run and check; exit 1 listing the violations
-    python -m harness.jobs.regression --bounds FILE --update        # re-run and rewrite the bounds (margin 0.15)
-    python -m harness.jobs.regression --bounds FILE --data DIR      # keep/reuse the rendered frames in DIR
-    python -m harness.jobs.regression --bounds FILE --update --waive classroom/dis-rect="why"   # a known exception
+    python -m tools.regression --bounds FILE                 # run and check; exit 1 listing the violations
+    python -m tools.regression --bounds FILE --update        # re-run and rewrite the bounds (margin 0.15)
+    python -m tools.regression --bounds FILE --data DIR      # keep/reuse the rendered frames in DIR
+    python -m tools.regression --bounds FILE --update --waive classroom/dis-rect="why"   # a known exception
 """
 
 from __future__ import annotations
@@ -256,7 +256,7 @@ def write_bounds(data: dict, path: Path | str) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m harness.jobs.regression", description=__doc__.split("\n\n")[0])
+    parser = argparse.ArgumentParser(prog="python -m tools.regression", description=__doc__.split("\n\n")[0])
     parser.add_argument("--update", action="store_true", help="re-run and rewrite the bounds file")
     parser.add_argument("--margin", type=float, default=DEFAULT_MARGIN,
                         help="with --update: bound = measured x (1 + margin) (default %(default)s)")

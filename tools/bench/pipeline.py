@@ -1,6 +1,6 @@
 """Benchmark of the reconstruction pipeline at 1000x500: stage times, peak memory, vectorised LM vs scipy.
 
-Run as ``python -m harness.jobs.bench`` (``make bench``).  It
+Run as ``python -m tools.bench.pipeline`` (``make bench``).  It
 
 1. makes (or reuses, ``--frame DIR``) a synthetic_box frame with exact ground truth, rendered by the numpy
    ray-caster in a child process (so the renderer's memory does not count towards the peak);
@@ -14,7 +14,8 @@ Run as ``python -m harness.jobs.bench`` (``make bench``).  It
    of them; reports the speedup and the agreement (share of subset pixels with |d_vec - d_scipy| <= 1e-4 m)
    and, where the two disagree, which one found the lower cost and whether more LM iterations help;
 4. prints goals vs measured values (``[PASS]`` / ``[FAIL]``) and, as its last line, ``refine speedup vs per-pixel
-   scipy: N x``; exits with status 1 when a goal is missed (:func:`goals_status`), so ``make bench`` fails.
+   scipy: N x``; exits with status 1 when a goal is missed (:func:`tools.common.goals_status`), so ``make bench``
+   fails.
 
 Timings are wall-clock on a shared machine: expect noise of tens of percent.
 """
@@ -27,19 +28,15 @@ if __name__ == "__main__":  # run as a script: Ctrl-C during the imports below i
     startup.guard("bench")
 
 import argparse
-import multiprocessing as mp
 import resource
 import sys
-import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 from scipy.optimize import least_squares
 
-from harness.data.frame import find_frames, read_frame, write_frame
 from harness.jobs.progress import track
-from harness.render.raycast import render_frame
 from reconstruction.flow.matching import match_pair
 from reconstruction.methods.flow_pipeline import (
     DEFAULT_FLOW,
@@ -53,11 +50,10 @@ from reconstruction.methods.flow_pipeline import (
 from reconstruction.methods.registry import PAPER_CONFIG
 from reconstruction.refine.lm import RefineConfig, RefineProblem, discover_variants, levenberg_marquardt
 from reconstruction.refine.triangulate import TriangulationLimits
-from scenes.model import choose_viewpoints
-from scenes.registry import get_scene
+from tools.common import load_or_render_frame, report_goals
 
-__all__ = ["AGREE_TOL_M", "goals_status", "report_goals", "run_vectorised", "scipy_pixel", "run_scipy", "agreement",
-           "costs", "compare_variant", "load_or_render_frame", "main"]
+__all__ = ["AGREE_TOL_M", "run_vectorised", "scipy_pixel", "run_scipy", "agreement", "costs", "compare_variant",
+           "main"]
 
 AGREE_TOL_M = 1e-4  # |d_vec - d_scipy| counted as "the same result", metres
 GOAL_AGREE = 0.999  # share of subset pixels that must agree
@@ -66,59 +62,6 @@ GOAL_SPEEDUP = 100.0  # vectorised LM vs per-pixel scipy
 GOAL_TOTAL_S = 10.0  # whole reconstruct() with all variants, seconds
 GOAL_PEAK_MB = 2048.0  # peak resident memory, MB
 SCIPY_TOL = 1e-12  # xtol = ftol = gtol of the per-pixel scipy solve
-SCENE = "synthetic_box"
-
-
-# ------------------------------------------------------------------------------------------------ frame
-
-
-def _render_into(root: str, width: int) -> None:
-
-    entry, preset = get_scene(SCENE)
-    spec = entry.spec(preset, seed=0)
-    rig = choose_viewpoints(spec, 1, 0)[0]
-    write_frame(render_frame(spec, rig, width, SCENE, f"bench-w{width}"), Path(root))
-
-
-def load_or_render_frame(directory: Path | None, width: int):
-    """A synthetic_box frame ``width`` x ``width/2`` with ground truth.
-
-    ``directory`` may be a frame directory, or a cache root searched for a frame of that width; if none is
-    found one is rendered into it (into a temporary directory when ``directory`` is None).  Rendering runs
-    in a child process so that its memory does not raise this process's peak.
-
-    Returns:
-        ``(frame, description)``.
-    """
-
-    tmp = None
-    if directory is None:
-        tmp = tempfile.TemporaryDirectory(prefix="tri360-bench-")
-        directory = Path(tmp.name)
-    directory = Path(directory)
-    try:
-        if (directory / "frame.json").is_file():
-            frame = read_frame(directory)
-            if frame.width != width:
-                raise SystemExit(f"error: {directory} holds a {frame.width}-wide frame, --width is {width}")
-            return frame, f"reused {directory}"
-        for d in find_frames(directory) if directory.is_dir() else []:
-            frame = read_frame(d)
-            if frame.width == width and frame.has_ground_truth:
-                return frame, f"reused {d}"
-        start = time.perf_counter()
-        proc = mp.get_context("spawn").Process(target=_render_into, args=(str(directory), width))
-        proc.start()
-        proc.join()
-        if proc.exitcode != 0:
-            raise SystemExit(f"error: rendering the bench frame into {directory} failed (exit {proc.exitcode})")
-        found = [d for d in find_frames(directory) if read_frame(d, load_distance=False).width == width]
-        frame = read_frame(found[0])
-        where = "a temporary directory" if tmp else str(found[0])
-        return frame, f"rendered into {where} in {time.perf_counter() - start:.1f} s"
-    finally:
-        if tmp is not None:
-            tmp.cleanup()
 
 
 # ------------------------------------------------------------------------------- vectorised vs scipy
@@ -242,26 +185,8 @@ def _peak_mb() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0  # Linux: kilobytes
 
 
-def _goal(ok: bool, text: str) -> str:
-    return f"  [{'PASS' if ok else 'FAIL'}] {text}"
-
-
-def goals_status(results) -> int:
-    """The exit status of a benchmark that checked goals: 0 when every goal was met, 1 otherwise (so that
-    ``make bench`` fails on a missed goal)."""
-    return 0 if all(results) else 1
-
-
-def report_goals(goals, out=print) -> int:
-    """Print each ``(met, text)`` goal as a ``[PASS]`` / ``[FAIL]`` line through ``out``; return the exit status
-    (:func:`goals_status`)."""
-    for ok, text in goals:
-        out(_goal(ok, text))
-    return goals_status([ok for ok, _ in goals])
-
-
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m harness.jobs.bench", description=__doc__.split("\n\n")[0])
+    ap = argparse.ArgumentParser(prog="python -m tools.bench.pipeline", description=__doc__.split("\n\n")[0])
     ap.add_argument("--width", type=int, default=1000, help="frame width in pixels (height = width / 2)")
     ap.add_argument("--subset", type=int, default=2000, help="pixels solved one by one with scipy per variant")
     ap.add_argument("--seed", type=int, default=0, help="seed of the random scipy subset")

@@ -2,7 +2,7 @@
 
 Run as::
 
-    python -m harness.jobs.select_matching DATA_ROOT --out DIR [--suite suites/tri360-v1.toml] [--split dev]
+    python -m tools.research.select_matching DATA_ROOT --out DIR [--suite suites/tri360-v1.toml] [--split dev]
         [--candidates LABEL ...] [--workers N | --scheduler ADDRESS]
 
 ``DATA_ROOT`` must hold exactly the split's frames (``tri360 render --suite ... --split dev``; checked as for
@@ -35,7 +35,6 @@ from harness.jobs import startup
 if __name__ == "__main__":  # run as a script: Ctrl-C during the imports below is one line and 130
     startup.guard("select_matching")
 
-import argparse
 import dataclasses
 import sys
 from collections.abc import Sequence
@@ -44,11 +43,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from harness.data import jsonio
-from harness.data.atomic import atomic_write_text
 from harness.data.errors import UserError
-from harness.data.outputs import mark_output
-from harness.jobs.cluster import ClusterOptions
 from harness.jobs.suite import evaluate_suite
 from reconstruction.methods.base import Method
 from reconstruction.methods.fused import FusedMethod, PriorParams
@@ -64,6 +59,7 @@ from reconstruction.methods.registry import (
 from reconstruction.methods.sweep import SweepMethod
 from reconstruction.sweep.planes import PlaneParams
 from reports.tables import leaderboard_table
+from tools.common import run_selection, selection_parser
 
 __all__ = ["TOLERANCE", "TIME_TOLERANCE", "BASELINES", "WALLS_COARSE3", "CANDIDATE_PRIORS", "AVERAGE_PRIOR",
            "REFERENCES", "candidate_methods", "family_table", "choose", "main"]
@@ -211,46 +207,29 @@ def selection_markdown(table: pd.DataFrame, label: str, eligible: bool, worst: p
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m harness.jobs.select_matching",
-                                     description=__doc__.splitlines()[0])
-    parser.add_argument("data_root", type=Path, metavar="DATA_ROOT")
-    parser.add_argument("--out", type=Path, required=True, help="results set to write (with selection.md/json)")
-    parser.add_argument("--suite", type=Path, default=DEFAULT_SUITE, help="suite file")
-    parser.add_argument("--split", choices=("dev", "test"), default="dev", help="suite split")
-    parser.add_argument("--quiet", action="store_true", help="no progress bar")
-    parser.add_argument("--candidates", nargs="+", default=None, metavar="LABEL",
-                        help="run only these candidates beside the baselines (sweep, fused), e.g. the method chosen "
-                             "on dev for the one test run (default: every candidate)")
+    parser = selection_parser(
+        "tools.research.select_matching", __doc__.splitlines()[0], DEFAULT_SUITE, "suite file",
+        "run only these candidates beside the baselines (sweep, fused), e.g. the method chosen on dev for the one "
+        "test run (default: every candidate)")
     parser.add_argument("--no-references", action="store_true",
                         help=f"run the candidates only, not the reference rows ({', '.join(REFERENCES)})")
-    where = parser.add_mutually_exclusive_group()
-    where.add_argument("--workers", type=int, default=None, metavar="N",
-                       help="one task per frame on a Dask LocalCluster of N single-threaded workers on 127.0.0.1")
-    where.add_argument("--scheduler", default=None, metavar="ADDRESS", help="an existing Dask scheduler")
     args = parser.parse_args(argv)
-    try:
-        cluster = ClusterOptions(scheduler=args.scheduler, workers=args.workers)
-        if cluster.distributed:
-            cluster.check()
+
+    def select(cluster) -> tuple[str, dict]:
         methods = candidate_methods(args.candidates) + ([] if args.no_references else get_methods(list(REFERENCES)))
         results = evaluate_suite(args.data_root, args.suite, args.split, args.out, methods, report=False,
-                                 progress=not args.quiet, cluster=cluster if cluster.distributed else None)
+                                 progress=not args.quiet, cluster=cluster)
         table = family_table(results)
         label, eligible, worst = choose(table)
         suite_id = str(results["suite_id"].iloc[0])
         text = selection_markdown(table, label, eligible, worst, f"{args.suite.name} ({suite_id})", args.split)
-        atomic_write_text(args.out / "selection.md", text)
         payload = {"suite": str(args.suite), "suite_id": suite_id, "split": args.split, "tolerance": TOLERANCE,
                    "time_tolerance": TIME_TOLERANCE, "chosen": label, "eligible": eligible,
                    "worst_ratio": {k: float(v) for k, v in worst.items()},
                    "table": {m: {k: float(v) for k, v in row.items()} for m, row in table.iterrows()}}
-        atomic_write_text(args.out / "selection.json", jsonio.dumps(payload))
-        mark_output(args.out, "results")
-    except UserError as exc:
-        print(f"select_matching: {exc}", file=sys.stderr)
-        return 2
-    print(text)
-    return 0
+        return text, payload
+
+    return run_selection("select_matching", args, select)
 
 
 if __name__ == "__main__":

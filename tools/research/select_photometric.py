@@ -2,7 +2,7 @@
 
 Run as::
 
-    python -m harness.jobs.select_photometric DATA_ROOT --out DIR [--suite suites/tri360-v2.toml] [--split dev]
+    python -m tools.research.select_photometric DATA_ROOT --out DIR [--suite suites/tri360-v2.toml] [--split dev]
         [--candidates LABEL ...] [--partial] [--workers N | --scheduler ADDRESS]
 
 ``DATA_ROOT`` holds the split's frames under both conditions (``tri360 render --suite suites/tri360-v2.toml
@@ -31,7 +31,6 @@ from harness.jobs import startup
 if __name__ == "__main__":  # run as a script: Ctrl-C during the imports below is one line and 130
     startup.guard("select_photometric")
 
-import argparse
 import dataclasses
 import sys
 from collections.abc import Sequence
@@ -40,12 +39,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from harness.data import jsonio
-from harness.data.atomic import atomic_write_text
 from harness.data.errors import UserError
-from harness.data.outputs import mark_output
 from harness.data.suite import IDEAL
-from harness.jobs.cluster import ClusterOptions
 from harness.jobs.evaluate import evaluate
 from harness.jobs.suite import evaluate_suite
 from reconstruction.methods.base import Method
@@ -53,6 +48,7 @@ from reconstruction.methods.registry import fused_method, mirror_method, uncalib
 from reconstruction.methods.sweep import SweepMethod
 from reconstruction.photometry import PhotometricParams
 from reports.tables import leaderboard_table
+from tools.common import run_selection, selection_parser
 
 __all__ = ["CAPTURED_POOLED", "CAPTURED_FAMILY", "IDEAL_POOLED", "IDEAL_FAMILY", "BASELINES", "REFERENCE",
            "CANDIDATES", "candidate_methods", "condition_table", "choose", "main"]
@@ -176,28 +172,16 @@ def selection_markdown(table: pd.DataFrame, label: str, eligible: bool, r: pd.Da
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m harness.jobs.select_photometric",
-                                     description=__doc__.splitlines()[0])
-    parser.add_argument("data_root", type=Path, metavar="DATA_ROOT")
-    parser.add_argument("--out", type=Path, required=True, help="results set to write (with selection.md/json)")
-    parser.add_argument("--suite", type=Path, default=DEFAULT_SUITE, help="suite file (with a captured condition)")
-    parser.add_argument("--split", choices=("dev", "test"), default="dev", help="suite split")
+    parser = selection_parser(
+        "tools.research.select_photometric", __doc__.splitlines()[0], DEFAULT_SUITE,
+        "suite file (with a captured condition)", f"run only these candidates beside the baselines and {REFERENCE}")
     parser.add_argument("--partial", action="store_true",
                         help="evaluate the frames DATA_ROOT holds (a subset of the split), without the suite check")
-    parser.add_argument("--quiet", action="store_true", help="no progress bar")
-    parser.add_argument("--candidates", nargs="+", default=None, metavar="LABEL",
-                        help=f"run only these candidates beside the baselines and {REFERENCE}")
-    where = parser.add_mutually_exclusive_group()
-    where.add_argument("--workers", type=int, default=None, metavar="N",
-                       help="one task per frame on a Dask LocalCluster of N single-threaded workers on 127.0.0.1")
-    where.add_argument("--scheduler", default=None, metavar="ADDRESS", help="an existing Dask scheduler")
     args = parser.parse_args(argv)
-    try:
-        cluster = ClusterOptions(scheduler=args.scheduler, workers=args.workers)
-        if cluster.distributed:
-            cluster.check()
+
+    def select(cluster) -> tuple[str, dict]:
         methods = candidate_methods(args.candidates)
-        run = dict(report=False, progress=not args.quiet, cluster=cluster if cluster.distributed else None)
+        run = dict(report=False, progress=not args.quiet, cluster=cluster)
         if args.partial:
             results = evaluate(args.data_root, args.out, methods, **run)
             where_text = f"the frames of {args.data_root} (a subset of {args.suite.name} {args.split}, no suite check)"
@@ -207,19 +191,14 @@ def main(argv: Sequence[str] | None = None) -> int:
         table = condition_table(results)
         label, eligible, r = choose(table)
         text = selection_markdown(table, label, eligible, r, where_text)
-        atomic_write_text(args.out / "selection.md", text)
         payload = {"where": where_text, "chosen": label, "eligible": eligible,
                    "candidates": {k: {"photometric": dataclasses.asdict(p), "intensity_weight": w}
                                   for k, (p, w) in CANDIDATES.items()},
                    "ratios": {m: {k: float(v) for k, v in row.items()} for m, row in r.iterrows()},
                    "table": {m: {k: float(v) for k, v in row.items()} for m, row in table.iterrows()}}
-        atomic_write_text(args.out / "selection.json", jsonio.dumps(payload))
-        mark_output(args.out, "results")
-    except UserError as exc:
-        print(f"select_photometric: {exc}", file=sys.stderr)
-        return 2
-    print(text)
-    return 0
+        return text, payload
+
+    return run_selection("select_photometric", args, select)
 
 
 if __name__ == "__main__":

@@ -1,4 +1,4 @@
-"""CI accuracy regression (harness.jobs.regression): the real run against tests/regression_bounds.json, and
+"""CI accuracy regression (tools.regression): the real run against tests/regression_bounds.json, and
 unit tests of ``check`` on hand-made tables."""
 
 from __future__ import annotations
@@ -9,7 +9,9 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from harness.jobs.regression import (
+from reconstruction.methods.flow_pipeline import config_label
+from reconstruction.methods.registry import DEFAULT_VARIANTS
+from tools.regression import (
     FINAL,
     REGRESSION_METHODS,
     check,
@@ -22,8 +24,6 @@ from harness.jobs.regression import (
     run_regression,
     write_bounds,
 )
-from reconstruction.methods.flow_pipeline import config_label
-from reconstruction.methods.registry import DEFAULT_VARIANTS
 
 #: the repository's bounds file (the regression job takes it as ``--bounds``: no path is built into the package)
 BOUNDS_PATH = Path(__file__).resolve().parents[1] / "regression_bounds.json"

@@ -1,6 +1,6 @@
 """Benchmark of the default render: ``tri360 render`` of the default classroom frame, end to end, several times.
 
-Run as ``python -m harness.jobs.bench_render`` (part of ``make bench``).  Each repeat runs the command a user runs,
+Run as ``python -m tools.bench.render`` (part of ``make bench``).  Each repeat runs the command a user runs,
 ``tri360 render --quiet --out TMP`` with every default (scene ``classroom``, 1000 x 500, the default samples and
 Cycles settings, viewpoint ``vp000``), in a fresh process into a fresh temporary data root, and times it from
 start to exit (Python start-up, Blender start-up, scene build, three cameras, writing the frame).  It prints each
@@ -27,8 +27,8 @@ import tempfile
 import time
 from pathlib import Path
 
-from harness.jobs.bench import goals_status
 from harness.jobs.render import DEFAULT_SCENE, DEFAULTS, RENDER_LOG
+from tools.common import goals_status
 
 __all__ = ["GOAL_S", "time_default_render", "main"]
 
@@ -48,7 +48,7 @@ def time_default_render(root: Path, extra: list[str] | None = None) -> tuple[flo
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m harness.jobs.bench_render", description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(prog="python -m tools.bench.render", description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=3, help="number of renders timed")
     args, extra = ap.parse_known_args(argv)
     if args.repeats < 1:
