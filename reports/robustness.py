@@ -1,7 +1,7 @@
 """The robustness study's tables and plots, pure: per-frame rows in, pooled tables, doubling levels, text and PNG out.
 
-The rows (``robustness.csv``, written by ``harness.jobs.robustness``) have the columns ``kind, level, unit, method,
-frame, mae_m, median_m, valid_px`` (and ``mae_sw_m``, ``valid_sr`` when the results have them); the unperturbed
+The rows (``robustness.csv``, written by ``harness.commands.parts.robustness``) have the columns ``kind, level, unit,
+method, frame, mae_m, median_m, valid_px`` (and ``mae_sw_m``, ``valid_sr`` when the results have them); the unperturbed
 frames are the rows of kind :data:`NONE_KIND` (level 0), measured once and shared by every kind.
 
 Each kind's curve starts at its *origin* -- the level that stands for "unperturbed" (0 for most kinds; a kind

@@ -1,7 +1,7 @@
 """The parts of ``report.html`` and the files that go with them, built in memory.
 
 Pure: results DataFrames, frames and distance maps in; HTML, markdown and file contents (relative path ->
-bytes or text) out.  Nothing here touches the file system: the report job (``harness.jobs.report``) reads a
+bytes or text) out.  Nothing here touches the file system: the report job (``harness.commands.report``) reads a
 results set, calls these functions and writes what they return into the results directory::
 
     RESULTS/

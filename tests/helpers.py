@@ -18,7 +18,7 @@ import cv2
 import numpy as np
 from distributed import Client
 
-from harness.jobs.render import render_frames
+from harness.commands.render import render_frames
 from harness.render.base import RenderSettings
 from harness.render.raycast import render_frame
 from reconstruction.camera.equirect import bearing_grid, project

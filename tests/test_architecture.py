@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import ast
 import fnmatch
+import keyword
 import subprocess
 import sys
 import tomllib
@@ -39,7 +40,8 @@ TOP_LEVEL = {
     "harness": {"reconstruction", "scenes", "reports"},
 }
 #: bottom to top; a module may import modules of its own layer or of layers below it
-LAYERS = ["reconstruction", "scenes", "reports", "harness.data", "harness.render", "harness.jobs", "harness.cli"]
+LAYERS = ["reconstruction", "scenes", "reports", "harness.data", "harness.render", "harness.runtime",
+          "harness.commands", "harness.cli"]
 #: modules a layer must never import (third-party, and for reports everything that reaches the file system)
 FORBIDDEN = {
     "reconstruction": {"bpy", "pandas", "matplotlib", "OpenEXR", "dask", "distributed"},
@@ -86,7 +88,7 @@ def source_files(root: Path = ROOT) -> list[Path]:
 
 
 def _string_constants(tree: ast.Module) -> dict[str, str]:
-    """Module-level ``NAME = "text"`` assignments (e.g. ``EXECUTOR_MODULE = "harness.jobs.executor"``)."""
+    """Module-level ``NAME = "text"`` assignments (e.g. ``EXECUTOR_MODULE = "harness.runtime.executor"``)."""
     out = {}
     for n in tree.body:
         value = n.value if isinstance(n, ast.Assign | ast.AnnAssign) else None
@@ -205,7 +207,8 @@ def test_imports_run_one_way():
 def _tree(tmp_path: Path, files: dict[str, str]) -> Path:
     for rel, text in {"reconstruction/__init__.py": "", "scenes/__init__.py": "", "reports/__init__.py": "",
                       "harness/__init__.py": "", "harness/data/__init__.py": "", "harness/data/errors.py": "",
-                      "harness/jobs/__init__.py": "", "harness/jobs/report.py": "", **files}.items():
+                      "harness/commands/__init__.py": "", "harness/commands/report.py": "",
+                      "harness/runtime/__init__.py": "", "harness/runtime/progress.py": "", **files}.items():
         (tmp_path / rel).parent.mkdir(parents=True, exist_ok=True)
         (tmp_path / rel).write_text(text)
     return tmp_path
@@ -216,14 +219,15 @@ def _tree(tmp_path: Path, files: dict[str, str]) -> Path:
     ("reports/tables.py", "import harness.data\n", "harness.data"),
     ("reports/tables.py", "import importlib\nM = importlib.import_module('harness.data.errors')\n",
      "harness.data.errors"),
-    ("reports/tables.py", "import importlib\nNAME = 'harness.jobs'\n\n\ndef f():\n"
-     "    return importlib.import_module(NAME)\n", "harness.jobs"),
+    ("reports/tables.py", "import importlib\nNAME = 'harness.commands'\n\n\ndef f():\n"
+     "    return importlib.import_module(NAME)\n", "harness.commands"),
     ("reports/tables.py", "errors = __import__('harness.data.errors')\n", "harness.data.errors"),
     ("scenes/model.py", "from reports import tables\n", "reports"),
     ("reconstruction/x.py", "import scenes\n", "scenes"),
-    ("harness/data/frame.py", "from ..jobs import report\n", "harness.jobs"),
-    ("harness/data/frame.py", "from ..jobs.report import build_report\n", "harness.jobs.report"),
-    ("harness/jobs/report.py", "from tools.common import report_goals\n", "tools.common"),
+    ("harness/data/frame.py", "from ..commands import report\n", "harness.commands"),
+    ("harness/data/frame.py", "from ..commands.report import build_report\n", "harness.commands.report"),
+    ("harness/runtime/progress.py", "from harness.commands.report import build_report\n", "harness.commands.report"),
+    ("harness/commands/report.py", "from tools.common import report_goals\n", "tools.common"),
     ("reports/tables.py", "import importlib\nM = importlib.import_module('tools.bench.pipeline')\n",
      "tools.bench.pipeline"),
 ])
@@ -350,7 +354,7 @@ def test_the_file_check_catches_a_file_access(tmp_path, source):
 
 
 def test_no_cycles_between_subpackages():
-    """Second-level packages (reconstruction.camera, reconstruction.flow, harness.jobs, ...) form a DAG."""
+    """Second-level packages (reconstruction.camera, reconstruction.flow, harness.commands, ...) form a DAG."""
     def unit(module: str) -> str:
         parts = module.split(".")
         return ".".join(parts[:2]) if len(parts) > 1 else parts[0]
@@ -379,6 +383,27 @@ def test_no_cycles_between_subpackages():
     for n in sorted(graph):
         if n not in state:
             visit(n)
+
+
+def command_module(name: str) -> str:
+    """The module of :mod:`harness.commands` (and of :mod:`harness.cli`) of the CLI command ``name``: the name
+    itself, a Python keyword with a trailing underscore (``import`` -> ``import_``)."""
+    return f"{name}_" if keyword.iskeyword(name) else name
+
+
+def test_every_cli_command_has_its_command_module_and_every_command_module_a_cli_command():
+    """``harness/commands/<name>.py`` for each command of ``harness.cli.COMMANDS``, and no other module there (what
+    commands are built from is in ``harness/commands/parts/``); each CLI module calls its own command module."""
+    from harness.cli import COMMANDS
+
+    wanted = {command_module(name) for name in COMMANDS}
+    present = {p.stem for p in (ROOT / "harness" / "commands").glob("*.py") if p.name != "__init__.py"}
+    assert not wanted - present, f"CLI commands without a module in harness/commands/: {sorted(wanted - present)}"
+    assert not present - wanted, f"modules of harness/commands/ that are no CLI command: {sorted(present - wanted)}"
+    for name, cli_module in COMMANDS.items():
+        path = ROOT.joinpath(*cli_module.__name__.split(".")).with_suffix(".py")
+        own = f"harness.commands.{command_module(name)}"
+        assert any(i.module == own for i in imports(path)), f"{path.relative_to(ROOT)} does not import {own}"
 
 
 def tool_files(root: Path = ROOT) -> list[Path]:

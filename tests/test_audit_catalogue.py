@@ -21,22 +21,22 @@ import cv2
 import numpy as np
 import pytest
 
-import harness.jobs.perturb
-import harness.jobs.suite
+import harness.commands.parts.suite
+import harness.commands.perturb
 import reconstruction.flow.backends
 import reconstruction.plugins
 import reconstruction.refine.lm
 from harness.cli import main
+from harness.commands.evaluate import evaluate, evaluate_task
+from harness.commands.parts.suite import render_suite
+from harness.commands.study import LIMIT_FRAMES
 from harness.data.atomic import parse_staging_name
 from harness.data.errors import UserError
 from harness.data.exr import read_distance_exr
 from harness.data.frame import write_frame
 from harness.data.outputs import MARKER, check_output, mark_output, output_kind
 from harness.data.predictions import write_method_info, write_prediction
-from harness.jobs.cluster import ClusterOptions
-from harness.jobs.evaluate import evaluate, evaluate_task
-from harness.jobs.study import LIMIT_FRAMES
-from harness.jobs.suite import render_suite
+from harness.runtime.cluster import ClusterOptions
 from reconstruction.methods.base import MethodOutput
 from reconstruction.methods.flow_pipeline import FlowMethod
 from reconstruction.methods.registry import discover_methods, flow_methods, get_methods
@@ -471,7 +471,7 @@ class TestPerturb:
         assert run_cli(["perturb", data, "--out", out, "--apply", "noise=2"]) == 0
         before = snapshot(out)
         calls = []
-        real = harness.jobs.perturb.write_frame
+        real = harness.commands.perturb.write_frame
 
         def interrupted(frame, root):
             calls.append(frame.viewpoint)
@@ -479,7 +479,7 @@ class TestPerturb:
                 raise KeyboardInterrupt
             return real(frame, root)
 
-        monkeypatch.setattr(harness.jobs.perturb, "write_frame", interrupted)
+        monkeypatch.setattr(harness.commands.perturb, "write_frame", interrupted)
         assert run_cli(["perturb", data, "--out", out, "--apply", "noise=4"]) == 130
         assert calls == ["vp000", "vp001"]
         assert snapshot(out) == before and staging_leftovers(tmp_path) == []
@@ -557,7 +557,7 @@ def no_plan(*args, **kwargs):
 class TestRenderSuite:
     def test_more_than_100_frames_need_yes_before_any_scene_is_built(self, tmp_path, capfd, monkeypatch):
         big = suite_file(tmp_path, LIMIT_FRAMES + 1)
-        monkeypatch.setattr(harness.jobs.suite, "plan", no_plan)
+        monkeypatch.setattr(harness.commands.parts.suite, "plan", no_plan)
         line = expect_refusal(["render", "--suite", big, "--split", "dev", "--out", tmp_path / "data"], capfd,
                               tmp_path, str(big), f"{LIMIT_FRAMES + 1} frame(s)", f"more than {LIMIT_FRAMES}",
                               "--yes")
@@ -566,7 +566,7 @@ class TestRenderSuite:
     def test_with_yes_it_goes_on_to_plan(self, tmp_path, monkeypatch):
         big = suite_file(tmp_path, LIMIT_FRAMES + 1)
         planned = []
-        monkeypatch.setattr(harness.jobs.suite, "plan",
+        monkeypatch.setattr(harness.commands.parts.suite, "plan",
                             lambda *a, **k: planned.append(a) or (_ for _ in ()).throw(UserError("stop here")))
         assert run_cli(["render", "--suite", big, "--split", "dev", "--out", tmp_path / "data", "--yes"]) == 2
         assert len(planned) == 1
@@ -575,12 +575,12 @@ class TestRenderSuite:
         small = suite_file(tmp_path, 2)
         monkeypatch = pytest.MonkeyPatch()
         with monkeypatch.context() as m:
-            m.setattr(harness.jobs.suite, "LIMIT_FRAMES", 1)
+            m.setattr(harness.commands.parts.suite, "LIMIT_FRAMES", 1)
             with pytest.raises(UserError, match="2 frame"):
                 render_suite(small, "dev", tmp_path / "data", progress=False)
-            m.setattr(harness.jobs.suite, "LIMIT_FRAMES", 2)
+            m.setattr(harness.commands.parts.suite, "LIMIT_FRAMES", 2)
             render_suite(small, "dev", tmp_path / "data", progress=False)
-            m.setattr(harness.jobs.suite, "LIMIT_FRAMES", 0)
+            m.setattr(harness.commands.parts.suite, "LIMIT_FRAMES", 0)
             assert len(render_suite(small, "dev", tmp_path / "data", progress=False)) == 2  # nothing left to do
             with pytest.raises(UserError, match="2 frame"):
                 render_suite(small, "dev", tmp_path / "data", progress=False, force=True)
@@ -615,7 +615,7 @@ class TestSuiteDataCheck:
         data = tmp_path / "data"
         shutil.copytree(suite_root[1], data)
         shutil.rmtree(data / "synthetic_box-s11" / "vp001")
-        monkeypatch.setattr(harness.jobs.suite, "plan", no_plan)
+        monkeypatch.setattr(harness.commands.parts.suite, "plan", no_plan)
         argv = ([command, data] if command == "evaluate" else [command, tmp_path, "--data", data])
         expect_refusal([*argv, "--suite", suite_root[0], "--split", "dev", "--out", tmp_path / "res"], capfd,
                        tmp_path, "synthetic_box-s11/vp001 of suite audit (split dev) is missing")
@@ -624,7 +624,7 @@ class TestSuiteDataCheck:
         data = tmp_path / "data"
         shutil.copytree(suite_root[1], data)
         write_frame(make_synthetic_frame(64), data)
-        monkeypatch.setattr(harness.jobs.suite, "plan", no_plan)
+        monkeypatch.setattr(harness.commands.parts.suite, "plan", no_plan)
         expect_refusal(["evaluate", data, "--suite", suite_root[0], "--split", "dev", "--out", tmp_path / "res"],
                        capfd, tmp_path, "synthetic_box/vp000 is not in suite audit split dev")
 

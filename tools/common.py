@@ -18,8 +18,8 @@ from harness.data.atomic import atomic_write_text
 from harness.data.errors import UserError
 from harness.data.frame import Frame, find_frames, read_frame, write_frame
 from harness.data.outputs import mark_output
-from harness.jobs.cluster import ClusterOptions
 from harness.render.raycast import render_frame
+from harness.runtime.cluster import ClusterOptions
 from scenes.model import choose_viewpoints
 from scenes.registry import get_scene
 

@@ -22,7 +22,7 @@ reported too).
 
 from __future__ import annotations
 
-from harness.jobs import startup
+from harness.runtime import startup
 
 if __name__ == "__main__":  # run as a script: Ctrl-C during the imports below is one line and 130
     startup.guard("regression")
@@ -39,9 +39,9 @@ from pathlib import Path
 
 import pandas as pd
 
+from harness.commands.evaluate import config_keys, evaluate
+from harness.commands.render import render_frames
 from harness.data.atomic import atomic_write_text
-from harness.jobs.evaluate import config_keys, evaluate
-from harness.jobs.render import render_frames
 from harness.render.base import RenderSettings
 from reconstruction.methods.flow_pipeline import DEFAULT_FLOW
 from reconstruction.methods.registry import DEFAULT_METHOD, DEFAULT_VARIANTS, flow_methods, get_methods
@@ -98,7 +98,7 @@ def run_regression(workdir: Path | str, data: Path | str | None = None, width: i
     """Build the data set (into ``data``, default ``<workdir>/data``) and evaluate it into ``<workdir>/results``.
 
     Returns:
-        The results table (``harness.jobs.evaluate`` schema): the default method, ``fused`` and the default variants
+        The results table (``harness.commands.evaluate`` schema): the default method, ``fused`` and the default variants
         (``DEFAULT_VARIANTS``) of every regression configuration.
     """
 

@@ -1,8 +1,9 @@
 """The ``tri360`` command line: argument parsing only, one thin module per command.
 
-Each command module exposes ``HELP``, ``add_arguments(parser)`` and ``run(args) -> int`` and calls into
-``harness.jobs``.  Anticipated failures (bad input, unknown name, malformed file, an unusable output path)
-print one line naming the culprit and exit with status 2; Ctrl-C exits with status 130 and one line at any
+Each command module exposes ``HELP``, ``add_arguments(parser)`` and ``run(args) -> int`` and calls the module of
+:mod:`harness.commands` named after the command (:data:`COMMANDS`: command name -> its module here).
+Anticipated failures (bad input, unknown name, malformed file, an unusable output path) print one line naming the
+culprit and exit with status 2; Ctrl-C exits with status 130 and one line at any
 moment, the seconds of start-up included (the imports below run under a SIGINT handler that exits at once; only
 Python's own start-up before this module runs, tens of milliseconds, is the interpreter's).
 Nothing half-written is left behind (every writer is atomic).
@@ -10,7 +11,7 @@ Nothing half-written is left behind (every writer is atomic).
 
 from __future__ import annotations
 
-from harness.jobs import startup
+from harness.runtime import startup
 
 startup.guard("tri360")
 # every import below runs under the guard (so ruff's E402 is off for this file, in pyproject.toml)
@@ -80,7 +81,7 @@ def main(argv: list[str] | None = None) -> int:
     (parsing included) is one line and 130; SIGTERM while it runs is handled the same way (partial outputs
     removed), exit status 143.  With ``argv`` None (this process's own command line: the ``tri360`` script,
     ``python -m harness.cli``) Ctrl-C is ignored once the command has returned, during the interpreter's shutdown
-    (:func:`harness.jobs.startup.finished`)."""
+    (:func:`harness.runtime.startup.finished`)."""
     prog = "tri360"
     try:
         with startup.sigterm_as_interrupt():

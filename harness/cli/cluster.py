@@ -9,7 +9,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from harness.jobs.cluster import ClusterOptions
+from harness.runtime.cluster import ClusterOptions
 
 __all__ = ["add_cluster_arguments", "cluster_options"]
 

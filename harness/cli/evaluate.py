@@ -1,4 +1,4 @@
-"""``tri360 evaluate``: argument parsing for :func:`harness.jobs.evaluate.evaluate`."""
+"""``tri360 evaluate``: argument parsing for :func:`harness.commands.evaluate.evaluate`."""
 
 from __future__ import annotations
 
@@ -8,8 +8,8 @@ from pathlib import Path
 from harness.cli.cluster import add_cluster_arguments, cluster_options
 from harness.cli.methods import add_method_options, add_results_options, selected_methods
 from harness.cli.suite_options import add_suite_arguments, refuse_with_suite, suite_choice
-from harness.jobs.evaluate import evaluate, summary_text
-from harness.jobs.suite import evaluate_suite
+from harness.commands.evaluate import evaluate, summary_text
+from harness.commands.parts.suite import evaluate_suite
 
 HELP = "run methods on every frame under a data root and score them against ground truth"
 DESCRIPTION = (

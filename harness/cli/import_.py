@@ -1,11 +1,11 @@
-"""``tri360 import``: argument parsing for :func:`harness.jobs.import_frames.import_frame`."""
+"""``tri360 import``: argument parsing for :func:`harness.commands.import_.import_frame`."""
 
 from __future__ import annotations
 
 import argparse
 from pathlib import Path
 
-from harness.jobs.import_frames import import_frame
+from harness.commands.import_ import import_frame
 
 HELP = "make a frame without ground truth from three real equirectangular images and a rig file"
 

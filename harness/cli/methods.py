@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from harness.jobs.options import MethodSelection
+from harness.runtime.options import MethodSelection
 from reconstruction.flow.backends import available_flows
 from reconstruction.methods.base import Method
 from reconstruction.methods.flow_pipeline import DEFAULT_FLOW, FlowMethod, available_variants, config_label

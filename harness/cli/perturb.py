@@ -1,12 +1,12 @@
-"""``tri360 perturb``: argument parsing for :func:`harness.jobs.perturb.perturb_root`."""
+"""``tri360 perturb``: argument parsing for :func:`harness.commands.perturb.perturb_root`."""
 
 from __future__ import annotations
 
 import argparse
 from pathlib import Path
 
-from harness.jobs.perturb import parse_applies, perturb_root
-from harness.jobs.perturbations import KINDS, ORDER
+from harness.commands.parts.perturbations import KINDS, ORDER
+from harness.commands.perturb import parse_applies, perturb_root
 
 HELP = "derive frames with calibration error and imaging defects (same ground truth, provenance in frame.json)"
 

@@ -1,4 +1,4 @@
-"""``tri360 reconstruct``: argument parsing for :func:`harness.jobs.reconstruct.reconstruct_to`."""
+"""``tri360 reconstruct``: argument parsing for :func:`harness.commands.reconstruct.reconstruct_to`."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 
 from harness.cli.methods import add_method_options, selected_methods
-from harness.jobs.reconstruct import reconstruct_to
+from harness.commands.reconstruct import reconstruct_to
 
 HELP = "reconstruct camera C's per-pixel distance of one frame with one method (writes tri360-pred/1)"
 

@@ -1,4 +1,4 @@
-"""``tri360 render``: argument parsing for :func:`harness.jobs.render.render_frames`."""
+"""``tri360 render``: argument parsing for :func:`harness.commands.render.render_frames`."""
 
 from __future__ import annotations
 
@@ -7,7 +7,8 @@ import os
 
 from harness.cli.cluster import add_cluster_arguments, cluster_options
 from harness.cli.suite_options import add_suite_arguments, refuse_with_suite, suite_choice
-from harness.jobs.render import (
+from harness.commands.parts.suite import render_suite
+from harness.commands.render import (
     DEFAULT_SCENE,
     DEFAULTS,
     MIN_WIDTH,
@@ -15,8 +16,7 @@ from harness.jobs.render import (
     render_frames,
     settings_from_options,
 )
-from harness.jobs.study import LIMIT_FRAMES
-from harness.jobs.suite import render_suite
+from harness.commands.study import LIMIT_FRAMES
 from harness.render.registry import available_renderers
 from reconstruction.camera.rig import DEFAULT_BASELINE_M
 

@@ -1,4 +1,4 @@
-"""``tri360 report``: argument parsing for :func:`harness.jobs.report.build_report`."""
+"""``tri360 report``: argument parsing for :func:`harness.commands.report.build_report`."""
 
 from __future__ import annotations
 
@@ -7,9 +7,9 @@ import sys
 import time
 from pathlib import Path
 
+from harness.commands.report import DEFAULT_CLOUD_POINTS, PLY_CHOICES, build_report
 from harness.data.errors import UserError
 from harness.data.outputs import check_output, mark_output
-from harness.jobs.report import DEFAULT_CLOUD_POINTS, PLY_CHOICES, build_report
 
 HELP = "write tables, plots, point clouds and report.html from a results dir"
 

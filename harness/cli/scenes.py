@@ -1,10 +1,11 @@
-"""``tri360 scenes``: list the registered scenes, their presets, default renderer, parameters and description."""
+"""``tri360 scenes``: list the registered scenes, their presets, default renderer, parameters and description
+(:func:`harness.commands.scenes.scene_listing`)."""
 
 from __future__ import annotations
 
 import sys
 
-from scenes.registry import discover
+from harness.commands.scenes import scene_listing
 
 HELP = "list the registered scenes and their presets"
 
@@ -15,21 +16,9 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
-    entries, errors = discover()
-    for name in sorted(entries):
-        e = entries[name]
-        presets = ", ".join(f"{p}*" if p == e.default_preset else p for p in e.presets)
-        print(f"{name:<16} [{e.renderer}] presets: {presets}")
-        if e.description:
-            print(f"{'':<16} {e.description}")
-        if args.params:
-            for key, meaning in sorted(e.parameters.items()):
-                print(f"{'':<16}   --set {key}=...: {meaning}")
-            for p, params in e.presets.items():
-                print(f"{'':<16}   {p}: {params}")
-    if not entries:
-        print("no scenes registered")
-    print("(* = default preset; use --scene NAME:PRESET; [renderer] = the default of --renderer)")
+    lines, errors = scene_listing(args.params)
+    for line in lines:
+        print(line)
     for source, msg in errors.items():
         print(f"warning: {source} failed to load: {msg}", file=sys.stderr)
     return 0

@@ -1,4 +1,4 @@
-"""``tri360 score``: argument parsing for :func:`harness.jobs.score.score`."""
+"""``tri360 score``: argument parsing for :func:`harness.commands.score.score`."""
 
 from __future__ import annotations
 
@@ -8,9 +8,9 @@ from pathlib import Path
 from harness.cli.cluster import add_cluster_arguments, cluster_options
 from harness.cli.methods import add_results_options
 from harness.cli.suite_options import add_suite_arguments, refuse_with_suite, suite_choice
-from harness.jobs.evaluate import summary_text
-from harness.jobs.score import score
-from harness.jobs.suite import score_suite
+from harness.commands.evaluate import summary_text
+from harness.commands.parts.suite import score_suite
+from harness.commands.score import score
 
 HELP = "score predictions of any method (tri360-pred/1) against the ground truth of a data root"
 

@@ -1,4 +1,4 @@
-"""``tri360 study``: argument parsing for :func:`harness.jobs.study.run_study`."""
+"""``tri360 study``: argument parsing for :func:`harness.commands.study.run_study`."""
 
 from __future__ import annotations
 
@@ -6,8 +6,8 @@ import argparse
 from pathlib import Path
 
 from harness.cli.cluster import add_cluster_arguments, cluster_options
-from harness.jobs.robustness import is_robustness_study
-from harness.jobs.study import DEFAULT_METRIC, run_study
+from harness.commands.parts.robustness import is_robustness_study
+from harness.commands.study import DEFAULT_METRIC, run_study
 
 HELP = "render and evaluate every point of a grid of settings (a study TOML); write study.csv, plots, study.md"
 

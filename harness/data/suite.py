@@ -29,7 +29,8 @@ family it uses and the complete render settings (with tri360's defaults for what
 with the same suite id and split were measured on the same frames.
 
 Every problem is one :class:`UserError` line naming the file and the key.  This module reads and checks only; the
-render settings' names and defaults come from the caller (``harness.jobs.suite``, which owns ``RenderSettings``).
+render settings' names and defaults come from the caller (``harness.commands.parts.suite``, which owns
+``RenderSettings``).
 """
 
 from __future__ import annotations

@@ -198,7 +198,7 @@ def test_model_file_obj_is_imported(tmp_path):
 
 
 def test_importing_the_cli_does_not_load_bpy():
-    code = "import sys, harness.cli, harness.jobs.render; harness.cli.build_parser(); print('bpy' in sys.modules)"
+    code = "import sys, harness.cli, harness.commands.render; harness.cli.build_parser(); print('bpy' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"
 

@@ -12,12 +12,12 @@ import numpy as np
 import pytest
 
 from harness.cli import main
+from harness.commands.parts.captured import captured_twin
+from harness.commands.parts.suite import check_suite_data, evaluate_suite, load, plan, render_suite
 from harness.data.errors import FrameError, UserError
 from harness.data.frame import read_frame, write_frame
 from harness.data.photometric import CameraDistribution, Photometric, noise_parameters
 from harness.data.results import read_results
-from harness.jobs.captured import captured_twin
-from harness.jobs.suite import check_suite_data, evaluate_suite, load, plan, render_suite
 from harness.render.camera import apply, vignetting_gain
 from reconstruction.methods.registry import get_methods
 from reconstruction.photometry import srgb_to_linear

@@ -22,7 +22,7 @@ import pytest
 from harness.cli import main
 from harness.data.errors import UserError
 from harness.data.frame import find_frames, read_frame, write_frame
-from harness.jobs.cluster import (
+from harness.runtime.cluster import (
     BASE_BYTES,
     ClusterOptions,
     Executor,

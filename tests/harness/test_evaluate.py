@@ -10,8 +10,8 @@ import pandas as pd
 import pytest
 
 from harness.cli import main
+from harness.commands.evaluate import evaluate, select_frames, summary_text
 from harness.data.errors import UserError
-from harness.jobs.evaluate import evaluate, select_frames, summary_text
 from reconstruction.methods.base import MethodOutput
 from reconstruction.methods.registry import flow_methods
 from reports.schema import RESULT_COLUMNS

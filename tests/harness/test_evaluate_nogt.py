@@ -18,11 +18,11 @@ import pandas as pd
 import pytest
 
 from harness.cli import main
+from harness.commands.report import build_report
 from harness.data.exr import CONFIDENCE_CHANNEL, DISTANCE_CHANNEL, read_exr_channels, read_float_map
 from harness.data.frame import read_frame, write_frame
 from harness.data.outputs import MARKER
 from harness.data.results import map_paths, quality_map_path, read_results, read_results_set
-from harness.jobs.report import build_report
 from reconstruction.quality import assess
 from reports.pointcloud import parse_ply
 from reports.schema import METRIC_COLUMNS, QUALITY_COLUMNS, RESULT_COLUMNS, unscored_rows
@@ -158,7 +158,7 @@ def test_mixed_data_root_is_refused_in_one_line(capture, tmp_path, capsys, monke
 
     def forbidden(*args, **kwargs):
         raise AssertionError("a method ran before the frames were checked")
-    monkeypatch.setattr("harness.jobs.evaluate.run_methods", forbidden)
+    monkeypatch.setattr("harness.commands.evaluate.run_methods", forbidden)
     capsys.readouterr()
     assert main(["evaluate", str(mixed), "--out", str(tmp_path / "res"), *METHODS, "--quiet"]) == 2
     err = capsys.readouterr().err.strip()

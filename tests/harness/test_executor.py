@@ -26,12 +26,12 @@ from distributed import Client
 from distributed.diagnostics.plugin import WorkerPlugin
 
 from harness.cli import main
+from harness.commands.evaluate import evaluate
+from harness.commands.render import RENDER_LOG
 from harness.data.errors import UserError
 from harness.data.outputs import MARKER
-from harness.jobs.cluster import ClusterOptions
-from harness.jobs.evaluate import evaluate
-from harness.jobs.executor import DaskExecutor, security_for
-from harness.jobs.render import RENDER_LOG
+from harness.runtime.cluster import ClusterOptions
+from harness.runtime.executor import DaskExecutor, security_for
 from reconstruction.methods.registry import get_methods
 from tests.helpers import external_cluster, render_scene, wait_for_workers
 

@@ -18,11 +18,11 @@ import numpy as np
 import pytest
 
 from harness.cli import main
+from harness.commands.evaluate import evaluate
 from harness.data.errors import UserError
 from harness.data.names import check_name, is_safe_name
 from harness.data.outputs import MARKER, check_output, foreign_entries, mark_output, output_kind, read_marker
 from harness.data.predictions import write_method_info, write_prediction
-from harness.jobs.evaluate import evaluate
 from reconstruction.methods.base import MethodOutput
 
 RENDER = ("render", "--scene", "synthetic_box", "--width", "64", "--quiet")

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from harness.cli import main
+from harness.commands.parts.perturbations import ORDER, noise_parameters, srgb_to_linear
+from harness.commands.perturb import frame_hash, perturb_root
 from harness.data.frame import read_frame, write_frame
-from harness.jobs.perturb import frame_hash, perturb_root
-from harness.jobs.perturbations import ORDER, noise_parameters, srgb_to_linear
 from tests.helpers import make_synthetic_frame
 
 LEVELS = {"rotation": 0.5, "translation": 2.0, "exposure": 0.5, "white_balance": 0.1, "noise": 3.0, "jpeg": 60,

@@ -6,7 +6,7 @@ import io
 
 from tqdm import tqdm
 
-from harness.jobs.progress import LineProgress, progress_bar, track
+from harness.runtime.progress import LineProgress, progress_bar, track
 
 
 class Terminal(io.StringIO):
@@ -51,7 +51,7 @@ def test_on_a_terminal_it_is_a_tqdm_bar():
 def test_min_interval_thins_the_lines_but_keeps_the_last(monkeypatch):
     out = io.StringIO()
     clock = iter(float(t) for t in range(100))
-    monkeypatch.setattr("harness.jobs.progress.time.monotonic", lambda: next(clock))
+    monkeypatch.setattr("harness.runtime.progress.time.monotonic", lambda: next(clock))
     bar = progress_bar(10, desc="scipy", unit="pixel", min_interval_s=4, stream=out)
     for _ in range(10):
         bar.update(1)  # one clock second per item

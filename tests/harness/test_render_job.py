@@ -10,11 +10,11 @@ import sys
 import numpy as np
 import pytest
 
-import harness.jobs.render as job
+import harness.commands.render as job
 from harness.cli import build_parser, main
+from harness.commands.render import MIN_WIDTH, differences, max_width
 from harness.data.errors import UserError
 from harness.data.frame import read_frame
-from harness.jobs.render import MIN_WIDTH, differences, max_width
 from harness.render.base import BaseRenderer, Renderer, RenderSettings, identity, srgb_encode
 from harness.render.raycast import RaycastRenderer
 from harness.render.registry import RENDERER_CLASSES, available_renderers, get_renderer, open_renderer
@@ -222,7 +222,7 @@ def test_backends_satisfy_the_protocol():
 
 
 def test_importing_the_render_layer_never_loads_bpy():
-    code = ("import sys, harness.render.registry, harness.jobs.render, harness.cli; harness.cli.build_parser(); "
+    code = ("import sys, harness.render.registry, harness.commands.render, harness.cli; harness.cli.build_parser(); "
             "print('bpy' in sys.modules, 'harness.render.cycles' in sys.modules)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False False"

@@ -13,13 +13,13 @@ import numpy as np
 import pandas as pd
 import pytest
 
-import harness.jobs.robustness as rob
+import harness.commands.parts.robustness as rob
 from harness.cli import main
+from harness.commands.evaluate import evaluate
+from harness.commands.parts.perturbations import rotation_about
+from harness.commands.parts.suite import load as load_suite
+from harness.commands.perturb import perturb_frame
 from harness.data.frame import validate_metadata, write_frame
-from harness.jobs.evaluate import evaluate
-from harness.jobs.perturb import perturb_frame
-from harness.jobs.perturbations import rotation_about
-from harness.jobs.suite import load as load_suite
 from reconstruction.camera.rig import CameraPose
 from reconstruction.methods.registry import get_methods
 from reports.robustness import doubling_level, kind_table, pooled_mae

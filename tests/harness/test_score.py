@@ -10,10 +10,10 @@ import pandas as pd
 import pytest
 
 from harness.cli import main
+from harness.commands.evaluate import evaluate
+from harness.commands.score import PredictionMethod
 from harness.data.frame import read_frame
 from harness.data.predictions import write_method_info, write_prediction
-from harness.jobs.evaluate import evaluate
-from harness.jobs.score import PredictionMethod
 from reconstruction.methods.registry import flow_methods
 
 

@@ -111,7 +111,7 @@ def test_the_resource_trackers_leaked_semaphore_warning_is_silenced_after_guard(
     them after the command has exited and used to warn on stderr, after the command's one line.  The child here
     leaks one semaphore the same way (it exits without unlinking it): the warning appears without ``guard`` and not
     with it."""
-    code = ("from harness.jobs import startup\n"
+    code = ("from harness.runtime import startup\n"
             + ("startup.guard('x')\n" if guarded else "")
             + "import multiprocessing, os\n"
               "lock = multiprocessing.get_context('spawn').Lock()\n"

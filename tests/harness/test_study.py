@@ -15,9 +15,9 @@ from distributed import Client
 from distributed.diagnostics.plugin import WorkerPlugin
 
 from harness.cli import main
+from harness.commands.render import plan_render
+from harness.commands.study import grid_points, load_study, point_ids, run_study
 from harness.data.errors import UserError
-from harness.jobs.render import plan_render
-from harness.jobs.study import grid_points, load_study, point_ids, run_study
 from harness.render.base import RenderSettings
 from reconstruction.methods.registry import get_methods
 from tests.helpers import wait_for_workers

@@ -9,12 +9,12 @@ from pathlib import Path
 
 import pytest
 
-import harness.jobs.study as study_job
+import harness.commands.study as study_job
 from harness.cli import main
+from harness.commands.parts.robustness import is_robustness_study, load_robustness
+from harness.commands.study import load_study, run_study
 from harness.data.errors import UserError
-from harness.jobs.options import typed_value
-from harness.jobs.robustness import is_robustness_study, load_robustness
-from harness.jobs.study import load_study, run_study
+from harness.runtime.options import typed_value
 from tests.helpers import render_scene
 
 TINY = '[render]\nscene = "synthetic_box"\nwidth = 64\n[evaluate]\nmethod = ["oracle-rect:average"]\n'
@@ -93,7 +93,7 @@ def test_a_huge_grid_is_refused_from_its_lengths_before_planning(tmp_path, capsy
     study.write_text(TINY + f"[grid]\nseed = {list(range(100))}\nbaseline = {[0.2 + i / 1000 for i in range(100)]}\n",
                      encoding="utf-8")
     planned = []
-    monkeypatch.setattr("harness.jobs.study.plan_point", lambda *a, **k: planned.append(a))
+    monkeypatch.setattr("harness.commands.study.plan_point", lambda *a, **k: planned.append(a))
     assert main(["study", str(study), "--out", str(tmp_path / "out"), "--quiet"]) == 2
     assert planned == []  # refused from the grid's lengths, before any point was planned
     err = capsys.readouterr().err.strip()

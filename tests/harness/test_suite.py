@@ -17,13 +17,13 @@ import pandas as pd
 import pytest
 
 from harness.cli import main
+from harness.commands.parts.suite import check_suite_data, evaluate_suite, load, plan, render_suite
+from harness.commands.render import DEFAULTS
 from harness.data.errors import UserError
 from harness.data.frame import read_frame
 from harness.data.predictions import write_prediction
 from harness.data.results import read_results
 from harness.data.suite import load_suite, suite_id
-from harness.jobs.render import DEFAULTS
-from harness.jobs.suite import check_suite_data, evaluate_suite, load, plan, render_suite
 from reconstruction.camera.equirect import bearing_grid, project
 from reconstruction.methods.registry import get_methods
 from reports.tables import leaderboard_markdown, leaderboard_table

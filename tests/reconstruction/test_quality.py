@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from harness.jobs.perturb import perturb_frame
+from harness.commands.perturb import perturb_frame
 from reconstruction import quality as Q
 from reconstruction.camera.equirect import bearing_grid
 from tests.helpers import make_synthetic_frame

@@ -19,7 +19,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from harness.jobs.report import build_report
+from harness.commands.report import build_report
 from tests.reports.test_reports import CONFIGS, OTHERS, VARIANTS, make_results
 
 pytestmark = pytest.mark.browser

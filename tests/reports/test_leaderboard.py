@@ -10,11 +10,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from harness.commands.report import build_report
 from harness.data.errors import UserError
 from harness.data.exr import CONFIDENCE_CHANNEL, DISTANCE_CHANNEL, read_float_map
 from harness.data.frame import read_frame
 from harness.data.results import map_paths, read_regions, read_results
-from harness.jobs.report import build_report
 from reports import html as H
 from reports import plots
 from reports.metrics import pooled_sparsification_curves, pooled_summary, sparsification_curves

@@ -1,5 +1,5 @@
 """The report job end to end: a tiny fake results directory (real EXR maps, a real frame on disk) -> every output
-of ``harness.jobs.report.build_report``; reading a malformed results set (``harness.data.results``)."""
+of ``harness.commands.report.build_report``; reading a malformed results set (``harness.data.results``)."""
 
 from __future__ import annotations
 
@@ -15,11 +15,11 @@ import pandas as pd
 import pytest
 
 from harness.cli import main
+from harness.commands.report import build_report
 from harness.data.errors import UserError
 from harness.data.exr import CONFIDENCE_CHANNEL, DISTANCE_CHANNEL, write_float_map
 from harness.data.frame import Frame, write_frame
 from harness.data.results import map_paths, read_results, write_results
-from harness.jobs.report import build_report
 from reconstruction.camera.equirect import bearing_grid
 from reconstruction.camera.rig import Rig
 from reports.metrics import breakdown, summary

@@ -7,8 +7,8 @@ import json
 import pandas as pd
 import pytest
 
+from harness.commands.parts.suite import render_suite
 from harness.data.outputs import read_marker
-from harness.jobs.suite import render_suite
 from tests.harness.test_suite import MINI, write
 from tools.research import select_matching as sel
 

@@ -13,10 +13,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from harness.commands.evaluate import evaluate
 from harness.data import jsonio
 from harness.data.frame import write_frame
 from harness.data.outputs import read_marker
-from harness.jobs.evaluate import evaluate
 from harness.render.raycast import render_frame
 from reconstruction.methods.registry import fused_method
 from reconstruction.methods.sweep import SweepMethod

@@ -12,7 +12,7 @@ meaningful on an otherwise idle machine: the load average before each run is pri
 
 from __future__ import annotations
 
-from harness.jobs import startup
+from harness.runtime import startup
 
 if __name__ == "__main__":  # run as a script: Ctrl-C during the imports below is one line and 130
     startup.guard("bench_dask")
@@ -24,10 +24,10 @@ import tempfile
 import time
 from pathlib import Path
 
-from harness.jobs.cluster import ClusterOptions
-from harness.jobs.executor import DaskExecutor
-from harness.jobs.render import RENDER_LOG, render_frames
+from harness.commands.render import RENDER_LOG, render_frames
 from harness.render.base import RenderSettings
+from harness.runtime.cluster import ClusterOptions
+from harness.runtime.executor import DaskExecutor
 from tools.common import goals_status
 
 __all__ = ["GOAL_SPEEDUP", "time_render", "main"]

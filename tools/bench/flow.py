@@ -19,7 +19,7 @@ small frame in each child keeps compilation out of the figures.
 
 from __future__ import annotations
 
-from harness.jobs import startup
+from harness.runtime import startup
 
 if __name__ == "__main__":  # run as a script: Ctrl-C during the imports below is one line and 130
     startup.guard("bench_flow")

@@ -22,7 +22,7 @@ Timings are wall-clock on a shared machine: expect noise of tens of percent.
 
 from __future__ import annotations
 
-from harness.jobs import startup
+from harness.runtime import startup
 
 if __name__ == "__main__":  # run as a script: Ctrl-C during the imports below is one line and 130
     startup.guard("bench")
@@ -36,7 +36,7 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import least_squares
 
-from harness.jobs.progress import track
+from harness.runtime.progress import track
 from reconstruction.flow.matching import match_pair
 from reconstruction.methods.flow_pipeline import (
     DEFAULT_FLOW,

@@ -13,7 +13,7 @@ meaningful on an otherwise idle machine.
 
 from __future__ import annotations
 
-from harness.jobs import startup
+from harness.runtime import startup
 
 if __name__ == "__main__":  # run as a script: Ctrl-C during the imports below is one line and 130
     startup.guard("bench_render")
@@ -27,7 +27,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from harness.jobs.render import DEFAULT_SCENE, DEFAULTS, RENDER_LOG
+from harness.commands.render import DEFAULT_SCENE, DEFAULTS, RENDER_LOG
 from tools.common import goals_status
 
 __all__ = ["GOAL_S", "time_default_render", "main"]

@@ -14,7 +14,7 @@ is then not the goal's).  ``--threads`` as for ``tri360 render``.  Only meaningf
 
 from __future__ import annotations
 
-from harness.jobs import startup
+from harness.runtime import startup
 
 if __name__ == "__main__":  # run as a script: Ctrl-C during the imports below is one line and 130
     startup.guard("bench_suite")
@@ -27,9 +27,9 @@ import sys
 import time
 from pathlib import Path
 
+from harness.commands.parts.suite import PlannedFrame, load, plan
+from harness.commands.render import DEFAULT_SCENE, DEFAULTS
 from harness.data.errors import UserError
-from harness.jobs.render import DEFAULT_SCENE, DEFAULTS
-from harness.jobs.suite import PlannedFrame, load, plan
 from harness.render.registry import get_renderer
 from scenes.model import choose_viewpoints
 from scenes.registry import get_scene

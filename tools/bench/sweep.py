@@ -20,7 +20,7 @@ which exercises the same memory as a native 4000x2000 frame.
 
 from __future__ import annotations
 
-from harness.jobs import startup
+from harness.runtime import startup
 
 if __name__ == "__main__":  # run as a script: Ctrl-C during the imports below is one line and 130
     startup.guard("bench_sweep")

@@ -30,7 +30,7 @@ look at the candidates that were not chosen.
 
 from __future__ import annotations
 
-from harness.jobs import startup
+from harness.runtime import startup
 
 if __name__ == "__main__":  # run as a script: Ctrl-C during the imports below is one line and 130
     startup.guard("select_matching")
@@ -43,8 +43,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from harness.commands.parts.suite import evaluate_suite
 from harness.data.errors import UserError
-from harness.jobs.suite import evaluate_suite
 from reconstruction.methods.base import Method
 from reconstruction.methods.fused import FusedMethod, PriorParams
 from reconstruction.methods.registry import (

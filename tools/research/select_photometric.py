@@ -26,7 +26,7 @@ split once with the chosen candidate (``--candidates``).
 
 from __future__ import annotations
 
-from harness.jobs import startup
+from harness.runtime import startup
 
 if __name__ == "__main__":  # run as a script: Ctrl-C during the imports below is one line and 130
     startup.guard("select_photometric")
@@ -39,10 +39,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from harness.commands.evaluate import evaluate
+from harness.commands.parts.suite import evaluate_suite
 from harness.data.errors import UserError
 from harness.data.suite import IDEAL
-from harness.jobs.evaluate import evaluate
-from harness.jobs.suite import evaluate_suite
 from reconstruction.methods.base import Method
 from reconstruction.methods.registry import fused_method, mirror_method, uncalibrated, with_photometric
 from reconstruction.methods.sweep import SweepMethod

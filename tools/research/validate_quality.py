@@ -29,7 +29,7 @@ on a data root of frames with ground truth (a suite's split: ``tri360 render --s
    :data:`reconstruction.quality.UNCERTAINTY_FACTORS` is chosen on the suite's dev split.
 2. **Calibration check.**  ``--calibration-frames`` frames, chosen round-robin over the families in sorted order
    (each family's frames in order), are perturbed in memory with ``--rotation`` degrees of rotation error of U
-   and R and ``--seed`` (:func:`harness.jobs.perturb.checked_perturbation`, as ``tri360 perturb --apply
+   and R and ``--seed`` (:func:`harness.commands.perturb.checked_perturbation`, as ``tri360 perturb --apply
    rotation=...`` does), the method is run on the perturbed frame, and the :func:`reconstruction.quality.
    calibration_score` of the exact frame (from the distance of part 1) and of the perturbed one are compared with
    :data:`reconstruction.quality.CALIBRATION_THRESHOLD`.  A frame is *separated* when the exact frame is not
@@ -58,7 +58,7 @@ one line and exit status 2, Ctrl-C one line and 130, and either way ``DIR`` is l
 
 from __future__ import annotations
 
-from harness.jobs import startup
+from harness.runtime import startup
 
 if __name__ == "__main__":  # run as a script: Ctrl-C during the imports below is one line and 130
     startup.guard("validate_quality")
@@ -78,15 +78,7 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-from harness.data import jsonio
-from harness.data.atomic import atomic_write_text
-from harness.data.errors import UserError
-from harness.data.exr import CONFIDENCE_CHANNEL, DISTANCE_CHANNEL, read_float_map
-from harness.data.outputs import check_output, mark_output, staged_directory
-from harness.data.provenance import software
-from harness.data.results import map_paths, read_config, read_results_set
-from harness.jobs import perturbations as P
-from harness.jobs.evaluate import (
+from harness.commands.evaluate import (
     FrameRef,
     checked_maps,
     frame_labels,
@@ -95,8 +87,16 @@ from harness.jobs.evaluate import (
     scorable_frame,
     select_frames,
 )
-from harness.jobs.perturb import checked_perturbation
-from harness.jobs.progress import progress_bar
+from harness.commands.parts import perturbations as P
+from harness.commands.perturb import checked_perturbation
+from harness.data import jsonio
+from harness.data.atomic import atomic_write_text
+from harness.data.errors import UserError
+from harness.data.exr import CONFIDENCE_CHANNEL, DISTANCE_CHANNEL, read_float_map
+from harness.data.outputs import check_output, mark_output, staged_directory
+from harness.data.provenance import software
+from harness.data.results import map_paths, read_config, read_results_set
+from harness.runtime.progress import progress_bar
 from reconstruction.camera.rig import CAMERA_NAMES
 from reconstruction.methods.base import Method, reference_distance, with_references
 from reconstruction.methods.registry import get_methods
@@ -190,7 +190,7 @@ def choose_threshold(exact: Sequence[float], perturbed: Sequence[float]) -> dict
 
 
 def frame_family(scene: str, labelled: str) -> str:
-    """The family of a frame: ``labelled`` (what its provenance names, :func:`harness.jobs.evaluate.frame_labels`)
+    """The family of a frame: ``labelled`` (what its provenance names, :func:`harness.commands.evaluate.frame_labels`)
     when not empty, else the scene name up to ``-s<seed>`` (a suite's naming, ``<family>[-<preset>]-s<seed>``),
     else the scene name."""
     if labelled:
@@ -507,7 +507,7 @@ def ground_truth_frames(data_root: Path, count: int | None = None) -> tuple[list
 
     Raises:
         UserError: a missing data root, no frames, a malformed frame.json, duplicate frames
-            (:func:`harness.jobs.evaluate.select_frames`), or no frame with ground truth.
+            (:func:`harness.commands.evaluate.select_frames`), or no frame with ground truth.
     """
     refs = sorted(select_frames(data_root), key=lambda r: (r.scene, r.viewpoint))
     with_gt = [r for r in refs if any((r.path / f"{n}.distance.exr").exists() for n in CAMERA_NAMES)]
@@ -588,7 +588,7 @@ def _read_stored(maps: StoredMaps, frame) -> tuple[np.ndarray, np.ndarray | None
 def _run(method: Method, frame, reference: bool = True) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
     """The method's distance, confidence and reference distance (:func:`reference_distance`; None when not
     ``reference``) of ``frame``, float32 as ``evaluate`` stores them (shapes checked by
-    :func:`harness.jobs.evaluate.checked_maps`)."""
+    :func:`harness.commands.evaluate.checked_maps`)."""
     try:
         outputs = run_blind(frame, with_references([method]) if reference else [method])
         output = outputs[method.label]

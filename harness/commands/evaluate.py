@@ -1,4 +1,4 @@
-"""The evaluate job: run methods on every frame under a data root, score them against ground truth, report.
+"""The evaluate command: run methods on every frame under a data root, score them against ground truth, report.
 
 Writes a results set into ``out``::
 
@@ -11,7 +11,7 @@ Writes a results set into ``out``::
     maps/                       predicted distance of C (and confidence, for a method that gives one) per
                                 frame and method, laid out by harness.data.results.map_paths
 
-and the report (``harness.jobs.report``) unless ``report=False``.  With a Dask cluster (``cluster``) each frame x
+and the report (``harness.commands.report``) unless ``report=False``.  With a Dask cluster (``cluster``) each frame x
 group of methods is one task whose worker writes the maps into the staging directory (so it must be on a
 file system the workers share) and returns the rows; this process writes the rest (``docs/scale-out.md``).
 
@@ -50,6 +50,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from harness.commands.report import build_report
 from harness.data.errors import UserError
 from harness.data.exr import CONFIDENCE_CHANNEL, DISTANCE_CHANNEL, write_exr_channels, write_float_map
 from harness.data.frame import find_frames, read_frame
@@ -58,8 +59,7 @@ from harness.data.outputs import RESULTS_FORMAT, check_output, mark_output, stag
 from harness.data.provenance import software
 from harness.data.results import map_paths, quality_map_path, write_results
 from harness.data.suite import IDEAL
-from harness.jobs.cluster import ClusterOptions, Executor, executor_for, is_distributed
-from harness.jobs.report import build_report
+from harness.runtime.cluster import ClusterOptions, Executor, executor_for, is_distributed
 from reconstruction.flow.backends import ORACLE
 from reconstruction.methods.base import (
     Method,
@@ -389,8 +389,9 @@ def evaluate(data_root: Path, out: Path, methods: Sequence[Method], scenes: Sequ
             task per frame.  The rows and maps are the same either way (only ``seconds``, each method's wall
             time, differs from run to run).
         executor: instead of ``cluster``, an executor that is already open (a study's); left open.
-        suite: the evaluated suite split (``harness.data.suite.Suite.describe``, from ``harness.jobs.suite``, which
-            checks the data root first): recorded in ``config.json`` and in every row (``suite_id``, ``split``).
+        suite: the evaluated suite split (``harness.data.suite.Suite.describe``, from
+            ``harness.commands.parts.suite``, which checks the data root first): recorded in ``config.json`` and
+            in every row (``suite_id``, ``split``).
             Every row also names its frame's family and difficulty tags (:func:`frame_labels`).
 
     Returns:

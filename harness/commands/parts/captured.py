@@ -21,9 +21,9 @@ import zlib
 
 import numpy as np
 
+from harness.commands.parts import perturbations as P
 from harness.data.frame import Frame
 from harness.data.photometric import CameraDistribution
-from harness.jobs import perturbations as P
 from harness.render.camera import apply
 from reconstruction.camera.rig import CAMERA_NAMES
 

@@ -1,8 +1,8 @@
-"""The render job: render frames of a registered scene into a data root.
+"""The render command: render frames of a registered scene into a data root.
 
 Library use::
 
-    >>> from harness.jobs.render import render_frames                                        # doctest: +SKIP
+    >>> from harness.commands.render import render_frames                                        # doctest: +SKIP
     >>> from harness.render.base import RenderSettings
     >>> dirs = render_frames(RenderSettings(width=256, samples=8), "classroom:small", viewpoints=2, out_root="data")
     >>> dirs = render_frames(RenderSettings(width=256), "box_room", out_root="data", renderer="raycast")
@@ -22,7 +22,7 @@ behind.  Blender (``bpy``) is loaded only by the Cycles worker process, never by
 they ran); how long it took goes to ``render_log.json`` beside it (:data:`RENDER_LOG`: the renderer's per-stage
 wall times and the host), written after the frame and ignored by every reader.
 
-With ``cluster`` (:class:`harness.jobs.cluster.ClusterOptions`: ``--scheduler`` / ``--workers``, or ``executor``:
+With ``cluster`` (:class:`harness.runtime.cluster.ClusterOptions`: ``--scheduler`` / ``--workers``, or ``executor``:
 an open one) each frame is
 one Dask task: the worker builds the scene, renders the frame and writes it into the data root itself (which must
 be on a file system that every worker sees at the same path); a frame whose worker died is simply rendered again.
@@ -49,7 +49,9 @@ from harness.data.errors import UserError
 from harness.data.frame import Frame, frame_dir, is_complete, write_frame
 from harness.data.names import check_name
 from harness.data.outputs import check_output, ensure_output_dir, mark_output
-from harness.jobs.cluster import (
+from harness.render.base import RenderSettings, identity, recorded_identity
+from harness.render.registry import get_renderer
+from harness.runtime.cluster import (
     BASE_BYTES,
     MEMORY_SHARE,
     ClusterOptions,
@@ -58,10 +60,8 @@ from harness.jobs.cluster import (
     is_distributed,
     physical_memory_bytes,
 )
-from harness.jobs.options import annotations_of, typed_value
-from harness.jobs.progress import progress_bar
-from harness.render.base import RenderSettings, identity, recorded_identity
-from harness.render.registry import get_renderer
+from harness.runtime.options import annotations_of, typed_value
+from harness.runtime.progress import progress_bar
 from reconstruction.camera.rig import CAMERA_NAMES, DEFAULT_BASELINE_M, Rig
 from reconstruction.flow.backends import builtin_flows
 from scenes.model import SceneSpec, choose_viewpoints
@@ -70,7 +70,7 @@ from scenes.registry import get_scene
 RENDER_LOG = "render_log.json"
 """Sidecar of a rendered frame: wall times per stage (``seconds``: build, C, U, R, total) and the host."""
 DEFAULTS = RenderSettings()
-"""The render defaults (``harness.render.base.RenderSettings``), the single source for the CLI and this job."""
+"""The render defaults (``harness.render.base.RenderSettings``), the single source for the CLI and this command."""
 DEFAULT_SCENE = "classroom"
 
 MIN_WIDTH_BY_FLOW = {b.name: b.min_width for b in builtin_flows()}
@@ -95,7 +95,7 @@ RECONSTRUCT_BYTES_PER_PIXEL = 640
 RENDER_BYTES_PER_PIXEL = 910
 """Peak memory of rendering one frame with Cycles (worker + this process), bytes per pixel (measured 878 + 26)."""
 # BASE_BYTES (memory that does not grow with the width) and MEMORY_SHARE (the share of the physical memory a
-# render or reconstruction may plan to use) live in harness.jobs.cluster, which bounds --workers by them too.
+# render or reconstruction may plan to use) live in harness.runtime.cluster, which bounds --workers by them too.
 
 
 def max_width(memory_bytes: int | None = None) -> int:

@@ -1,7 +1,7 @@
 """The robustness study: every default method's MAE against each perturbation's level, on chosen frames.
 
 A robustness study is a TOML file that ``tri360 study`` recognises by ``kind = "robustness"``
-(:func:`is_robustness_study`; ``harness.jobs.study.run_study`` hands it to :func:`run_robustness`)::
+(:func:`is_robustness_study`; ``harness.commands.study.run_study`` hands it to :func:`run_robustness`)::
 
     kind = "robustness"
     data = "data-dev"                          # a data root (relative to the current directory)
@@ -17,7 +17,7 @@ A robustness study is a TOML file that ``tri360 study`` recognises by ``kind = "
 
 - ``data/unperturbed/``: the chosen frames as they are (a copy, so that the unperturbed frames are evaluated
   like every other point: one data root, one results set), ``data/<kind>-<level>/``: the frames perturbed with
-  that one kind at that level (``tri360 perturb``, :func:`harness.jobs.perturb.perturb_frames`, the file's seed);
+  that one kind at that level (``tri360 perturb``, :func:`harness.commands.perturb.perturb_frames`, the file's seed);
 - ``results/unperturbed/``, ``results/<kind>-<level>/``: their results sets (``tri360 evaluate`` without report);
 - ``robustness.csv``: one row per (kind, level, method, frame) and the unperturbed rows (kind ``none``, level 0):
   ``kind, level, unit, method, frame, mae_m, median_m, valid_px`` and ``mae_sw_m, valid_sr`` when present;
@@ -26,7 +26,7 @@ A robustness study is a TOML file that ``tri360 study`` recognises by ``kind = "
   level_plot`); ``points.json``: which point uses which directories.
 
 Everything is checked before any work (:func:`load_robustness`: keys, kinds, levels through
-:func:`harness.jobs.perturb.parse_applies`, methods; then the data root, the frames and ``out``).  Reuse: a
+:func:`harness.commands.perturb.parse_applies`, methods; then the data root, the frames and ``out``).  Reuse: a
 perturbed frame is kept when it is complete and its provenance names the same source (SHA-256 of the source
 frame's files), seed and perturbation; a results set is kept when it is complete, ran the same methods and its
 frames' provenance matches too; so a rerun perturbs and evaluates nothing, and a longer list of levels only the
@@ -43,17 +43,17 @@ from pathlib import Path
 
 import pandas as pd
 
+from harness.commands.evaluate import evaluate, scorable_frame, select_frames
+from harness.commands.parts import perturbations as P
+from harness.commands.perturb import checked_perturbation, frame_hash, parse_applies, perturb_frames
 from harness.data import jsonio
 from harness.data.atomic import atomic_write_bytes, atomic_write_text
 from harness.data.errors import UserError
 from harness.data.frame import find_frames, frame_dir, is_complete, read_frame
 from harness.data.outputs import check_output, ensure_output_dir, mark_output
 from harness.data.results import CONFIG_JSON, RESULTS_CSV, read_frames, read_results
-from harness.jobs import perturbations as P
-from harness.jobs.cluster import ClusterOptions, open_executor
-from harness.jobs.evaluate import evaluate, scorable_frame, select_frames
-from harness.jobs.options import MethodSelection, annotations_of, typed_value
-from harness.jobs.perturb import checked_perturbation, frame_hash, parse_applies, perturb_frames
+from harness.runtime.cluster import ClusterOptions, open_executor
+from harness.runtime.options import MethodSelection, annotations_of, typed_value
 from reports.robustness import NONE_KIND, format_level, kind_table, level_plot, pooled_mae, robustness_markdown
 
 __all__ = ["KIND", "KEYS", "DEFAULT_METHODS", "ORIGINS", "RobustnessSpec", "Point", "is_robustness_study",

@@ -1,6 +1,6 @@
 """The Dask ``distributed`` executor: a job's tasks on an existing cluster or on a ``LocalCluster`` of our own.
 
-Loaded only through :func:`harness.jobs.cluster.open_executor` (this is the one module of tri360 that imports
+Loaded only through :func:`harness.runtime.cluster.open_executor` (this is the one module of tri360 that imports
 Dask).  Two ways to get workers:
 
 - ``ClusterOptions(workers=N)``: a ``LocalCluster`` of N worker processes (``threads_per_worker`` threads each)
@@ -42,8 +42,8 @@ from distributed.security import Security
 from distributed.utils import get_mp_context
 
 from harness.data.errors import UserError
-from harness.jobs.cluster import ClusterOptions
-from harness.jobs.progress import progress_bar
+from harness.runtime.cluster import ClusterOptions
+from harness.runtime.progress import progress_bar
 
 __all__ = ["DaskExecutor", "security_for", "probe_scheduler", "LOOPBACK"]
 

@@ -1,4 +1,4 @@
-"""The reconstruct job: camera C's per-pixel distance for one frame by one method, written as ``tri360-pred/1``.
+"""The reconstruct command: camera C's per-pixel distance for one frame by one method, written as ``tri360-pred/1``.
 
 Writes under ``out`` (each file atomically)::
 
@@ -20,6 +20,7 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
+from harness.commands.evaluate import checked_maps, methods_view, run_blind
 from harness.data import jsonio
 from harness.data.atomic import atomic_write_bytes, atomic_write_text
 from harness.data.errors import UserError
@@ -34,8 +35,7 @@ from harness.data.predictions import (
     write_prediction,
 )
 from harness.data.provenance import software
-from harness.jobs.evaluate import checked_maps, methods_view, run_blind
-from harness.jobs.progress import progress_bar
+from harness.runtime.progress import progress_bar
 from reconstruction.methods.base import Method, MethodOutput, reference_distance, with_references
 from reconstruction.quality import assess
 from reports.metrics import summary
@@ -46,7 +46,7 @@ __all__ = ["run_with_progress", "reconstruct_to", "check_one_method"]
 
 def run_with_progress(frame, methods: Sequence[Method], desc: str, progress: bool = True,
                       on_stage: Callable[[str], None] | None = None) -> dict[str, MethodOutput]:
-    """:func:`harness.jobs.evaluate.run_blind` (no method but the oracle sees ground truth) with a stage progress
+    """:func:`harness.commands.evaluate.run_blind` (no method but the oracle sees ground truth) with a stage progress
     bar; a method's ValueError (e.g. the oracle without ground
     truth) becomes a :class:`UserError` naming the frame."""
     with progress_bar(None, desc=desc, unit="stage", enabled=progress, leave=False) as bar:

@@ -29,7 +29,7 @@ Before any work every key is checked against its option's type (:func:`load_stud
 and evaluate would check it (:func:`plan_point`), and the plan's size (:data:`LIMIT_POINTS`, :data:`LIMIT_FRAMES`:
 past them only with ``yes``).
 
-A file with ``kind = "robustness"`` is a robustness study instead (:mod:`harness.jobs.robustness`), which
+A file with ``kind = "robustness"`` is a robustness study instead (:mod:`harness.commands.parts.robustness`), which
 :func:`run_study` hands over whole.
 
 Reuse: the data roots are named by what decides the frames' pixels (:func:`point_ids`), so a rerun, or an
@@ -61,17 +61,9 @@ import pandas as pd
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from harness.data import jsonio
-from harness.data.atomic import atomic_write_bytes, atomic_write_text
-from harness.data.errors import UserError
-from harness.data.frame import frame_dir, is_complete
-from harness.data.outputs import check_output, ensure_output_dir, mark_output
-from harness.data.results import read_frames, read_results
-from harness.jobs.cluster import ClusterOptions, Executor, open_executor
-from harness.jobs.evaluate import evaluate
-from harness.jobs.options import MethodSelection, annotations_of, typed_value
-from harness.jobs.progress import progress_bar
-from harness.jobs.render import (
+from harness.commands.evaluate import evaluate
+from harness.commands.parts.robustness import is_robustness_study, run_robustness
+from harness.commands.render import (
     RENDER_LOG,
     RenderPlan,
     SettingsMismatch,
@@ -80,8 +72,16 @@ from harness.jobs.render import (
     render_frames,
     settings_from_options,
 )
-from harness.jobs.robustness import is_robustness_study, run_robustness
+from harness.data import jsonio
+from harness.data.atomic import atomic_write_bytes, atomic_write_text
+from harness.data.errors import UserError
+from harness.data.frame import frame_dir, is_complete
+from harness.data.outputs import check_output, ensure_output_dir, mark_output
+from harness.data.results import read_frames, read_results
 from harness.render.base import RenderSettings
+from harness.runtime.cluster import ClusterOptions, Executor, open_executor
+from harness.runtime.options import MethodSelection, annotations_of, typed_value
+from harness.runtime.progress import progress_bar
 from reports.plots import png_bytes
 from reports.schema import METRIC_COLUMNS
 from scenes.registry import SceneError
@@ -93,7 +93,7 @@ RENDER_KEYS = ("scene", "renderer", "viewpoints", "width", "samples", "seed", "t
                "light_tree", "no_denoise", "set")
 """Keys of ``[render]`` (``tri360 render`` options, dashes as underscores; ``set`` is a table or KEY=VALUE list)."""
 EVALUATE_KEYS = (*(f.name for f in dataclasses.fields(MethodSelection)), "report")
-"""Keys of ``[evaluate]`` (``tri360 evaluate`` options: :class:`harness.jobs.options.MethodSelection`'s fields and
+"""Keys of ``[evaluate]`` (``tri360 evaluate`` options: :class:`harness.runtime.options.MethodSelection`'s fields and
 ``report``, which defaults to false in a study)."""
 DEFAULT_METRIC = "mae_m"
 #: grid points rendered or evaluated at once on a cluster (threads of this process that submit their tasks)
@@ -121,7 +121,7 @@ LIMIT_POINTS = 1000
 
 def _render_hints() -> dict[str, object]:
     """The type of each ``[render]`` key: a :class:`RenderSettings` field's (``no_denoise``: ``denoise``'s), else
-    the parameter of :func:`harness.jobs.render.plan_render` of that name; ``set`` is a table of scene parameters
+    the parameter of :func:`harness.commands.render.plan_render` of that name; ``set`` is a table of scene parameters
     or a list of KEY=VALUE strings."""
     settings, plan = annotations_of(RenderSettings), annotations_of(plan_render)
     out = {}
@@ -166,7 +166,7 @@ def _check_value(key: str, value, source: str):
 
 def load_study(path: Path) -> StudySpec:
     """Read and check a study TOML: every key of ``[render]`` and ``[evaluate]``, and every value of every
-    ``[grid]`` list, against the type of its option (:func:`harness.jobs.options.typed_value`).
+    ``[grid]`` list, against the type of its option (:func:`harness.runtime.options.typed_value`).
 
     Raises:
         UserError: unreadable or malformed TOML, an unknown section or key (naming the allowed ones), a value
@@ -244,8 +244,8 @@ def point_ids(plan: RenderPlan, methods: Sequence, report: bool) -> tuple[str, s
 
 @dataclasses.dataclass(frozen=True)
 class PointPlan:
-    """One grid point, checked: its render (:class:`harness.jobs.render.RenderPlan`, rigs not yet placed, and
-    the :func:`harness.jobs.render.render_frames` keywords), its methods, and its data root and results set."""
+    """One grid point, checked: its render (:class:`harness.commands.render.RenderPlan`, rigs not yet placed, and
+    the :func:`harness.commands.render.render_frames` keywords), its methods, and its data root and results set."""
 
     point: dict
     render: RenderPlan
@@ -334,7 +334,7 @@ def run_study(study_path: Path, out: Path, cluster: ClusterOptions | None = None
         UserError: a malformed study file, an unknown metric, a plan too large without ``yes``, or anything
             ``render``/``evaluate`` refuses.
     """
-    if is_robustness_study(study_path):  # kind = "robustness": harness.jobs.robustness
+    if is_robustness_study(study_path):  # kind = "robustness": harness.commands.parts.robustness
         if metric != DEFAULT_METRIC:
             raise UserError(f"--metric {metric}: a robustness study ({study_path}) tabulates {DEFAULT_METRIC} only")
         return run_robustness(study_path, out, cluster=cluster, progress=progress)

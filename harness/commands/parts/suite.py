@@ -2,7 +2,7 @@
 
 ``tri360 render --suite suites/tri360-v1.toml --split dev --out data/dev`` renders every frame of the split
 (``harness.data.suite``: family, preset, parameters, seed, viewpoints, rig) into ``<out>/<group name>/vpNNN``,
-with the machinery of every render (``harness.jobs.render``): resumable (complete frames rendered with the same
+with the machinery of every render (``harness.commands.render``): resumable (complete frames rendered with the same
 settings are kept, others refused naming the difference unless ``force``), atomic frames, and with ``cluster``
 one Dask task per frame.
 
@@ -24,20 +24,20 @@ from pathlib import Path
 
 import pandas as pd
 
+from harness.commands.evaluate import FrameRef, evaluate, select_frames
+from harness.commands.parts.captured import captured_twin
+from harness.commands.render import DEFAULTS, RenderItem, check_width, differences, render_items
+from harness.commands.score import score
+from harness.commands.study import LIMIT_FRAMES
 from harness.data.atomic import clean_stale_partials
 from harness.data.errors import UserError
 from harness.data.frame import frame_dir, is_complete, read_frame, write_frame
 from harness.data.outputs import check_output, ensure_output_dir, mark_output
 from harness.data.suite import IDEAL, Suite, SuiteFrame, load_suite
-from harness.jobs.captured import captured_twin
-from harness.jobs.cluster import ClusterOptions
-from harness.jobs.evaluate import FrameRef, evaluate, select_frames
-from harness.jobs.progress import progress_bar
-from harness.jobs.render import DEFAULTS, RenderItem, check_width, differences, render_items
-from harness.jobs.score import score
-from harness.jobs.study import LIMIT_FRAMES
 from harness.render.base import RenderSettings, identity
 from harness.render.registry import get_renderer
+from harness.runtime.cluster import ClusterOptions
+from harness.runtime.progress import progress_bar
 from reconstruction.camera.rig import Rig
 from reconstruction.methods.base import Method
 from scenes.model import SceneSpec, choose_viewpoints
@@ -59,7 +59,7 @@ class PlannedFrame:
 
 
 def load(path: Path) -> Suite:
-    """:func:`harness.data.suite.load_suite` with tri360's render defaults (``harness.jobs.render.DEFAULTS``)."""
+    """:func:`harness.data.suite.load_suite` with tri360's render defaults (``harness.commands.render.DEFAULTS``)."""
     return load_suite(Path(path), dataclasses.asdict(DEFAULTS), discover()[0])
 
 
@@ -139,7 +139,7 @@ def render_suite(path: Path, split: str, out_root: Path, threads: int = DEFAULTS
                  yes: bool = False) -> list[Path]:
     """Render every frame of a suite's split into ``out_root`` (resumable); return the frame directories.
 
-    A split with more than :data:`harness.jobs.study.LIMIT_FRAMES` frames still to render (not complete in
+    A split with more than :data:`harness.commands.study.LIMIT_FRAMES` frames still to render (not complete in
     ``out_root``; all of them with ``force``) needs ``yes``, as ``tri360 study`` does; this is checked from the
     suite file before any scene is built.
 
@@ -149,7 +149,7 @@ def render_suite(path: Path, split: str, out_root: Path, threads: int = DEFAULTS
         threads: Cycles threads, 0 = all (a machine setting, not part of the suite).
         force: re-render complete frames whatever they were rendered with.
         cluster: one Dask task per frame (``--workers`` / ``--scheduler``); None = in this process.
-        yes: start a render of more than :data:`~harness.jobs.study.LIMIT_FRAMES` frames.
+        yes: start a render of more than :data:`~harness.commands.study.LIMIT_FRAMES` frames.
     Raises:
         UserError: too many frames without ``yes``; see :func:`plan`; an existing frame rendered with other
             settings (naming it and the differences; use ``force``); an unwritable output; a renderer failure.
@@ -205,7 +205,7 @@ def render_suite(path: Path, split: str, out_root: Path, threads: int = DEFAULTS
 
 
 def _derive_twins(suite: Suite, split: str, todo: list[PlannedFrame], out_root: Path, progress: bool) -> None:
-    """Write each twin (:func:`harness.jobs.captured.captured_twin`) of a rendered frame of ``out_root``."""
+    """Write each twin (:func:`harness.commands.parts.captured.captured_twin`) of a rendered frame of ``out_root``."""
     with progress_bar(len(todo), f"{suite.name} {split}: captured twins", enabled=progress) as bar:
         for p in todo:
             src = frame_dir(out_root, p.frame.source.scene, p.frame.viewpoint)
@@ -227,7 +227,7 @@ def check_suite_data(suite: Suite, split: str, data_root: Path) -> list[FrameRef
 
     Raises:
         UserError: naming the first frame that is missing, extra (not in the split) or rendered with other
-            settings (and how), or anything :func:`harness.jobs.evaluate.select_frames` refuses.
+            settings (and how), or anything :func:`harness.commands.evaluate.select_frames` refuses.
     """
     data_root = Path(data_root)
     refs = select_frames(data_root)
@@ -254,7 +254,7 @@ def check_suite_data(suite: Suite, split: str, data_root: Path) -> list[FrameRef
 
 def evaluate_suite(data_root: Path, path: Path, split: str, out: Path, methods: Sequence[Method],
                    report: bool = True, progress: bool = True, cluster: ClusterOptions | None = None) -> pd.DataFrame:
-    """:func:`harness.jobs.evaluate.evaluate` on a suite's split, after :func:`check_suite_data`; the results
+    """:func:`harness.commands.evaluate.evaluate` on a suite's split, after :func:`check_suite_data`; the results
     carry the suite id and split."""
     suite = load(path)
     check_suite_data(suite, split, data_root)
@@ -265,7 +265,7 @@ def evaluate_suite(data_root: Path, path: Path, split: str, out: Path, methods: 
 def score_suite(pred_roots: Sequence[Path], data_root: Path, path: Path, split: str, out: Path,
                 names: Sequence[str] | None = None, report: bool = True, progress: bool = True,
                 cluster: ClusterOptions | None = None) -> pd.DataFrame:
-    """:func:`harness.jobs.score.score` on a suite's split, after :func:`check_suite_data`."""
+    """:func:`harness.commands.score.score` on a suite's split, after :func:`check_suite_data`."""
     suite = load(path)
     check_suite_data(suite, split, data_root)
     return score(pred_roots, data_root, out, names, report=report, progress=progress, cluster=cluster,

@@ -1,8 +1,8 @@
-"""The score job: score predictions on disk (``tri360-pred/1``), from any method, against the ground truth.
+"""The score command: score predictions on disk (``tri360-pred/1``), from any method, against the ground truth.
 
 Each predictions root becomes a :class:`PredictionMethod`, a :class:`reconstruction.methods.base.Method` that
 reads its maps instead of computing them, and goes through exactly the same path as built-in methods
-(:func:`harness.jobs.evaluate.evaluate`): the same metrics, regions, results files, config.json and report.
+(:func:`harness.commands.evaluate.evaluate`): the same metrics, regions, results files, config.json and report.
 """
 
 from __future__ import annotations
@@ -13,11 +13,11 @@ from pathlib import Path
 
 import pandas as pd
 
+from harness.commands.evaluate import evaluate, select_frames
 from harness.data.errors import UserError
 from harness.data.names import check_name
 from harness.data.predictions import FORMAT, prediction_dir, read_method_info, read_prediction
-from harness.jobs.cluster import ClusterOptions
-from harness.jobs.evaluate import evaluate, select_frames
+from harness.runtime.cluster import ClusterOptions
 from reconstruction.methods.base import MethodOutput
 from reconstruction.methods.registry import builtin_methods
 
@@ -114,7 +114,7 @@ def score(pred_roots: Sequence[Path], data_root: Path, out: Path, names: Sequenc
     """Score every predictions root against the frames under ``data_root``; write a results set to ``out``.
 
     ``cluster`` runs the scoring on Dask (one task per frame x predictions root), as in ``evaluate``; ``suite``
-    (``harness.jobs.suite.score_suite``) is recorded as in ``evaluate``.
+    (``harness.commands.parts.suite.score_suite``) is recorded as in ``evaluate``.
 
     Returns:
         The results table.
@@ -122,7 +122,7 @@ def score(pred_roots: Sequence[Path], data_root: Path, out: Path, names: Sequenc
 
     Raises:
         UserError: see :func:`prediction_methods`, a frame without a prediction, a malformed prediction (named),
-            or anything :func:`harness.jobs.evaluate.evaluate` refuses.
+            or anything :func:`harness.commands.evaluate.evaluate` refuses.
     """
     methods = prediction_methods(pred_roots, names)
     _check_complete(methods, data_root, scenes)

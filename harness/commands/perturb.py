@@ -1,10 +1,11 @@
-"""The perturb job: derived frames with calibration error and imaging defects (:mod:`harness.jobs.perturbations`).
+"""The perturb command: derived frames with calibration error and imaging defects
+(:mod:`harness.commands.parts.perturbations`).
 
 For every frame under a data root, writes ``<out>/<scene>/<viewpoint>/`` with the perturbed images and told poses,
 the source's ground-truth distance maps unchanged, and in ``frame.json``'s ``renderer`` a ``perturbation`` record:
 the source frame (its real path and a SHA-256 over its files), the seed, every perturbation applied (in
-:data:`~harness.jobs.perturbations.ORDER`) with its level and what was drawn per camera, and -- when poses were
-perturbed -- the true poses of U and R.
+:data:`~harness.commands.parts.perturbations.ORDER`) with its level and what was drawn per camera, and -- when poses
+were perturbed -- the true poses of U and R.
 
 Pose perturbations change only what the method is *told* (the poses in ``frame.json``); the images keep the true
 poses.  C's pose is never perturbed (U and R are calibrated relative to C), so C's distance map -- the one scored --
@@ -17,12 +18,12 @@ from __future__ import annotations
 import hashlib
 from pathlib import Path
 
+from harness.commands.evaluate import select_frames
+from harness.commands.parts import perturbations as P
 from harness.data.errors import FrameError, UserError
 from harness.data.frame import Frame, find_frames, frame_dir, read_frame, validate_metadata, write_frame
 from harness.data.outputs import check_output, mark_output, staged_directory
 from harness.data.provenance import software
-from harness.jobs import perturbations as P
-from harness.jobs.evaluate import select_frames
 from reconstruction.camera.rig import CAMERA_NAMES
 
 __all__ = ["parse_applies", "perturb_frame", "checked_perturbation", "perturb_root", "perturb_frames", "frame_hash"]

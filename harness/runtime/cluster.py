@@ -1,8 +1,8 @@
-"""Where a job's tasks run: in this process (the default), or on Dask ``distributed`` (``harness.jobs.executor``).
+"""Where a job's tasks run: in this process (the default), or on Dask ``distributed`` (``harness.runtime.executor``).
 
 This module is deliberately light (no Dask import): the command line builds a :class:`ClusterOptions` from
 ``--scheduler``/``--workers``/``--tls-*`` and the jobs call :func:`open_executor`, which loads
-:mod:`harness.jobs.executor` (and with it Dask) only when a cluster is asked for, the way the Cycles backend
+:mod:`harness.runtime.executor` (and with it Dask) only when a cluster is asked for, the way the Cycles backend
 loads ``bpy`` only in its worker.  ``import harness.cli`` therefore never imports Dask.
 
 An executor (:class:`Executor`) runs independent tasks and yields their results as they complete::
@@ -36,13 +36,13 @@ from pathlib import Path
 from typing import Protocol, runtime_checkable
 
 from harness.data.errors import UserError
-from harness.jobs.progress import progress_bar
+from harness.runtime.progress import progress_bar
 
 __all__ = ["ClusterOptions", "Executor", "SequentialExecutor", "open_executor", "EXECUTOR_MODULE",
            "executor_for", "is_distributed", "max_workers", "machine_cores", "physical_memory_bytes", "BASE_BYTES",
            "MEMORY_SHARE", "WORKERS_PER_CORE"]
 
-EXECUTOR_MODULE = "harness.jobs.executor"
+EXECUTOR_MODULE = "harness.runtime.executor"
 """The Dask executor module, imported only when a cluster is asked for."""
 BASE_BYTES = 1 << 30
 """Memory of one process that does not grow with the width (Python, NumPy, OpenCV, Blender: measured about
@@ -192,7 +192,7 @@ class ClusterOptions:
 
 @runtime_checkable
 class Executor(Protocol):
-    """Where a job's tasks run: :class:`SequentialExecutor` (here) or ``harness.jobs.executor.DaskExecutor``.
+    """Where a job's tasks run: :class:`SequentialExecutor` (here) or ``harness.runtime.executor.DaskExecutor``.
 
     Attributes:
         distributed: True when tasks run on other processes (Dask workers): a job then submits everything at

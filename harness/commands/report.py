@@ -1,4 +1,4 @@
-"""The report job (``tri360 report RESULTS``): read a results set, draw the report, write it beside the results.
+"""The report command (``tri360 report RESULTS``): read a results set, draw the report, write it beside the results.
 
 Reads the results directory written by ``tri360 evaluate`` / ``tri360 score`` (``harness.data.results``: the
 CSVs, ``frames.json``, ``config.json``, the maps) and the frames it names; the figures, tables, point clouds

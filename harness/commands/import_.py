@@ -1,4 +1,4 @@
-"""The import job: a ``tri360-frame/1`` frame without ground truth from three real equirectangular images.
+"""The import command: a ``tri360-frame/1`` frame without ground truth from three real equirectangular images.
 
 The rig file (``tri360-rig/1``, documented in ``docs/real-captures.md``) gives the poses of U and R relative to C
 in C's camera frame (X right, Y forward, Z up; metres; rotation = C-from-camera, columns the camera's axes).  The
@@ -17,13 +17,13 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from harness.commands.render import max_width
 from harness.data.errors import FrameError, UserError
 from harness.data.frame import Frame, write_frame
 from harness.data.images import read_png
 from harness.data.names import check_name
 from harness.data.outputs import check_output, mark_output
 from harness.data.provenance import software
-from harness.jobs.render import max_width
 from reconstruction.camera.rig import CAMERA_NAMES, CameraPose
 
 __all__ = ["RIG_FORMAT", "read_rig", "import_frame"]
@@ -106,7 +106,7 @@ def import_frame(images: dict[str, Path], rig: Path, out: Path, width: int | Non
         out: the frame directory to write; its parent's parent is the data root (checked with
             :func:`check_output`, kind ``data``).
         width: resize to this width (even, >= 60, at most what this machine can reconstruct:
-            :func:`harness.jobs.render.max_width`); None keeps the images' size.  The three images must be of one
+            :func:`harness.commands.render.max_width`); None keeps the images' size.  The three images must be of one
             size either way.
     Returns:
         The frame directory written.

@@ -1,0 +1,55 @@
+"""``tri360 methods``: the methods ``--method`` accepts, as text: the named ones (the default marked), the flows and
+variants that the flow pipeline's labels combine, what ``evaluate`` runs by default, and plugins' methods."""
+
+from __future__ import annotations
+
+from reconstruction.flow.backends import ORACLE, discover_flows
+from reconstruction.methods.flow_pipeline import DEFAULT_FLOW, FlowMethod, config_label
+from reconstruction.methods.registry import (
+    DEFAULT_CONFIGS,
+    DEFAULT_METHOD,
+    DEFAULT_VARIANTS,
+    PAPER_CONFIG,
+    PRESETS,
+    discover_methods,
+)
+from reconstruction.refine.lm import discover_variants
+
+__all__ = ["AVERAGE", "ORACLE_TEXT", "method_listing"]
+
+#: what ``average`` is (it is no refinement variant, so it has no registry entry of its own)
+AVERAGE = "no refinement: the mean of the two pairs' triangulated distances (the paper's \"before optimisation\")"
+#: what the ``oracle`` flow is (not an image backend)
+ORACLE_TEXT = "exact correspondences from C's true distance (needs ground truth: an upper bound, not a method)"
+
+
+def _rows(pairs: list[tuple[str, str]], indent: str = "  ") -> list[str]:
+    width = max((len(a) for a, _ in pairs), default=0)
+    return [f"{indent}{a:<{width}}  {b}".rstrip() for a, b in pairs]
+
+
+def method_listing() -> tuple[list[str], dict[str, str]]:
+    """The lines ``tri360 methods`` prints, and the plugins that failed to load (source -> message: methods,
+    flows and variants)."""
+    methods, errors = discover_methods()
+    flows, flow_errors = discover_flows()
+    variants, variant_errors = discover_variants()
+    out = ["named methods (* = the default, what 'tri360 reconstruct' runs):"]
+    out += _rows([(p.label + ("*" if p.label == DEFAULT_METHOD else ""), p.description) for p in PRESETS])
+    out += ["", "the flow pipeline: FLOW-rect:VARIANT or FLOW-plain:VARIANT (e.g. dis-rect:gradient): flow C->U and "
+            "C->R, triangulate each pair, then a variant",
+            "  rect: flow on pairs rotated so that the baseline is the polar axis; plain: on the equirect images "
+            "(an ablation)", "  flows:"]
+    marks = {DEFAULT_FLOW: " (tri360's flow)", PAPER_CONFIG[0]: f" (the paper's set-up: {config_label(*PAPER_CONFIG)})"}
+    out += _rows([(name, b.description + marks.get(name, "")) for name, b in sorted(flows.items())]
+                 + [(ORACLE, ORACLE_TEXT)], indent="    ")
+    out.append("  variants:")
+    out += _rows([("average", AVERAGE), *((name, v.description) for name, v in variants.items())], indent="    ")
+    configs = ", ".join(f"{config_label(f, r)}:{{{','.join(DEFAULT_VARIANTS)}}}" for f, r in DEFAULT_CONFIGS)
+    named = [p.label for p in PRESETS]
+    plugins = [(label, getattr(m, "description", "") or type(m).__name__) for label, m in sorted(methods.items())
+               if not isinstance(m, FlowMethod) and label not in named]
+    out += ["", f"'tri360 evaluate' runs by default: {DEFAULT_METHOD}, sweep, {configs}"]
+    out += ["", "plugins' methods (entry points of tri360.methods):" if plugins else "plugins' methods: none"]
+    out += _rows(plugins)
+    return out, {**errors, **flow_errors, **variant_errors}

@@ -1,0 +1,30 @@
+"""``tri360 scenes``: the registered scenes as text: their presets, default renderer, description and (on request)
+parameters."""
+
+from __future__ import annotations
+
+from scenes.registry import discover
+
+__all__ = ["scene_listing"]
+
+
+def scene_listing(params: bool = False) -> tuple[list[str], dict[str, str]]:
+    """The lines ``tri360 scenes`` prints (with ``params``: every scene's parameters and every preset's values),
+    and the scene plugins that failed to load (source -> message)."""
+    entries, errors = discover()
+    out = []
+    for name in sorted(entries):
+        e = entries[name]
+        presets = ", ".join(f"{p}*" if p == e.default_preset else p for p in e.presets)
+        out.append(f"{name:<16} [{e.renderer}] presets: {presets}")
+        if e.description:
+            out.append(f"{'':<16} {e.description}")
+        if params:
+            for key, meaning in sorted(e.parameters.items()):
+                out.append(f"{'':<16}   --set {key}=...: {meaning}")
+            for p, values in e.presets.items():
+                out.append(f"{'':<16}   {p}: {values}")
+    if not entries:
+        out.append("no scenes registered")
+    out.append("(* = default preset; use --scene NAME:PRESET; [renderer] = the default of --renderer)")
+    return out, errors
