@@ -22,20 +22,11 @@ from reconstruction.methods.registry import fused_method
 from reconstruction.methods.sweep import SweepMethod
 from reconstruction.quality import CALIBRATION_THRESHOLD, FACTORS, UNCERTAINTY_FACTORS
 from reconstruction.sweep.planes import PlaneParams
+from reports.quality_validation import MEASURES, choose_subset, choose_threshold, factor_subsets, rank_correlation
 from scenes.model import choose_viewpoints
 from scenes.registry import get_scene
 from tests.helpers import make_synthetic_frame
-from tools.research.validate_quality import (
-    MEASURES,
-    calibration_choice,
-    choose_subset,
-    choose_threshold,
-    config_difference,
-    factor_subsets,
-    frame_family,
-    main,
-    rank_correlation,
-)
+from tools.research.validate_quality import calibration_choice, config_difference, frame_family, main
 
 WIDTH = 200
 METHOD = "sweep"
