@@ -35,7 +35,6 @@ from harness.runtime import startup
 if __name__ == "__main__":  # run as a script: Ctrl-C during the imports below is one line and 130
     startup.guard("select_matching")
 
-import dataclasses
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -46,7 +45,6 @@ import pandas as pd
 from harness.commands.parts.suite import evaluate_suite
 from harness.data.errors import UserError
 from reconstruction.methods.base import Method
-from reconstruction.methods.fused import FusedMethod, PriorParams
 from reconstruction.methods.registry import (
     DEFAULT_VARIANTS,
     WALL_PLANES,
@@ -57,12 +55,12 @@ from reconstruction.methods.registry import (
     mirror_method,
 )
 from reconstruction.methods.sweep import SweepMethod
-from reconstruction.sweep.planes import PlaneParams
 from reports.tables import leaderboard_table
 from tools.common import run_selection, selection_parser
+from tools.research.candidates import MATCHING
 
-__all__ = ["TOLERANCE", "TIME_TOLERANCE", "BASELINES", "WALLS_COARSE3", "CANDIDATE_PRIORS", "AVERAGE_PRIOR",
-           "REFERENCES", "candidate_methods", "family_table", "choose", "main"]
+__all__ = ["TOLERANCE", "TIME_TOLERANCE", "BASELINES", "CANDIDATES", "REFERENCES", "candidate_methods", "family_table",
+           "choose", "main"]
 
 TOLERANCE = 0.05
 #: a candidate's summed seconds may exceed ``fused``'s by this fraction (0: no slower)
@@ -70,38 +68,9 @@ TIME_TOLERANCE = 0.0
 BASELINES = ("sweep", "fused")
 DEFAULT_SUITE = Path("suites/tri360-v1.toml")
 
-#: the default's wall families with the coarse room-bound pass on images 3x smaller instead of 2x (the coarse pass
-#: is then about 0.6 s CPU cheaper at 1000x500, about what the wall labels cost in SGM)
-WALLS_COARSE3 = dataclasses.replace(WALL_PLANES, coarse_factor=3)
-
-#: the fused candidates besides the registered ``fused-adaptive`` (:func:`reconstruction.methods.registry.
-#: adaptive_method`: wall families, frame agreement 0.6-0.8; the first dev selection chose it under the candidate
-#: label ``fused-walls-f0.6-0.8``), ``fused-gated`` (:func:`reconstruction.methods.registry.gated_method`; the dev
-#: selection with the time bound chose it under the candidate label ``fused-walls-k1-f0.5-0.7-avg-c0.5-2``) and the
-#: default ``fused-mirror`` (``fused-gated`` with the room bound's mirror test; the third dev selection): label ->
-#: (the sweep's plane families, prior weight per pixel), all on ``fused``'s flow and its sweep but for the planes
-#: (None: ``fused``'s, no walls;
-#: :class:`reconstruction.methods.fused.PriorParams`, :class:`reconstruction.sweep.planes.PlaneParams`).
-#: A first look at 10 dev frames (classroom, seminar, lab) left out three more that were worse than ``sweep``
-#: pooled: the flow confidence alone, wall families alone, and wall families with the sweep-confidence power only.
-CANDIDATE_PRIORS: dict[str, tuple[PlaneParams | None, PriorParams]] = {
-    "fused-c0.5-2": (None, PriorParams(contrast_low=0.5, contrast_high=2.0)),
-    "fused-walls-f0.4-0.6": (WALL_PLANES, PriorParams(frame_agreement_low=0.4, frame_agreement_high=0.6)),
-    "fused-walls-f0.5-0.7": (WALL_PLANES, PriorParams(frame_agreement_low=0.5, frame_agreement_high=0.7)),
-    "fused-walls-k1-f0.5-0.7": (WALL_PLANES, PriorParams(sweep_confidence_power=1.0, frame_agreement_low=0.5,
-                                                         frame_agreement_high=0.7)),
-    "fused-walls-k1-f0.5-0.7-avg": (WALL_PLANES, PriorParams(sweep_confidence_power=1.0, frame_agreement_low=0.5,
-                                                             frame_agreement_high=0.7)),
-    # the local-contrast gate of fused-c0.5-2 on the best wall candidates: no flow prior where C's image has no
-    # texture for the flow to follow (a plain board or wall, where the wall labels carry the sweep); -q3: the
-    # cheaper coarse pass, so that the walls cost no more time than fused
-    "fused-walls-f0.6-0.8-c0.5-2": (WALL_PLANES, PriorParams(contrast_low=0.5, contrast_high=2.0,
-                                                             frame_agreement_low=0.6, frame_agreement_high=0.8)),
-    "fused-walls-f0.6-0.8-c0.5-2-q3": (WALLS_COARSE3, PriorParams(contrast_low=0.5, contrast_high=2.0,
-                                                                  frame_agreement_low=0.6, frame_agreement_high=0.8)),
-}
-#: candidates whose prior is the flow pipeline's unrefined distance (``dis-rect:average``: no LM, so cheaper)
-AVERAGE_PRIOR = ("fused-walls-k1-f0.5-0.7-avg",)
+#: the fused candidates besides the registered ones (:data:`tools.research.candidates.MATCHING`: label -> plane
+#: families, prior weight per pixel and where the prior comes from)
+CANDIDATES = MATCHING
 
 
 #: built-in methods run beside the candidates for the table, not chosen from: tri360's DIS flow pipeline
@@ -111,8 +80,9 @@ REFERENCES = tuple(f"dis-rect:{v}" for v in DEFAULT_VARIANTS)
 def candidate_methods(only: Sequence[str] | None = None) -> list[Method]:
     """``sweep``, ``fused``, the sweep with wall families (``sweep-walls``), ``fused-adaptive``, ``fused-gated``,
     the default ``fused-mirror`` (:func:`reconstruction.methods.registry.mirror_method`) and one fused method per
-    :data:`CANDIDATE_PRIORS` entry (``fused``'s flow, or ``dis-rect:average`` for :data:`AVERAGE_PRIOR`; ``fused``'s
-    sweep with the entry's plane families).
+    :data:`CANDIDATES` entry (:meth:`tools.research.candidates.MatchingCandidate.method`: ``fused``'s flow, or
+    ``dis-rect:average`` for a candidate with ``average_prior``; ``fused``'s sweep with the candidate's plane
+    families).
 
     Args:
         only: candidate labels to keep (None = all); the :data:`BASELINES` are always kept, first.
@@ -123,10 +93,7 @@ def candidate_methods(only: Sequence[str] | None = None) -> list[Method]:
     average = get_methods(["dis-rect:average"])[0]
     out: list[Method] = [SweepMethod(), base, SweepMethod(planes=WALL_PLANES, label="sweep-walls"), adaptive_method(),
                          gated_method(), mirror_method()]
-    for label, (planes, prior) in CANDIDATE_PRIORS.items():
-        sweep = base.sweep if planes is None else dataclasses.replace(base.sweep, planes=planes)
-        out.append(FusedMethod(flow=average if label in AVERAGE_PRIOR else base.flow, sweep=sweep, prior=prior,
-                               label=label))
+    out += [c.method(base, average) for c in CANDIDATES.values()]
     if only is None:
         return out
     known = [m.label for m in out]

@@ -31,7 +31,6 @@ from harness.runtime import startup
 if __name__ == "__main__":  # run as a script: Ctrl-C during the imports below is one line and 130
     startup.guard("select_photometric")
 
-import dataclasses
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -44,11 +43,11 @@ from harness.commands.parts.suite import evaluate_suite
 from harness.data.errors import UserError
 from harness.data.suite import IDEAL
 from reconstruction.methods.base import Method
-from reconstruction.methods.registry import fused_method, mirror_method, uncalibrated, with_photometric
+from reconstruction.methods.registry import fused_method, mirror_method, uncalibrated
 from reconstruction.methods.sweep import SweepMethod
-from reconstruction.photometry import PhotometricParams
 from reports.tables import leaderboard_table
 from tools.common import run_selection, selection_parser
+from tools.research.candidates import PHOTOMETRIC
 
 __all__ = ["CAPTURED_POOLED", "CAPTURED_FAMILY", "IDEAL_POOLED", "IDEAL_FAMILY", "BASELINES", "REFERENCE",
            "CANDIDATES", "candidate_methods", "condition_table", "choose", "main"]
@@ -60,13 +59,9 @@ BASELINES = ("sweep", "fused")
 REFERENCE = "fused-mirror-raw"
 DEFAULT_SUITE = Path("suites/tri360-v2.toml")
 
-#: candidate label -> (the self-calibration of the default's matching, the sweep cost's intensity weight)
-CANDIDATES: dict[str, tuple[PhotometricParams, float]] = {
-    "fused-mirror-i1": (PhotometricParams(), 1.0),
-    "fused-mirror-i0.5": (PhotometricParams(), 0.5),
-    "fused-mirror-i0.25": (PhotometricParams(), 0.25),
-    "fused-mirror-i0.5-d4": (PhotometricParams(degree=4), 0.5),
-}
+#: the candidates (:data:`tools.research.candidates.PHOTOMETRIC`: label -> the self-calibration of the default's
+#: matching and the sweep cost's intensity weight)
+CANDIDATES = PHOTOMETRIC
 
 
 def candidate_methods(only: Sequence[str] | None = None) -> list[Method]:
@@ -78,11 +73,7 @@ def candidate_methods(only: Sequence[str] | None = None) -> list[Method]:
         raise UserError(f"unknown candidate(s) {', '.join(unknown)} (candidates: {', '.join(CANDIDATES)})")
     base = mirror_method()  # the candidates set the intensity weight themselves
     out: list[Method] = [SweepMethod(), fused_method(), uncalibrated(base)]
-    for label, (params, intensity) in CANDIDATES.items():
-        if only is None or label in only:
-            m = with_photometric(base, params, label)
-            cost = dataclasses.replace(m.sweep.cost, intensity_weight=intensity)
-            out.append(dataclasses.replace(m, sweep=dataclasses.replace(m.sweep, cost=cost)))
+    out += [c.method(base) for label, c in CANDIDATES.items() if only is None or label in only]
     return out
 
 
@@ -192,8 +183,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         label, eligible, r = choose(table)
         text = selection_markdown(table, label, eligible, r, where_text)
         payload = {"where": where_text, "chosen": label, "eligible": eligible,
-                   "candidates": {k: {"photometric": dataclasses.asdict(p), "intensity_weight": w}
-                                  for k, (p, w) in CANDIDATES.items()},
+                   "candidates": {k: c.record() for k, c in CANDIDATES.items()},
                    "ratios": {m: {k: float(v) for k, v in row.items()} for m, row in r.iterrows()},
                    "table": {m: {k: float(v) for k, v in row.items()} for m, row in table.iterrows()}}
         return text, payload
