@@ -1,4 +1,4 @@
-"""tri360 harness: the rig, the frame format, scene kit, job running and the CLI.
+"""tri360 harness: the frame format and its I/O, the renderers, the commands, their runtime and the CLI.
 
 Only ``harness.render.cycles`` imports ``bpy``; everything else here is plain numpy.
 """
