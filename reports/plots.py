@@ -30,6 +30,7 @@ from reports.metrics import score_pixels, scored_pixels
 from reports.tables import PAPER_MAE_M, config_order, config_title, paper_scene_rows, variant_order
 
 __all__ = ["variant_colors", "png_bytes", "fig4_mae", "fig4_figure", "error_maps", "error_figure", "error_scale",
+           "overview_figure",
            "breakdown_lines", "breakdown_groups", "cloud_views", "CLOUD_VIEWS", "sparsification_plot", "region_masks",
            "REGION_PANELS", "CAPTURE_MAPS", "capture_maps", "METHOD_BAR_COLOR"]
 
@@ -245,6 +246,51 @@ def error_maps(gt: np.ndarray, preds: dict[str, np.ndarray], title: str, ncols: 
         magenta: invalid prediction (scored with error = gt).  Each panel title gives its MAE.
     """
     return png_bytes(error_figure(gt, preds, title, ncols))
+
+
+def overview_figure(image: np.ndarray, gt: np.ndarray, pred: np.ndarray, method: str) -> Figure:
+    """One frame in three panels, one above the other: camera C's image, a method's predicted distance and its
+    absolute error.
+
+    Args:
+        image: (H, W, 3) uint8 sRGB image of camera C.
+        gt: (H, W) true distance, metres (+inf = no surface).
+        pred: (H, W) predicted distance, metres (NaN / inf / <= 0 = invalid).
+        method: the method's label (panel titles).
+    Returns:
+        The figure (PNG: :func:`png_bytes`): the image; the prediction (viridis, 0 to the 99.5th percentile of the
+        true distance, its colour bar in metres); ``|pred - gt|`` (magma, 0 to :func:`error_scale`, larger errors
+        saturate; light grey: no surface, magenta: no valid prediction), titled with the frame's MAE.
+    """
+    gt = np.asarray(gt, dtype=np.float64)
+    pred = np.asarray(pred, dtype=np.float64)
+    scored = scored_pixels(gt)
+    mask, e, valid = score_pixels(pred, gt)
+    err = np.full(gt.shape, np.nan)
+    err[mask] = np.where(valid, e, np.nan)
+    invalid = np.zeros(gt.shape, dtype=bool)
+    invalid[mask] = ~valid
+    mae = float(e.mean()) if e.size else float("nan")
+    fig = Figure(figsize=(7.4, 10.2), layout="constrained")
+    axes = fig.subplots(3, 1)
+    axes[0].imshow(image, interpolation="antialiased")
+    axes[0].set_title("input: camera C (equirectangular)", fontsize=9)
+    dmax = float(np.nanpercentile(np.where(scored, gt, np.nan), 99.5)) if scored.any() else 1.0
+    shown = np.where(np.isfinite(pred) & (pred > 0), pred, np.nan)
+    im = axes[1].imshow(shown, cmap=colormaps["viridis"].with_extremes(bad=NO_PREDICTION_RGBA), vmin=0, vmax=dmax,
+                        interpolation="nearest")
+    axes[1].set_title(f"predicted distance: {method}", fontsize=9)
+    fig.colorbar(im, ax=axes[1], label="distance (m)", shrink=0.9, extend="max")
+    cmap = colormaps["magma"].with_extremes(bad=NO_SURFACE_RGBA, over=colormaps["magma"](1.0))
+    im = axes[2].imshow(err, cmap=cmap, vmin=0, vmax=error_scale(err), interpolation="nearest")
+    if invalid.any():
+        axes[2].imshow(_overlay(invalid, NO_PREDICTION_RGBA), interpolation="nearest")
+    axes[2].set_title(f"absolute error (MAE {mae:.3f} m)", fontsize=9)
+    fig.colorbar(im, ax=axes[2], label="|pred - gt| (m)", shrink=0.9, extend="max")
+    for ax in axes:
+        ax.set_xticks([])
+        ax.set_yticks([])
+    return fig
 
 
 # -------------------------------------------------------------------------------------------- breakdown

@@ -7,7 +7,7 @@ import numpy as np
 import pandas as pd
 
 from reconstruction.methods.registry import DEFAULT_METHOD, PAPER_CONFIG
-from reports.plots import error_figure, fig4_figure
+from reports.plots import error_figure, fig4_figure, overview_figure, png_bytes
 from reports.tables import PAPER_MAE_M
 
 PAPER = f"{PAPER_CONFIG[0]}-{'rect' if PAPER_CONFIG[1] else 'plain'}"
@@ -89,3 +89,25 @@ def test_error_maps_give_each_method_its_own_scale():
     assert 18.0 < clim["bad"][1] < 20.01
     bars = [ax for ax in fig.axes if ax.get_label() == "<colorbar>"]
     assert len(bars) == 3  # ground truth and one per method
+
+
+def test_overview_figure_shows_image_prediction_and_error_on_its_own_scale():
+    """The README's picture: input, prediction on the true distances' scale, error on its own scale; an invalid
+    pixel is no surface in the prediction panel and counted in the MAE with error = gt."""
+    rng = np.random.default_rng(1)
+    gt = np.full((40, 80), 4.0)
+    gt[:5] = np.inf  # no surface
+    pred = gt + rng.uniform(0.0, 0.1, gt.shape)
+    pred[20, 10] = np.nan
+    image = rng.integers(0, 255, (40, 80, 3), dtype=np.uint8)
+    fig = overview_figure(image, gt, pred, "m")
+    titles = [ax.get_title() for ax in fig.axes if ax.get_label() != "<colorbar>"]
+    assert titles[0].startswith("input") and titles[1] == "predicted distance: m"
+    mae = float(titles[2].split("MAE ")[1].split(" ")[0])
+    finite = np.isfinite(gt)
+    err = np.abs(pred - gt)[finite]
+    expected = (np.nansum(err) + 4.0) / finite.sum()  # the invalid pixel scores error = gt = 4 m
+    assert abs(mae - expected) < 1e-3
+    err_panel = [ax for ax in fig.axes if ax.get_title().startswith("absolute error")][0]
+    assert 0.09 < err_panel.images[0].get_clim()[1] <= 0.1  # the 99th percentile of its errors, metres
+    assert png_bytes(fig)[:8] == b"\x89PNG\r\n\x1a\n"

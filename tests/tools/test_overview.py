@@ -1,0 +1,32 @@
+"""tools.overview: the README's picture from a results set's map of one frame."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from harness.data.exr import write_distance_exr
+from harness.data.frame import write_frame
+from harness.data.images import read_png
+from harness.data.results import map_paths
+from tools.common import synthetic_box_frame
+from tools.overview import main
+
+
+def test_overview_writes_the_picture_and_refuses_a_missing_map(tmp_path, capsys):
+    frame = synthetic_box_frame(64, "vp000")
+    data = tmp_path / "data"
+    write_frame(frame, data)
+    frame_dir = data / frame.scene / "vp000"
+    results = tmp_path / "results"
+    out = tmp_path / "overview.png"
+    assert main([str(results), str(frame_dir), "--method", "m", "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "no map of method 'm'" in err[0]
+    assert not out.exists()
+    distance_map, _ = map_paths(frame.scene, "vp000", "m")
+    (results / distance_map).parent.mkdir(parents=True)
+    write_distance_exr(results / distance_map, (frame.distance["C"] * 1.01).astype(np.float32))
+    assert main([str(results), str(frame_dir), "--method", "m", "--out", str(out)]) == 0
+    assert read_png(out).ndim == 3
+    assert main([str(results), str(tmp_path / "nowhere"), "--method", "m", "--out", str(out)]) == 2
+    assert len(capsys.readouterr().err.strip().splitlines()) == 1
