@@ -1,4 +1,7 @@
-"""``tri360 scenes``: list the registered scenes, their presets, default renderer, parameters and description."""
+"""``tri360 scenes``: list the registered scenes, their presets, default renderer, parameters and description.
+
+``--params`` adds each parameter's line (description, unit, default, allowed values: from the family's parameters
+dataclass, ``SceneEntry.describe_parameters``) and each preset's overrides."""
 
 from __future__ import annotations
 
@@ -23,7 +26,7 @@ def run(args) -> int:
         if e.description:
             print(f"{'':<16} {e.description}")
         if args.params:
-            for key, meaning in sorted(e.parameters.items()):
+            for key, meaning in sorted(e.describe_parameters().items()):
                 print(f"{'':<16}   --set {key}=...: {meaning}")
             for p, params in e.presets.items():
                 print(f"{'':<16}   {p}: {params}")
