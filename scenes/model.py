@@ -5,8 +5,10 @@ translates the spec: ``cycles`` (``harness.render.cycles``) path-traces it with 
 (``harness.render.raycast``) ray-casts its boxes analytically in numpy.  The spec knows nothing of either (the
 kubric pattern).
 
-A family registers itself with a :class:`SceneEntry` (its build function, presets, declared parameters and
-default renderer); ``scenes.registry`` finds the entries.
+A family registers itself with a :class:`SceneEntry` (its build function, presets, parameters and default
+renderer); ``scenes.registry`` finds the entries.  A family's parameters are one frozen :class:`SceneParams`
+dataclass whose fields are declared with :func:`param` (type, default, unit, limits, one-line description);
+``build`` gets a checked instance.
 
 Units: metres, radians, linear RGB in [0, 1], watts.  World is right-handed, Z up, floor at z = 0.
 """
@@ -199,7 +201,9 @@ class SceneSpec:
 
     Attributes:
         name: scene family name.
-        params: the parameters it was built from (recorded in frame provenance).
+        params: what it was built from, as a frame records it (``frame.json`` ``renderer.scene.params``):
+            ``preset`` and ``seed``, then the preset's parameter values and the overrides, as given (not the
+            defaults; :meth:`SceneEntry.build_spec` sets it).
         materials: by name.
         boxes: geometry; the room shell (``inward=True``) included.
         cylinders: capped cylinders (round tables, legs, pipes, lamps).
@@ -543,14 +547,14 @@ def _expects(tp, info: ParamInfo) -> str:
     return text + (" or null" if optional else "")
 
 
-def show_value(value) -> str:
+def _show_value(value) -> str:
     """A parameter value as the listing shows it: ``35``, ``[8, 7, 3]``, ``true``, ``none``, ``table, cube``."""
     if value is None:
         return "none"
     if isinstance(value, bool):
         return "true" if value else "false"
     if isinstance(value, tuple | list):
-        items = [show_value(v) for v in value]
+        items = [_show_value(v) for v in value]
         return ", ".join(items) if all(isinstance(v, str) for v in value) and value else f"[{', '.join(items)}]"
     return _number(value)
 
@@ -566,7 +570,7 @@ def describe_parameters(cls: type[SceneParams]) -> dict[str, str]:
         if allowed and _elements(_parts(hints[f.name])[0]) is not None:
             allowed = "each " + allowed
         unit = f", {info.unit}" if info.unit else ""
-        out[f.name] = f"{info.description}{unit} (default {show_value(f.default)}{'; ' + allowed if allowed else ''})"
+        out[f.name] = f"{info.description}{unit} (default {_show_value(f.default)}{'; ' + allowed if allowed else ''})"
     return out
 
 
