@@ -214,8 +214,9 @@ class SceneSpec:
         rig_height: (low, high) range of camera C's height above the floor, metres.
         viewpoints: explicit rigs; if given, ``choose_viewpoints`` uses these instead of sampling.
         background: world colour seen by rays that leave the scene, linear RGB.
-        code_version: version of the code that built the spec (``SceneEntry.spec`` sets a hash of the scene
-            family's source file); recorded in frame provenance so a rerun notices an edited scene.
+        code_version: version of the code that built the spec (``SceneEntry.build_spec`` sets
+            :attr:`SceneEntry.code_version`: the family's declared ``version``, else a hash of its source); recorded
+            in frame provenance so a rerun notices a scene that builds differently.
     """
 
     name: str
@@ -359,7 +360,8 @@ def choose_viewpoints(spec: SceneSpec, n: int, seed: int, baseline_m: float = 0.
 
 
 SHARED_SOURCES = (Path(__file__), Path(__file__).with_name("families") / "_kit.py")
-"""Source files every family's ``code_version`` includes (the scene model and the shared randomisation kit)."""
+"""Source files every family's :attr:`SceneEntry.source_version` includes (the scene model and the shared
+randomisation kit): the code version of a family that declares no ``version``."""
 RENDERERS = ("cycles", "raycast")
 """Renderer names a scene may name as its default (``harness.render.registry`` implements them)."""
 RESERVED_PARAMETERS = ("preset", "seed")
@@ -595,6 +597,11 @@ class SceneEntry:
             no Blender needed); ``tri360 render --renderer`` picks another.
         source: where it was found (file or entry point), for error messages.
         tags: what the family is hard for, each one of ``DIFFICULTY_TAGS``.
+        version: the family's scene code version, as frames and suite ids record it (:attr:`code_version`):
+            declared by every built-in family (an opaque string, e.g. ``"sha256:1ed56314fc16eeec"``; change it
+            whenever what the family builds changes, and only then: ``tests/scenes/scene_fingerprints.json``
+            checks that).  Empty (an outside family that declares none): the hash of its source,
+            :attr:`source_version`.
     """
 
     name: str
@@ -606,8 +613,13 @@ class SceneEntry:
     renderer: str = "cycles"
     source: str = ""
     tags: tuple[str, ...] = ()
+    version: str = ""
 
     def __post_init__(self):
+        if not isinstance(self.version, str) or self.version != self.version.strip() or \
+                any(c.isspace() for c in self.version):
+            raise SceneError(f"scene {self.name!r}: version must be a string without spaces (e.g. "
+                             f"'sha256:1ed56314fc16eeec'), got {self.version!r}")
         if self.renderer not in RENDERERS:
             raise SceneError(f"scene {self.name!r}: renderer must be one of {RENDERERS}, got {self.renderer!r}")
         if self.default_preset not in self.presets:
@@ -710,10 +722,18 @@ class SceneEntry:
 
     @property
     def code_version(self) -> str:
+        """The version frames record (``scene.code_version``) and suite ids include: the declared ``version``
+        (every built-in family declares one; it changes only when what the family builds changes), else
+        :attr:`source_version`."""
+        return self.version or self.source_version
+
+    @property
+    def source_version(self) -> str:
         """``"sha256:<16 hex>"`` of the source file defining ``build`` (of its source code when the file
         cannot be read; ``""`` if neither can) together with the shared code every family builds with (this
         file, ``scenes/model.py``, and the randomisation kit ``scenes/families/_kit.py``): changes whenever the
-        family's code or the shared scene code is edited."""
+        family's code or the shared scene code is edited, even when what it builds does not.  The code version
+        of a family that declares no ``version`` (an outside family)."""
         try:
             data = Path(inspect.getsourcefile(self.build) or "").read_bytes()
         except (OSError, TypeError):

@@ -54,8 +54,10 @@ def box_interior_distance(origin, directions, lo, hi) -> np.ndarray:
     return t.min(axis=-1)
 
 
+# version: the scene code version frames and suite ids record; change it when what build() builds changes,
+# and only then (tests/scenes/test_scene_fingerprints.py; scenes/README.md)
 SCENES = [SceneEntry(
-    name="box_room", build=build,
+    name="box_room", version="sha256:2975156264d93e1c", build=build,
     description="empty textured box room; ground truth distance has a closed form",
     presets={"default": {}, "small": {"size": (3.0, 2.5, 2.4)}, "hall": {"size": (12.0, 9.0, 4.0)}},
     default_preset="default", parameters=BoxRoomParams, renderer="cycles")]

@@ -237,6 +237,9 @@ PRESETS = {
               "lights": (2, 3)},
 }
 
-SCENES = [SceneEntry(name="classroom", build=build, presets=PRESETS, default_preset="standard",
+# version: the scene code version frames and suite ids record; change it when what build() builds changes,
+# and only then (tests/scenes/test_scene_fingerprints.py; scenes/README.md)
+SCENES = [SceneEntry(name="classroom", version="sha256:1ed56314fc16eeec",
+                     build=build, presets=PRESETS, default_preset="standard",
                      description="classroom (8 x 7 x 3 m standard): desks, chairs, boards, windows, lockers",
                      parameters=ClassroomParams, renderer="cycles", tags=("repetitive", "thin"))]

@@ -130,6 +130,9 @@ PRESETS = {
     "wide": {"length": 24.0, "width": 3.6, "height": 3.0, "door_spacing": (4.0, 5.0)},
 }
 
-SCENES = [SceneEntry(name="corridor", build=build, presets=PRESETS, default_preset="default",
+# version: the scene code version frames and suite ids record; change it when what build() builds changes,
+# and only then (tests/scenes/test_scene_fingerprints.py; scenes/README.md)
+SCENES = [SceneEntry(name="corridor", version="sha256:dd529b9f760552af",
+                     build=build, presets=PRESETS, default_preset="default",
                      description="corridor (30 x 2.4 x 2.8 m): rows of doors and ceiling lights, far range",
                      parameters=CorridorParams, renderer="cycles", tags=("far", "repetitive"))]

@@ -172,6 +172,9 @@ PRESETS = {
     "large": {"size": (12.0, 9.0, 3.2), "benches": 3, "windows": 3, "lights": (4, 3), "light_power": (30.0, 45.0)},
 }
 
-SCENES = [SceneEntry(name="lab", build=build, presets=PRESETS, default_preset="default",
+# version: the scene code version frames and suite ids record; change it when what build() builds changes,
+# and only then (tests/scenes/test_scene_fingerprints.py; scenes/README.md)
+SCENES = [SceneEntry(name="lab", version="sha256:6cdc2da813615981",
+                     build=build, presets=PRESETS, default_preset="default",
                      description="white laboratory (9 x 7 x 3 m): polished floor, glossy whiteboard, metal cabinets",
                      parameters=LabParams, renderer="cycles", tags=("reflective", "weak_texture"))]

@@ -235,6 +235,9 @@ PRESETS = {
               "aisles": 2, "folded": 0.8, "windows": 3, "lights": (4, 6), "light_power": (90.0, 130.0)},
 }
 
-SCENES = [SceneEntry(name="lecture_hall", build=build, presets=PRESETS, default_preset="hall",
+# version: the scene code version frames and suite ids record; change it when what build() builds changes,
+# and only then (tests/scenes/test_scene_fingerprints.py; scenes/README.md)
+SCENES = [SceneEntry(name="lecture_hall", version="sha256:91d0c40d526a51ef",
+                     build=build, presets=PRESETS, default_preset="hall",
                      description="lecture hall (14 x 15 x 5.5 m): tiered floor, rows of seats, fanned walls, board",
                      parameters=LectureHallParams, renderer="cycles", tags=("thin", "repetitive"))]

@@ -143,7 +143,10 @@ PRESETS = {
     "windowless": {"size": (6.0, 5.0, 2.7), "table_radius": 0.7, "chairs": (5, 7), "windows": 0, "lights": (2, 2)},
 }
 
-SCENES = [SceneEntry(name="seminar", build=build, presets=PRESETS, default_preset="default",
+# version: the scene code version frames and suite ids record; change it when what build() builds changes,
+# and only then (tests/scenes/test_scene_fingerprints.py; scenes/README.md)
+SCENES = [SceneEntry(name="seminar", version="sha256:e4a8d8af834dd25a",
+                     build=build, presets=PRESETS, default_preset="default",
                      description=("seminar room (7 x 5.5 x 2.8 m): plain walls and ceiling, round table, "
                                   "thin-legged chairs"),
                      parameters=SeminarParams, renderer="cycles", tags=("weak_texture", "thin"))]

@@ -99,9 +99,11 @@ def build(p: SyntheticBoxParams, seed: int) -> SceneSpec:
     return spec
 
 
+# version: the scene code version frames and suite ids record; change it when what build() builds changes,
+# and only then (tests/scenes/test_scene_fingerprints.py; scenes/README.md)
 SCENES = [
     SceneEntry(
-        name="synthetic_box",
+        name="synthetic_box", version="sha256:3c562a7126a06405",
         renderer="raycast",
         build=build,
         parameters=SyntheticBoxParams,

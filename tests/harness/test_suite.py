@@ -143,9 +143,9 @@ def test_suite_id_changes_with_the_file_a_code_version_or_a_render_setting(tmp_p
     # the file: even a comment makes another suite (a published file is never edited)
     edited = write(tmp_path, MINI.format(width=64) + "# note\n", "edited.toml")
     assert load_suite(edited, DEFAULTS_DICT, scenes).id != base.id
-    # a family's code version (here: box_room built by another source file)
+    # a family's code version (here: box_room declaring another version)
     other = dict(scenes)
-    other["box_room"] = dataclasses.replace(scenes["box_room"], build=scenes["classroom"].build)
+    other["box_room"] = dataclasses.replace(scenes["box_room"], version="sha256:0123456789abcdef")
     assert other["box_room"].code_version != scenes["box_room"].code_version
     assert load_suite(mini, DEFAULTS_DICT, other).id != base.id
     # a render setting: one the file sets, or a default it leaves to tri360

@@ -116,16 +116,23 @@ def test_scene_file_that_fails_to_import_is_reported(monkeypatch, tmp_path):
         get_scene("nope")
 
 
-def test_code_version_hashes_the_family_source_file_and_the_shared_scene_code(tmp_path, monkeypatch):
+def test_code_version_is_the_declared_version_else_the_hash_of_the_family_source_and_the_shared_scene_code(
+        tmp_path, monkeypatch):
+    # a built-in family declares its version: what main recorded before the SceneParams refactor
+    assert ENTRIES["classroom"].code_version == ENTRIES["classroom"].version == "sha256:1ed56314fc16eeec"
+    assert ENTRIES["classroom"].spec("small", 0).code_version == "sha256:1ed56314fc16eeec"
+    # one that declares none (an outside family): the source hash
     h = hashlib.sha256(Path(classroom.__file__).read_bytes())
     for path in (Path(scenes.model.__file__), Path(scenes.families.__file__).with_name("_kit.py")):
         h.update(b"\0" + path.name.encode() + b"\0" + path.read_bytes())
-    assert ENTRIES["classroom"].code_version == "sha256:" + h.hexdigest()[:16]
-    # an edited kit or model changes every family's version
+    unversioned = dataclasses.replace(ENTRIES["classroom"], version="")
+    assert unversioned.code_version == unversioned.source_version == "sha256:" + h.hexdigest()[:16]
+    assert unversioned.spec("small", 0).code_version == unversioned.source_version
+    # an edited kit or model changes every unversioned family's version (not a declared one)
     monkeypatch.setattr(scenes.model, "SHARED_SOURCES", (*scenes.model.SHARED_SOURCES, Path(classroom.__file__)))
-    assert ENTRIES["classroom"].code_version != "sha256:" + h.hexdigest()[:16]
+    assert unversioned.code_version != "sha256:" + h.hexdigest()[:16]
+    assert ENTRIES["classroom"].code_version == "sha256:1ed56314fc16eeec"
     monkeypatch.undo()
-    assert ENTRIES["classroom"].spec("small", 0).code_version == ENTRIES["classroom"].code_version
     # an edited family file gets another version
     mod = tmp_path / "tri360_tmp_family.py"
     mod.write_text("def build(params, seed):\n    return None\n")
