@@ -8,7 +8,7 @@ STAMP  := $(VENV)/.installed
 DATA   ?= data
 RESULTS ?= results
 
-.PHONY: setup browser render evaluate report test test-fast bench regress-update clean
+.PHONY: setup browser render evaluate report test test-fast bench regress-update fingerprints-update clean
 
 $(STAMP): pyproject.toml
 	@command -v $(PYTHON) >/dev/null 2>&1 || { echo "error: $(PYTHON) not found (tri360 needs Python 3.11; set PYTHON=...)" >&2; exit 1; }
@@ -51,6 +51,9 @@ bench: $(STAMP) ## timings and peak memory: flow pipeline stages (+ LM vs scipy)
 
 regress-update: $(STAMP) ## rewrite the CI regression bounds (tests/regression_bounds.json) from a fresh run
 	$(PY) -m tools.regression --bounds tests/regression_bounds.json --update
+
+fingerprints-update: $(STAMP) ## rewrite the scene fingerprints (tests/scenes/scene_fingerprints.json) after changing a family's version (scenes/README.md)
+	$(PY) -m tools.scene_fingerprints --update
 
 clean: ## remove the venv, caches, rendered data and results
 	rm -rf $(VENV) .pytest_cache .ruff_cache $(RESULTS) build *.egg-info

@@ -5,19 +5,27 @@ translates the spec: ``cycles`` (``harness.render.cycles``) path-traces it with 
 (``harness.render.raycast``) ray-casts its boxes analytically in numpy.  The spec knows nothing of either (the
 kubric pattern).
 
-A family registers itself with a :class:`SceneEntry` (its build function, presets, declared parameters and
-default renderer); ``scenes.registry`` finds the entries.
+A family registers itself with a :class:`SceneEntry` (its build function, presets, parameters and default
+renderer); ``scenes.registry`` finds the entries.  A family's parameters are one frozen :class:`SceneParams`
+dataclass whose fields are declared with :func:`param` (type, default, unit, limits, one-line description);
+``build`` gets a checked instance.
 
 Units: metres, radians, linear RGB in [0, 1], watts.  World is right-handed, Z up, floor at z = 0.
 """
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import inspect
-from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+import math
+import numbers
+import types
+import typing
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass, field, fields
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -193,7 +201,9 @@ class SceneSpec:
 
     Attributes:
         name: scene family name.
-        params: the parameters it was built from (recorded in frame provenance).
+        params: what it was built from, as a frame records it (``frame.json`` ``renderer.scene.params``):
+            ``preset`` and ``seed``, then the preset's parameter values and the overrides, as given (not the
+            defaults; :meth:`SceneEntry.build_spec` sets it).
         materials: by name.
         boxes: geometry; the room shell (``inward=True``) included.
         cylinders: capped cylinders (round tables, legs, pipes, lamps).
@@ -204,8 +214,9 @@ class SceneSpec:
         rig_height: (low, high) range of camera C's height above the floor, metres.
         viewpoints: explicit rigs; if given, ``choose_viewpoints`` uses these instead of sampling.
         background: world colour seen by rays that leave the scene, linear RGB.
-        code_version: version of the code that built the spec (``SceneEntry.spec`` sets a hash of the scene
-            family's source file); recorded in frame provenance so a rerun notices an edited scene.
+        code_version: version of the code that built the spec (``SceneEntry.build_spec`` sets
+            :attr:`SceneEntry.code_version`: the family's declared ``version``, else a hash of its source); recorded
+            in frame provenance so a rerun notices a scene that builds differently.
     """
 
     name: str
@@ -349,7 +360,8 @@ def choose_viewpoints(spec: SceneSpec, n: int, seed: int, baseline_m: float = 0.
 
 
 SHARED_SOURCES = (Path(__file__), Path(__file__).with_name("families") / "_kit.py")
-"""Source files every family's ``code_version`` includes (the scene model and the shared randomisation kit)."""
+"""Source files every family's :attr:`SceneEntry.source_version` includes (the scene model and the shared
+randomisation kit): the code version of a family that declares no ``version``."""
 RENDERERS = ("cycles", "raycast")
 """Renderer names a scene may name as its default (``harness.render.registry`` implements them)."""
 RESERVED_PARAMETERS = ("preset", "seed")
@@ -360,36 +372,254 @@ class SceneError(ValueError):
     """Unknown scene, unknown preset, or a scene file/build function that failed."""
 
 
+# ------------------------------------------------------------------------------------------------ parameters
+
+PARAM_METADATA = "tri360"
+"""Key of a scene parameter's :class:`ParamInfo` in its dataclass field's ``metadata``."""
+
+
+@dataclass(frozen=True)
+class ParamInfo:
+    """What a scene parameter's field says about it besides its name, type and default (:func:`param`).
+
+    Attributes:
+        description: one line: what the parameter is (``tri360 scenes --params`` lists it).
+        unit: e.g. ``"m"``, ``"W"``, ``"K"``, ``"rad"``; ``""`` for counts, shares and switches.
+        limits: ``(low, high)``, the allowed values, inclusive (None: no bound on that side); of every element of
+            a tuple.
+        choices: the allowed strings of a ``str`` parameter, or of every element of a ``tuple[str, ...]``.
+    """
+
+    description: str
+    unit: str = ""
+    limits: tuple[float | None, float | None] | None = None
+    choices: tuple[str, ...] | None = None
+
+
+def param(default: Any, description: str, *, unit: str = "", limits: tuple | None = None,
+          choices: Iterable[str] | None = None) -> Any:
+    """One field of a :class:`SceneParams` dataclass: its ``default`` (immutable: a number, string, bool, tuple
+    or None) and its :class:`ParamInfo` (one-line ``description``, ``unit``, ``limits``, ``choices``)."""
+    info = ParamInfo(description, unit, None if limits is None else tuple(limits),
+                     None if choices is None else tuple(choices))
+    return field(default=default, metadata={PARAM_METADATA: info})
+
+
+class ParameterError(SceneError):
+    """A scene parameter of the wrong type or out of its limits.
+
+    Attributes:
+        detail: what is wrong, naming the parameter and what it expects (``"parameter 'rows' expects a whole
+            number in [0, 100], got 'abc'"``).
+        family: the scene family (None when the parameters were built outside a :class:`SceneEntry`); the
+            message is ``"scene 'classroom': <detail>"`` then.
+    """
+
+    def __init__(self, detail: str, family: str | None = None):
+        self.detail, self.family = detail, family
+        super().__init__(f"scene {family!r}: {detail}" if family else detail)
+
+
+@dataclass(frozen=True)
+class SceneParams:
+    """Base class of a scene family's parameters: a frozen dataclass whose fields are declared with :func:`param`.
+
+    A family subclasses it (decorated with ``@dataclass(frozen=True)``); ``build`` gets an instance.  Making
+    one checks every field against its annotation and its limits and choices, and normalises it (a list becomes a
+    tuple, an int given for a float a float).  Annotations understood: ``float``, ``int``, ``bool``, ``str``,
+    ``tuple[T, T, ...]`` of a fixed length and ``tuple[T, ...]`` (T one of these), each optionally ``| None``.
+    The values come from JSON or TOML (``--set``, a suite's ``params``), so a bool is no number and 2.0 no whole
+    number.
+
+    Raises:
+        ParameterError: the first field that is of the wrong type or out of range.
+    """
+
+    def __post_init__(self):
+        hints = _type_hints(type(self))
+        for f in fields(self):
+            info = f.metadata.get(PARAM_METADATA) or ParamInfo("")
+            value = getattr(self, f.name)
+            try:
+                checked = _check_value(value, hints[f.name], info)
+            except _BadValue:
+                raise ParameterError(f"parameter {f.name!r} expects {_expects(hints[f.name], info)}, "
+                                     f"got {value!r}") from None
+            object.__setattr__(self, f.name, checked)
+
+
+class _BadValue(Exception):
+    pass
+
+
+@functools.cache
+def _type_hints(cls: type) -> dict[str, Any]:
+    return typing.get_type_hints(cls)
+
+
+def _parts(tp) -> tuple[Any, bool]:
+    """``(type, optional)``: ``X | None`` -> ``(X, True)``."""
+    if typing.get_origin(tp) in (typing.Union, types.UnionType):
+        args = [a for a in typing.get_args(tp) if a is not type(None)]
+        if len(args) != 1:
+            raise SceneError(f"scene parameter type {tp} is not supported (one type, optionally | None)")
+        return args[0], len(args) < len(typing.get_args(tp))
+    return tp, False
+
+
+def _elements(tp) -> tuple[Any, int | None] | None:
+    """``tuple[T, T]`` -> ``(T, 2)``, ``tuple[T, ...]`` -> ``(T, None)``; None if ``tp`` is no tuple type."""
+    if typing.get_origin(tp) is not tuple:
+        return None
+    args = typing.get_args(tp)
+    if len(args) == 2 and args[1] is Ellipsis:
+        return args[0], None
+    if not args or any(a != args[0] for a in args):
+        raise SceneError(f"scene parameter type {tp} is not supported (a tuple of one element type)")
+    return args[0], len(args)
+
+
+def _check_scalar(value, tp, info: ParamInfo):
+    if tp is bool:
+        ok = isinstance(value, bool)
+    elif tp is int:
+        ok = isinstance(value, numbers.Integral) and not isinstance(value, bool)
+        value = int(value) if ok else value
+    elif tp is float:
+        ok = isinstance(value, numbers.Real) and not isinstance(value, bool) and math.isfinite(value)
+        value = float(value) if ok else value
+    elif tp is str:
+        ok = isinstance(value, str) and (info.choices is None or value in info.choices)
+    else:
+        raise SceneError(f"scene parameter type {tp} is not supported (float, int, bool, str or a tuple of them)")
+    if ok and tp in (int, float) and info.limits is not None:
+        lo, hi = info.limits
+        ok = (lo is None or value >= lo) and (hi is None or value <= hi)
+    if not ok:
+        raise _BadValue
+    return value
+
+
+def _check_value(value, tp, info: ParamInfo):
+    tp, optional = _parts(tp)
+    if value is None and optional:
+        return None
+    element = _elements(tp)
+    if element is None:
+        return _check_scalar(value, tp, info)
+    etype, n = element
+    if not isinstance(value, list | tuple) or (n is not None and len(value) != n):
+        raise _BadValue
+    return tuple(_check_scalar(v, etype, info) for v in value)
+
+
+def _number(v) -> str:
+    return f"{v:g}" if isinstance(v, float) else str(v)
+
+
+def _allowed(tp, info: ParamInfo) -> str:
+    """``"in [0, 1]"``, ``">= 0"``, ``"one of a, b"`` or ``""``: what limits the values."""
+    if info.choices is not None:
+        return "one of " + ", ".join(info.choices)
+    if info.limits is None:
+        return ""
+    lo, hi = info.limits
+    if lo is not None and hi is not None:
+        return f"in [{_number(lo)}, {_number(hi)}]"
+    return f">= {_number(lo)}" if lo is not None else f"<= {_number(hi)}" if hi is not None else ""
+
+
+_NOUNS = {float: ("a number", "numbers"), int: ("a whole number", "whole numbers"), bool: ("true or false", ""),
+          str: ("a string", "strings")}
+
+
+def _expects(tp, info: ParamInfo) -> str:
+    """What a value of type ``tp`` must be, in words: ``"3 numbers, each in [0.5, 100]"``."""
+    tp, optional = _parts(tp)
+    allowed = _allowed(tp, info)
+    element = _elements(tp)
+    if element is None:
+        text = (f"one of {', '.join(info.choices)}" if tp is str and info.choices is not None else
+                _NOUNS.get(tp, (str(tp),))[0] + (f" {allowed}" if allowed else ""))
+    else:
+        etype, n = element
+        noun = _NOUNS.get(etype, ("", str(etype)))[1]
+        text = f"{n} {noun}" if n is not None else f"a list of {noun}"
+        text += f", each {allowed}" if allowed else ""
+    return text + (" or null" if optional else "")
+
+
+def _show_value(value) -> str:
+    """A parameter value as the listing shows it: ``35``, ``[8, 7, 3]``, ``true``, ``none``, ``table, cube``."""
+    if value is None:
+        return "none"
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, tuple | list):
+        items = [_show_value(v) for v in value]
+        return ", ".join(items) if all(isinstance(v, str) for v in value) and value else f"[{', '.join(items)}]"
+    return _number(value)
+
+
+def describe_parameters(cls: type[SceneParams]) -> dict[str, str]:
+    """Name -> one line for each field of ``cls``: description, unit, default and allowed values, e.g.
+    ``"ceiling height, m (default 2.8; in [1.8, 20])"``."""
+    hints = _type_hints(cls)
+    out = {}
+    for f in fields(cls):
+        info = f.metadata.get(PARAM_METADATA) or ParamInfo("")
+        allowed = _allowed(_parts(hints[f.name])[0], info)
+        if allowed and _elements(_parts(hints[f.name])[0]) is not None:
+            allowed = "each " + allowed
+        unit = f", {info.unit}" if info.unit else ""
+        out[f.name] = f"{info.description}{unit} (default {_show_value(f.default)}{'; ' + allowed if allowed else ''})"
+    return out
+
+
 @dataclass(frozen=True)
 class SceneEntry:
     """A registered scene family.
 
     Attributes:
         name: what users type after ``--scene``.
-        build: ``build(params: dict, seed: int) -> SceneSpec``.
+        build: ``build(params, seed: int) -> SceneSpec``; ``params`` is an instance of ``parameters`` (a
+            :class:`SceneParams` dataclass), or a plain dict for an entry that declares its parameters the old way.
         description: one line for ``tri360 scenes``.
-        presets: named parameter sets; ``default_preset`` is used when none is given.
+        presets: named parameter sets: each a dict of overrides of the parameters' defaults, in the order a frame
+            records them (``SceneSpec.params``); ``default_preset`` is used when none is given.
         default_preset: key into ``presets``.
-        parameters: every parameter ``build`` reads, ``{key: "meaning, unit (default)"}``; ``--set`` accepts
-            only these, and every key a preset uses must be one of them.  An entry that declares none
-            accepts exactly the keys its presets use.
+        parameters: the family's parameters: a frozen :class:`SceneParams` dataclass (each field's type, default,
+            unit, limits and description; ``--set``, suites and presets may use only its fields and values of
+            its types).  Still accepted from outside packages: a dict ``{key: "meaning, unit (default)"}``
+            (the keys are checked, the values are not; ``build`` gets a dict), or nothing, which accepts exactly
+            the keys the presets use.
         renderer: the default renderer, "cycles" (Blender) or "raycast" (the numpy ray-caster, boxes only,
             no Blender needed); ``tri360 render --renderer`` picks another.
         source: where it was found (file or entry point), for error messages.
         tags: what the family is hard for, each one of ``DIFFICULTY_TAGS``.
+        version: the family's scene code version, as frames and suite ids record it (:attr:`code_version`):
+            declared by every built-in family (an opaque string, e.g. ``"sha256:1ed56314fc16eeec"``; change it
+            whenever what the family builds changes, and only then: ``tests/scenes/scene_fingerprints.json``
+            checks that).  Empty (an outside family that declares none): the hash of its source,
+            :attr:`source_version`.
     """
 
     name: str
-    build: Callable[[dict, int], SceneSpec]
+    build: Callable[[Any, int], SceneSpec]
     description: str = ""
     presets: dict[str, dict] = field(default_factory=lambda: {"default": {}})
     default_preset: str = "default"
-    parameters: Mapping[str, str] = field(default_factory=dict)
+    parameters: type[SceneParams] | Mapping[str, str] = field(default_factory=dict)
     renderer: str = "cycles"
     source: str = ""
     tags: tuple[str, ...] = ()
+    version: str = ""
 
     def __post_init__(self):
+        if not isinstance(self.version, str) or self.version != self.version.strip() or \
+                any(c.isspace() for c in self.version):
+            raise SceneError(f"scene {self.name!r}: version must be a string without spaces (e.g. "
+                             f"'sha256:1ed56314fc16eeec'), got {self.version!r}")
         if self.renderer not in RENDERERS:
             raise SceneError(f"scene {self.name!r}: renderer must be one of {RENDERERS}, got {self.renderer!r}")
         if self.default_preset not in self.presets:
@@ -400,29 +630,110 @@ class SceneEntry:
         if unknown:
             raise SceneError(f"scene {self.name!r}: unknown tag(s) {', '.join(unknown)} "
                              f"(known: {', '.join(DIFFICULTY_TAGS)})")
-        reserved = sorted(set(self.parameters) & set(RESERVED_PARAMETERS))
+        self._check_parameter_class()
+        declared = self._declared()
+        reserved = sorted(set(declared) & set(RESERVED_PARAMETERS))
         if reserved:
             raise SceneError(f"scene {self.name!r}: parameter name(s) {reserved} are reserved")
-        if self.parameters:
+        if declared:
             for preset, params in self.presets.items():
-                undeclared = sorted(set(params) - set(self.parameters))
+                undeclared = sorted(set(params) - set(declared))
                 if undeclared:
                     raise SceneError(f"scene {self.name!r}: preset {preset!r} uses undeclared parameter(s) "
-                                     f"{', '.join(undeclared)} (declared: {', '.join(sorted(self.parameters))})")
+                                     f"{', '.join(undeclared)} (declared: {', '.join(sorted(declared))})")
+        if self.typed:
+            for preset, params in self.presets.items():
+                try:
+                    self.parameters(**params)
+                except ParameterError as exc:
+                    raise SceneError(f"scene {self.name!r}: preset {preset!r}: {exc.detail}") from None
+
+    def _check_parameter_class(self) -> None:
+        """Refuse ``parameters`` that is neither a frozen :class:`SceneParams` dataclass with a default and a
+        :func:`param` declaration for every field nor a mapping; check the dataclass's defaults."""
+        cls = self.parameters
+        if isinstance(cls, Mapping):
+            return
+        hint = "declare them as a frozen dataclass deriving from scenes.model.SceneParams (see scenes/README.md)"
+        if not isinstance(cls, type) or not issubclass(cls, SceneParams):
+            raise SceneError(f"scene {self.name!r}: parameters must be a SceneParams dataclass, got "
+                             f"{type(cls).__name__ if not isinstance(cls, type) else cls.__name__}; {hint}")
+        own = vars(cls).get("__dataclass_params__")
+        if own is None or not own.frozen:
+            raise SceneError(f"scene {self.name!r}: parameters {cls.__name__} is not decorated with "
+                             f"@dataclass(frozen=True); {hint}")
+        for f in fields(cls):
+            if PARAM_METADATA not in f.metadata:
+                raise SceneError(f"scene {self.name!r}: parameter {f.name!r} of {cls.__name__} is not declared with "
+                                 f"scenes.model.param(default, description, unit=..., limits=...)")
+        try:
+            cls()
+        except TypeError as exc:  # a field without a default
+            raise SceneError(f"scene {self.name!r}: every parameter of {cls.__name__} needs a default "
+                             f"({exc})") from None
+        except ParameterError as exc:
+            raise SceneError(f"scene {self.name!r}: the default of {exc.detail}") from None
+
+    def _declared(self) -> list[str]:
+        return [f.name for f in fields(self.parameters)] if self.typed else list(self.parameters)
+
+    @property
+    def typed(self) -> bool:
+        """Whether the parameters are a :class:`SceneParams` dataclass (else a mapping, or none declared)."""
+        return isinstance(self.parameters, type)
 
     @property
     def known_parameters(self) -> list[str]:
         """Sorted keys ``--set`` accepts: the declared parameters, else the keys the presets use."""
-        if self.parameters:
-            return sorted(self.parameters)
+        declared = self._declared()
+        if declared:
+            return sorted(declared)
         return sorted({k for params in self.presets.values() for k in params})
+
+    def describe_parameters(self) -> dict[str, str]:
+        """Parameter name -> one line (description, unit, default, allowed values) for ``tri360 scenes
+        --params``, in declaration order; an entry declaring a mapping gives its own texts."""
+        return describe_parameters(self.parameters) if self.typed else dict(self.parameters)
+
+    def parameter_values(self, params: Mapping) -> SceneParams | dict:
+        """What ``build`` gets for the parameter dict ``params`` (a preset's merged with overrides): an instance
+        of the parameters dataclass, or (declared the old way) a copy of ``params``.
+
+        Raises:
+            SceneError: a reserved key (``preset``, ``seed``) or an unknown parameter (naming it and listing the
+                known ones).
+            ParameterError: a value of the wrong type or out of range (naming the family, the parameter and
+                what it expects).
+        """
+        known = self.known_parameters
+        for key in params:
+            if key in RESERVED_PARAMETERS:
+                hint = "--scene NAME:PRESET" if key == "preset" else "--seed"
+                raise SceneError(f"scene {self.name!r}: {key!r} is not a scene parameter (use {hint})")
+            if key not in known:
+                raise SceneError(f"scene {self.name!r}: unknown parameter {key!r} "
+                                 f"(known: {', '.join(known) or 'none'})")
+        if not self.typed:
+            return dict(params)
+        try:
+            return self.parameters(**params)
+        except ParameterError as exc:
+            raise ParameterError(exc.detail, self.name) from None
 
     @property
     def code_version(self) -> str:
+        """The version frames record (``scene.code_version``) and suite ids include: the declared ``version``
+        (every built-in family declares one; it changes only when what the family builds changes), else
+        :attr:`source_version`."""
+        return self.version or self.source_version
+
+    @property
+    def source_version(self) -> str:
         """``"sha256:<16 hex>"`` of the source file defining ``build`` (of its source code when the file
         cannot be read; ``""`` if neither can) together with the shared code every family builds with (this
         file, ``scenes/model.py``, and the randomisation kit ``scenes/families/_kit.py``): changes whenever the
-        family's code or the shared scene code is edited."""
+        family's code or the shared scene code is edited, even when what it builds does not.  The code version
+        of a family that declares no ``version`` (an outside family)."""
         try:
             data = Path(inspect.getsourcefile(self.build) or "").read_bytes()
         except (OSError, TypeError):
@@ -442,27 +753,20 @@ class SceneEntry:
 
     def build_spec(self, preset: str | None = None, seed: int = 0, overrides: Mapping | None = None) -> SceneSpec:
         """Build the scene for a preset (default if None), with parameter ``overrides`` (a dict, so that any key,
-        even ``seed``, is checked as a parameter name).
+        even ``seed``, is checked as a parameter name).  The spec records ``{"preset", "seed"}`` then the preset's
+        parameters and the overrides as given (``SceneSpec.params``), not the defaults.
 
         Raises:
-            SceneError: unknown preset, unknown parameter (naming it and listing the known ones), or a build
-                function or spec that fails.
+            SceneError: unknown preset, unknown parameter (naming it and listing the known ones), a parameter of
+                the wrong type or out of range (:class:`ParameterError`), or a build function or spec that fails.
         """
         preset = preset or self.default_preset
         if preset not in self.presets:
             raise SceneError(f"scene {self.name!r}: unknown preset {preset!r} (known: {sorted(self.presets)})")
-        overrides = dict(overrides or {})
-        known = self.known_parameters
-        for key in overrides:
-            if key in RESERVED_PARAMETERS:
-                hint = "--scene NAME:PRESET" if key == "preset" else "--seed"
-                raise SceneError(f"scene {self.name!r}: {key!r} is not a scene parameter (use {hint})")
-            if key not in known:
-                raise SceneError(f"scene {self.name!r}: unknown parameter {key!r} "
-                                 f"(known: {', '.join(known) or 'none'})")
-        params = {**self.presets[preset], **overrides}
+        params = {**self.presets[preset], **dict(overrides or {})}
+        values = self.parameter_values(params)
         try:
-            spec = self.build(dict(params), int(seed))
+            spec = self.build(values, int(seed))
             spec.validate()
         except SceneError:
             raise

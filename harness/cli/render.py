@@ -49,7 +49,8 @@ def add_arguments(parser) -> None:
                         help="disable Cycles' OpenImageDenoise (much noisier colour, far worse reconstruction)")
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", dest="overrides",
                         help="override a scene parameter (value parsed as JSON if possible); repeatable; "
-                             "an unknown KEY is an error that lists the scene's parameters")
+                             "an unknown KEY is an error that lists the scene's parameters, a value of the wrong "
+                             "type or out of range one that says what it expects (tri360 scenes --params)")
     parser.add_argument("--out", default="data",
                         help="data root directory (frames go to OUT/<scene>/<viewpoint>/): absent, empty or a data "
                              "root tri360 wrote, holding only frames")

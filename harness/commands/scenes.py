@@ -1,5 +1,6 @@
 """``tri360 scenes``: the registered scenes as text: their presets, default renderer, description and (on request)
-parameters."""
+parameters: each parameter's line (description, unit, default, allowed values: from the family's parameters
+dataclass, ``SceneEntry.describe_parameters``) and each preset's overrides."""
 
 from __future__ import annotations
 
@@ -20,7 +21,7 @@ def scene_listing(params: bool = False) -> tuple[list[str], dict[str, str]]:
         if e.description:
             out.append(f"{'':<16} {e.description}")
         if params:
-            for key, meaning in sorted(e.parameters.items()):
+            for key, meaning in sorted(e.describe_parameters().items()):
                 out.append(f"{'':<16}   --set {key}=...: {meaning}")
             for p, values in e.presets.items():
                 out.append(f"{'':<16}   {p}: {values}")

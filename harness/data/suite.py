@@ -17,7 +17,7 @@ A suite file ``suites/<name>.toml`` (format and rationale: ``docs/suites.md``)::
     viewpoints = 2
     split = "dev"               # "dev" or "test"
     name = "classroom-lecture-s101"   # optional: the scene directory of its frames (default shown)
-    params = { rows = 5 }       # optional: scene parameter overrides (the family's declared parameters)
+    params = { rows = 5 }       # optional: scene parameter overrides (the family's declared parameters, of their types)
     renderer = "cycles"         # optional: the family's default renderer
     tags = ["far"]              # optional: difficulty tags (scenes.model.DIFFICULTY_TAGS), default the family's
     rig = { baseline_m = 0.3, height_m = [1.0, 1.6], tilt_max_rad = 0.1 }   # optional, defaults 0.4, the
@@ -47,7 +47,7 @@ from pathlib import Path
 from harness.data.errors import UserError
 from harness.data.names import check_name
 from harness.data.photometric import AXES, CameraDistribution, gamma_of
-from scenes.model import DIFFICULTY_TAGS, RENDERERS, SceneEntry
+from scenes.model import DIFFICULTY_TAGS, RENDERERS, ParameterError, SceneEntry
 from scenes.registry import discover
 
 __all__ = ["FORMAT", "SPLITS", "IDEAL", "SuiteRig", "SuiteEntry", "SuiteFrame", "Suite", "load_suite", "suite_id"]
@@ -275,6 +275,10 @@ def _entry(path: Path, i: int, raw, scenes: dict[str, SceneEntry], errors: dict[
     if bad:
         _fail(path, f"{where} params", f"unknown parameter(s) {', '.join(bad)} of {family} "
                                        f"(known: {', '.join(known) or 'none'})")
+    try:
+        scene.parameter_values({**scene.presets[preset], **params})
+    except ParameterError as exc:
+        _fail(path, f"{where} params", exc.detail)
     renderer = table.get("renderer", scene.renderer)
     if renderer not in RENDERERS:
         _fail(path, f"{where} renderer", f"must be one of {', '.join(RENDERERS)}, got {renderer!r}")
@@ -354,7 +358,8 @@ def load_suite(path: Path, render_defaults: Mapping, scenes: dict[str, SceneEntr
         scenes: the scene registry (``scenes.registry.discover()[0]``); None = discover it.
     Raises:
         UserError: one line naming the file and the key: unreadable file, bad TOML, wrong format, unknown key,
-            wrong type, unknown family/preset/parameter, duplicate frame names, or a seed used by both splits.
+            wrong type, unknown family/preset/parameter, a scene parameter of the wrong type or out of range,
+            duplicate frame names, or a seed used by both splits.
     """
     path = Path(path)
     try:

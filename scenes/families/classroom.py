@@ -18,12 +18,12 @@ change the room size and furnishing.  Weak-texture surfaces on purpose: the ceil
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from scenes.families import _kit as kit
-from scenes.model import Box, Material, ModelFile, SceneEntry, SceneSpec
+from scenes.model import Box, Material, ModelFile, SceneEntry, SceneParams, SceneSpec, param
 
 MATERIALS = [
     Material("floor", kind="tiles", color=(0.55, 0.52, 0.46), color2=(0.32, 0.30, 0.27), scale=0.3,
@@ -74,38 +74,43 @@ def _chair_parts(seat_h=0.45, w=0.40, d=0.40, back_h=0.38):
     return kit.chair_parts("seat", "leg_metal", seat_h=seat_h, w=w, d=d, back_h=back_h)
 
 
-PARAMETERS = {
-    "size": "(width x, depth y, height z) of the room interior, metres (default [8, 7, 3])",
-    "rows": "student desk rows, along y (default 5)",
-    "cols": "student desk columns, along x (default 6)",
-    "windows": "number of windows on the -x wall (default 3)",
-    "lockers": "a row of lockers on the back wall, true/false (default true)",
-    "shelf": "a bookshelf in the back corner of the +x wall, true/false (default true)",
-    "lights": "(nx, ny) grid of ceiling light panels (default [2, 3])",
-    "light_power": "power per ceiling area light, watts (default 35)",
-    "jitter": "layout jitter amplitude, metres; angles get jitter / 1 m radians (default 0.05)",
-    "empty_seat_rate": "share of desks without a chair, in [0, 1] (default 0.15)",
-    "look_variation": "amplitude of the seed's material and lighting randomisation, 0 = the fixed look, 1 = the full "
-                      "randomisation suites use (default 0)",
-    "model_path": "an external model file (.blend, .glb, .gltf, .obj) to place; Cycles only (default none)",
-    "model_location": "(x, y, z) of the model, metres (default [0, 0, 0])",
-    "model_rotation": "(rx, ry, rz) Euler XYZ rotation of the model, radians (default [0, 0, 0])",
-    "model_scale": "uniform scale of the model (default 1)",
-}
+@dataclass(frozen=True)
+class ClassroomParams(SceneParams):
+    """The classroom's parameters (``tri360 scenes --params``)."""
+
+    size: tuple[float, float, float] = param((8.0, 7.0, 3.0), "(width x, depth y, height z) of the room interior",
+                                             unit="m", limits=(2.0, 100.0))
+    rows: int = param(5, "student desk rows, along y", limits=(0, 100))
+    cols: int = param(6, "student desk columns, along x", limits=(0, 100))
+    windows: int = param(3, "number of windows on the -x wall", limits=(0, 100))
+    lockers: bool = param(True, "a row of lockers on the back wall")
+    shelf: bool = param(True, "a bookshelf in the back corner of the +x wall")
+    lights: tuple[int, int] = param((2, 3), "(nx, ny) grid of ceiling light panels", limits=(0, 100))
+    light_power: float = param(35.0, "power per ceiling area light", unit="W", limits=(0.0, None))
+    jitter: float = param(0.05, "layout jitter amplitude; angles get jitter / 1 m radians", unit="m",
+                          limits=(0.0, 1.0))
+    empty_seat_rate: float = param(0.15, "share of desks without a chair", limits=(0.0, 1.0))
+    look_variation: float = param(0.0, "amplitude of the seed's material and lighting randomisation, 0 = the fixed "
+                                  "look, 1 = the full randomisation suites use", limits=(0.0, 1.0))
+    model_path: str | None = param(None, "an external model file (.blend, .glb, .gltf, .obj) to place; Cycles only")
+    model_location: tuple[float, float, float] = param((0.0, 0.0, 0.0), "(x, y, z) of the model", unit="m")
+    model_rotation: tuple[float, float, float] = param((0.0, 0.0, 0.0), "(rx, ry, rz) Euler XYZ rotation of the "
+                                                       "model", unit="rad")
+    model_scale: float = param(1.0, "uniform scale of the model", limits=(0.0, None))
 
 
 REFERENCE_LAMP_COLOR = (1.0, 0.97, 0.92)
 """Colour of the light panels in the fixed look (``look_variation = 0``), linear RGB."""
 
 
-def build(params: dict, seed: int) -> SceneSpec:
-    """Build a classroom (parameters: ``PARAMETERS``, all optional)."""
+def build(p: ClassroomParams, seed: int) -> SceneSpec:
+    """Build a classroom."""
     rng = np.random.default_rng(seed)  # the layout stream (as before the look was randomised)
     look = kit.streams(seed)[1]
-    amount = float(params.get("look_variation", 0.0))
-    W, D, H = (float(v) for v in params.get("size", (8.0, 7.0, 3.0)))
-    rows, cols = int(params.get("rows", 5)), int(params.get("cols", 6))
-    jitter = float(params.get("jitter", 0.05))
+    amount = p.look_variation
+    W, D, H = p.size
+    rows, cols = p.rows, p.cols
+    jitter = p.jitter
     spec = SceneSpec(name="classroom", bounds=((-W / 2, -D / 2, 0.0), (W / 2, D / 2, H)),
                      rig_height=(1.1, min(1.5, H - 0.9)), background=(0.0, 0.0, 0.0))
     for m in MATERIALS:
@@ -132,7 +137,7 @@ def build(params: dict, seed: int) -> SceneSpec:
     b.append(Box((-wx, fy - 0.02, 2.35), (0.32, 0.04, 0.32), "monitor", name="clock"))
 
     # windows on the -x wall: frame, bright pane, sill
-    n_win = int(params.get("windows", 3))
+    n_win = p.windows
     win_w = min(1.5, 0.8 * D / max(n_win, 1))
     for k in range(n_win):
         y = -D / 2 + D * (k + 0.5) / n_win
@@ -157,8 +162,8 @@ def build(params: dict, seed: int) -> SceneSpec:
 
     # student desks and chairs
     x0, x1 = -W / 2 + 1.3, W / 2 - 0.9
-    y0, y1 = -D / 2 + (1.5 if params.get("lockers", True) else 1.0), D / 2 - 2.4
-    empty_rate = float(params.get("empty_seat_rate", 0.15))
+    y0, y1 = -D / 2 + (1.5 if p.lockers else 1.0), D / 2 - 2.4
+    empty_rate = p.empty_seat_rate
     for r in range(rows):
         y = y1 if rows == 1 else y1 - (y1 - y0) * r / (rows - 1)
         for c in range(cols):
@@ -174,7 +179,7 @@ def build(params: dict, seed: int) -> SceneSpec:
                        _chair_parts())
 
     # lockers on the back wall
-    if params.get("lockers", True):
+    if p.lockers:
         n = int((W - 2.0) / 0.42)
         for k in range(n):
             x = -W / 2 + 1.0 + 0.42 * (k + 0.5)
@@ -186,7 +191,7 @@ def build(params: dict, seed: int) -> SceneSpec:
     b.append(Box((W / 2 - 0.01, 0.0, 1.8), (0.02, 0.8, 0.6), "poster_b", name="poster2"))
 
     # bookshelf in the back corner of the +x wall, with books
-    if params.get("shelf", True):
+    if p.shelf:
         sx, sy0, sw, sd, sh = W / 2 - 0.18, -D / 2 + 1.6, 1.2, 0.34, 1.9
         b.append(Box((sx, sy0 - sw / 2 + 0.01, sh / 2), (sd, 0.02, sh), "dark_wood", name="shelf.side0"))
         b.append(Box((sx, sy0 + sw / 2 - 0.01, sh / 2), (sd, 0.02, sh), "dark_wood", name="shelf.side1"))
@@ -207,19 +212,17 @@ def build(params: dict, seed: int) -> SceneSpec:
 
     # ceiling light panels (visible emitters) with area lights just below them (invisible to cameras)
     # (one power and colour temperature per room, drawn around the preset's: +-25 %, 3300-6000 K)
-    power = float(params.get("light_power", 35.0)) * (1.0 + 0.25 * amount * look.uniform(-1, 1))
+    power = p.light_power * (1.0 + 0.25 * amount * look.uniform(-1, 1))
     kelvin = 4500.0 + amount * look.uniform(-1200.0, 1500.0)
-    kit.ceiling_panels(spec, look, (-W / 2, -D / 2, W / 2, D / 2), H, params.get("lights", (2, 3)), power=power,
+    kit.ceiling_panels(spec, look, (-W / 2, -D / 2, W / 2, D / 2), H, p.lights, power=power,
                        kelvin=kelvin, panel=(1.2, 0.3), emission=6.0, name="lamp")
     if amount == 0:  # the reference classroom's fixed look: warm-white panels over white lights
         spec.materials["lamp"] = replace(spec.materials["lamp"], color=REFERENCE_LAMP_COLOR)
         spec.lights = [replace(light, color=(1.0, 1.0, 1.0)) for light in spec.lights]
 
-    if params.get("model_path"):
-        spec.models.append(ModelFile(path=params["model_path"],
-                                     location=tuple(params.get("model_location", (0.0, 0.0, 0.0))),
-                                     rotation_euler=tuple(params.get("model_rotation", (0.0, 0.0, 0.0))),
-                                     scale=float(params.get("model_scale", 1.0))))
+    if p.model_path:
+        spec.models.append(ModelFile(path=p.model_path, location=p.model_location,
+                                     rotation_euler=p.model_rotation, scale=p.model_scale))
     return spec
 
 
@@ -234,6 +237,9 @@ PRESETS = {
               "lights": (2, 3)},
 }
 
-SCENES = [SceneEntry(name="classroom", build=build, presets=PRESETS, default_preset="standard",
+# version: the scene code version frames and suite ids record; change it when what build() builds changes,
+# and only then (tests/scenes/test_scene_fingerprints.py; scenes/README.md)
+SCENES = [SceneEntry(name="classroom", version="sha256:1ed56314fc16eeec",
+                     build=build, presets=PRESETS, default_preset="standard",
                      description="classroom (8 x 7 x 3 m standard): desks, chairs, boards, windows, lockers",
-                     parameters=PARAMETERS, renderer="cycles", tags=("repetitive", "thin"))]
+                     parameters=ClassroomParams, renderer="cycles", tags=("repetitive", "thin"))]

@@ -13,28 +13,37 @@ colour), the lights' power and colour temperature and the daylight.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 from scenes.families import _kit as kit
-from scenes.model import Box, Cylinder, Material, SceneEntry, SceneSpec
-
-PARAMETERS = {
-    "length": "corridor length along y before jitter, metres (default 30)",
-    "width": "corridor width along x before jitter, metres (default 2.4)",
-    "height": "ceiling height, metres (default 2.8)",
-    "size_jitter": "relative jitter of length and width drawn from the seed (default 0.1)",
-    "door_spacing": "(min, max) spacing of the door slots along each wall, metres (default [3.2, 4.0])",
-    "light_spacing": "spacing of the ceiling lights along the corridor, metres (default 4)",
-    "light_power": "(min, max) power per ceiling area light, watts (default [30, 45])",
-    "kelvin": "(min, max) colour temperature of the ceiling lights, kelvin (default [3500, 6000])",
-}
+from scenes.model import Box, Cylinder, Material, SceneEntry, SceneParams, SceneSpec, param
 
 
-def build(params: dict, seed: int) -> SceneSpec:
-    """Build a corridor (parameters: ``PARAMETERS``, all optional)."""
+@dataclass(frozen=True)
+class CorridorParams(SceneParams):
+    """The corridor's parameters (``tri360 scenes --params``)."""
+
+    length: float = param(30.0, "corridor length along y before jitter", unit="m", limits=(4.0, 500.0))
+    width: float = param(2.4, "corridor width along x before jitter", unit="m", limits=(1.0, 20.0))
+    height: float = param(2.8, "ceiling height", unit="m", limits=(2.0, 20.0))
+    size_jitter: float = param(0.1, "relative jitter of length and width drawn from the seed", limits=(0.0, 0.5))
+    door_spacing: tuple[float, float] = param((3.2, 4.0), "(min, max) spacing of the door slots along each wall",
+                                              unit="m", limits=(1.5, 100.0))
+    light_spacing: float = param(4.0, "spacing of the ceiling lights along the corridor", unit="m",
+                                 limits=(0.5, 100.0))
+    light_power: tuple[float, float] = param((30.0, 45.0), "(min, max) power per ceiling area light", unit="W",
+                                             limits=(0.0, None))
+    kelvin: tuple[float, float] = param((3500.0, 6000.0), "(min, max) colour temperature of the ceiling lights",
+                                        unit="K", limits=(1000.0, 40000.0))
+
+
+def build(p: CorridorParams, seed: int) -> SceneSpec:
+    """Build a corridor."""
     layout, look = kit.streams(seed)
-    jit = float(params.get("size_jitter", 0.1))
-    L = float(params.get("length", 30.0)) * (1 + layout.uniform(-jit, jit))
-    W = float(params.get("width", 2.4)) * (1 + layout.uniform(-jit, jit))
-    H = float(params.get("height", 2.8))
+    jit = p.size_jitter
+    L = p.length * (1 + layout.uniform(-jit, jit))
+    W = p.width * (1 + layout.uniform(-jit, jit))
+    H = p.height
     spec = SceneSpec(name="corridor", bounds=((-W / 2, -L / 2, 0.0), (W / 2, L / 2, H)),
                      rig_height=(1.1, min(1.5, H - 0.9)), background=(0.0, 0.0, 0.0))
 
@@ -66,7 +75,7 @@ def build(params: dict, seed: int) -> SceneSpec:
     b = spec.boxes
 
     # doors on both walls: slots at a regular spacing, most of them used
-    lo_s, hi_s = (float(v) for v in params.get("door_spacing", (3.2, 4.0)))
+    lo_s, hi_s = p.door_spacing
     spacing = layout.uniform(lo_s, hi_s)
     n_slots = int((L - 2.0) // spacing)
     dw, dh = 0.95, 2.1
@@ -108,10 +117,10 @@ def build(params: dict, seed: int) -> SceneSpec:
         b.append(Box((s * 0.41, -L / 2 + 0.04, 1.05), (0.8, 0.04, 2.1), "door", name=f"end_door{s:+d}"))
 
     # a row of ceiling lights along the corridor, one power and colour temperature
-    n_lights = max(1, int(round(L / float(params.get("light_spacing", 4.0)))))
+    n_lights = max(1, int(round(L / p.light_spacing)))
     kit.ceiling_panels(spec, look, (-0.3, -L / 2, 0.3, L / 2), H, (1, n_lights),
-                       power=tuple(params.get("light_power", (30.0, 45.0))),
-                       kelvin=tuple(params.get("kelvin", (3500.0, 6000.0))), panel=(0.6, 1.2), emission=6.0)
+                       power=p.light_power,
+                       kelvin=p.kelvin, panel=(0.6, 1.2), emission=6.0)
     return spec
 
 
@@ -121,6 +130,9 @@ PRESETS = {
     "wide": {"length": 24.0, "width": 3.6, "height": 3.0, "door_spacing": (4.0, 5.0)},
 }
 
-SCENES = [SceneEntry(name="corridor", build=build, presets=PRESETS, default_preset="default",
+# version: the scene code version frames and suite ids record; change it when what build() builds changes,
+# and only then (tests/scenes/test_scene_fingerprints.py; scenes/README.md)
+SCENES = [SceneEntry(name="corridor", version="sha256:dd529b9f760552af",
+                     build=build, presets=PRESETS, default_preset="default",
                      description="corridor (30 x 2.4 x 2.8 m): rows of doors and ceiling lights, far range",
-                     parameters=PARAMETERS, renderer="cycles", tags=("far", "repetitive"))]
+                     parameters=CorridorParams, renderer="cycles", tags=("far", "repetitive"))]

@@ -12,34 +12,44 @@ or grey walls with no or weak texture, cabinet metal), the lights' power and col
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from scenes.families import _kit as kit
-from scenes.model import Box, Cylinder, Material, SceneEntry, SceneSpec
-
-PARAMETERS = {
-    "size": "(width x, depth y, height z) of the room interior before jitter, metres (default [9, 7, 3])",
-    "size_jitter": "relative room-size jitter drawn from the seed, per axis (height: half of it) (default 0.08)",
-    "benches": "rows of lab benches (island benches along x) (default 2)",
-    "floor_roughness": "(min, max) roughness of the polished floor, 0 = mirror (default [0.04, 0.15])",
-    "windows": "windows on the +x wall, with daylight (default 2)",
-    "lights": "(nx, ny) grid of ceiling light panels (default [3, 2])",
-    "light_power": "(min, max) power per ceiling area light, watts (default [28, 40])",
-    "kelvin": "(min, max) colour temperature of the ceiling lights, kelvin (default [4000, 6500])",
-}
+from scenes.model import Box, Cylinder, Material, SceneEntry, SceneParams, SceneSpec, param
 
 
-def build(params: dict, seed: int) -> SceneSpec:
-    """Build a laboratory (parameters: ``PARAMETERS``, all optional)."""
+@dataclass(frozen=True)
+class LabParams(SceneParams):
+    """The laboratory's parameters (``tri360 scenes --params``)."""
+
+    size: tuple[float, float, float] = param((9.0, 7.0, 3.0), "(width x, depth y, height z) of the room interior "
+                                             "before jitter", unit="m", limits=(2.0, 100.0))
+    size_jitter: float = param(0.08, "relative room-size jitter drawn from the seed, per axis (height: half of it)",
+                               limits=(0.0, 0.5))
+    benches: int = param(2, "rows of lab benches (island benches along x)", limits=(0, 20))
+    floor_roughness: tuple[float, float] = param((0.04, 0.15), "(min, max) roughness of the polished floor, "
+                                                 "0 = mirror", limits=(0.0, 1.0))
+    windows: int = param(2, "windows on the +x wall, with daylight", limits=(0, 20))
+    lights: tuple[int, int] = param((3, 2), "(nx, ny) grid of ceiling light panels", limits=(0, 100))
+    light_power: tuple[float, float] = param((28.0, 40.0), "(min, max) power per ceiling area light", unit="W",
+                                             limits=(0.0, None))
+    kelvin: tuple[float, float] = param((4000.0, 6500.0), "(min, max) colour temperature of the ceiling lights",
+                                        unit="K", limits=(1000.0, 40000.0))
+
+
+def build(p: LabParams, seed: int) -> SceneSpec:
+    """Build a laboratory."""
     layout, look = kit.streams(seed)
-    jit = float(params.get("size_jitter", 0.08))
-    W0, D0, H0 = (float(v) for v in params.get("size", (9.0, 7.0, 3.0)))
+    jit = p.size_jitter
+    W0, D0, H0 = p.size
     W, D = W0 * (1 + layout.uniform(-jit, jit)), D0 * (1 + layout.uniform(-jit, jit))
     H = H0 * (1 + 0.5 * layout.uniform(-jit, jit))
     spec = SceneSpec(name="lab", bounds=((-W / 2, -D / 2, 0.0), (W / 2, D / 2, H)),
                      rig_height=(1.1, min(1.5, H - 0.9)), background=(0.0, 0.0, 0.0))
 
-    rough = tuple(params.get("floor_roughness", (0.04, 0.15)))
+    rough = p.floor_roughness
     spec.add_material(kit.draw_material(look, "floor", "tiles", saturation=(0.0, 0.08), value=(0.7, 0.9),
                                         contrast=kit.draw_contrast(look, ("weak", "medium"), (3, 1)),
                                         roughness=rough, scale=(0.45, 0.65), darker=(0.75, 0.9)))
@@ -105,7 +115,7 @@ def build(params: dict, seed: int) -> SceneSpec:
         spec.cylinders.append(Cylinder((bx_, by_, 0.9 + h / 2), r, h, "glassware", name=f"bottle{i}"))
 
     # island benches: rows along x, each a glossy top on white cabinet bodies, with stools
-    rows = int(params.get("benches", 2))
+    rows = p.benches
     length = min(4.0, W - 3.4)
     ys = kit.row((0.0, -D / 2 + 2.0), (0.0, D / 2 - 2.0), rows)[:, 1] if rows else []
     for r_, yb in enumerate(ys):
@@ -143,7 +153,7 @@ def build(params: dict, seed: int) -> SceneSpec:
     b.append(Box((-W / 2 + 0.5, D / 2 - 0.8, 1.2), (0.98, 1.2, 2.4), "bench_body", name="hood"))
 
     # windows with daylight on the +x wall
-    n_win = int(params.get("windows", 2))
+    n_win = p.windows
     for k in range(n_win):
         yw = -D / 2 + D * (k + 0.5) / n_win
         kit.add_window(spec, look, "+x", (W, D, H), along=yw, width=min(1.6, 0.7 * D / n_win), height=1.5,
@@ -151,8 +161,7 @@ def build(params: dict, seed: int) -> SceneSpec:
                        sky=None if k == 0 else "window0.sky")
 
     kit.ceiling_panels(spec, look, (-W / 2 + 0.5, -D / 2 + 0.5, W / 2 - 0.5, D / 2 - 0.5), H,
-                       params.get("lights", (3, 2)), power=tuple(params.get("light_power", (28.0, 40.0))),
-                       kelvin=tuple(params.get("kelvin", (4000.0, 6500.0))), panel=(1.2, 0.3), emission=6.0)
+                       p.lights, power=p.light_power, kelvin=p.kelvin, panel=(1.2, 0.3), emission=6.0)
     return spec
 
 
@@ -163,6 +172,9 @@ PRESETS = {
     "large": {"size": (12.0, 9.0, 3.2), "benches": 3, "windows": 3, "lights": (4, 3), "light_power": (30.0, 45.0)},
 }
 
-SCENES = [SceneEntry(name="lab", build=build, presets=PRESETS, default_preset="default",
+# version: the scene code version frames and suite ids record; change it when what build() builds changes,
+# and only then (tests/scenes/test_scene_fingerprints.py; scenes/README.md)
+SCENES = [SceneEntry(name="lab", version="sha256:6cdc2da813615981",
+                     build=build, presets=PRESETS, default_preset="default",
                      description="white laboratory (9 x 7 x 3 m): polished floor, glossy whiteboard, metal cabinets",
-                     parameters=PARAMETERS, renderer="cycles", tags=("reflective", "weak_texture"))]
+                     parameters=LabParams, renderer="cycles", tags=("reflective", "weak_texture"))]

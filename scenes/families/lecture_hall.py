@@ -16,31 +16,39 @@ ceiling lights' power and colour temperature and the daylight in the (optional) 
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from scenes.families import _kit as kit
-from scenes.model import Box, SceneEntry, SceneSpec
+from scenes.model import Box, SceneEntry, SceneParams, SceneSpec, param
 
-PARAMETERS = {
-    "size": "(width at the back x, depth y, height above the front floor z) of the hall, metres before jitter "
-            "(default [14, 15, 5.5])",
-    "size_jitter": "relative hall-size jitter drawn from the seed, per axis (height: half of it) (default 0.06)",
-    "front_width": "width at the board as a share of the back width, in (0.4, 1]; 1 = parallel walls "
-                   "(default 0.75, jittered by +-0.05)",
-    "rows": "rows of seats, one per tier (default 9)",
-    "tread": "depth of one tier, metres (default 0.95)",
-    "rise": "height of one tier, metres (default 0.3)",
-    "front_area": "depth of the flat floor between the board and the first row, metres (default 4)",
-    "aisles": "aisles splitting the rows into blocks: 0, 1 (centre) or 2 (default 2)",
-    "seat_width": "seat pitch along a row, metres (default 0.55)",
-    "folded": "share of seats folded up, in [0, 1] (default 0.5)",
-    "windows": "windows high on the back (-y) wall, with daylight (default 0)",
-    "lights": "(nx, ny) grid of ceiling light panels (default [4, 5])",
-    "light_power": "(min, max) power per ceiling area light, watts (default [70, 100])",
-    "kelvin": "(min, max) colour temperature of the ceiling lights, kelvin (default [3500, 6000])",
-}
+
+@dataclass(frozen=True)
+class LectureHallParams(SceneParams):
+    """The lecture hall's parameters (``tri360 scenes --params``)."""
+
+    size: tuple[float, float, float] = param((14.0, 15.0, 5.5), "(width at the back x, depth y, height above the "
+                                             "front floor z) of the hall before jitter", unit="m",
+                                             limits=(4.0, 100.0))
+    size_jitter: float = param(0.06, "relative hall-size jitter drawn from the seed, per axis (height: half of it)",
+                               limits=(0.0, 0.5))
+    front_width: float = param(0.75, "width at the board as a share of the back width, 1 = parallel walls "
+                               "(jittered by +-0.05 when < 1)", limits=(0.4, 1.0))
+    rows: int = param(9, "rows of seats, one per tier", limits=(0, 100))
+    tread: float = param(0.95, "depth of one tier", unit="m", limits=(0.6, 3.0))
+    rise: float = param(0.3, "height of one tier", unit="m", limits=(0.0, 1.0))
+    front_area: float = param(4.0, "depth of the flat floor between the board and the first row", unit="m",
+                              limits=(1.5, 100.0))
+    aisles: int = param(2, "aisles splitting the rows into blocks: 0, 1 (centre) or 2", limits=(0, 2))
+    seat_width: float = param(0.55, "seat pitch along a row", unit="m", limits=(0.3, 2.0))
+    folded: float = param(0.5, "share of seats folded up", limits=(0.0, 1.0))
+    windows: int = param(0, "windows high on the back (-y) wall, with daylight", limits=(0, 20))
+    lights: tuple[int, int] = param((4, 5), "(nx, ny) grid of ceiling light panels", limits=(0, 100))
+    light_power: tuple[float, float] = param((70.0, 100.0), "(min, max) power per ceiling area light", unit="W",
+                                             limits=(0.0, None))
+    kelvin: tuple[float, float] = param((3500.0, 6000.0), "(min, max) colour temperature of the ceiling lights",
+                                        unit="K", limits=(1000.0, 40000.0))
 
 
 def _materials(spec: SceneSpec, look: np.random.Generator) -> None:
@@ -101,17 +109,17 @@ def _lift(parts: list, z: float) -> list:
     return [replace(p, center=(p.center[0], p.center[1], p.center[2] + z)) for p in parts]
 
 
-def build(params: dict, seed: int) -> SceneSpec:
-    """Build a lecture hall (parameters: ``PARAMETERS``, all optional)."""
+def build(p: LectureHallParams, seed: int) -> SceneSpec:
+    """Build a lecture hall."""
     layout, look = kit.streams(seed)
-    jit = float(params.get("size_jitter", 0.06))
-    W0, D0, H0 = (float(v) for v in params.get("size", (14.0, 15.0, 5.5)))
+    jit = p.size_jitter
+    W0, D0, H0 = p.size
     W, D = W0 * (1 + layout.uniform(-jit, jit)), D0 * (1 + layout.uniform(-jit, jit))
     H = H0 * (1 + 0.5 * layout.uniform(-jit, jit))
-    fw = float(params.get("front_width", 0.75))
+    fw = p.front_width
     Wf = W * float(np.clip(fw + (layout.uniform(-0.05, 0.05) if fw < 1 else 0.0), 0.4, 1.0))
-    rows, tread, rise = int(params.get("rows", 9)), float(params.get("tread", 0.95)), float(params.get("rise", 0.3))
-    front = float(params.get("front_area", 4.0))
+    rows, tread, rise = p.rows, p.tread, p.rise
+    front = p.front_area
     rows = min(rows, int((D - front - 0.5) // tread))
     if rows * rise > H - 2.6:
         raise ValueError(f"{rows} tiers of {rise} m leave less than 2.6 m under the {H:.2f} m ceiling at the back")
@@ -148,11 +156,11 @@ def build(params: dict, seed: int) -> SceneSpec:
         b.append(Box((0.0, yk - 0.02, z + 0.004), (W - 0.002, 0.04, 0.008), "nosing", name=f"tier{k}.nosing"))
 
     # rows of seats in blocks between the aisles (which follow the fan), a desk in front of each block
-    aisles = int(params.get("aisles", 2))
+    aisles = p.aisles
     aisle_w = 1.1
     fractions = {0: [], 1: [0.0]}.get(aisles, [-0.22, 0.22])
-    seat_w = float(params.get("seat_width", 0.55))
-    folded_rate = float(params.get("folded", 0.5))
+    seat_w = p.seat_width
+    folded_rate = p.folded
     for k in range(rows):
         z = k * rise
         y_front = y0 - k * tread  # the row's desk is at the front of its tread, the seats behind
@@ -205,7 +213,7 @@ def build(params: dict, seed: int) -> SceneSpec:
               kit.table_parts(2.2, 0.8, 0.76, "lectern", "metal", leg=0.05))
 
     # optional daylight: windows high on the back wall, above the back landing
-    n_win = int(params.get("windows", 0))
+    n_win = p.windows
     sill = rows * rise + 1.2
     for k in range(n_win):
         x = -W / 2 + W * (k + 0.5) / n_win
@@ -214,9 +222,8 @@ def build(params: dict, seed: int) -> SceneSpec:
 
     margin = 1.0
     xw = Wf / 2 - margin
-    kit.ceiling_panels(spec, look, (-xw, -D / 2 + margin, xw, D / 2 - margin), H, params.get("lights", (4, 5)),
-                       power=tuple(params.get("light_power", (70.0, 100.0))),
-                       kelvin=tuple(params.get("kelvin", (3500.0, 6000.0))), panel=(1.2, 0.3), emission=6.0)
+    kit.ceiling_panels(spec, look, (-xw, -D / 2 + margin, xw, D / 2 - margin), H, p.lights,
+                       power=p.light_power, kelvin=p.kelvin, panel=(1.2, 0.3), emission=6.0)
     return spec
 
 
@@ -228,6 +235,9 @@ PRESETS = {
               "aisles": 2, "folded": 0.8, "windows": 3, "lights": (4, 6), "light_power": (90.0, 130.0)},
 }
 
-SCENES = [SceneEntry(name="lecture_hall", build=build, presets=PRESETS, default_preset="hall",
+# version: the scene code version frames and suite ids record; change it when what build() builds changes,
+# and only then (tests/scenes/test_scene_fingerprints.py; scenes/README.md)
+SCENES = [SceneEntry(name="lecture_hall", version="sha256:91d0c40d526a51ef",
+                     build=build, presets=PRESETS, default_preset="hall",
                      description="lecture hall (14 x 15 x 5.5 m): tiered floor, rows of seats, fanned walls, board",
-                     parameters=PARAMETERS, renderer="cycles", tags=("thin", "repetitive"))]
+                     parameters=LectureHallParams, renderer="cycles", tags=("thin", "repetitive"))]

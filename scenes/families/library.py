@@ -16,31 +16,40 @@ ceiling lights' power and colour temperature and the daylight in the windows.
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from reconstruction.camera.rig import yaw_rotation
 from scenes.families import _kit as kit
-from scenes.model import Box, Cylinder, SceneEntry, SceneSpec, Sphere
+from scenes.model import Box, Cylinder, SceneEntry, SceneParams, SceneSpec, Sphere, param
 
-PARAMETERS = {
-    "size": "(width x, depth y, height z) of the room interior before jitter, metres (default [12, 10, 3.2])",
-    "size_jitter": "relative room-size jitter drawn from the seed, per axis (height: half of it) (default 0.08)",
-    "stack_zone": "share of the room depth (from the +y wall) given to the book stacks, in (0, 1) (default 0.55)",
-    "stack_height": "height of a book stack, metres (default 2.0)",
-    "levels": "shelf levels per stack (default 5)",
-    "aisle": "aisle between stack rows, metres (default 1.3)",
-    "main_aisle": "width of the main aisle between the two banks of stacks, metres (default 1.8)",
-    "fill": "share of the shelf length filled with books, in [0, 1] (default 0.8)",
-    "book_colors": "number of book materials (colours) (default 10)",
-    "tables": "reading tables in the back part of the room (default 2)",
-    "wall_shelves": "a book wall along the back (-y) wall, true/false (default true)",
-    "windows": "windows on the -x wall, with daylight (default 3)",
-    "lights": "(nx, ny) grid of ceiling light panels (default [4, 3])",
-    "light_power": "(min, max) power per ceiling area light, watts (default [45, 65])",
-    "kelvin": "(min, max) colour temperature of the ceiling lights, kelvin (default [3000, 5000])",
-}
+
+@dataclass(frozen=True)
+class LibraryParams(SceneParams):
+    """The library's parameters (``tri360 scenes --params``)."""
+
+    size: tuple[float, float, float] = param((12.0, 10.0, 3.2), "(width x, depth y, height z) of the room interior "
+                                             "before jitter", unit="m", limits=(2.0, 100.0))
+    size_jitter: float = param(0.08, "relative room-size jitter drawn from the seed, per axis (height: half of it)",
+                               limits=(0.0, 0.5))
+    stack_zone: float = param(0.55, "share of the room depth (from the +y wall) given to the book stacks",
+                              limits=(0.0, 1.0))
+    stack_height: float = param(2.0, "height of a book stack", unit="m", limits=(0.5, 10.0))
+    levels: int = param(5, "shelf levels per stack", limits=(1, 50))
+    aisle: float = param(1.3, "aisle between stack rows", unit="m", limits=(0.5, 20.0))
+    main_aisle: float = param(1.8, "width of the main aisle between the two banks of stacks", unit="m",
+                              limits=(0.5, 50.0))
+    fill: float = param(0.8, "share of the shelf length filled with books", limits=(0.0, 1.0))
+    book_colors: int = param(10, "number of book materials (colours)", limits=(1, 1000))
+    tables: int = param(2, "reading tables in the back part of the room", limits=(0, 50))
+    wall_shelves: bool = param(True, "a book wall along the back (-y) wall")
+    windows: int = param(3, "windows on the -x wall, with daylight", limits=(0, 20))
+    lights: tuple[int, int] = param((4, 3), "(nx, ny) grid of ceiling light panels", limits=(0, 100))
+    light_power: tuple[float, float] = param((45.0, 65.0), "(min, max) power per ceiling area light", unit="W",
+                                             limits=(0.0, None))
+    kelvin: tuple[float, float] = param((3000.0, 5000.0), "(min, max) colour temperature of the ceiling lights",
+                                        unit="K", limits=(1000.0, 40000.0))
 
 SHELF_D = 0.30  # depth of one side of a stack (a double-sided stack is twice as deep), metres
 BOARD = 0.02  # shelf board thickness, metres
@@ -168,24 +177,24 @@ def _moved(parts: list, x: float, y: float, yaw: float) -> list:
     return out
 
 
-def build(params: dict, seed: int) -> SceneSpec:
-    """Build a library reading room (parameters: ``PARAMETERS``, all optional)."""
+def build(p: LibraryParams, seed: int) -> SceneSpec:
+    """Build a library reading room."""
     layout, look = kit.streams(seed)
-    jit = float(params.get("size_jitter", 0.08))
-    W0, D0, H0 = (float(v) for v in params.get("size", (12.0, 10.0, 3.2)))
+    jit = p.size_jitter
+    W0, D0, H0 = p.size
     W, D = W0 * (1 + layout.uniform(-jit, jit)), D0 * (1 + layout.uniform(-jit, jit))
     H = H0 * (1 + 0.5 * layout.uniform(-jit, jit))
     spec = SceneSpec(name="library", bounds=((-W / 2, -D / 2, 0.0), (W / 2, D / 2, H)),
                      rig_height=(1.1, min(1.5, H - 0.9)), background=(0.0, 0.0, 0.0))
-    books = _materials(spec, look, int(params.get("book_colors", 10)))
+    books = _materials(spec, look, p.book_colors)
     kit.room_shell(spec, (W, D, H), "walls", "floor", "ceiling", baseboard="shelf")
     b = spec.boxes
-    fill = float(params.get("fill", 0.8))
-    sh, levels = float(params.get("stack_height", 2.0)), int(params.get("levels", 5))
+    fill = p.fill
+    sh, levels = p.stack_height, p.levels
 
     # the stacks: two banks either side of the main aisle, rows along x, from the +y wall back
-    zone = float(params.get("stack_zone", 0.55)) * D
-    aisle, main = float(params.get("aisle", 1.3)), float(params.get("main_aisle", 1.8))
+    zone = p.stack_zone * D
+    aisle, main = p.aisle, p.main_aisle
     wall_gap = 0.9  # free floor between a bank and the side walls, metres
     bank = (W - main) / 2 - wall_gap  # length of a stack
     pitch = 2 * SHELF_D + aisle
@@ -199,14 +208,14 @@ def build(params: dict, seed: int) -> SceneSpec:
             kit.place(spec, f"stack{r}_{side}", x, y, 0.0, _stack(layout, bank, sh, levels, (-1, 1), fill, books))
 
     # the book wall on the back wall, behind the reading area
-    if params.get("wall_shelves", True):
+    if p.wall_shelves:
         length = W - 2.4
         kit.place(spec, "wallshelf", layout.uniform(-0.2, 0.2), -D / 2 + 0.01, 0.0,
                   _stack(layout, length, min(sh + 0.2, H - 0.4), levels + 1, (1,), fill, books))
 
     # reading tables in the back part of the room
-    n_tab = int(params.get("tables", 2))
-    y_read = (-D / 2 + (1.0 if params.get("wall_shelves", True) else 0.4) + D / 2 - zone) / 2
+    n_tab = p.tables
+    y_read = (-D / 2 + (1.0 if p.wall_shelves else 0.4) + D / 2 - zone) / 2
     length = min(3.2, (W - 2.0) / max(n_tab, 1) - 1.6)
     for k, (x, _) in enumerate(kit.row((-W / 2 + 1.0 + (length + 1.6) / 2, 0), (W / 2 - 1.0 - (length + 1.6) / 2, 0),
                                         n_tab)):
@@ -219,7 +228,7 @@ def build(params: dict, seed: int) -> SceneSpec:
     dy = layout.uniform(-D / 2 + 1.0, D / 2 - zone - 0.6)
     b.append(Box((W / 2 - 0.025, dy, 1.05), (0.05, 0.95, 2.1), "door", name="door"))
     b.append(Box((W / 2 - 0.07, dy - 0.35, 1.0), (0.05, 0.12, 0.025), "metal", name="door.handle"))
-    n_win = int(params.get("windows", 3))
+    n_win = p.windows
     for k in range(n_win):
         y = -D / 2 + D * (k + 0.5) / n_win
         kit.add_window(spec, look, "-x", (W, D, H), along=y, width=min(1.4, 0.7 * D / n_win),
@@ -227,8 +236,7 @@ def build(params: dict, seed: int) -> SceneSpec:
 
     margin = 0.8
     kit.ceiling_panels(spec, look, (-W / 2 + margin, -D / 2 + margin, W / 2 - margin, D / 2 - margin), H,
-                       params.get("lights", (4, 3)), power=tuple(params.get("light_power", (45.0, 65.0))),
-                       kelvin=tuple(params.get("kelvin", (3000.0, 5000.0))), panel=(1.2, 0.3), emission=6.0)
+                       p.lights, power=p.light_power, kelvin=p.kelvin, panel=(1.2, 0.3), emission=6.0)
     return spec
 
 
@@ -239,6 +247,9 @@ PRESETS = {
     "small": {"size": (8.0, 7.0, 2.8), "stack_zone": 0.5, "tables": 1, "windows": 2, "lights": (3, 2)},
 }
 
-SCENES = [SceneEntry(name="library", build=build, presets=PRESETS, default_preset="reading_room",
+# version: the scene code version frames and suite ids record; change it when what build() builds changes,
+# and only then (tests/scenes/test_scene_fingerprints.py; scenes/README.md)
+SCENES = [SceneEntry(name="library", version="sha256:94f773fe8efd3881",
+                     build=build, presets=PRESETS, default_preset="reading_room",
                      description="library (12 x 10 x 3.2 m): rows of book stacks, wall shelves, reading tables",
-                     parameters=PARAMETERS, renderer="cycles", tags=("repetitive", "cluttered"))]
+                     parameters=LibraryParams, renderer="cycles", tags=("repetitive", "cluttered"))]

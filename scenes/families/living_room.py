@@ -16,26 +16,34 @@ the windows.
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from scenes.families import _kit as kit
-from scenes.model import Box, Cylinder, Light, SceneEntry, SceneSpec, Sphere
+from scenes.model import Box, Cylinder, Light, SceneEntry, SceneParams, SceneSpec, Sphere, param
 
-PARAMETERS = {
-    "size": "(width x, depth y, height z) of the room interior before jitter, metres (default [6, 5, 2.6])",
-    "size_jitter": "relative room-size jitter drawn from the seed, per axis (height: half of it) (default 0.1)",
-    "sofa_width": "sofa seat width between the arms, metres (default 2.0)",
-    "stools": "(min, max) number of stools and poufs (default [1, 3])",
-    "plants": "(min, max) number of potted plants (default [1, 3])",
-    "floor_lamps": "floor lamps with a spherical shade, each with a light (default 1)",
-    "pendants": "spherical pendant lamps hanging from the ceiling, each with a light (default 1)",
-    "lamp_power": "(min, max) power of each lamp's light, watts (default [60, 100])",
-    "kelvin": "(min, max) colour temperature of the lamps, kelvin (default [2700, 4000])",
-    "windows": "windows on the -x wall, with daylight, each with a column radiator under it (default 2)",
-    "pipes": "heating pipes: a riser pair in a corner and a pipe along the -x wall, true/false (default true)",
-}
+
+@dataclass(frozen=True)
+class LivingRoomParams(SceneParams):
+    """The living room's parameters (``tri360 scenes --params``)."""
+
+    size: tuple[float, float, float] = param((6.0, 5.0, 2.6), "(width x, depth y, height z) of the room interior "
+                                             "before jitter", unit="m", limits=(2.0, 100.0))
+    size_jitter: float = param(0.1, "relative room-size jitter drawn from the seed, per axis (height: half of it)",
+                               limits=(0.0, 0.5))
+    sofa_width: float = param(2.0, "sofa seat width between the arms", unit="m", limits=(0.5, 10.0))
+    stools: tuple[int, int] = param((1, 3), "(min, max) number of stools and poufs", limits=(0, 100))
+    plants: tuple[int, int] = param((1, 3), "(min, max) number of potted plants", limits=(0, 100))
+    floor_lamps: int = param(1, "floor lamps with a spherical shade, each with a light", limits=(0, 20))
+    pendants: int = param(1, "spherical pendant lamps hanging from the ceiling, each with a light", limits=(0, 20))
+    lamp_power: tuple[float, float] = param((60.0, 100.0), "(min, max) power of each lamp's light", unit="W",
+                                            limits=(0.0, None))
+    kelvin: tuple[float, float] = param((2700.0, 4000.0), "(min, max) colour temperature of the lamps", unit="K",
+                                        limits=(1000.0, 40000.0))
+    windows: int = param(2, "windows on the -x wall, with daylight, each with a column radiator under it",
+                         limits=(0, 20))
+    pipes: bool = param(True, "heating pipes: a riser pair in a corner and a pipe along the -x wall")
 
 
 def _materials(spec: SceneSpec, look: np.random.Generator) -> None:
@@ -115,28 +123,28 @@ def _radiator(width: float) -> list:
     return parts
 
 
-def build(params: dict, seed: int) -> SceneSpec:
-    """Build a living room (parameters: ``PARAMETERS``, all optional)."""
+def build(p: LivingRoomParams, seed: int) -> SceneSpec:
+    """Build a living room."""
     layout, look = kit.streams(seed)
-    jit = float(params.get("size_jitter", 0.1))
-    W0, D0, H0 = (float(v) for v in params.get("size", (6.0, 5.0, 2.6)))
+    jit = p.size_jitter
+    W0, D0, H0 = p.size
     W, D = W0 * (1 + layout.uniform(-jit, jit)), D0 * (1 + layout.uniform(-jit, jit))
     H = H0 * (1 + 0.5 * layout.uniform(-jit, jit))
     spec = SceneSpec(name="living_room", bounds=((-W / 2, -D / 2, 0.0), (W / 2, D / 2, H)),
                      rig_height=(1.1, min(1.5, H - 0.9)), background=(0.0, 0.0, 0.0))
     _materials(spec, look)
-    lamp_color = kit.draw_light_color(look, tuple(params.get("kelvin", (2700.0, 4000.0))))
+    lamp_color = kit.draw_light_color(look, p.kelvin)
     glow = kit.draw_material(look, "glow", "emission", saturation=0.0, value=1.0, contrast=0.0,
                              emission=float(look.uniform(3.0, 6.0)))
     spec.add_material(replace(glow, color=lamp_color))
-    power = tuple(params.get("lamp_power", (60.0, 100.0)))
+    power = p.lamp_power
     kit.room_shell(spec, (W, D, H), "walls", "floor", "ceiling", baseboard="baseboard")
     b = spec.boxes
 
     # the seating group: sofa against the -y or +y wall, the TV facing it, a round table on a round rug between
     side = -1.0 if layout.uniform() < 0.5 else 1.0  # the wall the sofa stands against
     yaw = 0.0 if side < 0 else np.pi  # the sofa faces into the room
-    sw = float(params.get("sofa_width", 2.0))
+    sw = p.sofa_width
     sx = layout.uniform(-1, 1) * max(0.0, W / 2 - sw / 2 - 0.9)
     kit.place(spec, "sofa", sx, side * (D / 2 - 0.47), yaw, _sofa(sw, "sofa", "cushion", "wood", layout))
     tx, ty = sx + layout.uniform(-0.2, 0.2), side * (D / 2 - 0.47 - 1.25) + layout.uniform(-0.1, 0.1)
@@ -153,7 +161,7 @@ def build(params: dict, seed: int) -> SceneSpec:
 
     # stools and poufs around the table, out of the sofa's and the TV's way
     taken = [(tx, ty, r_table + 0.15)]
-    lo_n, hi_n = (int(v) for v in params.get("stools", (1, 3)))
+    lo_n, hi_n = p.stools
     n_stools = int(layout.integers(lo_n, hi_n + 1))
     y_lo, y_hi = -D / 2 + 0.4, D / 2 - 0.4
     if side < 0:
@@ -175,7 +183,7 @@ def build(params: dict, seed: int) -> SceneSpec:
 
     # lamps: floor lamps beside the sofa, pendants over the table; each spherical shade glows, with an
     # invisible point light just under it
-    for k in range(int(params.get("floor_lamps", 1))):
+    for k in range(p.floor_lamps):
         s = 1 if k % 2 == 0 else -1
         fx, fy = sx + s * (sw / 2 + 0.55), side * (D / 2 - 0.35)
         fx = float(np.clip(fx, -W / 2 + 0.3, W / 2 - 0.3))
@@ -183,8 +191,8 @@ def build(params: dict, seed: int) -> SceneSpec:
         kit.place(spec, f"floorlamp{k}", fx, fy, 0.0, _floor_lamp(r))
         spec.lights.append(Light("point", position=(fx, fy, 1.57 - 0.06), power=kit.uniform(look, power),
                                  color=lamp_color))
-    for k in range(int(params.get("pendants", 1))):
-        px, py = tx + (k - (int(params.get("pendants", 1)) - 1) / 2) * 0.8, ty + layout.uniform(-0.2, 0.2)
+    for k in range(p.pendants):
+        px, py = tx + (k - (p.pendants - 1) / 2) * 0.8, ty + layout.uniform(-0.2, 0.2)
         r = layout.uniform(0.15, 0.3)
         z = H - layout.uniform(0.6, 0.9) - r
         cord = H - (z + r)
@@ -194,7 +202,7 @@ def build(params: dict, seed: int) -> SceneSpec:
                                  color=lamp_color))
 
     # windows with daylight on the -x wall, a column radiator under each
-    n_win = int(params.get("windows", 2))
+    n_win = p.windows
     for k in range(n_win):
         y = -D / 2 + D * (k + 0.5) / n_win
         ww = min(1.4, 0.7 * D / max(n_win, 1))
@@ -202,14 +210,14 @@ def build(params: dict, seed: int) -> SceneSpec:
                        frame="baseboard", name=f"window{k}")
         kit.place(spec, f"radiator{k}", -W / 2 + 0.07, y, np.pi / 2, _radiator(0.8 * ww))
     # heating pipes: a riser pair in the +x corner on the TV's side, and a pipe along the -x wall
-    if params.get("pipes", True):
+    if p.pipes:
         cx, cy = W / 2 - 0.08, -side * (D / 2 - 0.08)
         for k in range(2):
             spec.cylinders.append(Cylinder((cx, cy + side * 0.09 * k, H / 2), 0.025, H, "pipe", name=f"riser{k}"))
         spec.cylinders.append(Cylinder((-W / 2 + 0.05, 0.0, 0.12), 0.018, D - 0.02, "pipe", axis="y", name="pipe"))
 
     # plants in round pots, along the walls, away from the furniture
-    lo_n, hi_n = (int(v) for v in params.get("plants", (1, 3)))
+    lo_n, hi_n = p.plants
     n_plants = int(layout.integers(lo_n, hi_n + 1))
     for k, (x, y) in enumerate(kit.scatter(layout, n_plants, (-W / 2 + 0.35, -D / 2 + 0.35),
                                            (W / 2 - 0.35, D / 2 - 0.35), 0.3, taken, gap=0.1)):
@@ -240,6 +248,9 @@ PRESETS = {
               "pendants": 2, "windows": 3},
 }
 
-SCENES = [SceneEntry(name="living_room", build=build, presets=PRESETS, default_preset="default",
+# version: the scene code version frames and suite ids record; change it when what build() builds changes,
+# and only then (tests/scenes/test_scene_fingerprints.py; scenes/README.md)
+SCENES = [SceneEntry(name="living_room", version="sha256:727ac299509743bf",
+                     build=build, presets=PRESETS, default_preset="default",
                      description="living room (6 x 5 x 2.6 m): plain walls, round table, stools, sphere lamps, pipes",
-                     parameters=PARAMETERS, renderer="cycles", tags=("weak_texture",))]
+                     parameters=LivingRoomParams, renderer="cycles", tags=("weak_texture",))]

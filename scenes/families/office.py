@@ -15,23 +15,35 @@ strong, roughness), the ceiling lights' power and colour temperature and the day
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from scenes.families import _kit as kit
-from scenes.model import Box, Cylinder, SceneEntry, SceneSpec, Sphere
+from scenes.model import Box, Cylinder, SceneEntry, SceneParams, SceneSpec, Sphere, param
 
-PARAMETERS = {
-    "size": "(width x, depth y, height z) of the room interior before jitter, metres (default [12, 10, 2.8])",
-    "size_jitter": "relative room-size jitter drawn from the seed, per axis (height: half of it) (default 0.08)",
-    "desks_per_side": "desks side by side in each half of a cluster (a cluster has twice as many) (default 2)",
-    "aisle": "free aisle between clusters (chairs included), metres; as many clusters as fit (default 1.2)",
-    "occupancy": "share of desks with a monitor and a chair, in [0, 1] (default 0.85)",
-    "clutter": "mean number of small objects (papers, mugs, binders) per occupied desk (default 3)",
-    "windows": "windows on the -x wall, with daylight (default 3)",
-    "lights": "(nx, ny) grid of ceiling light panels (default [4, 3])",
-    "light_power": "(min, max) power per ceiling area light, watts (default [30, 45])",
-    "kelvin": "(min, max) colour temperature of the ceiling lights, kelvin (default [3500, 6000])",
-}
+
+@dataclass(frozen=True)
+class OfficeParams(SceneParams):
+    """The office's parameters (``tri360 scenes --params``)."""
+
+    size: tuple[float, float, float] = param((12.0, 10.0, 2.8), "(width x, depth y, height z) of the room interior "
+                                             "before jitter", unit="m", limits=(2.0, 100.0))
+    size_jitter: float = param(0.08, "relative room-size jitter drawn from the seed, per axis (height: half of it)",
+                               limits=(0.0, 0.5))
+    desks_per_side: int = param(2, "desks side by side in each half of a cluster (a cluster has twice as many)",
+                                limits=(1, 20))
+    aisle: float = param(1.2, "free aisle between clusters (chairs included); as many clusters as fit", unit="m",
+                         limits=(0.5, 20.0))
+    occupancy: float = param(0.85, "share of desks with a monitor and a chair", limits=(0.0, 1.0))
+    clutter: float = param(3.0, "mean number of small objects (papers, mugs, binders) per occupied desk",
+                           limits=(0.0, 50.0))
+    windows: int = param(3, "windows on the -x wall, with daylight", limits=(0, 20))
+    lights: tuple[int, int] = param((4, 3), "(nx, ny) grid of ceiling light panels", limits=(0, 100))
+    light_power: tuple[float, float] = param((30.0, 45.0), "(min, max) power per ceiling area light", unit="W",
+                                             limits=(0.0, None))
+    kelvin: tuple[float, float] = param((3500.0, 6000.0), "(min, max) colour temperature of the ceiling lights",
+                                        unit="K", limits=(1000.0, 40000.0))
 
 DESK_W, DESK_D, DESK_H = 1.4, 0.75, 0.76  # one desk, metres (the top, 0.735-0.76 m, spans a 0.75 m sample of the
 # rig-placement check, which tests the column under each camera every 10 cm from 0.05 m: no rig hovers over a desk)
@@ -138,11 +150,11 @@ def _desk(layout: np.random.Generator, occupied: bool, clutter: float) -> list:
     return parts
 
 
-def build(params: dict, seed: int) -> SceneSpec:
-    """Build an open-plan office (parameters: ``PARAMETERS``, all optional)."""
+def build(p: OfficeParams, seed: int) -> SceneSpec:
+    """Build an open-plan office."""
     layout, look = kit.streams(seed)
-    jit = float(params.get("size_jitter", 0.08))
-    W0, D0, H0 = (float(v) for v in params.get("size", (12.0, 10.0, 2.8)))
+    jit = p.size_jitter
+    W0, D0, H0 = p.size
     W, D = W0 * (1 + layout.uniform(-jit, jit)), D0 * (1 + layout.uniform(-jit, jit))
     H = H0 * (1 + 0.5 * layout.uniform(-jit, jit))
     spec = SceneSpec(name="office", bounds=((-W / 2, -D / 2, 0.0), (W / 2, D / 2, H)),
@@ -171,15 +183,15 @@ def build(params: dict, seed: int) -> SceneSpec:
     b.append(Box((W / 2 - 0.07, dy - 0.35, 1.0), (0.05, 0.12, 0.025), "metal", name="door.handle"))
 
     # windows with daylight on the -x wall
-    n_win = int(params.get("windows", 3))
+    n_win = p.windows
     for k in range(n_win):
         y = -D / 2 + D * (k + 0.5) / n_win
         kit.add_window(spec, look, "-x", (W, D, H), along=y, width=min(1.8, 0.8 * D / n_win),
                        height=min(1.5, H - 1.2), sill=0.85, frame="metal", name=f"window{k}")
 
     # desk clusters: two rows of desks facing each other, a partition between them
-    per_side = int(params.get("desks_per_side", 2))
-    aisle = float(params.get("aisle", 1.2))
+    per_side = p.desks_per_side
+    aisle = p.aisle
     cw = per_side * DESK_W  # cluster width along x
     cd = 2 * (DESK_D + CHAIR_OUT)  # cluster depth along y, chairs included
     free_w, free_d = W - 2 * wall_zone, D - 2 * wall_zone
@@ -188,7 +200,7 @@ def build(params: dict, seed: int) -> SceneSpec:
     rows = max(1, int((free_d - 2 * edge + aisle) // (cd + aisle)))
     gx = (free_w - cols * cw) / (cols + 1)  # the gaps actually left, spread evenly
     gy = (free_d - rows * cd) / (rows + 1)
-    occupancy, clutter = float(params.get("occupancy", 0.85)), float(params.get("clutter", 3.0))
+    occupancy, clutter = p.occupancy, p.clutter
     for i in range(cols):
         for j in range(rows):
             cx = -free_w / 2 + gx + cw / 2 + i * (cw + gx) + layout.uniform(-0.1, 0.1) * max(gx - aisle, 0)
@@ -222,8 +234,7 @@ def build(params: dict, seed: int) -> SceneSpec:
 
     margin = 0.6
     kit.ceiling_panels(spec, look, (-W / 2 + margin, -D / 2 + margin, W / 2 - margin, D / 2 - margin), H,
-                       params.get("lights", (4, 3)), power=tuple(params.get("light_power", (30.0, 45.0))),
-                       kelvin=tuple(params.get("kelvin", (3500.0, 6000.0))), panel=(0.6, 0.6), emission=5.0)
+                       p.lights, power=p.light_power, kelvin=p.kelvin, panel=(0.6, 0.6), emission=5.0)
     return spec
 
 
@@ -235,6 +246,9 @@ PRESETS = {
               "windows": 0, "lights": (5, 4), "light_power": (35.0, 50.0)},
 }
 
-SCENES = [SceneEntry(name="office", build=build, presets=PRESETS, default_preset="open_plan",
+# version: the scene code version frames and suite ids record; change it when what build() builds changes,
+# and only then (tests/scenes/test_scene_fingerprints.py; scenes/README.md)
+SCENES = [SceneEntry(name="office", version="sha256:4a1029386b73bb11",
+                     build=build, presets=PRESETS, default_preset="open_plan",
                      description="open-plan office (12 x 10 x 2.8 m): desk clusters, monitors, partitions, clutter",
-                     parameters=PARAMETERS, renderer="cycles", tags=("cluttered", "thin", "repetitive"))]
+                     parameters=OfficeParams, renderer="cycles", tags=("cluttered", "thin", "repetitive"))]

@@ -12,28 +12,37 @@ roughness), the lights' power and colour temperature and the daylight in the win
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from scenes.families import _kit as kit
-from scenes.model import Box, Cylinder, Material, SceneEntry, SceneSpec, Sphere
-
-PARAMETERS = {
-    "size": "(width x, depth y, height z) of the room interior before jitter, metres (default [7, 5.5, 2.8])",
-    "size_jitter": "relative room-size jitter drawn from the seed, per axis (height: half of it) (default 0.1)",
-    "table_radius": "radius of the round meeting table, metres (default 0.8)",
-    "chairs": "(min, max) number of chairs around the table (default [6, 9])",
-    "windows": "windows on the -x wall, with daylight (default 2)",
-    "lights": "(nx, ny) grid of ceiling light panels (default [2, 2])",
-    "light_power": "(min, max) power per ceiling area light, watts (default [40, 60])",
-    "kelvin": "(min, max) colour temperature of the ceiling lights, kelvin (default [3000, 5500])",
-}
+from scenes.model import Box, Cylinder, Material, SceneEntry, SceneParams, SceneSpec, Sphere, param
 
 
-def build(params: dict, seed: int) -> SceneSpec:
-    """Build a seminar room (parameters: ``PARAMETERS``, all optional)."""
+@dataclass(frozen=True)
+class SeminarParams(SceneParams):
+    """The seminar room's parameters (``tri360 scenes --params``)."""
+
+    size: tuple[float, float, float] = param((7.0, 5.5, 2.8), "(width x, depth y, height z) of the room interior "
+                                             "before jitter", unit="m", limits=(2.0, 100.0))
+    size_jitter: float = param(0.1, "relative room-size jitter drawn from the seed, per axis (height: half of it)",
+                               limits=(0.0, 0.5))
+    table_radius: float = param(0.8, "radius of the round meeting table", unit="m", limits=(0.2, 10.0))
+    chairs: tuple[int, int] = param((6, 9), "(min, max) number of chairs around the table", limits=(0, 100))
+    windows: int = param(2, "windows on the -x wall, with daylight", limits=(0, 20))
+    lights: tuple[int, int] = param((2, 2), "(nx, ny) grid of ceiling light panels", limits=(0, 100))
+    light_power: tuple[float, float] = param((40.0, 60.0), "(min, max) power per ceiling area light", unit="W",
+                                             limits=(0.0, None))
+    kelvin: tuple[float, float] = param((3000.0, 5500.0), "(min, max) colour temperature of the ceiling lights",
+                                        unit="K", limits=(1000.0, 40000.0))
+
+
+def build(p: SeminarParams, seed: int) -> SceneSpec:
+    """Build a seminar room."""
     layout, look = kit.streams(seed)
-    jit = float(params.get("size_jitter", 0.1))
-    W0, D0, H0 = (float(v) for v in params.get("size", (7.0, 5.5, 2.8)))
+    jit = p.size_jitter
+    W0, D0, H0 = p.size
     W, D = W0 * (1 + layout.uniform(-jit, jit)), D0 * (1 + layout.uniform(-jit, jit))
     H = H0 * (1 + 0.5 * layout.uniform(-jit, jit))
     spec = SceneSpec(name="seminar", bounds=((-W / 2, -D / 2, 0.0), (W / 2, D / 2, H)),
@@ -86,7 +95,7 @@ def build(params: dict, seed: int) -> SceneSpec:
     b.append(Box((W / 2 - 0.07, dy - 0.35, 1.0), (0.05, 0.12, 0.025), "frame", name="door.handle"))
 
     # windows with daylight on the -x wall
-    n_win = int(params.get("windows", 2))
+    n_win = p.windows
     for k in range(n_win):
         y = -D / 2 + D * (k + 0.5) / n_win
         kit.add_window(spec, look, "-x", (W, D, H), along=y, width=min(1.4, 0.7 * D / n_win), height=1.3,
@@ -94,10 +103,10 @@ def build(params: dict, seed: int) -> SceneSpec:
                        name=f"window{k}", sky=None if k == 0 else "window0.sky")
 
     # the round meeting table near the middle, chairs around it on thin round legs
-    radius = float(params.get("table_radius", 0.8))
+    radius = p.table_radius
     tx, ty = layout.uniform(-0.15, 0.15) * W, layout.uniform(-0.15, 0.05) * D
     kit.place(spec, "table", tx, ty, 0.0, kit.round_table_parts(radius, 0.74, "table", "chrome", column=0.06))
-    lo_n, hi_n = (int(v) for v in params.get("chairs", (6, 9)))
+    lo_n, hi_n = p.chairs
     n_chairs = int(layout.integers(lo_n, hi_n + 1))
     a0 = layout.uniform(0, 2 * np.pi)
     for k in range(n_chairs):
@@ -123,8 +132,7 @@ def build(params: dict, seed: int) -> SceneSpec:
     # ceiling panels: one power and colour temperature per room
     margin = 0.8
     kit.ceiling_panels(spec, look, (-W / 2 + margin, -D / 2 + margin, W / 2 - margin, D / 2 - margin), H,
-                       params.get("lights", (2, 2)), power=tuple(params.get("light_power", (40.0, 60.0))),
-                       kelvin=tuple(params.get("kelvin", (3000.0, 5500.0))), panel=(0.6, 0.6), emission=5.0)
+                       p.lights, power=p.light_power, kelvin=p.kelvin, panel=(0.6, 0.6), emission=5.0)
     return spec
 
 
@@ -135,7 +143,10 @@ PRESETS = {
     "windowless": {"size": (6.0, 5.0, 2.7), "table_radius": 0.7, "chairs": (5, 7), "windows": 0, "lights": (2, 2)},
 }
 
-SCENES = [SceneEntry(name="seminar", build=build, presets=PRESETS, default_preset="default",
+# version: the scene code version frames and suite ids record; change it when what build() builds changes,
+# and only then (tests/scenes/test_scene_fingerprints.py; scenes/README.md)
+SCENES = [SceneEntry(name="seminar", version="sha256:e4a8d8af834dd25a",
+                     build=build, presets=PRESETS, default_preset="default",
                      description=("seminar room (7 x 5.5 x 2.8 m): plain walls and ceiling, round table, "
                                   "thin-legged chairs"),
-                     parameters=PARAMETERS, renderer="cycles", tags=("weak_texture", "thin"))]
+                     parameters=SeminarParams, renderer="cycles", tags=("weak_texture", "thin"))]

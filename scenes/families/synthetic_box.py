@@ -11,10 +11,12 @@ walls, leaving the middle of the room free for the rig.  ``seed`` jitters box po
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from reconstruction.camera.rig import yaw_rotation
-from scenes.model import Box, Light, Material, SceneEntry, SceneSpec
+from scenes.model import Box, Light, Material, SceneEntry, SceneParams, SceneSpec, param
 
 # name -> (fractional centre (fx, fy) of the room half extents, size (sx, sy, sz) m, material, yaw rad)
 FURNITURE = {
@@ -45,31 +47,32 @@ def _materials(weak_contrast: float) -> list[Material]:
     ]
 
 
-PARAMETERS = {
-    "room": "(sx, sy, sz) interior size, metres; floor at z = 0, centred on x = y = 0 (default [6, 5, 3])",
-    "furniture": f"names from {sorted(FURNITURE)}, in order (default table, cabinet, cube, bench)",
-    "jitter_m": "max position jitter of each furniture box, metres (default 0.2)",
-    "size_jitter": "max relative size jitter of each furniture box, 0.15 = +-15 % (default 0.15)",
-    "weak_contrast": "texture contrast of the board on the +X wall, 0 = texture-less (default 0)",
-    "light_power": "power of the ceiling area light, watts; the point light gets half (default 80)",
-}
+@dataclass(frozen=True)
+class SyntheticBoxParams(SceneParams):
+    """The synthetic box room's parameters (``tri360 scenes --params``)."""
+
+    room: tuple[float, float, float] = param((6.0, 5.0, 3.0), "(sx, sy, sz) interior size; floor at z = 0, "
+                                             "centred on x = y = 0", unit="m", limits=(1.0, 100.0))
+    furniture: tuple[str, ...] = param(("table", "cabinet", "cube", "bench"), "furniture boxes, in order",
+                                       choices=sorted(FURNITURE))
+    jitter_m: float = param(0.2, "max position jitter of each furniture box", unit="m", limits=(0.0, 10.0))
+    size_jitter: float = param(0.15, "max relative size jitter of each furniture box, 0.15 = +-15 %",
+                               limits=(0.0, 0.9))
+    weak_contrast: float = param(0.0, "texture contrast of the board on the +X wall, 0 = texture-less",
+                                 limits=(0.0, 1.0))
+    light_power: float = param(80.0, "power of the ceiling area light; the point light gets half", unit="W",
+                               limits=(0.0, None))
 
 
-def build(params: dict, seed: int) -> SceneSpec:
-    """Build the room (parameters: ``PARAMETERS``, all optional)."""
-    sx, sy, sz = (float(v) for v in params.get("room", (6.0, 5.0, 3.0)))
-    names = list(params.get("furniture", ("table", "cabinet", "cube", "bench")))
-    jitter = float(params.get("jitter_m", 0.2))
-    size_jitter = float(params.get("size_jitter", 0.15))
-    power = float(params.get("light_power", 80.0))
-    unknown = [n for n in names if n not in FURNITURE]
-    if unknown:
-        raise ValueError(f"unknown furniture {unknown} (known: {sorted(FURNITURE)})")
+def build(p: SyntheticBoxParams, seed: int) -> SceneSpec:
+    """Build the room."""
+    sx, sy, sz = p.room
+    jitter, size_jitter, power = p.jitter_m, p.size_jitter, p.light_power
     rng = np.random.default_rng(seed)
     hx, hy = sx / 2.0, sy / 2.0
 
     spec = SceneSpec(name="synthetic_box", bounds=((-hx, -hy, 0.0), (hx, hy, sz)), rig_height=(1.1, 1.5))
-    for m in _materials(float(params.get("weak_contrast", 0.0))):
+    for m in _materials(p.weak_contrast):
         spec.add_material(m)
     spec.boxes.append(Box(center=(0.0, 0.0, sz / 2.0), size=(sx, sy, sz), material="walls", name="room",
                           inward=True))
@@ -79,7 +82,7 @@ def build(params: dict, seed: int) -> SceneSpec:
     # weak-texture board on the +X wall, 5 mm proud of it
     spec.boxes.append(Box(center=(hx - 0.015, 0.35 * hy, 1.45), size=(0.02, min(1.8, 0.6 * sy), 1.0),
                           material="board", name="board"))
-    for name in names:
+    for name in p.furniture:
         (fx, fy), size, material, yaw = FURNITURE[name]
         size = np.asarray(size) * rng.uniform(1 - size_jitter, 1 + size_jitter, 3)
         size[2] = min(size[2], sz - 0.3)
@@ -96,12 +99,14 @@ def build(params: dict, seed: int) -> SceneSpec:
     return spec
 
 
+# version: the scene code version frames and suite ids record; change it when what build() builds changes,
+# and only then (tests/scenes/test_scene_fingerprints.py; scenes/README.md)
 SCENES = [
     SceneEntry(
-        name="synthetic_box",
+        name="synthetic_box", version="sha256:3c562a7126a06405",
         renderer="raycast",
         build=build,
-        parameters=PARAMETERS,
+        parameters=SyntheticBoxParams,
         presets={
             "default": {"room": (6.0, 5.0, 3.0), "furniture": ("table", "cabinet", "cube", "bench")},
             "small": {"room": (4.0, 3.5, 2.6), "furniture": ("table", "cabinet", "cube"), "light_power": 50.0},

@@ -210,6 +210,7 @@ def test_importing_the_cli_does_not_load_bpy():
     (["--width", "4"], "--width must be >= 60"),
     (["--width", "1000000"], "--width 1000000 needs about"),
     (["--set", "rowz=2"], "scene 'classroom': unknown parameter 'rowz' (known: cols, empty_seat_rate, jitter"),
+    (["--set", "rows=many"], "scene 'classroom': parameter 'rows' expects a whole number in [0, 100], got 'many'"),
     (["--samples", "0"], "--samples must be >= 1"),
     (["--viewpoints", "0"], "--viewpoints must be >= 1"),
     (["--threads", "-1"], "--threads must be >= 0"),
@@ -244,4 +245,16 @@ def test_cli_scenes_lists_every_scene(capsys):
     out = capsys.readouterr().out
     for name, e in ENTRIES.items():
         assert name in out and f"[{e.renderer}]" in out
+
+
+def test_cli_scenes_params_lists_each_field_with_unit_default_and_limits(capsys):
+    assert main(["scenes", "--params"]) == 0
+    out = capsys.readouterr().out
+    assert "--set light_power=...: power per ceiling area light, W (default 35; >= 0)" in out
+    assert "--set rows=...: student desk rows, along y (default 5; in [0, 100])" in out
+    assert "--set furniture=...: furniture boxes, in order (default table, cabinet, cube, bench; each one of " in out
+    for name, e in ENTRIES.items():
+        for key in e.known_parameters:
+            assert f"--set {key}=...: " in out, (name, key)
+    assert "small: {'size': (6.0, 5.0, 2.7), 'rows': 3" in out  # a preset: its overrides
 

@@ -116,6 +116,10 @@ def test_load_a_suite(mini):
     (lambda t: t.replace("tilt_max_rad = 0.1", "tilt_max_rad = 2.0"), r"rig.tilt_max_rad: must be in \[0, pi/2\)"),
     (lambda t: t.replace("height_m = [1.0, 1.4]", "height_m = [1.4, 1.0]"), r"rig.height_m: must be \[low, high\]"),
     (lambda t: t.replace("seed = 11", 'seed = 11\nparams = { colour = 1 }'), r"params: unknown parameter\(s\) colour"),
+    (lambda t: t.replace("seed = 11", 'seed = 11\nparams = { jitter_m = "big" }'),
+     r"frames\[0\] \(synthetic_box\) params: parameter 'jitter_m' expects a number in \[0, 10\], got 'big'"),
+    (lambda t: t.replace("seed = 11", 'seed = 11\nparams = { furniture = ["sofa"] }'),
+     r"params: parameter 'furniture' expects a list of strings, each one of bench, .*, got \['sofa'\]"),
     (lambda t: t.replace('name = "mini"', 'name = "../x"'), r"name: name '../x' contains a path separator"),
     (lambda t: t.replace("tri360-suite/1", "tri360-suite/9"), r"format: must be 'tri360-suite/1'"),
     (lambda t: t + "\n[[frames]\n", r"not valid TOML"),
@@ -139,9 +143,9 @@ def test_suite_id_changes_with_the_file_a_code_version_or_a_render_setting(tmp_p
     # the file: even a comment makes another suite (a published file is never edited)
     edited = write(tmp_path, MINI.format(width=64) + "# note\n", "edited.toml")
     assert load_suite(edited, DEFAULTS_DICT, scenes).id != base.id
-    # a family's code version (here: box_room built by another source file)
+    # a family's code version (here: box_room declaring another version)
     other = dict(scenes)
-    other["box_room"] = dataclasses.replace(scenes["box_room"], build=scenes["classroom"].build)
+    other["box_room"] = dataclasses.replace(scenes["box_room"], version="sha256:0123456789abcdef")
     assert other["box_room"].code_version != scenes["box_room"].code_version
     assert load_suite(mini, DEFAULTS_DICT, other).id != base.id
     # a render setting: one the file sets, or a default it leaves to tri360

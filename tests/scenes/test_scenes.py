@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import importlib
 import sys
@@ -14,10 +15,11 @@ import scenes.families
 import scenes.model
 from scenes.families import classroom
 from scenes.families.box_room import box_interior_distance
-from scenes.model import Box, Light, Material, ModelFile, SceneSpec, choose_viewpoints
+from scenes.model import Box, Light, Material, ModelFile, ParameterError, SceneParams, SceneSpec, choose_viewpoints
 from scenes.registry import SceneEntry, SceneError, discover, get_scene
 
 ENTRIES, LOAD_ERRORS = discover()
+param = scenes.model.param
 CASES = [(name, preset) for name, e in sorted(ENTRIES.items()) for preset in e.presets]
 
 
@@ -114,16 +116,23 @@ def test_scene_file_that_fails_to_import_is_reported(monkeypatch, tmp_path):
         get_scene("nope")
 
 
-def test_code_version_hashes_the_family_source_file_and_the_shared_scene_code(tmp_path, monkeypatch):
+def test_code_version_is_the_declared_version_else_the_hash_of_the_family_source_and_the_shared_scene_code(
+        tmp_path, monkeypatch):
+    # a built-in family declares its version: what main recorded before the SceneParams refactor
+    assert ENTRIES["classroom"].code_version == ENTRIES["classroom"].version == "sha256:1ed56314fc16eeec"
+    assert ENTRIES["classroom"].spec("small", 0).code_version == "sha256:1ed56314fc16eeec"
+    # one that declares none (an outside family): the source hash
     h = hashlib.sha256(Path(classroom.__file__).read_bytes())
     for path in (Path(scenes.model.__file__), Path(scenes.families.__file__).with_name("_kit.py")):
         h.update(b"\0" + path.name.encode() + b"\0" + path.read_bytes())
-    assert ENTRIES["classroom"].code_version == "sha256:" + h.hexdigest()[:16]
-    # an edited kit or model changes every family's version
+    unversioned = dataclasses.replace(ENTRIES["classroom"], version="")
+    assert unversioned.code_version == unversioned.source_version == "sha256:" + h.hexdigest()[:16]
+    assert unversioned.spec("small", 0).code_version == unversioned.source_version
+    # an edited kit or model changes every unversioned family's version (not a declared one)
     monkeypatch.setattr(scenes.model, "SHARED_SOURCES", (*scenes.model.SHARED_SOURCES, Path(classroom.__file__)))
-    assert ENTRIES["classroom"].code_version != "sha256:" + h.hexdigest()[:16]
+    assert unversioned.code_version != "sha256:" + h.hexdigest()[:16]
+    assert ENTRIES["classroom"].code_version == "sha256:1ed56314fc16eeec"
     monkeypatch.undo()
-    assert ENTRIES["classroom"].spec("small", 0).code_version == ENTRIES["classroom"].code_version
     # an edited family file gets another version
     mod = tmp_path / "tri360_tmp_family.py"
     mod.write_text("def build(params, seed):\n    return None\n")
@@ -176,3 +185,173 @@ def test_validate_names_bad_lights_and_model_files(tmp_path):
     spec.models[0] = ModelFile(path=tmp_path / "model.fbx")
     with pytest.raises(ValueError, match="unsupported format '.fbx'"):
         spec.validate()
+
+
+# ------------------------------------------------------------------------------------------------ parameters
+
+
+@pytest.mark.parametrize("name", sorted(ENTRIES))
+def test_every_family_declares_a_frozen_parameters_dataclass(name):
+    entry = ENTRIES[name]
+    cls = entry.parameters
+    assert entry.typed and issubclass(cls, SceneParams) and cls.__dataclass_params__.frozen
+    defaults = cls()
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        defaults.__setattr__(dataclasses.fields(cls)[0].name, None)
+    for f in dataclasses.fields(cls):
+        info = f.metadata[scenes.model.PARAM_METADATA]
+        assert info.description and "\n" not in info.description, f.name
+        assert "default" not in info.description, f"{f.name}: the default is the field's, not the text's"
+    for preset, params in entry.presets.items():  # a preset is overrides of the defaults
+        values = entry.parameter_values(params)
+        assert isinstance(values, cls)
+        for key, value in params.items():
+            assert getattr(values, key) == value, (preset, key)
+    assert list(entry.describe_parameters()) == [f.name for f in dataclasses.fields(cls)]
+
+
+def test_families_read_no_untyped_parameters():
+    for path in Path(scenes.families.__file__).parent.glob("*.py"):
+        text = path.read_text()
+        assert "params.get(" not in text and "PARAMETERS" not in text, path.name
+
+
+@dataclasses.dataclass(frozen=True)
+class _Params(SceneParams):
+    size: tuple[float, float, float] = param((4.0, 3.0, 2.5), "room interior", unit="m", limits=(1.0, 50.0))
+    n: int = param(2, "how many", limits=(0, 10))
+    shiny: bool = param(False, "glossy floor")
+    power: float | None = param(None, "light power (none: automatic)", unit="W", limits=(0.0, None))
+    names: tuple[str, ...] = param(("a",), "parts, in order", choices=("a", "b"))
+
+
+def _room(p, seed):
+    spec = SceneSpec(name="t", params={"seen": p})
+    spec.add_material(Material("m"))
+    spec.boxes.append(Box((0, 0, 1), (1, 1, 1), "m"))
+    return spec
+
+
+def _entry(**kw):
+    return SceneEntry(name="t", build=_room, parameters=_Params,
+                      presets={"default": {}, "big": {"size": (8.0, 6.0, 3.0), "n": 3}}, **kw)
+
+
+def test_build_gets_a_checked_instance_and_the_spec_records_the_values_as_given():
+    entry = _entry()
+    seen = {}
+
+    def build(p, seed):
+        seen["p"] = p
+        return _room(p, seed)
+
+    entry = SceneEntry(**{**entry.__dict__, "build": build})
+    spec = entry.spec("big", 3, names=["b", "a"], power=40)
+    p = seen["p"]
+    assert p == _Params(size=(8.0, 6.0, 3.0), n=3, names=("b", "a"), power=40.0)
+    assert isinstance(p.power, float) and isinstance(p.names, tuple)
+    # what a frame records: preset and seed, then the preset's values and the overrides, as given, in order
+    assert spec.params == {"preset": "big", "seed": 3, "size": (8.0, 6.0, 3.0), "n": 3, "names": ["b", "a"],
+                           "power": 40}
+    assert list(spec.params) == ["preset", "seed", "size", "n", "names", "power"]
+
+
+@pytest.mark.parametrize(("overrides", "message"), [
+    ({"n": "2"}, "parameter 'n' expects a whole number in [0, 10], got '2'"),
+    ({"n": 2.0}, "parameter 'n' expects a whole number in [0, 10], got 2.0"),
+    ({"n": True}, "parameter 'n' expects a whole number in [0, 10], got True"),
+    ({"n": 11}, "parameter 'n' expects a whole number in [0, 10], got 11"),
+    ({"size": [4, 3]}, "parameter 'size' expects 3 numbers, each in [1, 50], got [4, 3]"),
+    ({"size": [4, 3, 0.5]}, "parameter 'size' expects 3 numbers, each in [1, 50], got [4, 3, 0.5]"),
+    ({"size": 4}, "parameter 'size' expects 3 numbers, each in [1, 50], got 4"),
+    ({"shiny": 1}, "parameter 'shiny' expects true or false, got 1"),
+    ({"power": "high"}, "parameter 'power' expects a number >= 0 or null, got 'high'"),
+    ({"power": float("nan")}, "parameter 'power' expects a number >= 0 or null, got nan"),
+    ({"names": ["c"]}, "parameter 'names' expects a list of strings, each one of a, b, got ['c']"),
+    ({"names": "a"}, "parameter 'names' expects a list of strings, each one of a, b, got 'a'"),
+])
+def test_an_ill_typed_parameter_is_one_line_naming_family_parameter_and_expectation(overrides, message):
+    with pytest.raises(ParameterError) as info:
+        _entry().spec("big", **overrides)
+    assert str(info.value) == f"scene 't': {message}"
+    assert info.value.family == "t" and info.value.detail == message
+
+
+def test_parameters_are_checked_outside_an_entry_too():
+    with pytest.raises(ParameterError, match=r"^parameter 'n' expects a whole number in \[0, 10\], got -1$"):
+        _Params(n=-1)
+    assert _Params(power=None).power is None
+
+
+def test_describe_parameters_gives_unit_default_and_limits():
+    lines = _entry().describe_parameters()
+    assert lines == {
+        "size": "room interior, m (default [4, 3, 2.5]; each in [1, 50])",
+        "n": "how many (default 2; in [0, 10])",
+        "shiny": "glossy floor (default false)",
+        "power": "light power (none: automatic), W (default none; >= 0)",
+        "names": "parts, in order (default a; each one of a, b)",
+    }
+    assert ENTRIES["classroom"].describe_parameters()["light_power"] == \
+        "power per ceiling area light, W (default 35; >= 0)"
+
+
+def test_bad_parameter_declarations_are_refused_at_registration():
+    def entry(parameters, presets=None):
+        return SceneEntry(name="t", build=_room, parameters=parameters, presets=presets or {"default": {}})
+
+    with pytest.raises(SceneError, match=r"scene 't': preset 'big': parameter 'n' expects a whole number"):
+        entry(_Params, {"default": {}, "big": {"n": "3"}})
+    with pytest.raises(SceneError, match=r"preset 'big' uses undeclared parameter\(s\) m"):
+        entry(_Params, {"default": {}, "big": {"m": 3}})
+
+    class Undecorated(SceneParams):
+        n: int = param(1, "n")
+
+    with pytest.raises(SceneError, match=r"Undecorated is not decorated with @dataclass\(frozen=True\)"):
+        entry(Undecorated)
+
+    @dataclasses.dataclass(frozen=True)
+    class Plain:
+        n: int = 1
+
+    with pytest.raises(SceneError, match="parameters must be a SceneParams dataclass, got Plain"):
+        entry(Plain)
+
+    @dataclasses.dataclass(frozen=True)
+    class Bare(SceneParams):
+        n: int = 1
+
+    with pytest.raises(SceneError, match=r"parameter 'n' of Bare is not declared with scenes.model.param"):
+        entry(Bare)
+
+    @dataclasses.dataclass(frozen=True)
+    class BadDefault(SceneParams):
+        n: int = param(-1, "n", limits=(0, 3))
+
+    with pytest.raises(SceneError, match=r"the default of parameter 'n' expects a whole number in \[0, 3\]"):
+        entry(BadDefault)
+
+    @dataclasses.dataclass(frozen=True)
+    class Reserved(SceneParams):
+        seed: int = param(1, "n")
+
+    with pytest.raises(SceneError, match="reserved"):
+        entry(Reserved)
+
+
+def test_an_entry_declaring_parameters_the_old_way_still_builds_from_a_dict():
+    """Outside packages written before the dataclasses: a dict of descriptions (keys checked, values not)."""
+    seen = {}
+
+    def build(params, seed):
+        seen["params"] = params
+        return _room(params, seed)
+
+    entry = SceneEntry(name="old", build=build, presets={"default": {"n": 1}}, parameters={"n": "count (default 1)"})
+    assert not entry.typed
+    entry.spec(n="anything")
+    assert seen["params"] == {"n": "anything"}
+    assert entry.describe_parameters() == {"n": "count (default 1)"}
+    with pytest.raises(SceneError, match=r"unknown parameter 'm' \(known: n\)"):
+        entry.spec(m=1)
