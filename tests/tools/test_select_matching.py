@@ -9,6 +9,7 @@ import pytest
 
 from harness.commands.parts.suite import render_suite
 from harness.data.outputs import read_marker
+from harness.runtime.context import QUIET
 from tests.harness.test_suite import MINI, write
 from tools.research import select_matching as sel
 
@@ -82,7 +83,7 @@ def test_candidates_can_be_narrowed_to_the_chosen_one_and_the_baselines(tmp_path
 def test_select_on_a_tiny_suite_split_writes_the_results_and_the_choice(tmp_path, capsys):
     suite = write(tmp_path, MINI.format(width=64))
     root = tmp_path / "data"
-    render_suite(suite, "dev", root, progress=False)
+    render_suite(suite, "dev", root, ctx=QUIET)
     out = tmp_path / "sel"
     assert sel.main([str(root), "--suite", str(suite), "--out", str(out), "--quiet"]) == 0
     printed = capsys.readouterr().out

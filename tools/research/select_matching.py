@@ -182,10 +182,10 @@ def main(argv: Sequence[str] | None = None) -> int:
                         help=f"run the candidates only, not the reference rows ({', '.join(REFERENCES)})")
     args = parser.parse_args(argv)
 
-    def select(cluster) -> tuple[str, dict]:
+    def select(ctx) -> tuple[str, dict]:
         methods = candidate_methods(args.candidates) + ([] if args.no_references else get_methods(list(REFERENCES)))
         results = evaluate_suite(args.data_root, args.suite, args.split, args.out, methods, report=False,
-                                 progress=not args.quiet, cluster=cluster)
+                                 ctx=ctx)
         table = family_table(results)
         label, eligible, worst = choose(table)
         suite_id = str(results["suite_id"].iloc[0])

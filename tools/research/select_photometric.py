@@ -170,9 +170,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                         help="evaluate the frames DATA_ROOT holds (a subset of the split), without the suite check")
     args = parser.parse_args(argv)
 
-    def select(cluster) -> tuple[str, dict]:
+    def select(ctx) -> tuple[str, dict]:
         methods = candidate_methods(args.candidates)
-        run = dict(report=False, progress=not args.quiet, cluster=cluster)
+        run = dict(report=False, ctx=ctx)
         if args.partial:
             results = evaluate(args.data_root, args.out, methods, **run)
             where_text = f"the frames of {args.data_root} (a subset of {args.suite.name} {args.split}, no suite check)"
