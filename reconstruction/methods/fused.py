@@ -27,7 +27,7 @@ import numpy as np
 
 from reconstruction.methods.base import MethodOutput
 from reconstruction.methods.flow_pipeline import FlowMethod, run_flow_group
-from reconstruction.methods.sweep import SgmParams, SweepMethod, sweep_distances
+from reconstruction.methods.sweep import Prior, PriorFromSweep, SgmParams, SweepMethod, sweep_distances
 from reconstruction.sweep.cost import CostParams, gray_float
 
 __all__ = ["PriorParams", "FusedMethod", "fused_sweep", "local_contrast", "prior_weight", "sweep_gate"]
@@ -221,13 +221,13 @@ class FusedMethod:
                 flow = flow_outputs[m.flow.label]
                 weight = prior_weight(m.prior, frame.images["C"], flow.confidence)
                 if m.prior.needs_plain_sweep:
-                    priors.append(lambda d_s, c_s, m=m, d=flow.distance, w=weight:
-                                  (d, w * sweep_gate(m.prior, d, d_s, c_s), m.prior.truncate_levels))
+                    priors.append(PriorFromSweep(lambda d_s, c_s, m=m, d=flow.distance, w=weight:
+                                                 Prior(d, w * sweep_gate(m.prior, d, d_s, c_s),
+                                                       m.prior.truncate_levels)))
                 else:
-                    priors.append((flow.distance, weight, m.prior.truncate_levels))
-            s = batch[0].sweep
+                    priors.append(Prior(flow.distance, weight, m.prior.truncate_levels))
             align = flow_outputs[batch[0].flow.label].distance  # the correspondences of the self-calibration
-            results = sweep_distances(frame, s.cost, s.planes, s.sgm, s.post, s.pairs, priors, s.photometric, align)
+            results = sweep_distances(frame, batch[0].sweep, priors, align)
             for m, (d, conf, seconds, info) in zip(batch, results, strict=True):
                 flow = flow_outputs[m.flow.label]
                 seconds = {"flow": flow.total_seconds, **{k: v for k, v in seconds.items() if k != "total"}}

@@ -24,7 +24,7 @@ from reconstruction.methods.registry import (
     gated_method,
     mirror_method,
 )
-from reconstruction.methods.sweep import sweep_distance, sweep_distances
+from reconstruction.methods.sweep import Prior, sweep_distance, sweep_distances
 from reconstruction.photometry import NO_CALIBRATION
 from reconstruction.refine.lm import get_variant
 from reconstruction.sweep.planes import add_prior
@@ -187,15 +187,15 @@ def test_one_cost_volume_for_several_priors_gives_each_prior_its_own_sweep():
     """``sweep_distances`` shares the room-bound pass and the cost volume: each result equals the sweep run alone
     with that prior (within 1 micrometre)."""
     f = make_synthetic_frame(120)
-    s = fused_method().sweep
+    s = dataclasses.replace(fused_method().sweep, photometric=NO_CALIBRATION)
     prior_d = f.distance["C"] * 1.1
-    priors = [None, (prior_d, np.full(prior_d.shape, 16.0, np.float32), 16.0),
-              (prior_d, np.full(prior_d.shape, 64.0, np.float32), 16.0)]
-    shared = sweep_distances(f, s.cost, s.planes, s.sgm, s.post, s.pairs, priors)
+    priors = [None, Prior(prior_d, np.full(prior_d.shape, 16.0, np.float32), 16.0),
+              Prior(prior_d, np.full(prior_d.shape, 64.0, np.float32), 16.0)]
+    shared = sweep_distances(f, s, priors)
     assert len(shared) == 3 and shared[0][3]["copy_seconds"] > 0 and shared[2][3]["copy_seconds"] == 0
     assert shared[1][2].keys() == shared[2][2].keys()  # the copy is the price of sharing: no stage of its own
     for prior, (d, conf, _seconds, _info) in zip(priors, shared, strict=True):
-        alone = sweep_distance(f, s.cost, s.planes, s.sgm, s.post, s.pairs, prior=prior)
+        alone = sweep_distance(f, s, prior=prior)
         np.testing.assert_allclose(d, alone[0], rtol=0, atol=1e-6)
         np.testing.assert_allclose(conf, alone[1], rtol=0, atol=1e-6)
     assert not np.array_equal(shared[0][0], shared[2][0])  # the strong prior changed the result
