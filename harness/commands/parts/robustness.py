@@ -6,7 +6,7 @@ A robustness study is a TOML file that ``tri360 study`` recognises by ``kind = "
     kind = "robustness"
     data = "data-dev"                          # a data root (relative to the current directory)
     frames = ["seminar-s1011/vp000", ...]      # optional: <scene>/<viewpoint> labels; default: every frame
-    method = ["fused", "dis-rect:gradient"]    # optional: default DEFAULT_METHODS
+    method = ["fused", "dis-rect:gradient"]    # optional: default ROBUSTNESS_METHODS
     seed = 1                                   # optional: the perturbations' seed (default 0)
 
     [levels]                                   # per perturbation kind, its levels (level 0 is always run)
@@ -56,14 +56,14 @@ from harness.runtime.context import IN_PROCESS, RunContext
 from harness.runtime.options import MethodSelection, annotations_of, typed_value
 from reports.robustness import NONE_KIND, format_level, kind_table, level_plot, pooled_mae, robustness_markdown
 
-__all__ = ["KIND", "KEYS", "DEFAULT_METHODS", "ORIGINS", "RobustnessSpec", "Point", "is_robustness_study",
+__all__ = ["KIND", "KEYS", "ROBUSTNESS_METHODS", "ORIGINS", "RobustnessSpec", "Point", "is_robustness_study",
            "load_robustness", "plan_points", "run_robustness"]
 
 KIND = "robustness"
 """The ``kind`` key's value that makes a study file a robustness study."""
 KEYS = ("kind", "data", "frames", "method", "seed", "levels")
 """The keys of a robustness study file."""
-DEFAULT_METHODS = ("fused-mirror", "fused", "sweep", "dis-rect:gradient")
+ROBUSTNESS_METHODS = ("fused-mirror", "fused", "sweep", "dis-rect:gradient")
 """The methods when the file names none: the default method (``fused-mirror``), ``fused``, the sweep alone and
 tri360's flow pipeline with the paper's optimised variant.  The paper's set-up (``deepflow-rect:gradient``) can be
 named; it is not a default because DeepFlow as published takes about 50 s per 1000x500 frame."""
@@ -182,7 +182,7 @@ def load_robustness(path: Path) -> RobustnessSpec:
         if len(set(frames)) != len(frames):
             raise UserError(f"{path}: frames: lists a frame twice")
     hint = annotations_of(MethodSelection)["method"]
-    methods = typed_value(raw.get("method", list(DEFAULT_METHODS)), hint, f"{path}: method")
+    methods = typed_value(raw.get("method", list(ROBUSTNESS_METHODS)), hint, f"{path}: method")
     try:
         labels = tuple(m.label for m in MethodSelection(method=methods).methods())
     except UserError as exc:
