@@ -31,7 +31,7 @@ from tests.helpers import cross_camera_consistency, render_scene
 
 ENTRIES, _ = discover()
 CYCLES_SCENES = sorted(n for n, e in ENTRIES.items() if e.renderer == "cycles")
-FAST = {"samples": 2, "threads": 2, "progress": False}
+FAST = {"samples": 2, "threads": 2, "ctx": QUIET}
 TINY = RenderSettings(width=64, samples=1, threads=2, denoise=False)
 
 
