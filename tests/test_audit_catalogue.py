@@ -37,6 +37,7 @@ from harness.data.frame import write_frame
 from harness.data.outputs import MARKER, check_output, mark_output, output_kind
 from harness.data.predictions import write_method_info, write_prediction
 from harness.runtime.cluster import ClusterOptions
+from harness.runtime.context import QUIET, RunContext
 from reconstruction.methods.base import MethodOutput
 from reconstruction.methods.flow_pipeline import FlowMethod
 from reconstruction.methods.registry import discover_methods, flow_methods, get_methods
@@ -148,7 +149,7 @@ def root(tmp_path_factory):
 class TestEvaluateHidesGroundTruth:
     def test_an_outside_method_cannot_read_ground_truth_in_process(self, root, tmp_path):
         table = evaluate(root, tmp_path / "res", [Peeker(), *flow_methods(["oracle"], [True], ["average"])],
-                         report=False, progress=False)
+                         report=False, ctx=QUIET)
         mae = table.set_index("method").mae_m
         # a constant 1 m in a room of walls 1-4 m away: far from 0; the oracle still gets its ground truth
         assert mae["peeker"] > 0.3
@@ -161,8 +162,8 @@ class TestEvaluateHidesGroundTruth:
         assert rows["peeker"][0]["mae_m"] > 0.3
 
     def test_a_method_overwriting_its_images_does_not_change_what_is_scored(self, root, tmp_path):
-        honest = evaluate(root, tmp_path / "a", [Peeker()], report=False, progress=False)
-        scribbled = evaluate(root, tmp_path / "b", [Scribbler()], report=False, progress=False)
+        honest = evaluate(root, tmp_path / "a", [Peeker()], report=False, ctx=QUIET)
+        scribbled = evaluate(root, tmp_path / "b", [Scribbler()], report=False, ctx=QUIET)
         cols = ["mae_m", "rmse_m", "valid_px"]
         assert honest[cols].to_dict("records") == scribbled[cols].to_dict("records")
         regions_a = (tmp_path / "a" / "regions.csv").read_text()
@@ -171,7 +172,7 @@ class TestEvaluateHidesGroundTruth:
     def test_a_subclass_calling_its_flow_oracle_is_not_handed_ground_truth(self, root, tmp_path, capfd):
         impostor = OracleImpostor("oracle")
         with pytest.raises(Exception, match="needs ground-truth distance"):
-            evaluate(root, tmp_path / "res", [impostor], report=False, progress=False)
+            evaluate(root, tmp_path / "res", [impostor], report=False, ctx=QUIET)
 
     def test_reconstruct_hides_it_as_well(self, root, tmp_path, monkeypatch):
         install_plugins(monkeypatch, "tri360.methods", FakeEntryPoint("peek", "peek_pkg:M", Peeker()))
@@ -191,8 +192,8 @@ class TestEvaluateHidesGroundTruth:
 
 @pytest.mark.cluster
 def test_evaluate_on_dask_workers_hides_ground_truth(root, tmp_path, dask_cluster):
-    table = evaluate(root, tmp_path / "res", [Peeker()], report=False, progress=False,
-                     cluster=ClusterOptions(scheduler=dask_cluster.address))
+    table = evaluate(root, tmp_path / "res", [Peeker()], report=False,
+                     ctx=RunContext(ClusterOptions(scheduler=dask_cluster.address), progress=False))
     assert table.set_index("method").mae_m["peeker"] > 0.3
 
 
@@ -577,13 +578,13 @@ class TestRenderSuite:
         with monkeypatch.context() as m:
             m.setattr(harness.commands.parts.suite, "LIMIT_FRAMES", 1)
             with pytest.raises(UserError, match="2 frame"):
-                render_suite(small, "dev", tmp_path / "data", progress=False)
+                render_suite(small, "dev", tmp_path / "data", ctx=QUIET)
             m.setattr(harness.commands.parts.suite, "LIMIT_FRAMES", 2)
-            render_suite(small, "dev", tmp_path / "data", progress=False)
+            render_suite(small, "dev", tmp_path / "data", ctx=QUIET)
             m.setattr(harness.commands.parts.suite, "LIMIT_FRAMES", 0)
-            assert len(render_suite(small, "dev", tmp_path / "data", progress=False)) == 2  # nothing left to do
+            assert len(render_suite(small, "dev", tmp_path / "data", ctx=QUIET)) == 2  # nothing left to do
             with pytest.raises(UserError, match="2 frame"):
-                render_suite(small, "dev", tmp_path / "data", progress=False, force=True)
+                render_suite(small, "dev", tmp_path / "data", ctx=QUIET, force=True)
 
     def test_a_rerun_removes_the_partials_of_a_killed_run(self, tmp_path):
         small = suite_file(tmp_path, 2)
@@ -604,7 +605,7 @@ def suite_root(tmp_path_factory):
     """A two-frame suite file and a data root holding exactly its dev split."""
     tmp = tmp_path_factory.mktemp("auditsuite")
     path = suite_file(tmp, 2)
-    render_suite(path, "dev", tmp / "data", progress=False)
+    render_suite(path, "dev", tmp / "data", ctx=QUIET)
     return path, tmp / "data"
 
 

@@ -20,6 +20,7 @@ from harness.data.frame import Frame, find_frames, read_frame, write_frame
 from harness.data.outputs import mark_output
 from harness.render.raycast import render_frame
 from harness.runtime.cluster import ClusterOptions
+from harness.runtime.context import RunContext
 from scenes.model import choose_viewpoints
 from scenes.registry import get_scene
 
@@ -130,15 +131,16 @@ def selection_parser(module: str, description: str, default_suite: Path, suite_h
 
 
 def run_selection(prog: str, args: argparse.Namespace,
-                  select: Callable[[ClusterOptions | None], tuple[str, dict]]) -> int:
-    """Run a selection script's ``select(cluster)`` (None: in this process) -> ``(selection.md's text,
+                  select: Callable[[RunContext], tuple[str, dict]]) -> int:
+    """Run a selection script's ``select(ctx)`` (``ctx``: where to run, from ``--workers``/``--scheduler``, and
+    ``--quiet``) -> ``(selection.md's text,
     selection.json's contents)``, write both into ``args.out`` (the results set it evaluated into) and print the
     text; exit status 0, or 2 with one line ``<prog>: <message>`` on a :class:`UserError`."""
     try:
         cluster = ClusterOptions(scheduler=args.scheduler, workers=args.workers)
         if cluster.distributed:
             cluster.check()
-        text, payload = select(cluster if cluster.distributed else None)
+        text, payload = select(RunContext(cluster if cluster.distributed else None, progress=not args.quiet))
         atomic_write_text(args.out / "selection.md", text)
         atomic_write_text(args.out / "selection.json", jsonio.dumps(payload))
         mark_output(args.out, "results")

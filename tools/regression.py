@@ -43,6 +43,7 @@ from harness.commands.evaluate import config_keys, evaluate
 from harness.commands.render import render_frames
 from harness.data.atomic import atomic_write_text
 from harness.render.base import RenderSettings
+from harness.runtime.context import QUIET, RunContext
 from reconstruction.methods.flow_pipeline import DEFAULT_FLOW
 from reconstruction.methods.registry import DEFAULT_METHOD, DEFAULT_VARIANTS, flow_methods, get_methods
 
@@ -71,7 +72,7 @@ def regression_configs() -> list[tuple[str, bool]]:
 
 
 def build_dataset(root: Path | str, width: int = REGRESSION_WIDTH, samples: int = BLENDER_SAMPLES,
-                  threads: int = 0, progress: bool = False) -> Path:
+                  threads: int = 0, ctx: RunContext = QUIET) -> Path:
     """Render the regression frames into ``root`` (resumable: complete frames are kept) and return it.
 
     Args:
@@ -79,13 +80,13 @@ def build_dataset(root: Path | str, width: int = REGRESSION_WIDTH, samples: int 
         width: panorama width, pixels.
         samples: Cycles samples of the Blender frame.
         threads: Cycles threads (0 = all cores).
-        progress: show render progress bars.
+        ctx: how the renders run (progress bars or none: the default).
     """
 
     root = Path(root)
     for scene, viewpoints in SCENES:
         render_frames(RenderSettings(width=width, samples=samples, seed=SEED, threads=threads), scene,
-                      viewpoints=viewpoints, out_root=root, progress=progress)
+                      viewpoints=viewpoints, out_root=root, ctx=ctx)
     return root
 
 
@@ -94,7 +95,7 @@ REGRESSION_METHODS = (DEFAULT_METHOD, "fused")
 
 
 def run_regression(workdir: Path | str, data: Path | str | None = None, width: int = REGRESSION_WIDTH,
-                   samples: int = BLENDER_SAMPLES, threads: int = 0, progress: bool = False) -> pd.DataFrame:
+                   samples: int = BLENDER_SAMPLES, threads: int = 0, ctx: RunContext = QUIET) -> pd.DataFrame:
     """Build the data set (into ``data``, default ``<workdir>/data``) and evaluate it into ``<workdir>/results``.
 
     Returns:
@@ -103,12 +104,12 @@ def run_regression(workdir: Path | str, data: Path | str | None = None, width: i
     """
 
     workdir = Path(workdir)
-    root = build_dataset(Path(data) if data is not None else workdir / "data", width, samples, threads, progress)
+    root = build_dataset(Path(data) if data is not None else workdir / "data", width, samples, threads, ctx)
     variants = list(DEFAULT_VARIANTS)
     methods = [*get_methods(list(REGRESSION_METHODS)),
                *(m for flow, rect in regression_configs() for m in flow_methods([flow], [rect], variants))]
     return evaluate(root, workdir / "results", methods, scenes=[s for s, _ in SCENES], report=False,
-                    progress=progress)
+                    ctx=ctx)
 
 
 #: the "variant" key of a method that is not a flow configuration (e.g. ``fused``) in the bounds file
@@ -288,7 +289,7 @@ def main(argv: list[str] | None = None) -> int:
     start = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix="tri360-regression-") as tmp:
         table = run_regression(tmp, data=args.data, width=width, samples=samples, threads=args.threads,
-                               progress=True)
+                               ctx=RunContext())
     seconds = time.perf_counter() - start
     print(f"\nMAE (m), mean over each scene's frames, {width}x{height}, {seconds:.0f} s")
     print(measured_text(table))

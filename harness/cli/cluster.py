@@ -1,4 +1,5 @@
-"""The options that choose where a command's tasks run, shared by ``render``, ``evaluate``, ``score`` and ``study``.
+"""The options that choose where a command's tasks run, shared by ``render``, ``evaluate``, ``score`` and ``study``,
+and the one place the command line builds a command's :class:`~harness.runtime.context.RunContext`.
 
 Without ``--scheduler`` or ``--workers`` everything runs in this process (no cluster needed).  See
 ``docs/scale-out.md`` for clusters, TLS and SLURM.
@@ -10,8 +11,9 @@ import argparse
 from pathlib import Path
 
 from harness.runtime.cluster import ClusterOptions
+from harness.runtime.context import RunContext
 
-__all__ = ["add_cluster_arguments", "cluster_options"]
+__all__ = ["add_cluster_arguments", "cluster_options", "run_context"]
 
 
 def add_cluster_arguments(parser: argparse.ArgumentParser) -> None:
@@ -39,3 +41,10 @@ def cluster_options(args) -> ClusterOptions | None:
         return None
     opts.check()
     return opts
+
+
+def run_context(args) -> RunContext:
+    """The parsed options -> the command's :class:`RunContext`: where its tasks run (:func:`cluster_options`, for a
+    command with :func:`add_cluster_arguments`; else in this process), ``--quiet`` and ``--verbose``."""
+    where = cluster_options(args) if hasattr(args, "scheduler") else None
+    return RunContext(where, progress=not getattr(args, "quiet", False), verbose=getattr(args, "verbose", False))

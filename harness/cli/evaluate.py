@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from harness.cli.cluster import add_cluster_arguments, cluster_options
+from harness.cli.cluster import add_cluster_arguments, run_context
 from harness.cli.methods import add_method_options, add_results_options, selected_methods
 from harness.cli.suite_options import add_suite_arguments, refuse_with_suite, suite_choice
 from harness.commands.evaluate import evaluate, summary_text
@@ -40,10 +40,10 @@ def run(args) -> int:
     if suite is not None:
         refuse_with_suite(args, {"scene": None})
         table = evaluate_suite(args.data_root, suite[0], suite[1], args.out, methods, report=args.report,
-                               progress=not args.quiet, cluster=cluster_options(args))
+                               ctx=run_context(args))
     else:
         table = evaluate(args.data_root, args.out, methods, args.scene, report=args.report,
-                         progress=not args.quiet, cluster=cluster_options(args))
+                         ctx=run_context(args))
     print(f"\n{len(table)} results in {args.out / 'results.csv'}; per method, mean over frames:")
     print(summary_text(table))
     return 0

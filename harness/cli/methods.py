@@ -9,7 +9,7 @@ from harness.runtime.options import MethodSelection
 from reconstruction.flow.backends import available_flows
 from reconstruction.methods.base import Method
 from reconstruction.methods.flow_pipeline import DEFAULT_FLOW, FlowMethod, available_variants, config_label
-from reconstruction.methods.registry import DEFAULT_CONFIGS, DEFAULT_METHOD, DEFAULT_VARIANTS, default_methods
+from reconstruction.methods.registry import DEFAULT_CONFIGS, DEFAULT_METHOD, DEFAULT_VARIANTS, evaluate_default_methods
 
 __all__ = ["add_method_options", "add_results_options", "selected_methods"]
 
@@ -19,7 +19,7 @@ def add_method_options(parser: argparse.ArgumentParser, multiple: bool) -> None:
     flows = ", ".join(available_flows())
     variants = ", ".join(available_variants())
     if multiple:
-        named = [m.label for m in default_methods() if not isinstance(m, FlowMethod)]
+        named = [m.label for m in evaluate_default_methods() if not isinstance(m, FlowMethod)]
         configs = ", ".join(f"{config_label(f, r)}:*" for f, r in DEFAULT_CONFIGS)
         parser.add_argument("--method", nargs="+", default=None, metavar="LABEL",
                             help="methods by label, e.g. fused-mirror dis-rect:gradient deepflow-rect:average, or "

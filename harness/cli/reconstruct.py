@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from harness.cli.cluster import run_context
 from harness.cli.methods import add_method_options, selected_methods
 from harness.commands.reconstruct import reconstruct_to
 
@@ -24,7 +25,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args) -> int:
     (method,) = selected_methods(args, multiple=False)
-    info = reconstruct_to(args.frame_dir, args.out, method, progress=not args.quiet)
+    info = reconstruct_to(args.frame_dir, args.out, method, run_context(args))
     line = f"{info['scene']}/{info['viewpoint']}  {method.label}  -> {args.out}"
     if "metrics" in info:
         m = info["metrics"]

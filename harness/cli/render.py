@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import os
 
-from harness.cli.cluster import add_cluster_arguments, cluster_options
+from harness.cli.cluster import add_cluster_arguments, run_context
 from harness.cli.suite_options import add_suite_arguments, refuse_with_suite, suite_choice
 from harness.commands.parts.suite import render_suite
 from harness.commands.render import (
@@ -77,15 +77,14 @@ def run(args) -> int:
     if suite is not None:
         refuse_with_suite(args, SUITE_FIXED)
         dirs = render_suite(suite[0], suite[1], args.out, threads=args.threads, force=args.force,
-                            progress=not args.quiet, verbose=args.verbose, cluster=cluster_options(args),
-                            yes=args.yes)
+                            ctx=run_context(args), yes=args.yes)
         for d in dirs:
             print(os.fspath(d))
         return 0
     dirs = render_frames(settings_from_options(vars(args)), args.scene, viewpoints=args.viewpoints,
                          out_root=args.out, baseline=args.baseline, overrides=parse_overrides(args.overrides),
-                         renderer=getattr(args, "renderer", None), force=args.force, progress=not args.quiet,
-                         verbose=args.verbose, cluster=cluster_options(args))
+                         renderer=getattr(args, "renderer", None), force=args.force,
+                         ctx=run_context(args))
     for d in dirs:
         print(os.fspath(d))
     return 0

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from harness.cli.cluster import add_cluster_arguments, cluster_options
+from harness.cli.cluster import add_cluster_arguments, run_context
 from harness.cli.methods import add_results_options
 from harness.cli.suite_options import add_suite_arguments, refuse_with_suite, suite_choice
 from harness.commands.evaluate import summary_text
@@ -34,10 +34,10 @@ def run(args) -> int:
     if suite is not None:
         refuse_with_suite(args, {"scene": None})
         table = score_suite(args.pred_roots, args.data, suite[0], suite[1], args.out, args.method,
-                            report=args.report, progress=not args.quiet, cluster=cluster_options(args))
+                            report=args.report, ctx=run_context(args))
     else:
         table = score(args.pred_roots, args.data, args.out, args.method, args.scene, report=args.report,
-                      progress=not args.quiet, cluster=cluster_options(args))
+                      ctx=run_context(args))
     print(f"\n{len(table)} results in {args.out / 'results.csv'}; per method, mean over frames:")
     print(summary_text(table))
     return 0

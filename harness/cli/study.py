@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from harness.cli.cluster import add_cluster_arguments, cluster_options
+from harness.cli.cluster import add_cluster_arguments, run_context
 from harness.commands.parts.robustness import is_robustness_study
 from harness.commands.study import DEFAULT_METRIC, run_study
 
@@ -31,8 +31,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args) -> int:
-    table = run_study(args.study, args.out, cluster=cluster_options(args), metric=args.metric,
-                      progress=not args.quiet, yes=args.yes)
+    table = run_study(args.study, args.out, run_context(args), metric=args.metric, yes=args.yes)
     name = "robustness" if is_robustness_study(args.study) else "study"
     print(f"{len(table)} rows in {args.out / (name + '.csv')}; plots and {name}.md in {args.out}")
     return 0

@@ -11,7 +11,7 @@ Writes a results set into ``out``::
     maps/                       predicted distance of C (and confidence, for a method that gives one) per
                                 frame and method, laid out by harness.data.results.map_paths
 
-and the report (``harness.commands.report``) unless ``report=False``.  With a Dask cluster (``cluster``) each frame x
+and the report (``harness.commands.report``) unless ``report=False``.  With a Dask cluster (``ctx``) each frame x
 group of methods is one task whose worker writes the maps into the staging directory (so it must be on a
 file system the workers share) and returns the rows; this process writes the rest (``docs/scale-out.md``).
 
@@ -59,7 +59,7 @@ from harness.data.outputs import RESULTS_FORMAT, check_output, mark_output, stag
 from harness.data.provenance import software
 from harness.data.results import map_paths, quality_map_path, write_results
 from harness.data.suite import IDEAL
-from harness.runtime.cluster import ClusterOptions, Executor, executor_for, is_distributed
+from harness.runtime.context import IN_PROCESS, RunContext
 from reconstruction.flow.backends import ORACLE
 from reconstruction.methods.base import (
     Method,
@@ -371,9 +371,8 @@ def evaluate_task(frame_path: str, methods: Sequence[Method], stage: str, scored
 
 
 def evaluate(data_root: Path, out: Path, methods: Sequence[Method], scenes: Sequence[str] | None = None,
-             report: bool = True, progress: bool = True, cluster: ClusterOptions | None = None,
-             inputs: Sequence[Path] = (), suite: dict | None = None,
-             executor: Executor | None = None) -> pd.DataFrame:
+             report: bool = True, ctx: RunContext = IN_PROCESS, inputs: Sequence[Path] = (),
+             suite: dict | None = None) -> pd.DataFrame:
     """Run ``methods`` on every frame under ``data_root``, score them, and write a results set to ``out``.
 
     Before any method runs: the frames are found and read, every name that becomes a path is checked, either every
@@ -383,12 +382,12 @@ def evaluate(data_root: Path, out: Path, methods: Sequence[Method], scenes: Sequ
 
     Args:
         inputs: further inputs that ``out`` must keep clear of (predictions roots).
-        cluster: run on Dask (``--scheduler`` / ``--workers``), one task per frame x group of methods that share
-            work (the variants of one flow configuration); workers write the maps into the staged results
-            directory, this process gathers the rows and writes the results files.  None = in this process, one
-            task per frame.  The rows and maps are the same either way (only ``seconds``, each method's wall
-            time, differs from run to run).
-        executor: instead of ``cluster``, an executor that is already open (a study's); left open.
+        ctx: where it runs and whether it shows progress.  On Dask (``--scheduler`` / ``--workers``, or a
+            study's open executor, left open): one task per frame x group of methods that share work (the
+            variants of one flow configuration); workers write the maps into the staged results directory, this
+            process gathers the rows and writes the results files.  In this process: one task per frame.  The
+            rows and maps are the same either way (only ``seconds``, each method's wall time, differs from run to
+            run).
         suite: the evaluated suite split (``harness.data.suite.Suite.describe``, from
             ``harness.commands.parts.suite``, which checks the data root first): recorded in ``config.json`` and
             in every row (``suite_id``, ``split``).
@@ -402,8 +401,7 @@ def evaluate(data_root: Path, out: Path, methods: Sequence[Method], scenes: Sequ
             a frame.
     """
     started = time.time()
-    if cluster is not None:
-        cluster.check()
+    ctx.check()
     refs = select_frames(data_root, scenes)
     labels = [m.label for m in methods]
     if not methods:
@@ -413,7 +411,7 @@ def evaluate(data_root: Path, out: Path, methods: Sequence[Method], scenes: Sequ
     check_method_paths(methods)
     check_output(out, "results", [data_root, *(r.path for r in refs), *inputs])
     scored = check_frame_kinds(refs, methods, suite)  # ground truth of every frame, before the first method runs
-    distributed = is_distributed(cluster, executor)
+    distributed = ctx.distributed
     groups = method_groups(methods) if distributed else [list(methods)]
     rows, brows, rrows, frames_index, frames_config = [], [], [], [], []
     with staged_directory(out) as stage:
@@ -423,9 +421,9 @@ def evaluate(data_root: Path, out: Path, methods: Sequence[Method], scenes: Sequ
         names = {(i, g): f"{ref.scene}/{ref.viewpoint} {group_name(group)}"
                  for i, ref in enumerate(refs) for g, group in enumerate(groups)}
         done: dict[tuple[int, int], dict] = {}
-        with executor_for(cluster, executor) as ex:
+        with ctx.executor() as ex:
             for key, result in ex.run(evaluate_task, tasks, desc="evaluate", names=names,
-                                      unit="frame" if len(groups) == 1 else "task", progress=progress):
+                                      unit="frame" if len(groups) == 1 else "task", progress=ctx.progress):
                 done[key] = result
         for i, _ref in enumerate(refs):
             frame_rows = {label: v for g in range(len(groups)) for label, v in done[(i, g)]["rows"].items()}

@@ -35,6 +35,7 @@ from harness.data.predictions import (
     write_prediction,
 )
 from harness.data.provenance import software
+from harness.runtime.context import IN_PROCESS, RunContext
 from harness.runtime.progress import progress_bar
 from reconstruction.methods.base import Method, MethodOutput, reference_distance, with_references
 from reconstruction.quality import assess
@@ -99,12 +100,13 @@ def check_one_method(out: Path, method: Method) -> None:
                         "choose another --out")
 
 
-def reconstruct_to(frame_dir: Path, out: Path, method: Method, progress: bool = True) -> dict:
+def reconstruct_to(frame_dir: Path, out: Path, method: Method, ctx: RunContext = IN_PROCESS) -> dict:
     """Reconstruct one frame with ``method`` and write its prediction in ``tri360-pred/1`` under ``out``.
 
     The output location is checked before any computation (usable, writable, a predictions root of this method or
     absent or empty, not the frame or around it; names safe); nothing is written unless the method succeeds.
     ``method.json`` is written before the maps, so it describes every frame of the root even after an interrupt.
+    It runs in this process; ``ctx`` says whether a stage progress bar shows.
 
     Returns:
         The ``reconstruction.json`` contents (frame, method, seconds, metrics if the frame has ground truth).
@@ -119,7 +121,7 @@ def reconstruct_to(frame_dir: Path, out: Path, method: Method, progress: bool = 
     check_one_method(out, method)
     desc = f"{frame.scene}/{frame.viewpoint} {method.label}"
     # the quality reference (if the method names one it does not compute) runs along, sharing the flow
-    outputs = run_with_progress(frame, with_references([method]), desc, progress)
+    outputs = run_with_progress(frame, with_references([method]), desc, ctx.progress)
     output = outputs[method.label]
     checked_maps(frame, method, output)
     info = {"frame": str(Path(frame_dir).resolve()), "scene": frame.scene, "viewpoint": frame.viewpoint,

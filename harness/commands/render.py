@@ -22,11 +22,11 @@ behind.  Blender (``bpy``) is loaded only by the Cycles worker process, never by
 they ran); how long it took goes to ``render_log.json`` beside it (:data:`RENDER_LOG`: the renderer's per-stage
 wall times and the host), written after the frame and ignored by every reader.
 
-With ``cluster`` (:class:`harness.runtime.cluster.ClusterOptions`: ``--scheduler`` / ``--workers``, or ``executor``:
-an open one) each frame is
-one Dask task: the worker builds the scene, renders the frame and writes it into the data root itself (which must
-be on a file system that every worker sees at the same path); a frame whose worker died is simply rendered again.
-Without it, everything runs in this process with one renderer for all frames, as before.
+When ``ctx`` (:class:`harness.runtime.context.RunContext`) runs the tasks on a Dask cluster (``--scheduler`` /
+``--workers``, or a study's open executor) each frame is one Dask task: the worker builds the scene, renders the
+frame and writes it into the data root itself (which must be on a file system that every worker sees at the same
+path); a frame whose worker died is simply rendered again.  Otherwise everything runs in this process with one
+renderer for all frames.
 """
 
 from __future__ import annotations
@@ -51,15 +51,8 @@ from harness.data.names import check_name
 from harness.data.outputs import check_output, ensure_output_dir, mark_output
 from harness.render.base import RenderSettings, identity, recorded_identity
 from harness.render.registry import get_renderer
-from harness.runtime.cluster import (
-    BASE_BYTES,
-    MEMORY_SHARE,
-    ClusterOptions,
-    Executor,
-    executor_for,
-    is_distributed,
-    physical_memory_bytes,
-)
+from harness.runtime.cluster import BASE_BYTES, MEMORY_SHARE, physical_memory_bytes
+from harness.runtime.context import IN_PROCESS, RunContext
 from harness.runtime.options import annotations_of, typed_value
 from harness.runtime.progress import progress_bar
 from reconstruction.camera.rig import CAMERA_NAMES, DEFAULT_BASELINE_M, Rig
@@ -291,8 +284,7 @@ class SettingsMismatch(UserError):
 
 def render_frames(settings: RenderSettings = DEFAULTS, scene: str = DEFAULT_SCENE, *, viewpoints: int = 1,
                   out_root: Path | str = "data", baseline: float = DEFAULT_BASELINE_M, overrides: dict | None = None,
-                  renderer: str | None = None, force: bool = False, progress: bool = True, verbose: bool = False,
-                  cluster: ClusterOptions | None = None, executor: Executor | None = None) -> list[Path]:
+                  renderer: str | None = None, force: bool = False, ctx: RunContext = IN_PROCESS) -> list[Path]:
     """Render ``viewpoints`` rig placements of a scene into ``out_root`` and return the frame directories.
 
     Args:
@@ -307,10 +299,9 @@ def render_frames(settings: RenderSettings = DEFAULTS, scene: str = DEFAULT_SCEN
             must be one of the scene's parameters.
         renderer: ``"cycles"`` or ``"raycast"``; None = the scene's default.
         force: re-render frames that are already complete (whatever they were rendered with).
-        progress: show a progress bar (on stderr) advancing per rendered camera view.
-        verbose: let Blender print its own log lines (to stderr).
-        cluster: run each frame as a Dask task (``--scheduler`` / ``--workers``); None = in this process.
-        executor: instead of ``cluster``, an executor that is already open (e.g. a study's); left open.
+        ctx: where the frames render (in this process, or each frame as a Dask task: ``--scheduler`` /
+            ``--workers``, or a study's open executor, left open), whether a progress bar (on stderr) advances
+            per rendered camera view, and whether Blender prints its own log lines (to stderr).
 
     Raises:
         UserError: bad option, unwritable output, no free viewpoints, a scene the renderer cannot draw, an
@@ -318,8 +309,7 @@ def render_frames(settings: RenderSettings = DEFAULTS, scene: str = DEFAULT_SCEN
             or a renderer failure.
         SceneError: unknown scene, preset or scene parameter, or a scene file that fails.
     """
-    if cluster is not None:
-        cluster.check()
+    ctx.check()
     plan = plan_render(settings, scene, viewpoints, baseline, overrides, renderer)
     out_root = check_output(Path(out_root), "data")  # absent, empty or a data root tri360 wrote
     scene_dir = check_name(plan.scene_dir, "--scene")
@@ -340,14 +330,14 @@ def render_frames(settings: RenderSettings = DEFAULTS, scene: str = DEFAULT_SCEN
     if not todo:
         mark_output(out_root, "data")
         return dirs
-    if is_distributed(cluster, executor):
-        _render_distributed(todo, plan, out_root, progress, verbose, created, cluster, executor)
+    if ctx.distributed:
+        _render_distributed(todo, plan, out_root, created, ctx)
         mark_output(out_root, "data")
         return dirs
 
     items = [RenderItem(plan.renderer, plan.spec, settings, rig, scene_dir, vp) for vp, rig in todo]
     try:
-        render_items(items, out_root, f"{scene_dir} ({plan.renderer})", progress, verbose)
+        render_items(items, out_root, f"{scene_dir} ({plan.renderer})", ctx)
     except BaseException:
         _remove_if_empty(created)  # an interrupted first render leaves no empty directories behind
         raise
@@ -367,20 +357,20 @@ class RenderItem:
     viewpoint: str
 
 
-def render_items(items: list[RenderItem], out_root: Path, desc: str, progress: bool, verbose: bool,
-                 cluster: ClusterOptions | None = None, executor: Executor | None = None) -> None:
+def render_items(items: list[RenderItem], out_root: Path, desc: str, ctx: RunContext = IN_PROCESS) -> None:
     """Render frames into ``out_root`` and write each atomically as it is done (the one render loop of ``render``,
     ``render --suite`` and ``study``).
 
     In this process, consecutive items of one scene directory share one opened renderer (the scene is built once)
-    and a progress bar advances per camera view; distributed (``cluster`` / ``executor``), each frame is one
+    and a progress bar advances per camera view; distributed (``ctx`` on a Dask cluster), each frame is one
     task (:func:`render_one`) and the hidden half-frames of workers lost mid-write are cleaned afterwards.
     """
-    if is_distributed(cluster, executor):
+    progress, verbose = ctx.progress, ctx.verbose
+    if ctx.distributed:
         root = os.fspath(out_root.resolve())  # workers may run elsewhere: give them the absolute path
         tasks = {f"{it.scene_dir}/{it.viewpoint}": (it.renderer, it.spec, it.settings, it.rig, it.scene_dir,
                                                     it.viewpoint, root, verbose) for it in items}
-        with executor_for(cluster, executor) as ex:
+        with ctx.executor() as ex:
             for _ in ex.run(render_one, tasks, desc="render", unit="frame", progress=progress,
                             names={k: k for k in tasks}):
                 pass
@@ -442,11 +432,10 @@ def render_one(renderer: str, spec, settings: RenderSettings, rig, scene_dir: st
     return {"path": os.fspath(d), "seconds": seconds}
 
 
-def _render_distributed(todo, plan: RenderPlan, out_root: Path, progress: bool, verbose: bool, created: list[Path],
-                        cluster: ClusterOptions | None, executor: Executor | None) -> None:
+def _render_distributed(todo, plan: RenderPlan, out_root: Path, created: list[Path], ctx: RunContext) -> None:
     items = [RenderItem(plan.renderer, plan.spec, plan.settings, rig, plan.scene_dir, vp) for vp, rig in todo]
     try:
-        render_items(items, out_root, "render", progress, verbose, cluster, executor)
+        render_items(items, out_root, "render", ctx)
     except BaseException:
         _remove_if_empty(created)
         raise

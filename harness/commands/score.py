@@ -17,7 +17,7 @@ from harness.commands.evaluate import evaluate, select_frames
 from harness.data.errors import UserError
 from harness.data.names import check_name
 from harness.data.predictions import FORMAT, prediction_dir, read_method_info, read_prediction
-from harness.runtime.cluster import ClusterOptions
+from harness.runtime.context import IN_PROCESS, RunContext
 from reconstruction.methods.base import MethodOutput
 from reconstruction.methods.registry import builtin_methods
 
@@ -109,11 +109,11 @@ def _check_complete(methods: Sequence[PredictionMethod], data_root: Path, scenes
 
 
 def score(pred_roots: Sequence[Path], data_root: Path, out: Path, names: Sequence[str] | None = None,
-          scenes: Sequence[str] | None = None, report: bool = True, progress: bool = True,
-          cluster: ClusterOptions | None = None, suite: dict | None = None) -> pd.DataFrame:
+          scenes: Sequence[str] | None = None, report: bool = True, ctx: RunContext = IN_PROCESS,
+          suite: dict | None = None) -> pd.DataFrame:
     """Score every predictions root against the frames under ``data_root``; write a results set to ``out``.
 
-    ``cluster`` runs the scoring on Dask (one task per frame x predictions root), as in ``evaluate``; ``suite``
+    ``ctx`` may run the scoring on Dask (one task per frame x predictions root), as in ``evaluate``; ``suite``
     (``harness.commands.parts.suite.score_suite``) is recorded as in ``evaluate``.
 
     Returns:
@@ -126,5 +126,5 @@ def score(pred_roots: Sequence[Path], data_root: Path, out: Path, names: Sequenc
     """
     methods = prediction_methods(pred_roots, names)
     _check_complete(methods, data_root, scenes)
-    return evaluate(data_root, out, methods, scenes, report=report, progress=progress, cluster=cluster,
+    return evaluate(data_root, out, methods, scenes, report=report, ctx=ctx,
                     inputs=[Path(r) for r in pred_roots], suite=suite)

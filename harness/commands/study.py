@@ -79,7 +79,7 @@ from harness.data.frame import frame_dir, is_complete
 from harness.data.outputs import check_output, ensure_output_dir, mark_output
 from harness.data.results import read_frames, read_results
 from harness.render.base import RenderSettings
-from harness.runtime.cluster import ClusterOptions, Executor, open_executor
+from harness.runtime.context import IN_PROCESS, RunContext
 from harness.runtime.options import MethodSelection, annotations_of, typed_value
 from harness.runtime.progress import progress_bar
 from reports.plots import png_bytes
@@ -319,8 +319,8 @@ def _cell(value):
     return value if isinstance(value, bool | int | float | str) else json.dumps(value, sort_keys=True)
 
 
-def run_study(study_path: Path, out: Path, cluster: ClusterOptions | None = None, metric: str = DEFAULT_METRIC,
-              progress: bool = True, yes: bool = False) -> pd.DataFrame:
+def run_study(study_path: Path, out: Path, ctx: RunContext = IN_PROCESS, metric: str = DEFAULT_METRIC,
+              yes: bool = False) -> pd.DataFrame:
     """Run (or resume, or extend) a study; write ``study.csv``, one plot per grid key and ``study.md`` to ``out``.
 
     Before any work: the study file is checked (:func:`load_study`), its size from the grid's lengths (more than
@@ -337,10 +337,9 @@ def run_study(study_path: Path, out: Path, cluster: ClusterOptions | None = None
     if is_robustness_study(study_path):  # kind = "robustness": harness.commands.parts.robustness
         if metric != DEFAULT_METRIC:
             raise UserError(f"--metric {metric}: a robustness study ({study_path}) tabulates {DEFAULT_METRIC} only")
-        return run_robustness(study_path, out, cluster=cluster, progress=progress)
+        return run_robustness(study_path, out, ctx)
     started = time.time()
-    if cluster is not None:
-        cluster.check()
+    ctx.check()
     spec = load_study(study_path)
     check_output(Path(out), "study", [study_path])  # absent, empty or a study tri360 wrote; not around the file
     if metric not in METRIC_COLUMNS:
@@ -351,33 +350,34 @@ def run_study(study_path: Path, out: Path, cluster: ClusterOptions | None = None
                         "grid, or pass --yes to plan and run them all")
     plan = [plan_point(spec, point) for point in grid_points(spec)]
     out = Path(out)
-    _check_size(spec, plan, out, progress, yes)
+    _check_size(spec, plan, out, yes)
     out = ensure_output_dir(out)
     atomic_write_text(out / "points.json", jsonio.dumps(
         [{"grid": p.point, "data": f"data/{p.rid}", "results": f"results/{p.eid}"} for p in plan]))
-    with open_executor(cluster) as ex:
-        steps = []  # per point: (render job or None, evaluate job or None); a job is (name, callable)
+    with ctx.executor() as ex:
+        run = ctx.on(ex)  # one executor for every render and evaluation of the study
+        steps = []  # per point: (render job or None, evaluate job or None); a job is (name, callable of ctx=)
         rendered = set()
         for p in plan:
             data, results = out / "data" / p.rid, out / "results" / p.eid
             render = None if p.rid in rendered else (f"render {p.point or ''} -> {data}",
-                                                     partial(_render_point, p, data, ex))
+                                                     partial(_render_point, p, data))
             rendered.add(p.rid)
             if _complete(results):
-                if progress:
+                if ctx.progress:
                     print(f"study: reuse {results}", flush=True)
                 steps.append((render, None))
                 continue
             steps.append((render, (f"evaluate {p.point or ''} -> {results}",
-                                   partial(evaluate, data, results, p.methods, report=p.report, executor=ex))))
+                                   partial(evaluate, data, results, p.methods, report=p.report))))
         if ex.distributed:
-            _run_concurrently([r for r, _ in steps if r], ex, progress, "render")
-            _run_concurrently([e for _, e in steps if e], ex, progress, "evaluate")
+            _run_concurrently([r for r, _ in steps if r], run, "render")
+            _run_concurrently([e for _, e in steps if e], run, "evaluate")
         else:
             for job in (j for step in steps for j in step if j):
-                if progress:
+                if ctx.progress:
                     print(f"study: {job[0]}", flush=True)
-                job[1](progress=progress)
+                job[1](ctx=run)
     tables = []
     colmap = {key: key for key in spec.grid}
     for p in plan:
@@ -406,7 +406,7 @@ def run_study(study_path: Path, out: Path, cluster: ClusterOptions | None = None
     return study
 
 
-def _check_size(spec: StudySpec, plan: list[PointPlan], out: Path, progress: bool, yes: bool) -> None:
+def _check_size(spec: StudySpec, plan: list[PointPlan], out: Path, yes: bool) -> None:
     """Count the frames still to render (distinct data roots, frames not complete on disk) and estimate their
     rendering; say so past :data:`NOTICE_FRAMES`, refuse past the limits without ``yes``."""
     todo, seconds, roots = 0, 0.0, {}
@@ -427,11 +427,11 @@ def _check_size(spec: StudySpec, plan: list[PointPlan], out: Path, progress: boo
         print(f"study: {what.split(': ', 1)[1]}", flush=True)
 
 
-def _render_point(p: PointPlan, data: Path, ex: Executor, progress: bool = True) -> list[Path]:
+def _render_point(p: PointPlan, data: Path, ctx: RunContext) -> list[Path]:
     """Render one point's frames into its data root (a study's data roots are named by what decides the frames,
     so frames there rendered otherwise come from another version of tri360: say what to do, not ``--force``)."""
     try:
-        return render_frames(p.render.settings, **p.render_kw, out_root=data, progress=progress, executor=ex)
+        return render_frames(p.render.settings, **p.render_kw, out_root=data, ctx=ctx)
     except SettingsMismatch as exc:
         raise UserError(f"{exc.frame_dir} holds a frame rendered with other settings: {'; '.join(exc.diffs)}; "
                         f"the study's data root {data} was rendered by another version of tri360: remove that "
@@ -443,9 +443,10 @@ def _complete(results: Path) -> bool:
     return (results / "results.csv").is_file() and (results / "config.json").is_file()
 
 
-def _run_concurrently(jobs: list[tuple[str, Callable]], ex, progress: bool, what: str) -> None:
+def _run_concurrently(jobs: list[tuple[str, Callable]], ctx: RunContext, what: str) -> None:
     """Run every ``(name, job)`` at once from threads of this process (at most ``MAX_PARALLEL_POINTS`` at a
-    time), so the Dask tasks of every grid point share the cluster's workers; one bar counts finished points.
+    time), each job as ``job(ctx=...)`` on ``ctx``'s open Dask executor without progress of its own, so the Dask
+    tasks of every grid point share the cluster's workers; one bar counts finished points.
 
     When jobs fail, the first in plan order is raised (naming how many others failed) after the rest have
     finished, so their frames and results are kept for a rerun.  Ctrl-C closes the Dask client, which cancels
@@ -456,8 +457,8 @@ def _run_concurrently(jobs: list[tuple[str, Callable]], ex, progress: bool, what
     errors: dict[int, BaseException] = {}
     pool = ThreadPoolExecutor(max_workers=min(len(jobs), MAX_PARALLEL_POINTS), thread_name_prefix="study")
     try:
-        with progress_bar(len(jobs), desc=f"study {what} (dask)", unit="point", enabled=progress) as bar:
-            futures = {pool.submit(job, progress=False): i for i, (_, job) in enumerate(jobs)}
+        with progress_bar(len(jobs), desc=f"study {what} (dask)", unit="point", enabled=ctx.progress) as bar:
+            futures = {pool.submit(job, ctx=ctx.quiet()): i for i, (_, job) in enumerate(jobs)}
             for fut in as_completed(futures):
                 if fut.exception() is not None:
                     errors[futures[fut]] = fut.exception()
@@ -465,7 +466,7 @@ def _run_concurrently(jobs: list[tuple[str, Callable]], ex, progress: bool, what
                 bar.update(1)
     except BaseException:
         pool.shutdown(wait=False, cancel_futures=True)
-        ex.close()  # cancels the submitted Dask tasks; the threads waiting on them return
+        ctx.where.close()  # cancels the submitted Dask tasks; the threads waiting on them return
         raise
     pool.shutdown(wait=True)
     if errors:

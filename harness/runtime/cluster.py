@@ -11,9 +11,9 @@ An executor (:class:`Executor`) runs independent tasks and yields their results 
         for key, result in ex.run(fn, {"vp000": (a, b), "vp001": (c, d)}, desc="render", unit="frame"):
             ...
 
-A job takes the options (``cluster=``: it opens and closes its own executor) or an executor that is already open
-(``executor=``, e.g. the one a study opens once for all its renders and evaluations: used and left open); both
-go through :func:`executor_for`.
+A command gets either from its :class:`harness.runtime.context.RunContext` (``ctx.executor()``): cluster options
+(it opens and closes its own executor) or an executor that is already open (e.g. the one a study opens once for
+all its renders and evaluations: used and left open).
 
 :meth:`ClusterOptions.check` refuses, before any cluster starts, what cannot work: more ``--workers`` than the
 machine can run (:func:`max_workers`: cores and memory), TLS files that are missing or not PEM (naming which
@@ -38,8 +38,8 @@ from typing import Protocol, runtime_checkable
 from harness.data.errors import UserError
 from harness.runtime.progress import progress_bar
 
-__all__ = ["ClusterOptions", "Executor", "SequentialExecutor", "open_executor", "EXECUTOR_MODULE",
-           "executor_for", "is_distributed", "max_workers", "machine_cores", "physical_memory_bytes", "BASE_BYTES",
+__all__ = ["ClusterOptions", "Executor", "SequentialExecutor", "open_executor", "EXECUTOR_MODULE", "max_workers",
+           "machine_cores", "physical_memory_bytes", "BASE_BYTES",
            "MEMORY_SHARE", "WORKERS_PER_CORE"]
 
 EXECUTOR_MODULE = "harness.runtime.executor"
@@ -247,22 +247,3 @@ def open_executor(options: ClusterOptions | None) -> Iterator[Executor]:
     with module.DaskExecutor(options) as ex:
         yield ex
 
-
-def executor_for(cluster: ClusterOptions | None = None,
-                 executor: Executor | None = None) -> contextlib.AbstractContextManager[Executor]:
-    """A job's executor: ``executor`` when one is given (open already: used, and left open), else a new one
-    from ``cluster`` (:func:`open_executor`: closed at the end).
-
-    Raises:
-        UserError: both given (a job runs in one place).
-    """
-    if executor is not None:
-        if cluster is not None:
-            raise UserError("give a job either cluster options or an open executor, not both")
-        return contextlib.nullcontext(executor)
-    return open_executor(cluster)
-
-
-def is_distributed(cluster: ClusterOptions | None = None, executor: Executor | None = None) -> bool:
-    """Whether a job given ``cluster`` / ``executor`` (see :func:`executor_for`) runs on Dask workers."""
-    return executor.distributed if executor is not None else (cluster is not None and cluster.distributed)

@@ -20,7 +20,7 @@ from dataclasses import dataclass, fields
 from harness.data.errors import UserError
 from reconstruction.methods.base import Method
 from reconstruction.methods.flow_pipeline import DEFAULT_FLOW
-from reconstruction.methods.registry import DEFAULT_METHOD, default_methods, flow_methods, get_methods
+from reconstruction.methods.registry import DEFAULT_METHOD, evaluate_default_methods, flow_methods, get_methods
 
 __all__ = ["typed_value", "type_name", "annotations_of", "MethodSelection"]
 
@@ -152,7 +152,7 @@ class MethodSelection:
                                     f"{spell('flow')}, {spell('rectify')} or {spell('variants')}")
                 return get_methods(list(self.method))
             if not shorthand:
-                return get_methods([DEFAULT_METHOD]) if single else default_methods()
+                return get_methods([DEFAULT_METHOD]) if single else evaluate_default_methods()
             variants = list(self.variants) if self.variants is not None else (["gradient"] if single else None)
             return flow_methods(list(self.flow or (DEFAULT_FLOW,)), [True if self.rectify is None else self.rectify],
                                 variants)

@@ -495,7 +495,8 @@ def run_flow_group(frame, members: Sequence,
     """Run methods that share one flow configuration (one ``group_key``), the flow and triangulation once.
 
     ``members`` are :class:`FlowMethod` variants of the configuration and methods built on one of them (such as
-    ``fused``): those have ``flow`` (their :class:`FlowMethod`), the same ``group_key`` and a
+    the flow-prior sweep, :class:`reconstruction.methods.prior_sweep.PriorSweepMethod`): those have ``flow``
+    (their :class:`FlowMethod`), the same ``group_key`` and a
     ``run_on_flows(frame, members, flow_outputs, on_stage)`` that runs all members of their own type given the
     flow outputs by label.  The flow variants they use are computed along with the members' own.
 

@@ -25,7 +25,7 @@ from reconstruction.flow.backends import (
 )
 from reconstruction.methods.base import Method
 from reconstruction.methods.flow_pipeline import DEFAULT_FLOW, FlowMethod
-from reconstruction.methods.fused import FusedMethod, PriorParams
+from reconstruction.methods.prior_sweep import PriorParams, PriorSweepMethod
 from reconstruction.methods.sweep import SweepMethod
 from reconstruction.photometry import NO_CALIBRATION, PhotometricParams
 from reconstruction.plugins import collect_registry, merge_registry, shadow_message
@@ -36,7 +36,7 @@ from reconstruction.sweep.planes import PlaneParams
 __all__ = ["ENTRY_POINT_GROUP", "DEFAULT_CONFIGS", "DEFAULT_METHOD", "DEFAULT_VARIANTS", "PAPER_CONFIG",
            "WALL_PLANES", "ADAPTIVE_PRIOR", "GATED_PRIOR", "builtin_methods", "discover_methods", "get_methods",
            "MIRROR_PLANES", "MIRROR_INTENSITY_WEIGHT",
-           "flow_methods", "default_methods", "fused_method", "adaptive_method", "gated_method",
+           "flow_methods", "evaluate_default_methods", "fused_method", "adaptive_method", "gated_method",
            "mirror_method", "Preset", "PRESETS", "renamed_label_note", "with_photometric", "uncalibrated"]
 
 ENTRY_POINT_GROUP = "tri360.methods"
@@ -63,7 +63,7 @@ MIRROR_PLANES = dataclasses.replace(WALL_PLANES, mirror_tolerance=0.2)
 #: (docs/photometry.md)
 MIRROR_INTENSITY_WEIGHT = 0.25
 #: ``fused-adaptive``'s prior weight: ``fused``'s, scaled by the share of pixels where the flow and the plain coarse
-#: sweep agree within 5 %: 0 below 60 %, full above 80 % (:class:`reconstruction.methods.fused.PriorParams`)
+#: sweep agree within 5 %: 0 below 60 %, full above 80 % (:class:`reconstruction.methods.prior_sweep.PriorParams`)
 ADAPTIVE_PRIOR = PriorParams(frame_agreement_low=0.6, frame_agreement_high=0.8)
 #: ``fused-gated``'s (and the default ``fused-mirror``'s) prior weight: ``fused``'s, times a ramp of C's local
 #: contrast (0 below 0.5, full above 2 gray levels: no prior where there is no texture for the flow to follow), times
@@ -118,20 +118,20 @@ def _plugin_note(errors: dict[str, str]) -> str:
     return ("; plugins that failed to load: " + "; ".join(f"{k}: {v}" for k, v in errors.items())) if errors else ""
 
 
-def fused_method() -> FusedMethod:
+def fused_method() -> PriorSweepMethod:
     """``fused``: the sweep with the ``{DEFAULT_FLOW}-rect:gradient`` distance as prior (docs/matching.md)."""
-    return FusedMethod(flow=flow_methods([DEFAULT_FLOW], [True], ["gradient"])[0])
+    return PriorSweepMethod(flow=flow_methods([DEFAULT_FLOW], [True], ["gradient"])[0])
 
 
-def adaptive_method() -> FusedMethod:
+def adaptive_method() -> PriorSweepMethod:
     """``fused-adaptive``: ``fused``'s flow prior in the sweep with :data:`WALL_PLANES`,
     weighted by :data:`ADAPTIVE_PRIOR` (chosen on the suite's dev split, docs/matching.md)."""
     base = fused_method()
-    return FusedMethod(flow=base.flow, sweep=dataclasses.replace(base.sweep, planes=WALL_PLANES),
+    return PriorSweepMethod(flow=base.flow, sweep=dataclasses.replace(base.sweep, planes=WALL_PLANES),
                        prior=ADAPTIVE_PRIOR, label="fused-adaptive")
 
 
-def gated_method() -> FusedMethod:
+def gated_method() -> PriorSweepMethod:
     """``fused-gated``: the sweep with :data:`WALL_PLANES` and the
     ``{DEFAULT_FLOW}-rect:average`` distance (the flow pipeline without its LM: about 0.6 s less per 1000x500 frame
     than ``fused``'s) as prior, weighted by :data:`GATED_PRIOR` (chosen on the suite's dev split,
@@ -139,12 +139,12 @@ def gated_method() -> FusedMethod:
     (``quality_flow``; computed only when the quality is assessed): on the dev split that ranks pixels by error
     better than the unrefined prior (docs/real-captures.md)."""
     base = fused_method()
-    return FusedMethod(flow=flow_methods([DEFAULT_FLOW], [True], ["average"])[0],
+    return PriorSweepMethod(flow=flow_methods([DEFAULT_FLOW], [True], ["average"])[0],
                        sweep=dataclasses.replace(base.sweep, planes=WALL_PLANES), prior=GATED_PRIOR,
                        label="fused-gated", quality_flow=base.flow)
 
 
-def mirror_method() -> FusedMethod:
+def mirror_method() -> PriorSweepMethod:
     """``fused-mirror`` (the default): ``fused-gated`` with :data:`MIRROR_PLANES`, so that the room bound holds on
     polished floors whose mirror image of the ceiling wins the coarse pass, and the sweep cost's intensity term
     weighted :data:`MIRROR_INTENSITY_WEIGHT` (what a gain difference between the cameras leaves after the
@@ -156,7 +156,7 @@ def mirror_method() -> FusedMethod:
                                label="fused-mirror")
 
 
-def with_photometric(method: FusedMethod, params: PhotometricParams, label: str) -> FusedMethod:
+def with_photometric(method: PriorSweepMethod, params: PhotometricParams, label: str) -> PriorSweepMethod:
     """``method`` with the photometric self-calibration ``params`` in its flow, its sweep and its quality flow,
     relabelled ``label``."""
     quality = method.quality_flow
@@ -166,7 +166,7 @@ def with_photometric(method: FusedMethod, params: PhotometricParams, label: str)
         quality_flow=None if quality is None else dataclasses.replace(quality, photometric=params))
 
 
-def uncalibrated(method: FusedMethod) -> FusedMethod:
+def uncalibrated(method: PriorSweepMethod) -> PriorSweepMethod:
     """``method`` matching the images as they are (no photometric self-calibration) with the sweep cost's default
     intensity weight, labelled ``<label>-raw``: the ablation that shows what the self-calibration and the weight
     chosen with it do (on cameras that meter each on their own they are what keeps the sweep working)."""
@@ -270,7 +270,7 @@ def get_methods(labels: Sequence[str]) -> list[Method]:
     return [methods[x] for x in dict.fromkeys(labels)]
 
 
-def default_methods() -> list[Method]:
+def evaluate_default_methods() -> list[Method]:
     """What ``tri360 evaluate`` runs by default: the default method (:data:`DEFAULT_METHOD`), the sweep, then
     tri360's flow pipeline and the paper's set-up (:data:`DEFAULT_CONFIGS`, both on rectified pairs), each with the
     paper's variants (:data:`DEFAULT_VARIANTS`)."""

@@ -8,6 +8,7 @@ refinement, confidence), ``post`` (fill of unreliable pixels, median).  See docs
 from __future__ import annotations
 
 import time
+from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
 
 import cv2
@@ -16,7 +17,7 @@ import numpy as np
 from reconstruction.camera.equirect import bearing_grid
 from reconstruction.methods.base import MethodOutput
 from reconstruction.methods.flow_pipeline import fill_edge_aware, reduced_frame
-from reconstruction.photometry import NO_CALIBRATION, PhotometricParams, aligned_frame
+from reconstruction.photometry import PhotometricParams, aligned_frame
 from reconstruction.sweep.cost import CostParams, build_cost_volume, gray_float, inverse_distances
 from reconstruction.sweep.planes import (
     PlaneParams,
@@ -30,8 +31,8 @@ from reconstruction.sweep.planes import (
 )
 from reconstruction.sweep.sgm import aggregate, winner_take_all
 
-__all__ = ["SgmParams", "PostParams", "SweepMethod", "labels_to_distance", "sweep_distance",
-           "sweep_distances"]
+__all__ = ["SgmParams", "PostParams", "SweepMethod", "Prior", "PriorFromSweep", "labels_to_distance",
+           "sweep_distance", "sweep_distances"]
 
 
 @dataclass(frozen=True)
@@ -67,6 +68,32 @@ class PostParams:
     fill_lambda: float = 200.0
     fill_sigma_color: float = 8.0
     median_px: int = 5
+
+
+@dataclass(frozen=True, eq=False)
+class Prior:
+    """A prior on camera C's distance, added to the sweep's sphere labels before aggregation: every sphere label
+    ``i`` of pixel p costs ``weight(p) * min(|i - l(p)|, truncate_levels)`` more, ``l(p)`` the fractional label of
+    ``distance(p)`` (:func:`reconstruction.sweep.planes.add_prior`).
+
+    Attributes:
+        distance: (H, W) prior distances of C, metres (e.g. the flow pipeline's).
+        weight: (H, W) float32 weight, cost units per label.
+        truncate_levels: label distance beyond which the prior cost stops growing, labels.
+    """
+
+    distance: np.ndarray
+    weight: np.ndarray
+    truncate_levels: float
+
+
+@dataclass(frozen=True, eq=False)
+class PriorFromSweep:
+    """A prior that depends on the plain sweep, at no extra aggregation: ``make(distance, confidence)`` of the
+    sweep's coarse room-bound pass ((H, W) float32 each, upsampled to the frame) returns the :class:`Prior`.
+    Needs the plane family (``PlaneParams.per_side > 0``), whose coarse pass it reads."""
+
+    make: Callable[[np.ndarray, np.ndarray], Prior]
 
 
 def _clock() -> tuple[float, float]:
@@ -141,25 +168,25 @@ def _median_wrap(d: np.ndarray, k: int) -> np.ndarray:
     return cv2.medianBlur(x, k)[:, pad:-pad]
 
 
-def _sphere_costs(frame, cost_params: CostParams, plane_params: PlaneParams, pairs, seconds, prefix="",
-                  wall_labels: int = 0):
-    """The sphere cost volume with room for the plane family and ``wall_labels`` wall labels (stage ``cost``).
+def _sphere_costs(frame, sweep: SweepMethod, seconds, prefix="", wall_labels: int = 0):
+    """The sphere cost volume of ``sweep`` with room for the plane family and ``wall_labels`` wall labels (stage
+    ``cost``).
 
     Returns:
         ``(cost, heights, inv_d)``: (H, W, levels + P + wall_labels) uint16 costs (plane labels not yet filled),
         plane heights (metres) and sphere inverse distances (1/m).
     """
     t = _clock()
-    heights = plane_heights(plane_params)
-    cost, _ = build_cost_volume(frame, cost_params, extra_labels=heights.size + wall_labels, pairs=pairs)
+    heights = plane_heights(sweep.planes)
+    cost, _ = build_cost_volume(frame, sweep.cost, extra_labels=heights.size + wall_labels, pairs=sweep.pairs)
     _lap(seconds, prefix + "cost", t)
-    return cost, heights, inverse_distances(cost_params)
+    return cost, heights, inverse_distances(sweep.cost)
 
 
-def _aggregate(frame, cost, heights, inv_d, cost_params: CostParams, plane_params: PlaneParams, sgm: SgmParams,
-               seconds, bounds=(-np.inf, np.inf), prefix="", prior=None, walls=()):
-    """Prior, plane and wall labels, (room bound), SGM and winner-take-all on a sphere cost volume (consumed:
-    changed in place and freed).
+def _aggregate(frame, cost, heights, inv_d, sweep: SweepMethod, seconds, bounds=(-np.inf, np.inf), prefix="",
+               prior: Prior | None = None, walls=()):
+    """Prior, plane and wall labels, (room bound), SGM and winner-take-all of ``sweep`` on a sphere cost volume
+    (consumed: changed in place and freed).
 
     Args:
         walls: per wall ``(normal, offsets)`` (:func:`reconstruction.sweep.planes.dominant_walls`); the volume
@@ -168,10 +195,11 @@ def _aggregate(frame, cost, heights, inv_d, cost_params: CostParams, plane_param
         ``(label, conf, a_z, wall_families)``: (H, W) fractional labels and confidence, (H, W) world Z of C's
         bearings, and per wall ``(a_n, offsets)`` (its normal's bearing components, (H, W)).
     """
+    cost_params, plane_params, sgm = sweep.cost, sweep.planes, sweep.sgm
     n_d = cost_params.levels
     t = _clock()
     if prior is not None:
-        add_prior(cost, n_d, inv_d, prior[0], prior[1], prior[2], cost_params.max_cost())
+        add_prior(cost, n_d, inv_d, prior.distance, prior.weight, prior.truncate_levels, cost_params.max_cost())
         _lap(seconds, prefix + "prior", t)
         t = _clock()
     bearings = bearing_grid(frame.width, frame.height, frame.cameras["C"].rotation)
@@ -201,15 +229,16 @@ def _aggregate(frame, cost, heights, inv_d, cost_params: CostParams, plane_param
     return label, conf, a_z, families
 
 
-def room_bounds(frame, cost_params: CostParams, plane_params: PlaneParams, sgm: SgmParams, pairs, seconds):
-    """From a coarse pass (the plain sweep on images ``coarse_factor`` times smaller): floor and ceiling heights
-    relative to C (metres, -inf / inf if not found or without ``room_bound``; widened by ``bound_margin``), the
-    walls' yaw (radians or None), the walls found (:func:`reconstruction.sweep.planes.dominant_walls`; none
-    without ``wall_labels``) and the coarse pass's (distance (m), confidence) maps."""
+def room_bounds(frame, sweep: SweepMethod, seconds):
+    """From a coarse pass of ``sweep`` (the plain sweep on images ``coarse_factor`` times smaller): floor and
+    ceiling heights relative to C (metres, -inf / inf if not found or without ``room_bound``; widened by
+    ``bound_margin``), the walls' yaw (radians or None), the walls found
+    (:func:`reconstruction.sweep.planes.dominant_walls`; none without ``wall_labels``) and the coarse pass's
+    (distance (m), confidence) maps."""
+    cost_params, plane_params = sweep.cost, sweep.planes
     coarse = reduced_frame(frame, plane_params.coarse_factor)
-    cost, heights, inv_d = _sphere_costs(coarse, cost_params, plane_params, pairs, seconds, prefix="coarse_")
-    label, conf, a_z, _ = _aggregate(coarse, cost, heights, inv_d, cost_params, plane_params, sgm, seconds,
-                                     prefix="coarse_")
+    cost, heights, inv_d = _sphere_costs(coarse, sweep, seconds, prefix="coarse_")
+    label, conf, a_z, _ = _aggregate(coarse, cost, heights, inv_d, sweep, seconds, prefix="coarse_")
     z_floor, z_ceil = dominant_planes(label, cost_params.levels, heights, plane_params.bound_min_share,
                                       plane_params.mirror_tolerance)
     d = labels_to_distance(label, inv_d, heights, a_z, cost_params.d_min_m, cost_params.d_max_m)
@@ -223,29 +252,27 @@ def room_bounds(frame, cost_params: CostParams, plane_params: PlaneParams, sgm: 
     return z_floor * m, z_ceil * m, yaw, walls, (d, conf)
 
 
-def sweep_distances(frame, cost_params: CostParams, plane_params: PlaneParams, sgm: SgmParams,
-                    post: PostParams, pairs=("U", "R"), priors=(None,),
-                    photometric: PhotometricParams = NO_CALIBRATION,
+def sweep_distances(frame, sweep: SweepMethod, priors: Sequence[Prior | PriorFromSweep | None] = (None,),
                     align_distance: np.ndarray | None = None):
-    """Run the sweep on a frame once per prior, sharing the room-bound pass and the sphere cost volume.
+    """Run the sweep configured by ``sweep`` on a frame once per prior, sharing the room-bound pass and the sphere
+    cost volume.
 
     Args:
-        photometric: photometric self-calibration of U and R against C (:mod:`reconstruction.photometry`; stage
-            ``photometric``): from the correspondences of ``align_distance`` ((H, W) metres, e.g. the flow
-            prior's) when given; otherwise pixel by pixel before the coarse pass and again from the coarse pass's
-            distance before the full-resolution volume.
-        priors: each None (the plain sweep) or ``(distance, weight, truncate_levels)``: (H, W) prior distances of C
-            (metres; e.g. the flow pipeline's), (H, W) float32 weight in cost units per label and the truncation
-            in labels, added to the sphere labels before aggregation
-            (:func:`reconstruction.sweep.planes.add_prior`; not used in the coarse room-bound pass); or a function
-            of the coarse pass's (distance, confidence), (H, W) float32 each (upsampled), that returns one: a prior
-            that depends on the plain sweep, at no extra aggregation.
+        sweep: the sweep's configuration (cost, planes, SGM, post, pairs, photometric self-calibration).
+        priors: each None (the plain sweep), a :class:`Prior` (added to the sphere labels before aggregation; not
+            used in the coarse room-bound pass) or a :class:`PriorFromSweep` (made from the coarse pass's distance
+            and confidence).
+        align_distance: (H, W) metres (e.g. the flow prior's) whose correspondences the photometric
+            self-calibration of U and R against C (``sweep.photometric``, :mod:`reconstruction.photometry`;
+            stage ``photometric``) fits; None: pixel by pixel before the coarse pass and again from the coarse
+            pass's distance before the full-resolution volume.
     Returns:
         One ``(distance, confidence, seconds, info)`` per prior: (H, W) float32 metres, (H, W) float32 in [0, 1],
         wall time per stage (the shared ``coarse_*`` and ``cost`` stages in every one, as they would take alone),
         details (plane share, room bounds, ``cpu_seconds``: process CPU time per stage; ``copy_seconds``: the wall
         time of copying the shared volume for this prior, 0 for the last, which takes the volume itself).
     """
+    cost_params, plane_params, post, photometric = sweep.cost, sweep.planes, sweep.post, sweep.photometric
     shared = {}
     raw = frame
     calibrate = photometric.mode != "none"
@@ -254,9 +281,9 @@ def sweep_distances(frame, cost_params: CostParams, plane_params: PlaneParams, s
         frame, _ = aligned_frame(raw, photometric, distance=align_distance)
         _lap(shared, "photometric", t)
     bounds, yaw, walls, coarse = (-np.inf, np.inf), None, [], None
-    if (plane_params.room_bound or plane_params.wall_labels > 0 or any(callable(p) for p in priors)) \
-            and plane_params.per_side > 0:
-        z_floor, z_ceil, yaw, walls, coarse = room_bounds(frame, cost_params, plane_params, sgm, pairs, shared)
+    from_sweep = any(isinstance(p, PriorFromSweep) for p in priors)
+    if (plane_params.room_bound or plane_params.wall_labels > 0 or from_sweep) and plane_params.per_side > 0:
+        z_floor, z_ceil, yaw, walls, coarse = room_bounds(frame, sweep, shared)
         bounds = (z_floor, z_ceil)
         if calibrate and align_distance is None:  # the coarse pass's distance gives the correspondences
             t = _clock()
@@ -264,12 +291,11 @@ def sweep_distances(frame, cost_params: CostParams, plane_params: PlaneParams, s
                                   interpolation=cv2.INTER_NEAREST)
             frame, _ = aligned_frame(raw, photometric, distance=d_coarse)
             _lap(shared, "photometric_refit", t)
-        if any(callable(p) for p in priors):  # only the gated priors read the coarse maps
+        if from_sweep:  # only the priors made from the plain sweep read the coarse maps
             size = (frame.width, frame.height)
             coarse = tuple(cv2.resize(np.asarray(a, np.float32), size, interpolation=cv2.INTER_LINEAR)
                            for a in coarse)
-    cost, heights, inv_d = _sphere_costs(frame, cost_params, plane_params, pairs, shared,
-                                         wall_labels=sum(o.size for _, o in walls))
+    cost, heights, inv_d = _sphere_costs(frame, sweep, shared, wall_labels=sum(o.size for _, o in walls))
     out = []
     for i, prior in enumerate(priors):
         seconds = dict(shared)
@@ -280,12 +306,12 @@ def sweep_distances(frame, cost_params: CostParams, plane_params: PlaneParams, s
             copy_seconds = time.perf_counter() - t
         else:  # the last prior consumes the shared volume itself
             work, cost = cost, None
-        if callable(prior):
+        if isinstance(prior, PriorFromSweep):
             if coarse is None:
                 raise ValueError("a prior that depends on the coarse pass needs the plane family (per_side > 0)")
-            prior = prior(*coarse)
-        label, conf, a_z, families = _aggregate(frame, work, heights, inv_d, cost_params, plane_params, sgm,
-                                                seconds, bounds, prior=prior, walls=walls)
+            prior = prior.make(*coarse)
+        label, conf, a_z, families = _aggregate(frame, work, heights, inv_d, sweep, seconds, bounds, prior=prior,
+                                                walls=walls)
         del work
         t = _clock()
         d = labels_to_distance(label, inv_d, heights, a_z, cost_params.d_min_m, cost_params.d_max_m, families)
@@ -310,15 +336,15 @@ def sweep_distances(frame, cost_params: CostParams, plane_params: PlaneParams, s
     return out
 
 
-def sweep_distance(frame, cost_params: CostParams, plane_params: PlaneParams, sgm: SgmParams,
-                   post: PostParams, pairs=("U", "R"), prior=None):
-    """Run the sweep on a frame (:func:`sweep_distances` with one prior; None = the plain sweep).
+def sweep_distance(frame, sweep: SweepMethod, prior: Prior | PriorFromSweep | None = None):
+    """Run the sweep configured by ``sweep`` on a frame (:func:`sweep_distances` with one prior; None = the plain
+    sweep).
 
     Returns:
         ``(distance, confidence, seconds, info)``: (H, W) float32 metres, (H, W) float32 in [0, 1], wall time
         per stage, details (plane share, room bounds).
     """
-    return sweep_distances(frame, cost_params, plane_params, sgm, post, pairs, [prior])[0]
+    return sweep_distances(frame, sweep, [prior])[0]
 
 
 @dataclass(frozen=True)
@@ -350,6 +376,5 @@ class SweepMethod:
                 "photometric": asdict(self.photometric)}
 
     def run(self, frame) -> MethodOutput:
-        d, conf, seconds, info = sweep_distances(frame, self.cost, self.planes, self.sgm, self.post, self.pairs,
-                                                 [None], self.photometric)[0]
+        d, conf, seconds, info = sweep_distances(frame, self, [None])[0]
         return MethodOutput(distance=d, confidence=conf, seconds=seconds, info=info)

@@ -20,6 +20,7 @@ from harness.data.errors import UserError
 from harness.data.frame import find_frames, read_frame
 from harness.render.base import RenderSettings
 from harness.render.registry import open_renderer
+from harness.runtime.context import QUIET
 from reconstruction.camera.equirect import bearing_grid
 from reconstruction.camera.rig import Rig
 from reconstruction.plugins import Registry
@@ -30,7 +31,7 @@ from tests.helpers import cross_camera_consistency, render_scene
 
 ENTRIES, _ = discover()
 CYCLES_SCENES = sorted(n for n, e in ENTRIES.items() if e.renderer == "cycles")
-FAST = {"samples": 2, "threads": 2, "progress": False}
+FAST = {"samples": 2, "threads": 2, "ctx": QUIET}
 TINY = RenderSettings(width=64, samples=1, threads=2, denoise=False)
 
 
@@ -115,8 +116,8 @@ def test_cross_camera_consistency(tmp_path):
     rendered at 512 wide because at 256 the depth edges' share of pixels alone costs ~2 %.
     """
     (box,) = render_scene("box_room", out_root=tmp_path, width=256, samples=1, threads=2, denoise=False,
-                           progress=False)
-    (cls,) = render_scene("classroom", out_root=tmp_path, width=512, samples=8, threads=2, progress=False)
+                           ctx=QUIET)
+    (cls,) = render_scene("classroom", out_root=tmp_path, width=512, samples=8, threads=2, ctx=QUIET)
     fb, fc = read_frame(box), read_frame(cls)
     for k in "UR":
         agree, _, _ = _cross_check(fb, k)
@@ -130,9 +131,9 @@ def test_cross_camera_consistency(tmp_path):
 
 @pytest.mark.blender
 def test_same_seed_same_pixels(tmp_path):
-    a = render_scene("box_room", out_root=tmp_path / "a", width=64, samples=4, threads=2, seed=5, progress=False)
-    b = render_scene("box_room", out_root=tmp_path / "b", width=64, samples=4, threads=2, seed=5, progress=False)
-    c = render_scene("box_room", out_root=tmp_path / "c", width=64, samples=4, threads=2, seed=6, progress=False)
+    a = render_scene("box_room", out_root=tmp_path / "a", width=64, samples=4, threads=2, seed=5, ctx=QUIET)
+    b = render_scene("box_room", out_root=tmp_path / "b", width=64, samples=4, threads=2, seed=5, ctx=QUIET)
+    c = render_scene("box_room", out_root=tmp_path / "c", width=64, samples=4, threads=2, seed=6, ctx=QUIET)
     fa, fb, fc = (read_frame(x[0]) for x in (a, b, c))
     for cam in "CUR":
         assert np.array_equal(fa.images[cam], fb.images[cam])

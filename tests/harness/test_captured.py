@@ -19,6 +19,7 @@ from harness.data.frame import read_frame, write_frame
 from harness.data.photometric import CameraDistribution, Photometric, noise_parameters
 from harness.data.results import read_results
 from harness.render.camera import apply, vignetting_gain
+from harness.runtime.context import QUIET
 from reconstruction.methods.registry import get_methods
 from reconstruction.photometry import srgb_to_linear
 from reports.tables import leaderboard_markdown, leaderboard_table
@@ -173,7 +174,7 @@ def test_render_suite_derives_the_twins_and_evaluate_reports_both_conditions(tmp
     path = tmp_path / "s.toml"
     path.write_text(SUITE)
     root = tmp_path / "data"
-    dirs = render_suite(path, "dev", root, progress=False)
+    dirs = render_suite(path, "dev", root, ctx=QUIET)
     assert [d.relative_to(root).as_posix() for d in dirs] == [
         "synthetic_box-s11/vp000", "synthetic_box-s11/vp001",
         "synthetic_box-s11.captured/vp000", "synthetic_box-s11.captured/vp001"]
@@ -184,12 +185,12 @@ def test_render_suite_derives_the_twins_and_evaluate_reports_both_conditions(tmp
     expected = captured_twin(ideal, load(path).conditions["captured"], 11001)
     np.testing.assert_array_equal(twin.images["R"], expected.images["R"])
     before = (root / "synthetic_box-s11.captured" / "vp000" / "U.png").stat().st_mtime_ns
-    render_suite(path, "dev", root, progress=False)  # resumable: nothing derived again
+    render_suite(path, "dev", root, ctx=QUIET)  # resumable: nothing derived again
     assert (root / "synthetic_box-s11.captured" / "vp000" / "U.png").stat().st_mtime_ns == before
     assert len(check_suite_data(load(path), "dev", root)) == 4
 
     results = evaluate_suite(root, path, "dev", tmp_path / "res", get_methods(["dis-rect:average"]), report=False,
-                             progress=False)
+                             ctx=QUIET)
     assert sorted(results["condition"]) == ["captured", "captured", "ideal", "ideal"]
     back = read_results(tmp_path / "res")
     board = leaderboard_table(back)
@@ -202,13 +203,13 @@ def test_a_twin_derived_otherwise_is_refused(tmp_path):
     path = tmp_path / "s.toml"
     path.write_text(SUITE)
     root = tmp_path / "data"
-    render_suite(path, "dev", root, progress=False)
+    render_suite(path, "dev", root, ctx=QUIET)
     other = tmp_path / "other.toml"
     other.write_text(SUITE.replace("exposure_stops = 0.5", "exposure_stops = 0.25"))
     with pytest.raises(UserError, match=r"synthetic_box-s11\.captured.*condition distribution"):
         check_suite_data(load(other), "dev", root)
     with pytest.raises(UserError, match="other settings"):
-        render_suite(other, "dev", root, progress=False)
+        render_suite(other, "dev", root, ctx=QUIET)
     # a v1-style suite (no conditions) refuses the root: the twins are frames it does not have
     plain = tmp_path / "plain.toml"
     plain.write_text(SUITE.split("[conditions.captured]")[0] + SUITE.split("translation_mm = [1.0, 2.0]\n")[1])

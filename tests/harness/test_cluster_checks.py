@@ -27,11 +27,11 @@ from harness.runtime.cluster import (
     ClusterOptions,
     Executor,
     SequentialExecutor,
-    executor_for,
     machine_cores,
     max_workers,
     physical_memory_bytes,
 )
+from harness.runtime.context import QUIET, RunContext
 from tests.harness.test_executor import make_certificates
 from tests.harness.test_render_interrupt import _cmdline, _descendants
 from tests.helpers import render_scene
@@ -106,8 +106,8 @@ def test_a_scheduler_address_that_is_not_dask_is_one_line_in_bounded_time(servic
     with service() as address:
         t0 = time.monotonic()
         with pytest.raises(UserError) as info:
-            render_scene("synthetic_box", out_root=tmp_path / "d", width=64, progress=False,
-                         cluster=ClusterOptions(scheduler=address, connect_timeout_s=3))
+            render_scene("synthetic_box", out_root=tmp_path / "d", width=64,
+                         ctx=RunContext(ClusterOptions(scheduler=address, connect_timeout_s=3), progress=False))
         elapsed = time.monotonic() - t0
     message = str(info.value)
     assert elapsed < 20, f"took {elapsed:.1f} s with a 3 s connect timeout (6 s in all for an answer)"
@@ -177,7 +177,7 @@ def test_good_tls_files_pass_the_checks(pki):
 @pytest.fixture(scope="module")
 def frames(tmp_path_factory):
     root = tmp_path_factory.mktemp("frames")
-    render_scene("synthetic_box", out_root=root, viewpoints=2, width=200, progress=False)
+    render_scene("synthetic_box", out_root=root, viewpoints=2, width=200, ctx=QUIET)
     return root
 
 
@@ -240,15 +240,17 @@ def test_ctrl_c_with_workers_prints_one_line(many_frames, tmp_path, command):
 
 
 
-def test_a_job_runs_on_options_or_an_open_executor_never_both():
+def test_a_run_context_runs_on_options_or_an_open_executor():
     seq = SequentialExecutor()
     assert isinstance(seq, Executor) and not seq.distributed
-    with executor_for(None, seq) as ex:
+    ctx = RunContext(seq)
+    with ctx.executor() as ex:
         assert ex is seq and list(ex.run(pow, {"a": (2, 3)}, progress=False)) == [("a", 8)]
-    with executor_for(None, None) as ex:
+    assert not ctx.distributed and not RunContext().distributed and not RunContext(ClusterOptions()).distributed
+    assert RunContext(ClusterOptions(workers=1)).distributed
+    with RunContext().executor() as ex:
         assert isinstance(ex, SequentialExecutor)
-    with pytest.raises(UserError, match="not both"):
-        executor_for(ClusterOptions(workers=1), seq)
+    assert RunContext().on(seq).where is seq and not RunContext().quiet().progress
 
 
 @pytest.mark.cluster

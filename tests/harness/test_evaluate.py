@@ -12,6 +12,7 @@ import pytest
 from harness.cli import main
 from harness.commands.evaluate import evaluate, select_frames, summary_text
 from harness.data.errors import UserError
+from harness.runtime.context import QUIET, RunContext
 from reconstruction.methods.base import MethodOutput
 from reconstruction.methods.registry import flow_methods
 from reports.schema import RESULT_COLUMNS
@@ -38,7 +39,7 @@ class Interrupting(Constant):
 def test_config_json_records_every_method_and_frame(synthetic_root, tmp_path):
     out = tmp_path / "res"
     methods = [*flow_methods(["oracle"], [True], ["average", "gradient"]), Constant(2.0)]
-    table = evaluate(synthetic_root, out, methods, report=False, progress=False)
+    table = evaluate(synthetic_root, out, methods, report=False, ctx=QUIET)
     assert list(table.columns) == RESULT_COLUMNS and len(table) == 2 * 3
     const = table[table.method == "const"]
     assert (const.flow.fillna("") == "").all() and (const.seconds == 0.5).all()
@@ -74,23 +75,23 @@ def test_two_frames_with_the_same_identity_are_refused(synthetic_root, tmp_path)
 
 def test_interrupted_evaluate_keeps_the_previous_results_set(synthetic_root, tmp_path):
     out = tmp_path / "res"
-    evaluate(synthetic_root, out, [Constant(2.0)], report=False, progress=False)
+    evaluate(synthetic_root, out, [Constant(2.0)], report=False, ctx=QUIET)
     before = (out / "results.csv").read_bytes()
     with pytest.raises(KeyboardInterrupt):
-        evaluate(synthetic_root, out, [Constant(3.0), Interrupting(1.0, "stop")], report=False, progress=False)
+        evaluate(synthetic_root, out, [Constant(3.0), Interrupting(1.0, "stop")], report=False, ctx=QUIET)
     assert (out / "results.csv").read_bytes() == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["res"]  # no staging or old copies left
 
 
 def test_rerun_replaces_the_whole_results_set(synthetic_root, tmp_path):
     out = tmp_path / "res"
-    evaluate(synthetic_root, out, [Constant(2.0, "a")], report=False, progress=False)
+    evaluate(synthetic_root, out, [Constant(2.0, "a")], report=False, ctx=QUIET)
     (out / "notes.txt").write_text("a user's file: never replaced")
     with pytest.raises(UserError, match="notes.txt"):
-        evaluate(synthetic_root, out, [Constant(3.0, "b")], report=False, progress=False)
+        evaluate(synthetic_root, out, [Constant(3.0, "b")], report=False, ctx=QUIET)
     assert (out / "notes.txt").exists()
     (out / "notes.txt").unlink()
-    evaluate(synthetic_root, out, [Constant(3.0, "b")], report=False, progress=False)
+    evaluate(synthetic_root, out, [Constant(3.0, "b")], report=False, ctx=QUIET)
     assert set(pd.read_csv(out / "results.csv").method) == {"b"}
     assert not (out / "maps/synthetic_box/vp000/a").exists()
 
@@ -110,6 +111,6 @@ def test_summary_text_is_one_row_per_method_best_first_and_never_drops_a_missing
 
 def test_progress_bar_names_frame_and_methods(synthetic_root, tmp_path, capsys):
     """The bar's postfix names the task (``scene/viewpoint first-method +N``), not an index tuple."""
-    evaluate(synthetic_root, tmp_path / "res", [Constant(1.0, "a"), Constant(2.0, "b")], report=False, progress=True)
+    evaluate(synthetic_root, tmp_path / "res", [Constant(1.0, "a"), Constant(2.0, "b")], report=False, ctx=RunContext())
     err = capsys.readouterr().err
     assert "synthetic_box/vp000 a +1" in err and "(0, 0)" not in err

@@ -31,6 +31,7 @@ from harness.commands.render import RENDER_LOG
 from harness.data.errors import UserError
 from harness.data.outputs import MARKER
 from harness.runtime.cluster import ClusterOptions
+from harness.runtime.context import QUIET, RunContext
 from harness.runtime.executor import DaskExecutor, security_for
 from reconstruction.methods.registry import get_methods
 from tests.helpers import external_cluster, render_scene, wait_for_workers
@@ -61,7 +62,7 @@ def results_without_seconds(out: Path) -> pd.DataFrame:
     return pd.read_csv(out / "results.csv").drop(columns="seconds")
 
 
-SYNTH = {"viewpoints": 3, "width": 160, "progress": False}
+SYNTH = {"viewpoints": 3, "width": 160}
 
 
 def listening_ips(procs: list[psutil.Process]) -> set[tuple[str, int]]:
@@ -82,8 +83,8 @@ def cluster(dask_cluster):
 def sequential(tmp_path_factory):
     """Frames and results made in this process, the reference for every cluster run."""
     root = tmp_path_factory.mktemp("seq")
-    render_scene("synthetic_box", out_root=root / "data", **{**SYNTH, "viewpoints": 4})
-    evaluate(root / "data", root / "results", get_methods(EXACT_METHODS), report=False, progress=False)
+    render_scene("synthetic_box", out_root=root / "data", ctx=QUIET, **{**SYNTH, "viewpoints": 4})
+    evaluate(root / "data", root / "results", get_methods(EXACT_METHODS), report=False, ctx=QUIET)
     return root
 
 
@@ -101,13 +102,15 @@ def test_render_and_evaluate_on_an_external_scheduler_equal_a_sequential_run(clu
     address, worker_pids = cluster
     opts = ClusterOptions(scheduler=address)
     data = tmp_path / "data"
-    dirs = render_scene("synthetic_box", out_root=data, cluster=opts, **{**SYNTH, "viewpoints": 4})
+    dirs = render_scene("synthetic_box", out_root=data, ctx=RunContext(opts, progress=False),
+                        **{**SYNTH, "viewpoints": 4})
     assert [d.name for d in dirs] == ["vp000", "vp001", "vp002", "vp003"]
     assert frame_files(data) == frame_files(sequential / "data")  # byte-identical, frame.json included
     # the frames were rendered by the two worker processes, not here
     ran = {json.loads((d / RENDER_LOG).read_text())["pid"] for d in dirs}
     assert ran <= set(worker_pids) and os.getpid() not in ran
-    evaluate(data, tmp_path / "results", get_methods(EXACT_METHODS), report=False, progress=False, cluster=opts)
+    evaluate(data, tmp_path / "results", get_methods(EXACT_METHODS), report=False,
+             ctx=RunContext(opts, progress=False))
     pd.testing.assert_frame_equal(results_without_seconds(tmp_path / "results"),
                                   results_without_seconds(sequential / "results"), check_exact=True)
     for name in ("regions.csv", "breakdown.csv"):
@@ -122,7 +125,8 @@ def test_render_and_evaluate_on_an_external_scheduler_equal_a_sequential_run(clu
     assert "tri360_render" in prefixes and "tri360_evaluate" in prefixes
     # resumable: a rerun has nothing to do and changes nothing
     before = {p: p.stat().st_mtime_ns for p in data.rglob("frame.json")}
-    render_scene("synthetic_box", out_root=data, cluster=opts, **{**SYNTH, "viewpoints": 4})
+    render_scene("synthetic_box", out_root=data, ctx=RunContext(opts, progress=False),
+                 **{**SYNTH, "viewpoints": 4})
     assert {p: p.stat().st_mtime_ns for p in data.rglob("frame.json")} == before
 
 
@@ -156,13 +160,14 @@ def test_a_worker_killed_mid_run_costs_only_a_retry(cluster, sequential, tmp_pat
         c.register_plugin(KillOnce(str(marker), f"tri360_{job}-"), name="kill-once")
         try:
             if job == "render":
-                dirs = render_scene("synthetic_box", out_root=data, cluster=opts, **{**SYNTH, "viewpoints": 4})
+                dirs = render_scene("synthetic_box", out_root=data, ctx=RunContext(opts, progress=False),
+                                    **{**SYNTH, "viewpoints": 4})
                 assert len(dirs) == 4 and len(set(dirs)) == 4
                 assert frame_files(data) == frame_files(sequential / "data")  # all frames, each complete once
                 assert hidden_entries(data) == []  # the killed worker's half-written frame was cleaned up
             else:
-                evaluate(data, tmp_path / "results", get_methods(EXACT_METHODS), report=False, progress=False,
-                         cluster=opts)
+                evaluate(data, tmp_path / "results", get_methods(EXACT_METHODS), report=False,
+                         ctx=RunContext(opts, progress=False))
                 got = results_without_seconds(tmp_path / "results")
                 assert len(got) == 4 * len(EXACT_METHODS)
                 assert not got.duplicated(["scene", "viewpoint", "method"]).any()
@@ -195,7 +200,7 @@ def test_local_cluster_listens_on_loopback_only_and_renders_the_same_frames(sequ
         assert listening, "the LocalCluster listens nowhere?"
         assert {ip for ip, _ in listening} == {"127.0.0.1"}, listening
         assert ex.client.scheduler.address.startswith("tcp://127.0.0.1:")
-        render_scene("synthetic_box", out_root=data, executor=ex, **{**SYNTH, "viewpoints": 2})
+        render_scene("synthetic_box", out_root=data, ctx=RunContext(ex, progress=False), **{**SYNTH, "viewpoints": 2})
         worker_pids = set(ex.client.run(os.getpid).values())
     assert {json.loads((d / RENDER_LOG).read_text())["pid"] for d in data.glob("*/*")} <= worker_pids
     seq = {k: v for k, v in frame_files(sequential / "data").items() if k.split("/")[1] in ("vp000", "vp001")}
@@ -248,7 +253,8 @@ def test_tls_cluster_accepts_certified_clients_and_refuses_others(sequential, tm
         opts = ClusterOptions(**{**opts.__dict__, "scheduler": address})
         wait_for_workers(address, 1, security=security_for(opts))
         data = tmp_path / "data"
-        render_scene("synthetic_box", out_root=data, cluster=opts, **{**SYNTH, "viewpoints": 1})
+        render_scene("synthetic_box", out_root=data, ctx=RunContext(opts, progress=False),
+                     **{**SYNTH, "viewpoints": 1})
         seq = {k: v for k, v in frame_files(sequential / "data").items() if k.split("/")[1] == "vp000"}
         assert frame_files(data) == seq
         # no certificate at all: refused by tri360 before connecting, and by the scheduler when forced
@@ -262,8 +268,8 @@ def test_tls_cluster_accepts_certified_clients_and_refuses_others(sequential, tm
         intruder = ClusterOptions(scheduler=address, tls_ca=Path(other["ca"]), tls_cert=Path(other["cert"]),
                                   tls_key=Path(other["key"]), connect_timeout_s=5)
         with pytest.raises(UserError, match="cannot connect to the Dask scheduler"):
-            render_scene("synthetic_box", out_root=tmp_path / "intruder", cluster=intruder,
-                          **{**SYNTH, "viewpoints": 1})
+            render_scene("synthetic_box", out_root=tmp_path / "intruder", ctx=RunContext(intruder, progress=False),
+                         **{**SYNTH, "viewpoints": 1})
         assert not (tmp_path / "intruder" / "synthetic_box" / "vp000").exists()
 
 
@@ -288,7 +294,8 @@ def test_unreachable_scheduler_is_one_clear_error(tmp_path):
         port = s.getsockname()[1]
     opts = ClusterOptions(scheduler=f"tcp://127.0.0.1:{port}", connect_timeout_s=3)
     with pytest.raises(UserError, match="cannot connect to the Dask scheduler"):
-        render_scene("synthetic_box", out_root=tmp_path / "d", cluster=opts, **{**SYNTH, "viewpoints": 1})
+        render_scene("synthetic_box", out_root=tmp_path / "d", ctx=RunContext(opts, progress=False),
+                     **{**SYNTH, "viewpoints": 1})
     assert not (tmp_path / "d" / "synthetic_box").exists()
 
 
@@ -296,9 +303,10 @@ def test_unreachable_scheduler_is_one_clear_error(tmp_path):
 @pytest.mark.cluster
 def test_cycles_renders_on_a_dask_worker_identically(cluster, tmp_path):
     address, worker_pids = cluster
-    kw = {"viewpoints": 1, "width": 64, "samples": 2, "threads": 1, "progress": False}
-    render_scene("box_room", out_root=tmp_path / "seq", **kw)
-    (d,) = render_scene("box_room", out_root=tmp_path / "dask", cluster=ClusterOptions(scheduler=address), **kw)
+    kw = {"viewpoints": 1, "width": 64, "samples": 2, "threads": 1}
+    render_scene("box_room", out_root=tmp_path / "seq", ctx=QUIET, **kw)
+    (d,) = render_scene("box_room", out_root=tmp_path / "dask", **kw,
+                        ctx=RunContext(ClusterOptions(scheduler=address), progress=False))
     assert json.loads((d / RENDER_LOG).read_text())["pid"] in worker_pids
     assert frame_files(tmp_path / "dask") == frame_files(tmp_path / "seq")
 

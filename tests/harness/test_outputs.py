@@ -23,6 +23,7 @@ from harness.data.errors import UserError
 from harness.data.names import check_name, is_safe_name
 from harness.data.outputs import MARKER, check_output, foreign_entries, mark_output, output_kind, read_marker
 from harness.data.predictions import write_method_info, write_prediction
+from harness.runtime.context import QUIET
 from reconstruction.methods.base import MethodOutput
 
 RENDER = ("render", "--scene", "synthetic_box", "--width", "64", "--quiet")
@@ -224,7 +225,7 @@ class Labelled:
 def test_evaluate_never_writes_a_plugin_label_as_a_path(work, label, tmp_path):
     before = contents(tmp_path)
     with pytest.raises(UserError, match="name"):
-        evaluate(work / "data", work / "res", [Labelled(label)], report=False, progress=False)
+        evaluate(work / "data", work / "res", [Labelled(label)], report=False, ctx=QUIET)
     assert contents(tmp_path) == before
 
 
@@ -234,7 +235,7 @@ def test_two_methods_whose_maps_collide_are_refused(work):
 
     a, b = Flowish("one"), Flowish("two")
     with pytest.raises(UserError, match="same map"):
-        evaluate(work / "data", work / "res", [a, b], report=False, progress=False)
+        evaluate(work / "data", work / "res", [a, b], report=False, ctx=QUIET)
 
 
 def test_check_name_rule():

@@ -22,6 +22,7 @@ from harness.cli import main
 from harness.data.errors import UserError
 from harness.render.base import RenderError, RenderSettings
 from harness.render.registry import open_renderer
+from harness.runtime.context import QUIET
 from reconstruction.camera.rig import Rig
 from scenes.model import Box, Material, ModelFile, SceneSpec
 from tests.helpers import render_scene, sigint_default
@@ -178,7 +179,7 @@ def test_worker_survives_sigint_and_renders_several_viewpoints(tmp_path):
 
 
 def test_render_frames_runs_the_renderer_in_a_worker_not_here(tmp_path):
-    render_scene("box_room", out_root=tmp_path, width=64, samples=1, threads=2, progress=False)
+    render_scene("box_room", out_root=tmp_path, width=64, samples=1, threads=2, ctx=QUIET)
     assert "bpy" not in sys.modules
 
 

@@ -18,13 +18,14 @@ from harness.data.frame import read_frame
 from harness.render.base import BaseRenderer, Renderer, RenderSettings, identity, srgb_encode
 from harness.render.raycast import RaycastRenderer
 from harness.render.registry import RENDERER_CLASSES, available_renderers, get_renderer, open_renderer
+from harness.runtime.context import QUIET
 from reconstruction.camera.rig import Rig
 from scenes.model import Box, Material, ModelFile, SceneSpec
 from scenes.registry import SceneEntry, SceneError, discover
 from tests.helpers import render_scene
 
 W = 64  # >= MIN_WIDTH, tiny
-FAST = {"width": W, "progress": False, "renderer": "raycast"}
+FAST = {"width": W, "ctx": QUIET, "renderer": "raycast"}
 
 
 def test_min_width_is_the_measured_flow_minimum():

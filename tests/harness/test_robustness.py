@@ -20,6 +20,7 @@ from harness.commands.parts.perturbations import rotation_about
 from harness.commands.parts.suite import load as load_suite
 from harness.commands.perturb import perturb_frame
 from harness.data.frame import validate_metadata, write_frame
+from harness.runtime.context import QUIET
 from reconstruction.camera.rig import CameraPose
 from reconstruction.methods.registry import get_methods
 from reports.robustness import doubling_level, kind_table, pooled_mae
@@ -83,7 +84,7 @@ def test_files_and_one_row_per_kind_level_method_frame(study):
 
 def test_level_0_is_an_evaluate_of_the_unperturbed_frames(study, source, tmp_path):
     _, out = study
-    ref = evaluate(source, tmp_path / "ref", get_methods([METHOD]), report=False, progress=False)
+    ref = evaluate(source, tmp_path / "ref", get_methods([METHOD]), report=False, ctx=QUIET)
     table = pd.read_csv(out / "robustness.csv")
     zero = table[table.kind == "none"].sort_values("frame")
     ref = ref.sort_values("viewpoint")
@@ -117,7 +118,7 @@ def test_rerun_reuses_every_frame_and_result(study, monkeypatch):
     monkeypatch.setattr(rob, "evaluate", lambda *a, **k: calls.append(("evaluate", a)))
     before = {p: p.stat().st_mtime_ns for d in ("data", "results") for p in (out / d).rglob("*") if p.is_file()}
     assert len(before) > 20
-    table = rob.run_robustness(path, out, progress=False)
+    table = rob.run_robustness(path, out, ctx=QUIET)
     assert calls == []
     assert {p: p.stat().st_mtime_ns for p in before} == before
     pd.testing.assert_frame_equal(table.reset_index(drop=True),
@@ -128,15 +129,15 @@ def test_an_added_level_runs_only_itself_and_a_new_seed_every_perturbed_point_bu
     p = tmp_path / "r.toml"
     p.write_text(STUDY.format(data=source, method=METHOD).replace("noise = [2, 8]\n", "").replace("[1, 5]", "[1]"))
     o = tmp_path / "o"
-    rob.run_robustness(p, o, progress=False)
+    rob.run_robustness(p, o, ctx=QUIET)
     first = {q: q.stat().st_mtime_ns for q in (o / "results").rglob("results.csv")}
     p.write_text(p.read_text().replace("[1]", "[1, 2]"))  # an added level: only that point runs
-    rob.run_robustness(p, o, progress=False)
+    rob.run_robustness(p, o, ctx=QUIET)
     added = {q: q.stat().st_mtime_ns for q in (o / "results").rglob("results.csv")}
     assert {q: t for q, t in added.items() if q in first} == first and o / "results" / "rotation-2" / \
         "results.csv" in added
     p.write_text(p.read_text().replace("seed = 3", "seed = 4"))
-    rob.run_robustness(p, o, progress=False)
+    rob.run_robustness(p, o, ctx=QUIET)
     second = {q: q.stat().st_mtime_ns for q in (o / "results").rglob("results.csv")}
     assert second[o / "results" / "unperturbed" / "results.csv"] == first[o / "results" / "unperturbed" /
                                                                           "results.csv"]
@@ -238,7 +239,7 @@ def test_the_shipped_study_takes_one_dev_frame_per_family_and_its_told_rigs_are_
     assert [family[f] for f in spec.frames] == ["classroom", "seminar", "lab", "corridor", "office", "library"]
     # the defaults, and the earlier defaults fused-gated and fused-adaptive (the study was first measured with the
     # latter; docs/robustness.md)
-    assert spec.methods == (rob.DEFAULT_METHODS[0], "fused-gated", "fused-adaptive", *rob.DEFAULT_METHODS[1:])
+    assert spec.methods == (rob.ROBUSTNESS_METHODS[0], "fused-gated", "fused-adaptive", *rob.ROBUSTNESS_METHODS[1:])
     assert spec.data == Path("data-dev")
     assert all(family_rig.baseline_m == 0.4 and family_rig.tilt_max_rad == 0.0 for family_rig in
                (f.entry.rig for f in suite.frames("dev") if f.label in spec.frames))

@@ -14,6 +14,7 @@ from harness.commands.evaluate import evaluate
 from harness.commands.score import PredictionMethod
 from harness.data.frame import read_frame
 from harness.data.predictions import write_method_info, write_prediction
+from harness.runtime.context import QUIET
 from reconstruction.methods.registry import flow_methods
 
 
@@ -82,7 +83,7 @@ def test_score_matches_an_independent_computation(pred_root, synthetic_root, tmp
 def test_score_and_evaluate_agree_for_a_builtin_method(synthetic_root, tmp_path):
     """A built-in method scored by evaluate and its predictions scored by score give identical rows."""
     (m,) = flow_methods(["oracle"], [True], ["gradient"])
-    direct = evaluate(synthetic_root, tmp_path / "direct", [m], report=False, progress=False)
+    direct = evaluate(synthetic_root, tmp_path / "direct", [m], report=False, ctx=QUIET)
     for vp in ("vp000", "vp001"):
         assert main(["reconstruct", str(synthetic_root / "synthetic_box" / vp), "--method", m.label, "--out",
                      str(tmp_path / "preds"), "--quiet"]) == 0

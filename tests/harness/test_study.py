@@ -19,6 +19,7 @@ from harness.commands.render import plan_render
 from harness.commands.study import grid_points, load_study, point_ids, run_study
 from harness.data.errors import UserError
 from harness.render.base import RenderSettings
+from harness.runtime.context import QUIET
 from reconstruction.methods.registry import get_methods
 from tests.helpers import wait_for_workers
 
@@ -168,7 +169,7 @@ variants = [["average"], ["gradient", "angle"]]
                                  {"baseline": 0.3, "variants": ["gradient", "angle"]},
                                  {"baseline": 0.5, "variants": ["average"]},
                                  {"baseline": 0.5, "variants": ["gradient", "angle"]}]
-    table = run_study(study, tmp_path / "out", progress=False)
+    table = run_study(study, tmp_path / "out", ctx=QUIET)
     assert len(table) == 2 * (1 + 2)  # baselines x methods of each variants value, one frame
     assert len(list((tmp_path / "out" / "data").iterdir())) == 2  # one data root per baseline, shared by variants
     assert len(list((tmp_path / "out" / "results").iterdir())) == 4
@@ -222,7 +223,7 @@ scene = "synthetic_box"
 width = [128, 160]
 method = [["dis-rect:average"], ["oracle-rect:average"]]
 """, encoding="utf-8")
-    table = run_study(study, tmp_path / "out", progress=False)
+    table = run_study(study, tmp_path / "out", ctx=QUIET)
     assert list(table.columns[:2]) == ["width", "grid_method"] and list(table.columns).count("width") == 1
     assert len(table) == 4 and sorted(table.width.unique()) == [128, 160]
     assert set(table.method) == {"dis-rect:average", "oracle-rect:average"}

@@ -14,6 +14,7 @@ from harness.cli import main
 from harness.commands.parts.robustness import is_robustness_study, load_robustness
 from harness.commands.study import load_study, run_study
 from harness.data.errors import UserError
+from harness.runtime.context import QUIET
 from harness.runtime.options import typed_value
 from tests.helpers import render_scene
 
@@ -115,17 +116,17 @@ def test_a_plan_past_the_notice_size_says_frames_and_time_before_it_starts(tmp_p
     monkeypatch.setattr(study_job, "NOTICE_FRAMES", 0)
     study = tmp_path / "one.toml"
     study.write_text(TINY, encoding="utf-8")
-    run_study(study, tmp_path / "out", progress=False)
+    run_study(study, tmp_path / "out", ctx=QUIET)
     first = capsys.readouterr().out.splitlines()[0]
     assert first.startswith("study: 1 grid point(s), 1 frame(s) to render (about ") and "1 evaluation(s)" in first
-    run_study(study, tmp_path / "out", progress=False)  # a rerun renders nothing: no notice
+    run_study(study, tmp_path / "out", ctx=QUIET)  # a rerun renders nothing: no notice
     assert capsys.readouterr().out == ""
 
 
 def test_a_threads_only_change_reuses_the_frames(tmp_path):
     study = tmp_path / "threads.toml"
     study.write_text(TINY + "[grid]\nthreads = [1, 2]\n", encoding="utf-8")
-    table = run_study(study, tmp_path / "out", progress=False)
+    table = run_study(study, tmp_path / "out", ctx=QUIET)
     assert len(table) == 2
     (root,) = (tmp_path / "out" / "data").iterdir()  # one data root: threads change no pixel
     assert len(list(root.rglob("frame.json"))) == 1
@@ -136,7 +137,7 @@ def test_a_threads_only_change_reuses_the_frames(tmp_path):
 def test_a_study_mismatch_says_what_to_do_not_force(tmp_path, capsys):
     study = tmp_path / "one.toml"
     study.write_text(TINY, encoding="utf-8")
-    run_study(study, tmp_path / "out", progress=False)
+    run_study(study, tmp_path / "out", ctx=QUIET)
     (meta,) = (tmp_path / "out" / "data").rglob("frame.json")
     frame = json.loads(meta.read_text())
     frame["renderer"]["scene"]["code_version"] = "sha256:0000"  # as if an older tri360 had rendered it
@@ -171,5 +172,5 @@ def test_shipped_studies_are_typed_and_valid():
 
 def test_settings_type_errors_are_one_line_for_library_callers(tmp_path):
     with pytest.raises(UserError, match="^width must be an integer, got 128.0$"):
-        render_scene("synthetic_box", out_root=tmp_path, width=128.0, progress=False)
+        render_scene("synthetic_box", out_root=tmp_path, width=128.0, ctx=QUIET)
     assert not any(tmp_path.iterdir())

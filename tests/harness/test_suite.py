@@ -24,6 +24,7 @@ from harness.data.frame import read_frame
 from harness.data.predictions import write_prediction
 from harness.data.results import read_results
 from harness.data.suite import load_suite, suite_id
+from harness.runtime.context import QUIET
 from reconstruction.camera.equirect import bearing_grid, project
 from reconstruction.methods.registry import get_methods
 from reports.tables import leaderboard_markdown, leaderboard_table
@@ -163,18 +164,18 @@ def _frame_files(root: Path) -> dict[str, tuple[int, bytes]]:
 
 def test_render_suite_is_resumable(tmp_path, mini):
     root = tmp_path / "data"
-    dirs = render_suite(mini, "dev", root, progress=False)
+    dirs = render_suite(mini, "dev", root, ctx=QUIET)
     assert [d.relative_to(root).as_posix() for d in dirs] == ["synthetic_box-s11/vp000", "synthetic_box-s11/vp001",
                                                               "box_room-s12/vp000"]
     first = _frame_files(root)
     meta = json.loads((root / "box_room-s12" / "vp000" / "frame.json").read_text())
     assert meta["baseline_m"] == 0.3 and abs(meta["renderer"]["rig"]["pitch_rad"]) <= 0.1
     # a rerun renders nothing
-    render_suite(mini, "dev", root, progress=False)
+    render_suite(mini, "dev", root, ctx=QUIET)
     assert _frame_files(root) == first
     # a lost frame is rendered again, byte-identical; the others are kept
     shutil.rmtree(root / "synthetic_box-s11" / "vp001")
-    render_suite(mini, "dev", root, progress=False)
+    render_suite(mini, "dev", root, ctx=QUIET)
     again = _frame_files(root)
     assert again.keys() == first.keys()
     assert all(again[k] == first[k] for k in first if "vp001" not in k)
@@ -182,7 +183,7 @@ def test_render_suite_is_resumable(tmp_path, mini):
     # other settings into the same root: refused, naming the frame and the difference
     other = write(tmp_path, MINI.format(width=66), "other.toml")
     with pytest.raises(UserError, match=r"synthetic_box-s11/vp000 holds a frame rendered with other settings.*width"):
-        render_suite(other, "dev", root, progress=False)
+        render_suite(other, "dev", root, ctx=QUIET)
 
 
 def test_render_suite_cli_refuses_options_the_suite_fixes(tmp_path, mini, capsys):
@@ -199,7 +200,7 @@ def rendered(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("suite")
     path = write(tmp, MINI.format(width=64))
     root = tmp / "data"
-    render_suite(path, "dev", root, progress=False)
+    render_suite(path, "dev", root, ctx=QUIET)
     return path, root
 
 
@@ -227,7 +228,7 @@ def test_evaluate_suite_refuses_a_missing_frame(rendered, tmp_path, capsys):
 
 def test_evaluate_suite_refuses_an_extra_frame(rendered, tmp_path, capsys):
     root = _copy(rendered, tmp_path)
-    render_scene("synthetic_box", out_root=root, width=64, progress=False)
+    render_scene("synthetic_box", out_root=root, width=64, ctx=QUIET)
     err = _refused(capsys, ["evaluate", str(root), "--suite", str(rendered[0]), "--split", "dev", "--out",
                             str(tmp_path / "res"), "--method", "dis-rect:average", "--quiet"])
     assert "synthetic_box/vp000: frame synthetic_box/vp000 is not in suite mini split dev" in err
@@ -242,7 +243,7 @@ def test_evaluate_suite_refuses_a_frame_rendered_with_other_settings(rendered, t
     # the same frames, but box_room rendered with another seed's viewpoints (a frame of another recipe)
     other = write(tmp_path, MINI.format(width=64).replace("tilt_max_rad = 0.1", "tilt_max_rad = 0.05"), "o.toml")
     shutil.rmtree(root / "box_room-s12")
-    render_suite(other, "dev", root, progress=False)
+    render_suite(other, "dev", root, ctx=QUIET)
     err = _refused(capsys, ["evaluate", str(root), "--suite", str(rendered[0]), "--split", "dev", "--out",
                             str(tmp_path / "res"), "--quiet"])
     assert "box_room-s12/vp000: frame box_room-s12/vp000 was not rendered with the settings of suite mini" in err
@@ -259,7 +260,7 @@ def test_evaluate_suite_records_the_suite_and_the_leaderboard_has_family_and_tag
     suite = load(path)
     assert [r.scene for r in check_suite_data(suite, "dev", root)] == ["synthetic_box-s11"] * 2 + ["box_room-s12"]
     out = tmp_path / "res"
-    table = evaluate_suite(root, path, "dev", out, get_methods(["dis-rect:average"]), progress=False)
+    table = evaluate_suite(root, path, "dev", out, get_methods(["dis-rect:average"]), ctx=QUIET)
     assert set(table["suite_id"]) == {suite.id} and set(table["split"]) == {"dev"}
     assert list(table["family"]) == ["box_room", "synthetic_box", "synthetic_box"]
     assert list(table["tags"]) == ["weak_texture", "far;thin", "far;thin"]
@@ -365,7 +366,7 @@ rig = { baseline_m = 0.3, tilt_max_rad = 0.15 }
 def test_cycles_draws_tilted_rigs_with_consistent_ground_truth(tmp_path):
     """A tilted 0.3 m rig drawn by Cycles: C's ground-truth points, projected into U and R with their recorded
     poses, land at U's and R's own ground-truth distance (box_room: no occlusion, so nearly everywhere)."""
-    (d,) = render_suite(write(tmp_path, TILTED_CYCLES), "dev", tmp_path / "data", threads=2, progress=False)
+    (d,) = render_suite(write(tmp_path, TILTED_CYCLES), "dev", tmp_path / "data", threads=2, ctx=QUIET)
     f = read_frame(d)
     assert f.renderer["rig"]["pitch_rad"] != 0.0
     c = f.cameras["C"]

@@ -15,8 +15,8 @@ from reconstruction.methods.registry import (
     DEFAULT_METHOD,
     PRESETS,
     builtin_methods,
-    default_methods,
     discover_methods,
+    evaluate_default_methods,
     flow_methods,
     get_methods,
 )
@@ -34,7 +34,7 @@ def test_builtin_labels_are_stable_and_unique():
                   "oracle-rect:color", "farneback-plain:angle", "fused-gated", "fused-mirror", "fused-adaptive",
                   "fused", "sweep"):
         assert label in labels
-    assert [m.label for m in default_methods()] == [
+    assert [m.label for m in evaluate_default_methods()] == [
         "fused-mirror", "sweep", "dis-rect:average", "dis-rect:angle", "dis-rect:gradient", "dis-rect:color",
         "deepflow-rect:average", "deepflow-rect:angle", "deepflow-rect:gradient", "deepflow-rect:color"]
     # the paper's set-up is DeepFlow as published (DeepMatching, periodic in longitude) on rectified pairs

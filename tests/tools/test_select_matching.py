@@ -9,6 +9,7 @@ import pytest
 
 from harness.commands.parts.suite import render_suite
 from harness.data.outputs import read_marker
+from harness.runtime.context import QUIET
 from tests.harness.test_suite import MINI, write
 from tools.research import select_matching as sel
 
@@ -34,8 +35,8 @@ def test_the_rule_takes_the_lowest_pooled_mae_among_methods_never_worse_than_the
 def test_the_rule_says_when_no_method_meets_the_bound():
     t = table({"sweep": (0.20, 0.10, 0.30), "fused": (0.18, 0.30, 0.10), "x": (0.15, 0.12, 0.12)})
     label, eligible, worst = sel.choose(t)
-    assert (label, eligible) == ("x", False)  # the lowest worst ratio (1.2 against 3.0 of both baselines)
-    with pytest.raises(Exception, match="baselines fused"):
+    assert (label, eligible) == ("x", False)  # the lowest worst ratio (1.2 against 3.0 of both comparison methods)
+    with pytest.raises(Exception, match="comparison methods fused"):
         sel.choose(t.drop(index="fused"))
 
 
@@ -55,8 +56,8 @@ def test_a_candidate_slower_than_fused_over_the_split_is_not_eligible():
 def test_reference_rows_are_never_chosen():
     t = table({"sweep": (0.20, 0.10, 0.30), "fused": (0.18, 0.20, 0.16), "ref": (0.10, 0.09, 0.12),
                "x": (0.15, 0.104, 0.16)})
-    assert sel.choose(t, references=["ref"])[:2] == ("x", True)
-    assert sel.choose(t, references=[])[:2] == ("ref", True)
+    assert sel.choose(t, context=["ref"])[:2] == ("x", True)
+    assert sel.choose(t, context=[])[:2] == ("ref", True)
 
 
 def test_candidates_are_sweep_fused_and_the_fused_variants_sharing_one_flow():
@@ -68,7 +69,7 @@ def test_candidates_are_sweep_fused_and_the_fused_variants_sharing_one_flow():
     assert len(keys) == 1  # one group: the flow once per frame for every fused candidate
 
 
-def test_candidates_can_be_narrowed_to_the_chosen_one_and_the_baselines(tmp_path, capsys):
+def test_candidates_can_be_narrowed_to_the_chosen_one_and_the_comparison_methods(tmp_path, capsys):
     assert [m.label for m in sel.candidate_methods(["fused-gated"])] == ["sweep", "fused", "fused-gated"]
     assert [m.label for m in sel.candidate_methods(["fused"])] == ["sweep", "fused"]
     with pytest.raises(Exception, match=r"unknown candidate\(s\) nope \(candidates: sweep, fused, sweep-walls"):
@@ -82,15 +83,15 @@ def test_candidates_can_be_narrowed_to_the_chosen_one_and_the_baselines(tmp_path
 def test_select_on_a_tiny_suite_split_writes_the_results_and_the_choice(tmp_path, capsys):
     suite = write(tmp_path, MINI.format(width=64))
     root = tmp_path / "data"
-    render_suite(suite, "dev", root, progress=False)
+    render_suite(suite, "dev", root, ctx=QUIET)
     out = tmp_path / "sel"
     assert sel.main([str(root), "--suite", str(suite), "--out", str(out), "--quiet"]) == 0
     printed = capsys.readouterr().out
     chosen = json.loads((out / "selection.json").read_text())
     assert chosen["split"] == "dev" and chosen["suite_id"].startswith("sha256:")
     assert chosen["chosen"] in [m.label for m in sel.candidate_methods()]
-    assert set(chosen["table"]) == {m.label for m in sel.candidate_methods()} | set(sel.REFERENCES)
-    assert chosen["chosen"] not in sel.REFERENCES and chosen["time_tolerance"] == sel.TIME_TOLERANCE
+    assert set(chosen["table"]) == {m.label for m in sel.candidate_methods()} | set(sel.CONTEXT_METHODS)
+    assert chosen["chosen"] not in sel.CONTEXT_METHODS and chosen["time_tolerance"] == sel.TIME_TOLERANCE
     assert all(chosen["table"][m]["seconds"] > 0 for m in chosen["table"])
     assert f"**{chosen['chosen']}**" in (out / "selection.md").read_text() and "Chosen:" in printed
     assert {"selection.md", "selection.json", "results.csv"} <= set(read_marker(out)["entries"])
@@ -99,7 +100,7 @@ def test_select_on_a_tiny_suite_split_writes_the_results_and_the_choice(tmp_path
     assert sel.main([str(root), "--suite", str(suite), "--out", str(out), "--quiet",
                      "--candidates", "fused-gated"]) == 0
     rerun = json.loads((out / "selection.json").read_text())
-    assert set(rerun["table"]) == {"sweep", "fused", "fused-gated", *sel.REFERENCES}
+    assert set(rerun["table"]) == {"sweep", "fused", "fused-gated", *sel.CONTEXT_METHODS}
     other = tmp_path / "mine"
     other.mkdir()
     (other / "notes.txt").write_text("keep")

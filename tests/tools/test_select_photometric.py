@@ -9,13 +9,19 @@ import pytest
 from harness.data.errors import UserError
 from reconstruction.methods.registry import MIRROR_INTENSITY_WEIGHT, mirror_method, uncalibrated
 from reconstruction.photometry import NO_CALIBRATION
-from tools.research.select_photometric import CANDIDATES, REFERENCE, candidate_methods, choose, condition_table
+from tools.research.select_photometric import (
+    CANDIDATES,
+    UNCALIBRATED_DEFAULT,
+    candidate_methods,
+    choose,
+    condition_table,
+)
 
 # method -> (ideal MAE, captured MAE) per family (two frames per family and condition, 1000 pixels each)
 MAE = {
     "sweep": {"a": (0.30, 0.33), "b": (0.20, 0.22)},
     "fused": {"a": (0.25, 0.27), "b": (0.30, 0.30)},
-    REFERENCE: {"a": (0.20, 2.00), "b": (0.20, 1.00)},
+    UNCALIBRATED_DEFAULT: {"a": (0.20, 2.00), "b": (0.20, 1.00)},
     "fused-mirror-i1": {"a": (0.20, 0.23), "b": (0.21, 0.25)},  # ideal b 1.05 x the better baseline (0.20): ok
     "fused-mirror-i0.5": {"a": (0.19, 0.25), "b": (0.19, 0.20)},  # captured a 1.32 x its ideal: not eligible
     "fused-mirror-i0.25": {"a": (0.22, 0.23), "b": (0.20, 0.21)},  # ideal a 1.1 x the reference: not eligible
@@ -56,16 +62,16 @@ def test_no_eligible_candidate_gives_the_lowest_worst_ratio():
 
 def test_missing_reference_or_condition_is_refused():
     df = results()
-    with pytest.raises(UserError, match=REFERENCE):
-        choose(condition_table(df[df["method"] != REFERENCE]))
+    with pytest.raises(UserError, match=UNCALIBRATED_DEFAULT):
+        choose(condition_table(df[df["method"] != UNCALIBRATED_DEFAULT]))
     with pytest.raises(UserError, match="captured"):
         choose(condition_table(df[df["condition"] == "ideal"]))
 
 
 def test_candidates_and_the_reference():
     methods = {m.label: m for m in candidate_methods()}
-    assert list(methods)[:3] == ["sweep", "fused", REFERENCE] and set(CANDIDATES) <= set(methods)
-    raw = methods[REFERENCE]
+    assert list(methods)[:3] == ["sweep", "fused", UNCALIBRATED_DEFAULT] and set(CANDIDATES) <= set(methods)
+    raw = methods[UNCALIBRATED_DEFAULT]
     assert raw.flow.photometric == NO_CALIBRATION and raw.sweep.photometric == NO_CALIBRATION
     assert raw.sweep.cost.intensity_weight == 1.0 and raw.quality_flow.photometric == NO_CALIBRATION
     assert methods["fused-mirror-i0.25"].sweep.cost.intensity_weight == 0.25

@@ -18,6 +18,7 @@ from harness.data import jsonio
 from harness.data.frame import write_frame
 from harness.data.outputs import read_marker
 from harness.render.raycast import render_frame
+from harness.runtime.context import QUIET
 from reconstruction.methods.registry import fused_method
 from reconstruction.methods.sweep import SweepMethod
 from reconstruction.quality import CALIBRATION_THRESHOLD, FACTORS, UNCERTAINTY_FACTORS
@@ -111,7 +112,7 @@ def results(data):
     """A results set of ``evaluate`` holding ``sweep`` under another label and a sweep of another configuration."""
     out = data.parent / "res"
     other = dataclasses.replace(SweepMethod(), pairs=("U",), label="sweep-u")
-    evaluate(data, out, [SweepMethod(label="sweep-b"), other], report=False, progress=False)
+    evaluate(data, out, [SweepMethod(label="sweep-b"), other], report=False, ctx=QUIET)
     return out
 
 
@@ -269,7 +270,7 @@ def test_a_fused_method_ranks_with_its_flow_as_reference(data, tmp_path, capsys)
     assert np.isfinite(ran["rho:factors:" + "*".join(UNCERTAINTY_FACTORS)]).all()
     fused = fused_method()
     res = tmp_path / "res-fused"
-    evaluate(data, res, [fused, fused.flow], report=False, progress=False, scenes=["box_room"])
+    evaluate(data, res, [fused, fused.flow], report=False, ctx=QUIET, scenes=["box_room"])
     reused = tmp_path / "val-fused-reused"
     code, _, err = _run(capsys, data, "--method", "fused", "--out", reused, "--results", res, "--frames", "1",
                         "--calibration-frames", "0", "--quiet")
@@ -278,7 +279,7 @@ def test_a_fused_method_ranks_with_its_flow_as_reference(data, tmp_path, capsys)
     for col in ("rho:uncertainty", "rho:disagreement"):
         np.testing.assert_allclose(again[col], ran[col], rtol=0, atol=1e-6, err_msg=col)
     alone = tmp_path / "res-alone"
-    evaluate(data, alone, [fused], report=False, progress=False, scenes=["box_room"])
+    evaluate(data, alone, [fused], report=False, ctx=QUIET, scenes=["box_room"])
     code, _, err = _run(capsys, data, "--method", "fused", "--out", tmp_path / "v3", "--results", alone,
                         "--frames", "1", "--calibration-frames", "0", "--quiet")
     assert code == 2 and err.count("\n") == 1 and repr(fused.flow.label) in err and "reference" in err

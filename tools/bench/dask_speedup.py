@@ -27,6 +27,7 @@ from pathlib import Path
 from harness.commands.render import RENDER_LOG, render_frames
 from harness.render.base import RenderSettings
 from harness.runtime.cluster import ClusterOptions
+from harness.runtime.context import RunContext
 from harness.runtime.executor import DaskExecutor
 from tools.common import goals_status
 
@@ -41,7 +42,7 @@ def time_render(workers: int, root: Path, scene: str, frames: int, width: int, s
         ex.client.wait_for_workers(workers, timeout=120)
         t0 = time.perf_counter()
         render_frames(RenderSettings(width=width, samples=samples, threads=threads), scene, viewpoints=frames,
-                      out_root=root, progress=False, executor=ex)
+                      out_root=root, ctx=RunContext(ex, progress=False))
         return time.perf_counter() - t0
 
 

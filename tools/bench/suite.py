@@ -3,13 +3,14 @@
 Run as ``python -m tools.bench.suite`` (part of ``make bench``; goal: ratio <= 1, the exit status is 1 when it
 is not met).  Both are timed the same way, in this process, one after the other: open the renderer on the scene
 (for Cycles: start the worker, build the scene), render the three cameras, close it (nothing is written); the
-reference is ``tri360 render``'s default frame (``classroom``, its default preset and seed, viewpoint ``vp000``,
-every render default), the suite frames are those of ``--split`` (default ``dev``) with the suite's settings.
+default render frame is ``tri360 render``'s default frame (``classroom``, its default preset and seed, viewpoint
+``vp000``, every render default), the suite frames are those of ``--split`` (default ``dev``) with the suite's settings.
 
 By default one frame per family is timed (the first viewpoint of the family's first group in the split: 7 frames on
 ``tri360-v1`` dev), since the whole split takes about an hour; ``--all`` times every frame.  ``--width W`` renders
-the reference and the suite frames at W instead (a quick check of the machinery, e.g. on a 2-frame suite; the ratio
-is then not the goal's).  ``--threads`` as for ``tri360 render``.  Only meaningful on an otherwise idle machine.
+the default render frame and the suite frames at W instead (a quick check of the machinery, e.g. on a 2-frame
+suite; the ratio is then not the goal's).  ``--threads`` as for ``tri360 render``.  Only meaningful on an otherwise
+idle machine.
 """
 
 from __future__ import annotations
@@ -35,7 +36,7 @@ from scenes.model import choose_viewpoints
 from scenes.registry import get_scene
 from tools.common import goals_status
 
-__all__ = ["GOAL_RATIO", "time_frame", "reference_frame", "main"]
+__all__ = ["GOAL_RATIO", "time_frame", "default_render_frame", "main"]
 
 GOAL_RATIO = 1.0
 DEFAULT_SUITE = Path("suites/tri360-v1.toml")
@@ -49,7 +50,7 @@ def time_frame(renderer: str, spec, settings, rig) -> float:
     return time.perf_counter() - t0
 
 
-def reference_frame(width: int | None = None, threads: int = 0):
+def default_render_frame(width: int | None = None, threads: int = 0):
     """``(renderer, spec, settings, rig)`` of ``tri360 render``'s default frame (optionally at another width)."""
     entry, preset = get_scene(DEFAULT_SCENE)
     spec = entry.build_spec(preset, DEFAULTS.seed)
@@ -86,9 +87,10 @@ def main(argv: list[str] | None = None) -> int:
     width = args.width or int(suite.render["width"])
     print(f"suite render bench: {suite.name} ({suite.id}) split {args.split}, {len(planned)} frame(s) at "
           f"{width}x{width // 2}, {os.cpu_count()} cores", flush=True)
-    ref = reference_frame(args.width, args.threads)
-    t_ref = time_frame(*ref)
-    print(f"  reference: default {DEFAULT_SCENE} frame at {ref[2].width}x{ref[2].height}: {t_ref:.1f} s "
+    default = default_render_frame(args.width, args.threads)
+    t_default = time_frame(*default)
+    print(f"  reference: default {DEFAULT_SCENE} frame at {default[2].width}x{default[2].height}: "
+          f"{t_default:.1f} s "
           f"(load average before the next: {os.getloadavg()[0]:.1f})", flush=True)
     times = []
     for p in planned:
@@ -97,10 +99,10 @@ def main(argv: list[str] | None = None) -> int:
         times.append(t)
         print(f"  {p.frame.label} ({p.frame.entry.family}, {p.renderer}): {t:.1f} s", flush=True)
     median = statistics.median(times)
-    ratio = median / t_ref
+    ratio = median / t_default
     ok = ratio <= GOAL_RATIO
     print(f"suite render: median frame {median:.1f} s ({min(times):.1f}-{max(times):.1f} s over {len(times)} "
-          f"frames) / default {DEFAULT_SCENE} frame {t_ref:.1f} s = ratio {ratio:.2f} "
+          f"frames) / default {DEFAULT_SCENE} frame {t_default:.1f} s = ratio {ratio:.2f} "
           f"[{'ok' if ok else 'NOT MET'}: goal <= {GOAL_RATIO:.0f}]", flush=True)
     return goals_status([ok])
 

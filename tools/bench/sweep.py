@@ -1,15 +1,15 @@
 """Benchmark of the sweep-based methods: time of each stage at 1000x500 (median of 3 runs), the whole method's
 time, and peak memory (RSS) at 1000x500 and 4000x2000, each run in a child process; beside it the same at
-1000x500 for a baseline method, measured in the same run, and the goals.
+1000x500 for a comparison method, measured in the same run, and the goals.
 
-    python -m tools.bench.sweep [--runs 3] [--big-width 4000] [--method LABEL] [--baseline LABEL|none]
+    python -m tools.bench.sweep [--runs 3] [--big-width 4000] [--method LABEL] [--compare-with LABEL|none]
 
 ``--method`` is any registered label (default: the default method) or a fused method's label with ``-raw``
-(:func:`reconstruction.methods.registry.uncalibrated`: no photometric self-calibration); ``--baseline`` (default
+(:func:`reconstruction.methods.registry.uncalibrated`: no photometric self-calibration); ``--compare-with`` (default
 ``fused-mirror-raw``, the default's matching without self-calibration) is timed in the same run, one run of each
 in turn, so that both see the same load.  Goals (exit status 1 when one is missed, so ``make bench`` fails): the
-method's median wall time at 1000x500 at most :data:`GOAL_TIME_FACTOR` times the baseline's, and its peak RSS at
-1000x500 at most :data:`GOAL_PEAK_GB`.
+method's median wall time at 1000x500 at most :data:`GOAL_TIME_FACTOR` times the comparison method's, and its peak
+RSS at 1000x500 at most :data:`GOAL_PEAK_GB`.
 
 Each stage is reported as wall seconds and process CPU seconds (all threads): on a shared machine the wall time
 is inflated by other jobs, the CPU time much less.
@@ -36,14 +36,14 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from reconstruction.methods.fused import FusedMethod
+from reconstruction.methods.prior_sweep import PriorSweepMethod
 from reconstruction.methods.registry import DEFAULT_METHOD, get_methods, uncalibrated
 from tools.common import report_goals, synthetic_box_frame
 
 BASE_WIDTH = 1000
 GOAL_PEAK_GB = 1.0  # peak RSS of the method at 1000x500, GB
-GOAL_TIME_FACTOR = 1.2  # the method's median wall time at 1000x500 over the baseline's in the same run
-DEFAULT_BASELINE = f"{DEFAULT_METHOD}-raw"
+GOAL_TIME_FACTOR = 1.2  # the method's median wall time at 1000x500 over the comparison method's in the same run
+DEFAULT_COMPARISON = f"{DEFAULT_METHOD}-raw"
 #: the repository root, where ``python -m tools.bench.sweep`` finds ``tools``
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -52,7 +52,7 @@ def bench_method(label: str):
     """A registered method, or ``<fused label>-raw``: that method without photometric self-calibration."""
     if label.endswith("-raw"):
         base = get_methods([label[:-len("-raw")]])[0]
-        if isinstance(base, FusedMethod):
+        if isinstance(base, PriorSweepMethod):
             return uncalibrated(base)
     return get_methods([label])[0]
 
@@ -101,21 +101,22 @@ def main(argv=None) -> int:
     ap.add_argument("--big-width", type=int, default=4000, help="width of the memory run (0 = skip)")
     ap.add_argument("--method", default=DEFAULT_METHOD,
                     help=f"the method to time, by label (default: {DEFAULT_METHOD}, what `tri360 reconstruct` runs)")
-    ap.add_argument("--baseline", default=DEFAULT_BASELINE,
-                    help=f"method timed in the same run for the time goal (default: {DEFAULT_BASELINE}, the default "
-                         "without photometric self-calibration; 'none' = no baseline)")
+    ap.add_argument("--compare-with", default=DEFAULT_COMPARISON, metavar="LABEL",
+                    help=f"method timed in the same run for the time goal (default: {DEFAULT_COMPARISON}, the default "
+                         "without photometric self-calibration; 'none' = no comparison)")
+    ap.add_argument("--baseline", dest="compare_with", help=argparse.SUPPRESS)  # the option's former spelling
     ap.add_argument("--child", type=int, default=0, help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.child:
         child(args.child, args.runs, args.method)
         return 0
     try:
-        for label in [args.method] + ([args.baseline] if args.baseline != "none" else []):
+        for label in [args.method] + ([args.compare_with] if args.compare_with != "none" else []):
             bench_method(label)
     except ValueError as exc:
         print(f"bench_sweep: {exc}", file=sys.stderr)
         return 2
-    labels = [args.method] + ([args.baseline] if args.baseline not in ("none", args.method) else [])
+    labels = [args.method] + ([args.compare_with] if args.compare_with not in ("none", args.method) else [])
     for label in labels:  # warm-up children: numba compiles (cache=True) once, so timed children measure steady state
         run_child(320, 1, label)
     runs: dict[str, list[dict]] = {label: [] for label in labels}
@@ -144,9 +145,10 @@ def main(argv=None) -> int:
               f"{args.method} peak RSS at {BASE_WIDTH}x{BASE_WIDTH // 2} <= {GOAL_PEAK_GB:g} GB: "
               f"{peak[args.method]:.2f} GB")]
     if len(labels) > 1:
-        t, b = med(args.method, "wall"), med(args.baseline, "wall")
+        t, b = med(args.method, "wall"), med(args.compare_with, "wall")
         goals.append((t <= GOAL_TIME_FACTOR * b,
-                      f"{args.method} at {BASE_WIDTH}x{BASE_WIDTH // 2} at most {GOAL_TIME_FACTOR:g} x {args.baseline} "
+                      f"{args.method} at {BASE_WIDTH}x{BASE_WIDTH // 2} at most {GOAL_TIME_FACTOR:g} x "
+                      f"{args.compare_with} "
                       f"(same run, median wall): {t:.2f} s vs {b:.2f} s ({t / b:.2f} x)"))
     print("goals vs measured:")
     return report_goals(goals)

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from typing import TypeVar
 
 from reconstruction.methods.base import Method
-from reconstruction.methods.fused import FusedMethod, PriorParams
+from reconstruction.methods.prior_sweep import PriorParams, PriorSweepMethod
 from reconstruction.methods.registry import WALL_PLANES, with_photometric
 from reconstruction.photometry import PhotometricParams
 from reconstruction.sweep.planes import PlaneParams
@@ -30,7 +30,7 @@ class MatchingCandidate:
 
     Attributes:
         label: the method's label.
-        prior: the prior weight per pixel (:class:`reconstruction.methods.fused.PriorParams`).
+        prior: the prior weight per pixel (:class:`reconstruction.methods.prior_sweep.PriorParams`).
         planes: the sweep's plane families (:class:`reconstruction.sweep.planes.PlaneParams`); None = ``fused``'s
             (no walls).
         average_prior: the prior is the flow pipeline's unrefined distance (``dis-rect:average``: no LM, so
@@ -42,10 +42,10 @@ class MatchingCandidate:
     planes: PlaneParams | None = None
     average_prior: bool = False
 
-    def method(self, base: FusedMethod, average: Method) -> FusedMethod:
+    def method(self, base: PriorSweepMethod, average: Method) -> PriorSweepMethod:
         """The candidate built on ``base`` (``fused``), ``average`` the ``dis-rect:average`` method."""
         sweep = base.sweep if self.planes is None else dataclasses.replace(base.sweep, planes=self.planes)
-        return FusedMethod(flow=average if self.average_prior else base.flow, sweep=sweep, prior=self.prior,
+        return PriorSweepMethod(flow=average if self.average_prior else base.flow, sweep=sweep, prior=self.prior,
                            label=self.label)
 
 
@@ -64,7 +64,7 @@ class PhotometricCandidate:
     photometric: PhotometricParams
     intensity_weight: float
 
-    def method(self, base: FusedMethod) -> FusedMethod:
+    def method(self, base: PriorSweepMethod) -> PriorSweepMethod:
         """The candidate built on ``base`` (the default's matching, ``mirror_method()``)."""
         m = with_photometric(base, self.photometric, self.label)
         cost = dataclasses.replace(m.sweep.cost, intensity_weight=self.intensity_weight)

@@ -8,9 +8,9 @@ Run as::
 ``DATA_ROOT`` must hold exactly the split's frames (``tri360 render --suite ... --split dev``; checked as for
 ``tri360 evaluate --suite``).  Every candidate of :func:`candidate_methods` runs on every frame, ``sweep`` and
 ``fused`` among them, the flow computed once per frame and the room-bound pass and cost volume once per frame for
-all fused candidates (one group of shared work).  The rest of tri360's DIS pipeline (:data:`REFERENCES`, the
+all fused candidates (one group of shared work).  The rest of tri360's DIS pipeline (:data:`CONTEXT_METHODS`, the
 ``dis-rect`` variants, which share that flow) runs beside them so that the table holds every built-in method
-on the same frames; they are reference rows, not candidates.  ``--workers N`` runs one Dask task per frame on a
+on the same frames; they are context rows, not candidates.  ``--workers N`` runs one Dask task per frame on a
 local cluster of N single-threaded workers (the sweep and the flow are single-threaded, so 2 workers on 2 cores
 take about half the time).  ``DIR`` becomes a results set (``results.csv``, leaderboard,
 ``config.json`` with the suite id and split) plus ``selection.md`` and ``selection.json``: the method x family
@@ -24,11 +24,13 @@ TIME_TOLERANCE`` times ``fused``'s in the same run (the default must not cost mo
 the choice is the eligible candidate with the lowest pooled MAE over the split (when none is eligible: the one
 whose worst family ratio is lowest, and the table says so).  Choose
 on ``dev`` only; run ``--split test`` once, with the chosen method among the candidates, to report it:
-``--candidates fused-gated`` runs that one beside the baselines and the reference rows, so the test run does not
+``--candidates fused-gated`` runs that one beside the comparison methods and the context rows, so the test run does not
 look at the candidates that were not chosen.
 """
 
 from __future__ import annotations
+
+import argparse
 
 from harness.runtime import startup
 
@@ -59,13 +61,14 @@ from reports.tables import leaderboard_table
 from tools.common import run_selection, selection_parser
 from tools.research.candidates import MATCHING
 
-__all__ = ["TOLERANCE", "TIME_TOLERANCE", "BASELINES", "CANDIDATES", "REFERENCES", "candidate_methods", "family_table",
-           "choose", "main"]
+__all__ = ["TOLERANCE", "TIME_TOLERANCE", "COMPARISON_METHODS", "CANDIDATES", "CONTEXT_METHODS", "candidate_methods",
+           "family_table", "choose", "main"]
 
 TOLERANCE = 0.05
 #: a candidate's summed seconds may exceed ``fused``'s by this fraction (0: no slower)
 TIME_TOLERANCE = 0.0
-BASELINES = ("sweep", "fused")
+#: the methods every candidate is compared with: on each family at most ``1 + TOLERANCE`` x the better of them
+COMPARISON_METHODS = ("sweep", "fused")
 DEFAULT_SUITE = Path("suites/tri360-v1.toml")
 
 #: the fused candidates besides the registered ones (:data:`tools.research.candidates.MATCHING`: label -> plane
@@ -74,7 +77,7 @@ CANDIDATES = MATCHING
 
 
 #: built-in methods run beside the candidates for the table, not chosen from: tri360's DIS flow pipeline
-REFERENCES = tuple(f"dis-rect:{v}" for v in DEFAULT_VARIANTS)
+CONTEXT_METHODS = tuple(f"dis-rect:{v}" for v in DEFAULT_VARIANTS)
 
 
 def candidate_methods(only: Sequence[str] | None = None) -> list[Method]:
@@ -85,7 +88,7 @@ def candidate_methods(only: Sequence[str] | None = None) -> list[Method]:
     families).
 
     Args:
-        only: candidate labels to keep (None = all); the :data:`BASELINES` are always kept, first.
+        only: candidate labels to keep (None = all); the :data:`COMPARISON_METHODS` are always kept, first.
     Raises:
         UserError: a label in ``only`` that is not a candidate (the message lists them).
     """
@@ -100,7 +103,7 @@ def candidate_methods(only: Sequence[str] | None = None) -> list[Method]:
     unknown = [x for x in only if x not in known]
     if unknown:
         raise UserError(f"unknown candidate(s) {', '.join(unknown)} (candidates: {', '.join(known)})")
-    return [m for m in out if m.label in BASELINES or m.label in only]
+    return [m for m in out if m.label in COMPARISON_METHODS or m.label in only]
 
 
 def family_table(results: pd.DataFrame) -> pd.DataFrame:
@@ -117,29 +120,29 @@ def family_table(results: pd.DataFrame) -> pd.DataFrame:
 
 
 def choose(table: pd.DataFrame, tolerance: float = TOLERANCE,
-           references: Sequence[str] = REFERENCES,
+           context: Sequence[str] = CONTEXT_METHODS,
            time_tolerance: float | None = TIME_TOLERANCE) -> tuple[str, bool, pd.Series]:
-    """Apply the selection rule to a :func:`family_table`; rows named in ``references`` are never chosen.
+    """Apply the selection rule to a :func:`family_table`; rows named in ``context`` are never chosen.
 
     Args:
         time_tolerance: with a ``seconds`` column, a method is eligible only when its seconds are at most
             ``1 + time_tolerance`` times ``fused``'s; None = no time bound.
     Returns:
         ``(label, eligible, worst)``: the chosen method, whether it meets the bounds (every family, and the time),
-        and per method the worst ratio of its family MAE to the better of the baselines' (dimensionless).
+        and per method the worst ratio of its family MAE to the better of the comparison methods' (dimensionless).
     Raises:
-        UserError: a baseline is missing from the table.
+        UserError: a comparison method is missing from the table.
     """
-    missing = [b for b in BASELINES if b not in table.index]
+    missing = [b for b in COMPARISON_METHODS if b not in table.index]
     if missing:
-        raise UserError(f"selection needs the baselines {', '.join(missing)} in the results")
+        raise UserError(f"selection needs the comparison methods {', '.join(missing)} in the results")
     fams = [c for c in table.columns if c.startswith("mae_family:")]
-    best = table.loc[list(BASELINES), fams].min(axis=0)
+    best = table.loc[list(COMPARISON_METHODS), fams].min(axis=0)
     worst = (table[fams] / best).max(axis=1)
     eligible = worst <= 1.0 + tolerance
     if time_tolerance is not None and "seconds" in table.columns:
         eligible &= table["seconds"] <= table.loc["fused", "seconds"] * (1.0 + time_tolerance)
-    cands = ~table.index.isin(list(references))
+    cands = ~table.index.isin(list(context))
     pool = table[eligible & cands] if (eligible & cands).any() else table.loc[[worst[cands].idxmin()]]
     label = str(pool["mae_m"].idxmin())
     return label, bool(eligible[label]), worst
@@ -157,7 +160,8 @@ def selection_markdown(table: pd.DataFrame, label: str, eligible: bool, worst: p
 
     lines = [f"# Matching selection on {suite}, split {split}", "",
              f"Rule: eligible = MAE on every family at most {1 + tolerance:.2f} x the better of "
-             f"{' and '.join(BASELINES)}, and seconds summed over the frames at most {1 + time_tolerance:.2f} x "
+             f"{' and '.join(COMPARISON_METHODS)}, and seconds summed over the frames at most "
+             f"{1 + time_tolerance:.2f} x "
              "fused's; choice = the eligible method with the lowest pooled MAE.", ""]
     for title, prefix, pooled in (("MAE (m)", "mae_family:", "mae_m"),
                                   ("solid-angle-weighted MAE (m)", "mae_sw_family:", "mae_sw_m")):
@@ -176,16 +180,19 @@ def selection_markdown(table: pd.DataFrame, label: str, eligible: bool, worst: p
 def main(argv: Sequence[str] | None = None) -> int:
     parser = selection_parser(
         "tools.research.select_matching", __doc__.splitlines()[0], DEFAULT_SUITE, "suite file",
-        "run only these candidates beside the baselines (sweep, fused), e.g. the method chosen on dev for the one "
-        "test run (default: every candidate)")
-    parser.add_argument("--no-references", action="store_true",
-                        help=f"run the candidates only, not the reference rows ({', '.join(REFERENCES)})")
+        "run only these candidates beside the comparison methods (sweep, fused), e.g. the method chosen on dev for "
+        "the one test run (default: every candidate)")
+    parser.add_argument("--no-context-rows", action="store_true",
+                        help=f"run the candidates only, not the context rows ({', '.join(CONTEXT_METHODS)})")
+    parser.add_argument("--no-references", dest="no_context_rows", action="store_true",
+                        help=argparse.SUPPRESS)  # the option's former spelling
     args = parser.parse_args(argv)
 
-    def select(cluster) -> tuple[str, dict]:
-        methods = candidate_methods(args.candidates) + ([] if args.no_references else get_methods(list(REFERENCES)))
+    def select(ctx) -> tuple[str, dict]:
+        context = [] if args.no_context_rows else get_methods(list(CONTEXT_METHODS))
+        methods = candidate_methods(args.candidates) + context
         results = evaluate_suite(args.data_root, args.suite, args.split, args.out, methods, report=False,
-                                 progress=not args.quiet, cluster=cluster)
+                                 ctx=ctx)
         table = family_table(results)
         label, eligible, worst = choose(table)
         suite_id = str(results["suite_id"].iloc[0])

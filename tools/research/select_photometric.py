@@ -8,9 +8,10 @@ Run as::
 ``DATA_ROOT`` holds the split's frames under both conditions (``tri360 render --suite suites/tri360-v2.toml
 --split dev``: the rendered frames and their ``captured`` twins), checked as for ``tri360 evaluate --suite``;
 ``--partial`` evaluates whatever frames it holds instead (no suite check: a subset, said so in the output).  Every
-candidate of :func:`candidate_methods` runs on every frame beside the baselines ``sweep`` and ``fused`` and the
-reference ``fused-mirror-raw`` (the default's matching without self-calibration).  ``DIR`` becomes a results set
-plus ``selection.md`` and ``selection.json``: the method x condition x family MAE table and the choice.
+candidate of :func:`candidate_methods` runs on every frame beside the comparison methods ``sweep`` and ``fused``
+and the uncalibrated default ``fused-mirror-raw`` (the default's matching without self-calibration).  ``DIR``
+becomes a results set plus ``selection.md`` and ``selection.json``: the method x condition x family MAE table
+and the choice.
 
 The rule (:func:`choose`), the bounds of the real-cameras issue: a candidate is *eligible* when
 
@@ -49,14 +50,14 @@ from reports.tables import leaderboard_table
 from tools.common import run_selection, selection_parser
 from tools.research.candidates import PHOTOMETRIC
 
-__all__ = ["CAPTURED_POOLED", "CAPTURED_FAMILY", "IDEAL_POOLED", "IDEAL_FAMILY", "BASELINES", "REFERENCE",
-           "CANDIDATES", "candidate_methods", "condition_table", "choose", "main"]
+__all__ = ["CAPTURED_POOLED", "CAPTURED_FAMILY", "IDEAL_POOLED", "IDEAL_FAMILY", "COMPARISON_METHODS",
+           "UNCALIBRATED_DEFAULT", "CANDIDATES", "candidate_methods", "condition_table", "choose", "main"]
 
 CAPTURED = "captured"
 CAPTURED_POOLED, CAPTURED_FAMILY = 1.2, 1.3
 IDEAL_POOLED, IDEAL_FAMILY = 1.03, 1.05
-BASELINES = ("sweep", "fused")
-REFERENCE = "fused-mirror-raw"
+COMPARISON_METHODS = ("sweep", "fused")
+UNCALIBRATED_DEFAULT = "fused-mirror-raw"
 DEFAULT_SUITE = Path("suites/tri360-v2.toml")
 
 #: the candidates (:data:`tools.research.candidates.PHOTOMETRIC`: label -> the self-calibration of the default's
@@ -65,7 +66,7 @@ CANDIDATES = PHOTOMETRIC
 
 
 def candidate_methods(only: Sequence[str] | None = None) -> list[Method]:
-    """The baselines (``sweep``, ``fused``, as registered), the reference ``fused-mirror-raw`` (the default's matching
+    """The comparison methods (``sweep``, ``fused``, as registered), ``fused-mirror-raw`` (the default's matching
     as it was: no self-calibration, intensity weight 1) and one ``fused-mirror`` per :data:`CANDIDATES` entry
     (``only``: these candidates; UserError for an unknown one)."""
     unknown = [x for x in (only or ()) if x not in CANDIDATES]
@@ -112,18 +113,18 @@ def ratios(table: pd.DataFrame) -> pd.DataFrame:
     cap = [f for f in _families(table, CAPTURED) if f in fams]
     out["captured_family"] = pd.concat([table[f"{CAPTURED}:{f}"] / table[f"{IDEAL}:{f}"] for f in cap],
                                        axis=1).max(axis=1) / CAPTURED_FAMILY
-    out["ideal"] = table[IDEAL] / table.loc[REFERENCE, IDEAL] / IDEAL_POOLED
-    best = table.loc[list(BASELINES), [f"{IDEAL}:{f}" for f in fams]].min(axis=0)
+    out["ideal"] = table[IDEAL] / table.loc[UNCALIBRATED_DEFAULT, IDEAL] / IDEAL_POOLED
+    best = table.loc[list(COMPARISON_METHODS), [f"{IDEAL}:{f}" for f in fams]].min(axis=0)
     out["ideal_family"] = (table[[f"{IDEAL}:{f}" for f in fams]] / best).max(axis=1) / IDEAL_FAMILY
     return out
 
 
 def choose(table: pd.DataFrame) -> tuple[str, bool, pd.DataFrame]:
     """The rule of the module doc on a :func:`condition_table`: ``(label, eligible, ratios)``."""
-    missing = [b for b in (*BASELINES, REFERENCE) if b not in table.index]
+    missing = [b for b in (*COMPARISON_METHODS, UNCALIBRATED_DEFAULT) if b not in table.index]
     if missing or IDEAL not in table.columns or CAPTURED not in table.columns:
-        raise UserError(f"selection needs {', '.join([*BASELINES, REFERENCE])} on frames of both conditions "
-                        f"({IDEAL}, {CAPTURED})")
+        raise UserError(f"selection needs {', '.join([*COMPARISON_METHODS, UNCALIBRATED_DEFAULT])} on frames of "
+                        f"both conditions ({IDEAL}, {CAPTURED})")
     r = ratios(table)
     worst = r.max(axis=1)
     cands = table.index.isin(list(CANDIDATES))
@@ -140,9 +141,9 @@ def selection_markdown(table: pd.DataFrame, label: str, eligible: bool, r: pd.Da
 
     lines = [f"# Photometric self-calibration: selection on {where}", "",
              f"Rule: eligible = captured MAE at most {CAPTURED_POOLED} x its ideal MAE pooled and {CAPTURED_FAMILY} x "
-             f"on every family; ideal MAE at most {IDEAL_POOLED} x {REFERENCE}'s pooled and {IDEAL_FAMILY} x the "
-             f"better of {' and '.join(BASELINES)} on every family; choice = the eligible candidate with the lowest "
-             "captured MAE.", ""]
+             f"on every family; ideal MAE at most {IDEAL_POOLED} x {UNCALIBRATED_DEFAULT}'s pooled and "
+             f"{IDEAL_FAMILY} x the better of {' and '.join(COMPARISON_METHODS)} on every family; choice = the "
+             "eligible candidate with the lowest captured MAE.", ""]
     for cond in (IDEAL, CAPTURED):
         fams = _families(table, cond)
         lines += [f"## MAE (m), {cond}", "", "| method | all | " + " | ".join(fams) + " |",
@@ -165,14 +166,15 @@ def selection_markdown(table: pd.DataFrame, label: str, eligible: bool, r: pd.Da
 def main(argv: Sequence[str] | None = None) -> int:
     parser = selection_parser(
         "tools.research.select_photometric", __doc__.splitlines()[0], DEFAULT_SUITE,
-        "suite file (with a captured condition)", f"run only these candidates beside the baselines and {REFERENCE}")
+        "suite file (with a captured condition)",
+        f"run only these candidates beside the comparison methods and {UNCALIBRATED_DEFAULT}")
     parser.add_argument("--partial", action="store_true",
                         help="evaluate the frames DATA_ROOT holds (a subset of the split), without the suite check")
     args = parser.parse_args(argv)
 
-    def select(cluster) -> tuple[str, dict]:
+    def select(ctx) -> tuple[str, dict]:
         methods = candidate_methods(args.candidates)
-        run = dict(report=False, progress=not args.quiet, cluster=cluster)
+        run = dict(report=False, ctx=ctx)
         if args.partial:
             results = evaluate(args.data_root, args.out, methods, **run)
             where_text = f"the frames of {args.data_root} (a subset of {args.suite.name} {args.split}, no suite check)"

@@ -95,6 +95,7 @@ from harness.data.exr import CONFIDENCE_CHANNEL, DISTANCE_CHANNEL, read_float_ma
 from harness.data.outputs import check_output, mark_output, staged_directory
 from harness.data.provenance import software
 from harness.data.results import map_paths, read_config, read_results_set
+from harness.runtime.context import IN_PROCESS, RunContext
 from harness.runtime.progress import progress_bar
 from reconstruction.camera.rig import CAMERA_NAMES
 from reconstruction.methods.base import Method, reference_distance, with_references
@@ -339,7 +340,7 @@ def _check_count(value, option: str, minimum: int) -> int:
 
 def validate_quality(data_root: Path, method_label: str, out: Path, results: Path | None = None,
                      results_label: str | None = None, calibration_frames: int = 10, rotation: float = 0.5,
-                     seed: int = 1, frames: int | None = None, progress: bool = True) -> tuple[dict, str]:
+                     seed: int = 1, frames: int | None = None, ctx: RunContext = IN_PROCESS) -> tuple[dict, str]:
     """Run both checks of the module doc on ``data_root`` and write ``out``.
 
     Everything is checked before the first method runs: the options, the method, the frames and their ground
@@ -397,7 +398,7 @@ def validate_quality(data_root: Path, method_label: str, out: Path, results: Pat
     items: list[FrameValidation] = []
     calib_rows: list[dict] = []
     with staged_directory(out) as stage, progress_bar(len(refs) + len(chosen), "validate", "step",
-                                                      progress) as bar:
+                                                      ctx.progress) as bar:
         for ref in refs:
             key = (ref.scene, ref.viewpoint)
             frame = scorable_frame(ref.path)
@@ -475,7 +476,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         _, text = validate_quality(args.data_root, args.method, args.out, results=args.results,
                                    results_label=args.results_label, calibration_frames=args.calibration_frames,
                                    rotation=args.rotation, seed=args.seed, frames=args.frames,
-                                   progress=not args.quiet)
+                                   ctx=RunContext(progress=not args.quiet))
     except UserError as exc:
         print(f"{PROG}: error: {exc}", file=sys.stderr)
         return 2

@@ -6,7 +6,7 @@ A robustness study is a TOML file that ``tri360 study`` recognises by ``kind = "
     kind = "robustness"
     data = "data-dev"                          # a data root (relative to the current directory)
     frames = ["seminar-s1011/vp000", ...]      # optional: <scene>/<viewpoint> labels; default: every frame
-    method = ["fused", "dis-rect:gradient"]    # optional: default DEFAULT_METHODS
+    method = ["fused", "dis-rect:gradient"]    # optional: default ROBUSTNESS_METHODS
     seed = 1                                   # optional: the perturbations' seed (default 0)
 
     [levels]                                   # per perturbation kind, its levels (level 0 is always run)
@@ -52,18 +52,18 @@ from harness.data.errors import UserError
 from harness.data.frame import find_frames, frame_dir, is_complete, read_frame
 from harness.data.outputs import check_output, ensure_output_dir, mark_output
 from harness.data.results import CONFIG_JSON, RESULTS_CSV, read_frames, read_results
-from harness.runtime.cluster import ClusterOptions, open_executor
+from harness.runtime.context import IN_PROCESS, RunContext
 from harness.runtime.options import MethodSelection, annotations_of, typed_value
 from reports.robustness import NONE_KIND, format_level, kind_table, level_plot, pooled_mae, robustness_markdown
 
-__all__ = ["KIND", "KEYS", "DEFAULT_METHODS", "ORIGINS", "RobustnessSpec", "Point", "is_robustness_study",
+__all__ = ["KIND", "KEYS", "ROBUSTNESS_METHODS", "ORIGINS", "RobustnessSpec", "Point", "is_robustness_study",
            "load_robustness", "plan_points", "run_robustness"]
 
 KIND = "robustness"
 """The ``kind`` key's value that makes a study file a robustness study."""
 KEYS = ("kind", "data", "frames", "method", "seed", "levels")
 """The keys of a robustness study file."""
-DEFAULT_METHODS = ("fused-mirror", "fused", "sweep", "dis-rect:gradient")
+ROBUSTNESS_METHODS = ("fused-mirror", "fused", "sweep", "dis-rect:gradient")
 """The methods when the file names none: the default method (``fused-mirror``), ``fused``, the sweep alone and
 tri360's flow pipeline with the paper's optimised variant.  The paper's set-up (``deepflow-rect:gradient``) can be
 named; it is not a default because DeepFlow as published takes about 50 s per 1000x500 frame."""
@@ -182,7 +182,7 @@ def load_robustness(path: Path) -> RobustnessSpec:
         if len(set(frames)) != len(frames):
             raise UserError(f"{path}: frames: lists a frame twice")
     hint = annotations_of(MethodSelection)["method"]
-    methods = typed_value(raw.get("method", list(DEFAULT_METHODS)), hint, f"{path}: method")
+    methods = typed_value(raw.get("method", list(ROBUSTNESS_METHODS)), hint, f"{path}: method")
     try:
         labels = tuple(m.label for m in MethodSelection(method=methods).methods())
     except UserError as exc:
@@ -269,8 +269,7 @@ def _results_reusable(results: Path, labels: tuple[str, ...], expected: dict[tup
     return seen == set(expected)
 
 
-def run_robustness(study_path: Path, out: Path, cluster: ClusterOptions | None = None,
-                   progress: bool = True) -> pd.DataFrame:
+def run_robustness(study_path: Path, out: Path, ctx: RunContext = IN_PROCESS) -> pd.DataFrame:
     """Run (or resume, or extend) a robustness study into robustness study directory ``out`` (see the module doc).
 
     Returns:
@@ -281,8 +280,7 @@ def run_robustness(study_path: Path, out: Path, cluster: ClusterOptions | None =
             anything ``perturb``/``evaluate`` refuses -- all but the last before anything is written.
     """
     started = time.time()
-    if cluster is not None:
-        cluster.check()
+    ctx.check()
     spec = load_robustness(study_path)
     refs = _select(spec)
     out = Path(out)
@@ -300,28 +298,28 @@ def run_robustness(study_path: Path, out: Path, cluster: ClusterOptions | None =
         [{"kind": p.kind, "level": p.level, "data": f"data/{p.name}", "results": f"results/{p.name}"}
          for p in points]))
     hashes = {(r.scene, r.viewpoint): frame_hash(r.path) for r in refs}
-    if progress:
+    if ctx.progress:
         print(f"robustness: {len(points)} point(s) x {len(refs)} frame(s) x {len(spec.methods)} method(s)",
               flush=True)
     methods = MethodSelection(method=spec.methods).methods()
-    with open_executor(cluster) as ex:
+    with ctx.executor() as ex:
         for p in points:
             data, results = out / "data" / p.name, out / "results" / p.name
             todo = [r for r in refs if not _frame_reusable(frame_dir(data, r.scene, r.viewpoint),
                                                            hashes[(r.scene, r.viewpoint)], spec.seed, p)]
-            if todo and progress:
+            if todo and ctx.progress:
                 what = "copy" if not p.applies else f"perturb {p.kind}={format_level(p.level)}"
                 print(f"robustness: {what} {len(todo)} frame(s) -> {data}", flush=True)
             if todo:  # the point's data root is built whole: every chosen frame (the reusable ones are the same)
                 check_output(data, "data", [r.path for r in refs])
                 perturb_frames([r.path for r in refs], data, p.applies, spec.seed)
             if not todo and _results_reusable(results, spec.methods, hashes, spec.seed, p):
-                if progress:
+                if ctx.progress:
                     print(f"robustness: reuse {results}", flush=True)
                 continue
-            if progress:
+            if ctx.progress:
                 print(f"robustness: evaluate {p.name} -> {results}", flush=True)
-            evaluate(data, results, methods, report=False, progress=progress, executor=ex)
+            evaluate(data, results, methods, report=False, ctx=ctx.on(ex))
     table = _rows(out, points, spec)
     atomic_write_text(out / "robustness.csv", table.to_csv(index=False))
     pooled = pooled_mae(table)

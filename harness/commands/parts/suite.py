@@ -3,8 +3,8 @@
 ``tri360 render --suite suites/tri360-v1.toml --split dev --out data/dev`` renders every frame of the split
 (``harness.data.suite``: family, preset, parameters, seed, viewpoints, rig) into ``<out>/<group name>/vpNNN``,
 with the machinery of every render (``harness.commands.render``): resumable (complete frames rendered with the same
-settings are kept, others refused naming the difference unless ``force``), atomic frames, and with ``cluster``
-one Dask task per frame.
+settings are kept, others refused naming the difference unless ``force``), atomic frames, and on a Dask
+cluster (the run context's) one Dask task per frame.
 
 ``tri360 evaluate DATA --suite FILE --split dev`` (and ``score``) first checks, reading only the ``frame.json``
 files, that the data root holds exactly the split's frames rendered with the suite's settings (the same
@@ -36,7 +36,7 @@ from harness.data.outputs import check_output, ensure_output_dir, mark_output
 from harness.data.suite import IDEAL, Suite, SuiteFrame, load_suite
 from harness.render.base import RenderSettings, identity
 from harness.render.registry import get_renderer
-from harness.runtime.cluster import ClusterOptions
+from harness.runtime.context import IN_PROCESS, RunContext
 from harness.runtime.progress import progress_bar
 from reconstruction.camera.rig import Rig
 from reconstruction.methods.base import Method
@@ -135,8 +135,7 @@ def _stored_differences(d: Path, p: PlannedFrame, suite: Suite) -> list[str]:
 
 
 def render_suite(path: Path, split: str, out_root: Path, threads: int = DEFAULTS.threads, force: bool = False,
-                 progress: bool = True, verbose: bool = False, cluster: ClusterOptions | None = None,
-                 yes: bool = False) -> list[Path]:
+                 ctx: RunContext = IN_PROCESS, yes: bool = False) -> list[Path]:
     """Render every frame of a suite's split into ``out_root`` (resumable); return the frame directories.
 
     A split with more than :data:`harness.commands.study.LIMIT_FRAMES` frames still to render (not complete in
@@ -148,7 +147,8 @@ def render_suite(path: Path, split: str, out_root: Path, threads: int = DEFAULTS
         out_root: the data root (one per split: ``evaluate --suite`` wants exactly the split's frames in it).
         threads: Cycles threads, 0 = all (a machine setting, not part of the suite).
         force: re-render complete frames whatever they were rendered with.
-        cluster: one Dask task per frame (``--workers`` / ``--scheduler``); None = in this process.
+        ctx: where the frames render (one Dask task per frame with ``--workers`` / ``--scheduler``), progress
+            and Blender's log (see :func:`harness.commands.render.render_frames`).
         yes: start a render of more than :data:`~harness.commands.study.LIMIT_FRAMES` frames.
     Raises:
         UserError: too many frames without ``yes``; see :func:`plan`; an existing frame rendered with other
@@ -156,8 +156,7 @@ def render_suite(path: Path, split: str, out_root: Path, threads: int = DEFAULTS
     """
     if threads < 0:
         raise UserError(f"--threads must be >= 0 (0 = all cores), got {threads}")
-    if isinstance(cluster, ClusterOptions):
-        cluster.check()
+    ctx.check()
     suite = load(path)
     todo_count = sum(force or not is_complete(frame_dir(Path(out_root), f.scene, f.viewpoint))
                      for f in suite.frames(split))
@@ -190,10 +189,10 @@ def render_suite(path: Path, split: str, out_root: Path, threads: int = DEFAULTS
         return dirs
     try:
         if rendered_todo:
-            _render(suite, split, rendered_todo, out_root, progress, verbose, cluster)
+            _render(suite, split, rendered_todo, out_root, ctx)
         mark_output(out_root, "data")
         if twins_todo:
-            _derive_twins(suite, split, twins_todo, out_root, progress)
+            _derive_twins(suite, split, twins_todo, out_root, ctx)
     except BaseException:
         for d in created:  # an interrupted first render leaves no empty directories behind
             try:
@@ -204,9 +203,9 @@ def render_suite(path: Path, split: str, out_root: Path, threads: int = DEFAULTS
     return dirs
 
 
-def _derive_twins(suite: Suite, split: str, todo: list[PlannedFrame], out_root: Path, progress: bool) -> None:
+def _derive_twins(suite: Suite, split: str, todo: list[PlannedFrame], out_root: Path, ctx: RunContext) -> None:
     """Write each twin (:func:`harness.commands.parts.captured.captured_twin`) of a rendered frame of ``out_root``."""
-    with progress_bar(len(todo), f"{suite.name} {split}: captured twins", enabled=progress) as bar:
+    with progress_bar(len(todo), f"{suite.name} {split}: captured twins", enabled=ctx.progress) as bar:
         for p in todo:
             src = frame_dir(out_root, p.frame.source.scene, p.frame.viewpoint)
             frame = read_frame(src)
@@ -216,10 +215,9 @@ def _derive_twins(suite: Suite, split: str, todo: list[PlannedFrame], out_root: 
             bar.update(1)
 
 
-def _render(suite: Suite, split: str, todo: list[PlannedFrame], out_root: Path, progress: bool, verbose: bool,
-            cluster) -> None:
+def _render(suite: Suite, split: str, todo: list[PlannedFrame], out_root: Path, ctx: RunContext) -> None:
     items = [RenderItem(p.renderer, p.spec, p.settings, p.rig, p.frame.scene, p.frame.viewpoint) for p in todo]
-    render_items(items, out_root, f"{suite.name} {split}", progress, verbose, cluster)
+    render_items(items, out_root, f"{suite.name} {split}", ctx)
 
 
 def check_suite_data(suite: Suite, split: str, data_root: Path) -> list[FrameRef]:
@@ -253,20 +251,20 @@ def check_suite_data(suite: Suite, split: str, data_root: Path) -> list[FrameRef
 
 
 def evaluate_suite(data_root: Path, path: Path, split: str, out: Path, methods: Sequence[Method],
-                   report: bool = True, progress: bool = True, cluster: ClusterOptions | None = None) -> pd.DataFrame:
+                   report: bool = True, ctx: RunContext = IN_PROCESS) -> pd.DataFrame:
     """:func:`harness.commands.evaluate.evaluate` on a suite's split, after :func:`check_suite_data`; the results
     carry the suite id and split."""
     suite = load(path)
     check_suite_data(suite, split, data_root)
-    return evaluate(data_root, out, methods, report=report, progress=progress, cluster=cluster,
+    return evaluate(data_root, out, methods, report=report, ctx=ctx,
                     suite=suite.describe(split))
 
 
 def score_suite(pred_roots: Sequence[Path], data_root: Path, path: Path, split: str, out: Path,
-                names: Sequence[str] | None = None, report: bool = True, progress: bool = True,
-                cluster: ClusterOptions | None = None) -> pd.DataFrame:
+                names: Sequence[str] | None = None, report: bool = True,
+                ctx: RunContext = IN_PROCESS) -> pd.DataFrame:
     """:func:`harness.commands.score.score` on a suite's split, after :func:`check_suite_data`."""
     suite = load(path)
     check_suite_data(suite, split, data_root)
-    return score(pred_roots, data_root, out, names, report=report, progress=progress, cluster=cluster,
+    return score(pred_roots, data_root, out, names, report=report, ctx=ctx,
                  suite=suite.describe(split))

@@ -1,20 +1,23 @@
-"""The sweep with the flow pipeline's distance as a prior inside SGM (``fused``): tri360's most accurate method.
+"""The flow-prior sweep: the sphere sweep with the flow pipeline's distance as a prior inside SGM
+(:class:`PriorSweepMethod`).  Every ``fused*`` method (``fused``, ``fused-gated``, ``fused-adaptive``, the default
+``fused-mirror``: presets in :mod:`reconstruction.methods.registry`) is one; ``fused-mirror`` is tri360's most
+accurate method.
 
 The flow pipeline (DIS on rectified pairs + the ``gradient`` LM variant) matches large structures well (coarse-
 to-fine flow) but blurs edges and is noisy on weak texture; the trinocular sweep is sharp and robust to glossy
 reflections (room bound) but locks onto shifted periods of repeating patterns (tiled floors) where only one pair
-sees texture.  ``fused`` adds the flow's evidence to the sweep's cost volume before aggregation: every sphere label
-``i`` of pixel p costs ``weight * min(|i - l_flow(p)|, truncate_levels)`` more (``l_flow`` = the flow distance's
-fractional label), then the plane labels, SGM, winner, confidence and median run as in ``sweep``.  Measured in
-docs/matching.md.
+sees texture.  The flow-prior sweep adds the flow's evidence to the sweep's cost volume before aggregation: every
+sphere label ``i`` of pixel p costs ``weight * min(|i - l_flow(p)|, truncate_levels)`` more (``l_flow`` = the flow
+distance's fractional label), then the plane labels, SGM, winner, confidence and median run as in ``sweep``.
+Measured in docs/matching.md.
 
 The weight can follow where the flow is trustworthy instead of being one constant (:class:`PriorParams`): scaled
 by the flow's confidence (pair support), gated by the local contrast of C's image, by the plain sweep's confidence
 where it disagrees with the flow, and per frame by how much of the frame flow and sweep agree on (the plain sweep
 being the coarse room-bound pass, which runs anyway), so that in rooms and regions where the flow has no evidence
-the sweep's own aggregation decides.  ``fused`` shares the flow
-with the flow-pipeline methods of its configuration (one ``group_key``), and several fused methods of one sweep
-configuration share the room-bound pass and the cost volume (:func:`reconstruction.methods.sweep.sweep_distances`).
+the sweep's own aggregation decides.  A flow-prior sweep shares the flow with the flow-pipeline methods of its
+configuration (one ``group_key``), and several flow-prior sweeps of one sweep configuration share the room-bound
+pass and the cost volume (:func:`reconstruction.methods.sweep.sweep_distances`).
 """
 
 from __future__ import annotations
@@ -27,17 +30,17 @@ import numpy as np
 
 from reconstruction.methods.base import MethodOutput
 from reconstruction.methods.flow_pipeline import FlowMethod, run_flow_group
-from reconstruction.methods.sweep import SgmParams, SweepMethod, sweep_distances
+from reconstruction.methods.sweep import Prior, PriorFromSweep, SgmParams, SweepMethod, sweep_distances
 from reconstruction.sweep.cost import CostParams, gray_float
 
-__all__ = ["PriorParams", "FusedMethod", "fused_sweep", "local_contrast", "prior_weight", "sweep_gate"]
+__all__ = ["PriorParams", "PriorSweepMethod", "default_sweep", "local_contrast", "prior_weight", "sweep_gate"]
 
 
-def fused_sweep() -> SweepMethod:
-    """The sweep configuration of ``fused``: the sweep's defaults, which were chosen with the prior (over the 4
-    classroom frames + synthetic_box, docs/matching.md) and also serve the plain sweep best: a strong +-1-step
-    penalty (P1 120, P2 800), truncation 30 gray levels, 160 labels and pixel-wise costs (no blur, no box filter,
-    gradients weighted 2)."""
+def default_sweep() -> SweepMethod:
+    """The sweep configuration of a flow-prior sweep by default (the ``fused`` preset's): the sweep's defaults,
+    which were chosen with the prior (over the 4 classroom frames + synthetic_box, docs/matching.md) and also serve
+    the plain sweep best: a strong +-1-step penalty (P1 120, P2 800), truncation 30 gray levels, 160 labels and
+    pixel-wise costs (no blur, no box filter, gradients weighted 2)."""
     return SweepMethod(cost=CostParams(), sgm=SgmParams())
 
 
@@ -154,8 +157,10 @@ def sweep_gate(params: PriorParams, flow_m: np.ndarray, sweep_m: np.ndarray, swe
 
 
 @dataclass(frozen=True)
-class FusedMethod:
-    """Flow pipeline -> prior cost in the sweep's volume -> SGM (a :class:`Method`).
+class PriorSweepMethod:
+    """The flow-prior sweep: flow pipeline -> prior cost in the sweep's volume -> SGM (a :class:`Method`).
+
+    Its ``config()`` records ``"kind": "fused"`` (the name ``config.json`` files have always held).
 
     Attributes:
         flow: the flow-pipeline method whose distance is the prior (e.g. ``dis-rect:gradient``).
@@ -170,7 +175,7 @@ class FusedMethod:
     """
 
     flow: FlowMethod
-    sweep: SweepMethod = field(default_factory=fused_sweep)
+    sweep: SweepMethod = field(default_factory=default_sweep)
     prior: PriorParams = field(default_factory=PriorParams)
     label: str = "fused"
     quality_flow: FlowMethod | None = None
@@ -205,11 +210,11 @@ class FusedMethod:
         """Run this method with others of its flow configuration (:func:`run_flow_group`)."""
         return run_flow_group(frame, members, on_stage)
 
-    def run_on_flows(self, frame, members: Sequence[FusedMethod], flow_outputs: dict[str, MethodOutput],
+    def run_on_flows(self, frame, members: Sequence[PriorSweepMethod], flow_outputs: dict[str, MethodOutput],
                      on_stage: Callable[[str], None] | None = None) -> dict[str, MethodOutput]:
-        """Run fused ``members`` given their flows' outputs (by flow label); members of one sweep configuration
-        share the room-bound pass and the cost volume."""
-        by_sweep: dict[str, list[FusedMethod]] = {}
+        """Run flow-prior sweep ``members`` given their flows' outputs (by flow label); members of one sweep
+        configuration share the room-bound pass and the cost volume."""
+        by_sweep: dict[str, list[PriorSweepMethod]] = {}
         for m in members:
             by_sweep.setdefault(repr(m.sweep), []).append(m)
         outs = {}
@@ -221,13 +226,13 @@ class FusedMethod:
                 flow = flow_outputs[m.flow.label]
                 weight = prior_weight(m.prior, frame.images["C"], flow.confidence)
                 if m.prior.needs_plain_sweep:
-                    priors.append(lambda d_s, c_s, m=m, d=flow.distance, w=weight:
-                                  (d, w * sweep_gate(m.prior, d, d_s, c_s), m.prior.truncate_levels))
+                    priors.append(PriorFromSweep(lambda d_s, c_s, m=m, d=flow.distance, w=weight:
+                                                 Prior(d, w * sweep_gate(m.prior, d, d_s, c_s),
+                                                       m.prior.truncate_levels)))
                 else:
-                    priors.append((flow.distance, weight, m.prior.truncate_levels))
-            s = batch[0].sweep
+                    priors.append(Prior(flow.distance, weight, m.prior.truncate_levels))
             align = flow_outputs[batch[0].flow.label].distance  # the correspondences of the self-calibration
-            results = sweep_distances(frame, s.cost, s.planes, s.sgm, s.post, s.pairs, priors, s.photometric, align)
+            results = sweep_distances(frame, batch[0].sweep, priors, align)
             for m, (d, conf, seconds, info) in zip(batch, results, strict=True):
                 flow = flow_outputs[m.flow.label]
                 seconds = {"flow": flow.total_seconds, **{k: v for k, v in seconds.items() if k != "total"}}

@@ -12,19 +12,19 @@ import pytest
 import reconstruction.methods.flow_pipeline as pipeline
 from reconstruction.methods.base import method_groups, run_methods
 from reconstruction.methods.flow_pipeline import flow_confidence, prepare, refine_variant
-from reconstruction.methods.fused import FusedMethod, PriorParams, local_contrast, prior_weight
+from reconstruction.methods.prior_sweep import PriorParams, PriorSweepMethod, local_contrast, prior_weight
 from reconstruction.methods.registry import (
     ADAPTIVE_PRIOR,
     DEFAULT_METHOD,
     GATED_PRIOR,
     adaptive_method,
-    default_methods,
+    evaluate_default_methods,
     flow_methods,
     fused_method,
     gated_method,
     mirror_method,
 )
-from reconstruction.methods.sweep import sweep_distance, sweep_distances
+from reconstruction.methods.sweep import Prior, sweep_distance, sweep_distances
 from reconstruction.photometry import NO_CALIBRATION
 from reconstruction.refine.lm import get_variant
 from reconstruction.sweep.planes import add_prior
@@ -32,7 +32,7 @@ from tests.helpers import make_synthetic_frame
 from tests.reconstruction.test_sweep import tilted_frame
 
 
-def uncalibrated(m: FusedMethod) -> FusedMethod:
+def uncalibrated(m: PriorSweepMethod) -> PriorSweepMethod:
     """``m`` without photometric self-calibration: the plain sweep then sees exactly the images the fused sweep
     sees (with it, the fused sweep fits the gain field from its prior's correspondences, the plain sweep from its
     coarse pass's)."""
@@ -92,7 +92,7 @@ def test_fused_config_is_json_and_prior_weight_zero_is_the_plain_sweep(frame):
     assert cfg["kind"] == "fused" and cfg["flow"]["label"] == "dis-rect:gradient" and cfg["prior"]["weight"] > 0
     small = make_synthetic_frame(120)
     plain = m.sweep.run(small).distance
-    off = FusedMethod(flow=m.flow, sweep=m.sweep, prior=PriorParams(weight=0.0)).run(small).distance
+    off = PriorSweepMethod(flow=m.flow, sweep=m.sweep, prior=PriorParams(weight=0.0)).run(small).distance
     np.testing.assert_array_equal(plain, off)
     assert cfg["sweep"]["photometric"]["mode"] == "none"
 
@@ -187,15 +187,15 @@ def test_one_cost_volume_for_several_priors_gives_each_prior_its_own_sweep():
     """``sweep_distances`` shares the room-bound pass and the cost volume: each result equals the sweep run alone
     with that prior (within 1 micrometre)."""
     f = make_synthetic_frame(120)
-    s = fused_method().sweep
+    s = dataclasses.replace(fused_method().sweep, photometric=NO_CALIBRATION)
     prior_d = f.distance["C"] * 1.1
-    priors = [None, (prior_d, np.full(prior_d.shape, 16.0, np.float32), 16.0),
-              (prior_d, np.full(prior_d.shape, 64.0, np.float32), 16.0)]
-    shared = sweep_distances(f, s.cost, s.planes, s.sgm, s.post, s.pairs, priors)
+    priors = [None, Prior(prior_d, np.full(prior_d.shape, 16.0, np.float32), 16.0),
+              Prior(prior_d, np.full(prior_d.shape, 64.0, np.float32), 16.0)]
+    shared = sweep_distances(f, s, priors)
     assert len(shared) == 3 and shared[0][3]["copy_seconds"] > 0 and shared[2][3]["copy_seconds"] == 0
     assert shared[1][2].keys() == shared[2][2].keys()  # the copy is the price of sharing: no stage of its own
     for prior, (d, conf, _seconds, _info) in zip(priors, shared, strict=True):
-        alone = sweep_distance(f, s.cost, s.planes, s.sgm, s.post, s.pairs, prior=prior)
+        alone = sweep_distance(f, s, prior=prior)
         np.testing.assert_allclose(d, alone[0], rtol=0, atol=1e-6)
         np.testing.assert_allclose(conf, alone[1], rtol=0, atol=1e-6)
     assert not np.array_equal(shared[0][0], shared[2][0])  # the strong prior changed the result
@@ -206,9 +206,10 @@ def test_default_evaluate_computes_the_flow_once_for_fused_and_the_flow_methods(
     once per frame (one ``reconstruct`` call for fused and the four dis-rect variants), and fused's result is the
     same as alone (within 1 micrometre)."""
     f = make_synthetic_frame(120)
-    methods = [mirror_method(), fused_method(), *(m for m in default_methods() if m.label.startswith("dis-rect:"))]
-    assert default_methods()[0].label == DEFAULT_METHOD == "fused-mirror"
-    extra = FusedMethod(flow=methods[1].flow, prior=PriorParams(use_confidence=True), label="fused-conf")
+    methods = [mirror_method(), fused_method(),
+               *(m for m in evaluate_default_methods() if m.label.startswith("dis-rect:"))]
+    assert evaluate_default_methods()[0].label == DEFAULT_METHOD == "fused-mirror"
+    extra = PriorSweepMethod(flow=methods[1].flow, prior=PriorParams(use_confidence=True), label="fused-conf")
     methods.append(extra)
     assert len(method_groups(methods)) == 1
     calls = []
@@ -234,13 +235,13 @@ def test_default_evaluate_computes_the_flow_once_for_fused_and_the_flow_methods(
 
 def test_a_group_of_two_flow_configurations_is_refused():
     f = make_synthetic_frame(120)
-    other = FusedMethod(flow=flow_methods(["farneback"], [True], ["gradient"])[0], label="fused-farneback")
+    other = PriorSweepMethod(flow=flow_methods(["farneback"], [True], ["gradient"])[0], label="fused-farneback")
     with pytest.raises(ValueError, match="different flow configurations.*fused-farneback"):
         fused_method().run_group(f, [fused_method(), other])
 
 
 def test_sweep_gate_keeps_a_confident_sweep_and_scales_by_the_frames_agreement():
-    from reconstruction.methods.fused import sweep_gate
+    from reconstruction.methods.prior_sweep import sweep_gate
 
     flow = np.full((2, 4), 2.0)
     sweep = np.array([[2.0, 2.05, 3.0, 3.0], [2.0, 2.0, 3.0, 3.0]])  # 4 of 8 agree within 5 %
@@ -260,9 +261,9 @@ def test_a_frame_whose_flow_disagrees_with_the_coarse_sweep_gets_the_plain_sweep
     ramp the prior is off and fused gives exactly the plain sweep; a gate that always passes gives fused."""
     f = make_synthetic_frame(120)
     m = uncalibrated(fused_method())
-    never = FusedMethod(flow=m.flow, sweep=m.sweep, label="never",
+    never = PriorSweepMethod(flow=m.flow, sweep=m.sweep, label="never",
                         prior=PriorParams(frame_agreement_low=0.9995, frame_agreement_high=0.9999))
-    always = FusedMethod(flow=m.flow, sweep=m.sweep, label="always",
+    always = PriorSweepMethod(flow=m.flow, sweep=m.sweep, label="always",
                          prior=PriorParams(frame_agreement_low=-2.0, frame_agreement_high=-1.0))
     outs = run_methods(f, [m, never, always])
     np.testing.assert_allclose(outs["never"].distance, m.sweep.run(f).distance, rtol=0, atol=1e-6)
