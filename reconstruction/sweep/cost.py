@@ -211,8 +211,8 @@ def build_cost_volume(frame, params: CostParams, extra_labels: int = 0, pairs=("
     _sweep_costs(cost, params.levels, other_t, ref, ur, vr, rows, weight, np.float32(params.truncate))
     box = int(params.box_px)
     if box > 1:
-        _box_rows(cost, params.levels, box // 2)
-        _box_cols(cost, params.levels, box // 2, np.float32(1.0 / (box * box)))
+        _box_lines(cost, params.levels, box // 2, True, np.float32(1.0))  # along longitude, which wraps
+        _box_lines(cost.transpose(1, 0, 2), params.levels, box // 2, False, np.float32(1.0 / (box * box)))
     return cost, warps
 
 @numba.njit(parallel=True, cache=True, fastmath=True)
@@ -262,32 +262,19 @@ def _sweep_costs(cost, n_levels, other_t, ref, ur, vr, rows, weight, truncate):
 
 
 @numba.njit(parallel=True, cache=True)
-def _box_rows(cost, n_levels, r):
-    h, w, _ = cost.shape
-    for y in numba.prange(h):
-        tmp = np.empty((w, n_levels), np.int32)
-        for x in range(w):
+def _box_lines(lines, n_levels, r, wrap, norm):
+    """In place: each of the (N, L, n_levels) uint16 ``lines`` (any strides) box-filtered along its axis 1, the sum
+    over the 2 r + 1 neighbours (wrapping around when ``wrap``, else clamped at both ends) times ``norm``, rounded."""
+    n, length, _ = lines.shape
+    for a in numba.prange(n):
+        tmp = np.empty((length, n_levels), np.int32)
+        for b in range(length):
             for i in range(n_levels):
-                tmp[x, i] = cost[y, x, i]
-        for x in range(w):
-            for i in range(n_levels):
-                s = np.int32(0)
-                for dx in range(-r, r + 1):
-                    s += tmp[(x + dx) % w, i]
-                cost[y, x, i] = np.uint16(s)
-
-
-@numba.njit(parallel=True, cache=True)
-def _box_cols(cost, n_levels, r, norm):
-    h, w, _ = cost.shape
-    for x in numba.prange(w):
-        tmp = np.empty((h, n_levels), np.int32)
-        for y in range(h):
-            for i in range(n_levels):
-                tmp[y, i] = cost[y, x, i]
-        for y in range(h):
+                tmp[b, i] = lines[a, b, i]
+        for b in range(length):
             for i in range(n_levels):
                 s = np.int32(0)
-                for dy in range(-r, r + 1):
-                    s += tmp[min(max(y + dy, 0), h - 1), i]
-                cost[y, x, i] = np.uint16(s * norm + 0.5)
+                for d in range(-r, r + 1):
+                    k = (b + d) % length if wrap else min(max(b + d, 0), length - 1)
+                    s += tmp[k, i]
+                lines[a, b, i] = np.uint16(s * norm + 0.5)

@@ -12,7 +12,7 @@ from reconstruction.camera.equirect import bearing_to_pixel, pixel_to_bearing, p
 from reconstruction.camera.resample import rotation_maps
 from reconstruction.camera.rig import CameraPose, yaw_rotation
 from reconstruction.methods.sweep import SweepMethod
-from reconstruction.sweep.cost import CostParams, build_cost_volume, gray_float, prepare_pair, rect_row
+from reconstruction.sweep.cost import CostParams, _box_lines, build_cost_volume, gray_float, prepare_pair, rect_row
 from reconstruction.sweep.sgm import aggregate, winner_take_all
 from scenes.model import choose_viewpoints
 from scenes.registry import get_scene
@@ -298,3 +298,20 @@ def test_the_room_bound_of_the_horizontal_planes_leaves_the_wall_labels_alone():
     bound_costs(cost, levels, np.array([[0.5]]), np.linspace(0.2, 1.0, levels), heights, -1.5, 1.5, 999)
     np.testing.assert_array_equal(cost[0, 0, levels:levels + 4], [999, 0, 0, 999])
     assert not cost[0, 0, levels + heights.size:].any()
+
+
+def test_box_filter_of_cost_slices_is_the_plain_box_mean():
+    """The in-place box filter of the cost volume (box_px 3): the mean over 3 x 3 neighbours, wrapping in longitude
+    and clamped at the poles, rounded; equal to a numpy box within 1 unit (rounding at exact halves)."""
+    rng = np.random.default_rng(3)
+    cost = rng.integers(0, 500, (7, 9, 4)).astype(np.uint16)
+    r = 1
+    rows = sum(np.roll(cost.astype(np.int64), -d, axis=1) for d in range(-r, r + 1))
+    padded = np.concatenate([rows[:1]] * r + [rows] + [rows[-1:]] * r, axis=0)
+    both = sum(padded[r + d:r + d + 7] for d in range(-r, r + 1))
+    expected = np.floor(both / 9.0 + 0.5)
+    got = cost.copy()
+    _box_lines(got, 4, r, True, np.float32(1.0))
+    _box_lines(got.transpose(1, 0, 2), 4, r, False, np.float32(1.0 / 9.0))
+    assert np.abs(got.astype(np.int64) - expected).max() <= 1
+    assert (got.astype(np.int64) == expected).mean() > 0.95
