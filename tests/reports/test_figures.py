@@ -105,7 +105,7 @@ def test_overview_figure_shows_image_prediction_and_error_on_its_own_scale():
     assert titles[0].startswith("input") and titles[1] == "predicted distance: m"
     mae = float(titles[2].split("MAE ")[1].split(" ")[0])
     finite = np.isfinite(gt)
-    err = np.abs(pred - gt)[finite]
+    err = np.abs(pred[finite] - gt[finite])
     expected = (np.nansum(err) + 4.0) / finite.sum()  # the invalid pixel scores error = gt = 4 m
     assert abs(mae - expected) < 1e-3
     err_panel = [ax for ax in fig.axes if ax.get_title().startswith("absolute error")][0]
