@@ -37,7 +37,8 @@ __all__ = ["ENTRY_POINT_GROUP", "DEFAULT_CONFIGS", "DEFAULT_METHOD", "DEFAULT_VA
            "WALL_PLANES", "ADAPTIVE_PRIOR", "GATED_PRIOR", "builtin_methods", "discover_methods", "get_methods",
            "MIRROR_PLANES", "MIRROR_INTENSITY_WEIGHT",
            "flow_methods", "evaluate_default_methods", "fused_method", "adaptive_method", "gated_method",
-           "mirror_method", "Preset", "PRESETS", "RETIRED_PRESETS", "renamed_label_note", "with_photometric", "uncalibrated"]
+           "mirror_method", "Preset", "PRESETS", "RETIRED_PRESETS", "renamed_label_note", "with_photometric",
+           "uncalibrated"]
 
 ENTRY_POINT_GROUP = "tri360.methods"
 #: the paper's set-up: DeepFlow as published (DeepMatching + the DeepFlow energy) on rectified pairs (the baseline
