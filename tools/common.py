@@ -6,6 +6,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 import multiprocessing as mp
 import sys
 import tempfile
@@ -24,7 +25,8 @@ from harness.runtime.context import RunContext
 from scenes.model import choose_viewpoints
 from scenes.registry import get_scene
 
-__all__ = ["SCENE", "goal_line", "goals_status", "report_goals", "synthetic_box_frame", "load_or_render_frame",
+__all__ = ["SCENE", "cell", "user_error", "goal_line", "goals_status", "report_goals", "synthetic_box_frame",
+           "load_or_render_frame",
            "selection_parser", "run_selection"]
 
 # ------------------------------------------------------------------------------------------------------ goals
@@ -47,6 +49,17 @@ def report_goals(goals, out=print) -> int:
     for ok, text in goals:
         out(goal_line(ok, text))
     return goals_status([ok for ok, _ in goals])
+
+
+def cell(x: float) -> str:
+    """A metre or ratio figure in a tool's Markdown table: three decimals, ``-`` when not finite."""
+    return f"{x:.3f}" if math.isfinite(x) else "-"
+
+
+def user_error(prog: str, exc: Exception) -> int:
+    """Print a tool's one line ``<prog>: <message>`` for an anticipated failure on stderr; return exit status 2."""
+    print(f"{prog}: {exc}", file=sys.stderr)
+    return 2
 
 
 # ------------------------------------------------------------------------------------------------ bench frame
@@ -145,7 +158,6 @@ def run_selection(prog: str, args: argparse.Namespace,
         atomic_write_text(args.out / "selection.json", jsonio.dumps(payload))
         mark_output(args.out, "results")
     except UserError as exc:
-        print(f"{prog}: {exc}", file=sys.stderr)
-        return 2
+        return user_error(prog, exc)
     print(text)
     return 0

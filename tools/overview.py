@@ -27,6 +27,7 @@ from harness.data.frame import read_frame
 from harness.data.results import map_paths
 from reconstruction.methods.registry import DEFAULT_METHOD
 from reports.plots import overview_figure, png_bytes
+from tools.common import user_error
 
 PROG = "python -m tools.overview"
 
@@ -56,8 +57,7 @@ def main(argv: list[str] | None = None) -> int:
             raise UserError(f"{args.out}: its folder does not exist")
         atomic_write_bytes(args.out, png)
     except UserError as exc:
-        print(f"{PROG}: {exc}", file=sys.stderr)
-        return 2
+        return user_error(PROG, exc)
     print(f"wrote {args.out}")
     return 0
 

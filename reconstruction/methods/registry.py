@@ -37,7 +37,8 @@ __all__ = ["ENTRY_POINT_GROUP", "DEFAULT_CONFIGS", "DEFAULT_METHOD", "DEFAULT_VA
            "WALL_PLANES", "ADAPTIVE_PRIOR", "GATED_PRIOR", "builtin_methods", "discover_methods", "get_methods",
            "MIRROR_PLANES", "MIRROR_INTENSITY_WEIGHT",
            "flow_methods", "evaluate_default_methods", "fused_method", "adaptive_method", "gated_method",
-           "mirror_method", "Preset", "PRESETS", "renamed_label_note", "with_photometric", "uncalibrated"]
+           "mirror_method", "Preset", "PRESETS", "RETIRED_PRESETS", "renamed_label_note", "with_photometric",
+           "uncalibrated"]
 
 ENTRY_POINT_GROUP = "tri360.methods"
 #: the paper's set-up: DeepFlow as published (DeepMatching + the DeepFlow energy) on rectified pairs (the baseline
@@ -198,18 +199,23 @@ PRESETS = (
            "weighted by C's texture, the sweep's confidence and how much of the frame the two agree on; its room "
            "bound tells a polished floor's mirror image of the ceiling from the floor; its cost weighs intensity "
            "0.25 against gradients 2"),
-    Preset("fused-gated", gated_method,
-           "fused-mirror without the mirror test and with intensity weighted 1: on a polished floor the ceiling's "
-           "mirror image can set the room bound's floor"),
-    Preset("fused-adaptive", adaptive_method,
-           "the sweep over spheres, floor/ceiling and wall planes with the refined dis-rect:gradient distance as SGM "
-           "prior, weighted only by how much of the frame flow and sweep agree on"),
     Preset("fused", fused_method,
            "the sweep over spheres and floor/ceiling planes (no wall planes) with the refined dis-rect:gradient "
            "distance as SGM prior at one constant weight"),
     Preset("sweep", SweepMethod,
            "the trinocular sphere sweep with SGM over spheres and floor/ceiling planes alone: no flow, no prior"),
 )
+
+
+#: named methods that left the built-in list -> what to use instead (``get_methods`` names it in one line); a results
+#: set that ran one keeps its whole configuration in ``config.json``, and :func:`gated_method` /
+#: :func:`adaptive_method` still build them (``tools.research.select_matching`` compares them)
+RETIRED_PRESETS = {
+    "fused-gated": "fused-mirror, which is fused-gated with the room bound's mirror test, a self-calibration and "
+                   "intensity weighted 0.25",
+    "fused-adaptive": "fused-mirror, which gates the same wall-plane sweep's prior by C's texture and the sweep's "
+                      "confidence as well",
+}
 
 
 def builtin_methods() -> list[Method]:
@@ -231,7 +237,11 @@ def discover_methods() -> tuple[dict[str, Method], dict[str, str]]:
 
 def renamed_label_note(label: str) -> str:
     """For a flow-pipeline label whose flow was renamed (:data:`reconstruction.flow.backends.RENAMED_FLOWS`), e.g.
-    ``deepflowdm-rect:gradient``: ``"deepflowdm-rect:gradient is now called deepflow-rect:gradient"``; else ``""``."""
+    ``deepflowdm-rect:gradient``: ``"deepflowdm-rect:gradient is now called deepflow-rect:gradient"``; for a
+    retired named method (:data:`RETIRED_PRESETS`): that it left the built-in methods and what to use instead;
+    else ``""``."""
+    if label in RETIRED_PRESETS:
+        return f"{label} is no longer a built-in method: use {RETIRED_PRESETS[label]}"
     for old, new in RENAMED_FLOWS.items():
         for rect in ("rect", "plain"):
             prefix = f"{old}-{rect}:"

@@ -28,7 +28,7 @@ from dataclasses import replace
 import numpy as np
 
 from reconstruction.camera.rig import yaw_rotation
-from scenes.model import Box, Cylinder, Light, Material, SceneSpec, Sphere
+from scenes.model import Box, Cylinder, Light, Material, SceneSpec, Sphere, param
 
 __all__ = ["CONTRAST_LEVELS", "streams", "uniform", "draw_color", "draw_contrast", "draw_material", "vary_material",
            "kelvin_to_rgb", "draw_light_color", "ceiling_panels", "add_window", "room_shell", "place", "grid",
@@ -341,3 +341,17 @@ def stool_parts(seat: str, legs: str, h: float = 0.65, radius: float = 0.17, leg
         parts.append(Cylinder((0.75 * radius * np.cos(a), 0.75 * radius * np.sin(a), (h - 0.04) / 2), leg / 2,
                               h - 0.04, legs))
     return parts
+
+
+def room_size_param(default: tuple[float, float, float]):
+    """The ``size`` field of a room family's parameters: ``default`` (width x, depth y, height z) of the room
+    interior, metres, before the seed's jitter (:func:`scenes.model.param`)."""
+    return param(default, "(width x, depth y, height z) of the room interior before jitter", unit="m",
+                 limits=(2.0, 100.0))
+
+
+def size_jitter_param(default: float):
+    """The ``size_jitter`` field of a room family's parameters: the relative room-size jitter drawn from the seed,
+    per axis, the height's half of it (:func:`scenes.model.param`)."""
+    return param(default, "relative room-size jitter drawn from the seed, per axis (height: half of it)",
+                 limits=(0.0, 0.5))

@@ -24,10 +24,8 @@ from scenes.model import Box, Cylinder, Material, SceneEntry, SceneParams, Scene
 class LabParams(SceneParams):
     """The laboratory's parameters (``tri360 scenes --params``)."""
 
-    size: tuple[float, float, float] = param((9.0, 7.0, 3.0), "(width x, depth y, height z) of the room interior "
-                                             "before jitter", unit="m", limits=(2.0, 100.0))
-    size_jitter: float = param(0.08, "relative room-size jitter drawn from the seed, per axis (height: half of it)",
-                               limits=(0.0, 0.5))
+    size: tuple[float, float, float] = kit.room_size_param((9.0, 7.0, 3.0))
+    size_jitter: float = kit.size_jitter_param(0.08)
     benches: int = param(2, "rows of lab benches (island benches along x)", limits=(0, 20))
     floor_roughness: tuple[float, float] = param((0.04, 0.15), "(min, max) roughness of the polished floor, "
                                                  "0 = mirror", limits=(0.0, 1.0))

@@ -29,10 +29,8 @@ from scenes.model import Box, Cylinder, SceneEntry, SceneParams, SceneSpec, Sphe
 class LibraryParams(SceneParams):
     """The library's parameters (``tri360 scenes --params``)."""
 
-    size: tuple[float, float, float] = param((12.0, 10.0, 3.2), "(width x, depth y, height z) of the room interior "
-                                             "before jitter", unit="m", limits=(2.0, 100.0))
-    size_jitter: float = param(0.08, "relative room-size jitter drawn from the seed, per axis (height: half of it)",
-                               limits=(0.0, 0.5))
+    size: tuple[float, float, float] = kit.room_size_param((12.0, 10.0, 3.2))
+    size_jitter: float = kit.size_jitter_param(0.08)
     stack_zone: float = param(0.55, "share of the room depth (from the +y wall) given to the book stacks",
                               limits=(0.0, 1.0))
     stack_height: float = param(2.0, "height of a book stack", unit="m", limits=(0.5, 10.0))

@@ -28,10 +28,8 @@ from scenes.model import Box, Cylinder, Light, SceneEntry, SceneParams, SceneSpe
 class LivingRoomParams(SceneParams):
     """The living room's parameters (``tri360 scenes --params``)."""
 
-    size: tuple[float, float, float] = param((6.0, 5.0, 2.6), "(width x, depth y, height z) of the room interior "
-                                             "before jitter", unit="m", limits=(2.0, 100.0))
-    size_jitter: float = param(0.1, "relative room-size jitter drawn from the seed, per axis (height: half of it)",
-                               limits=(0.0, 0.5))
+    size: tuple[float, float, float] = kit.room_size_param((6.0, 5.0, 2.6))
+    size_jitter: float = kit.size_jitter_param(0.1)
     sofa_width: float = param(2.0, "sofa seat width between the arms", unit="m", limits=(0.5, 10.0))
     stools: tuple[int, int] = param((1, 3), "(min, max) number of stools and poufs", limits=(0, 100))
     plants: tuple[int, int] = param((1, 3), "(min, max) number of potted plants", limits=(0, 100))

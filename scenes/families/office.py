@@ -27,10 +27,8 @@ from scenes.model import Box, Cylinder, SceneEntry, SceneParams, SceneSpec, Sphe
 class OfficeParams(SceneParams):
     """The office's parameters (``tri360 scenes --params``)."""
 
-    size: tuple[float, float, float] = param((12.0, 10.0, 2.8), "(width x, depth y, height z) of the room interior "
-                                             "before jitter", unit="m", limits=(2.0, 100.0))
-    size_jitter: float = param(0.08, "relative room-size jitter drawn from the seed, per axis (height: half of it)",
-                               limits=(0.0, 0.5))
+    size: tuple[float, float, float] = kit.room_size_param((12.0, 10.0, 2.8))
+    size_jitter: float = kit.size_jitter_param(0.08)
     desks_per_side: int = param(2, "desks side by side in each half of a cluster (a cluster has twice as many)",
                                 limits=(1, 20))
     aisle: float = param(1.2, "free aisle between clusters (chairs included); as many clusters as fit", unit="m",

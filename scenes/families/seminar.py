@@ -24,10 +24,8 @@ from scenes.model import Box, Cylinder, Material, SceneEntry, SceneParams, Scene
 class SeminarParams(SceneParams):
     """The seminar room's parameters (``tri360 scenes --params``)."""
 
-    size: tuple[float, float, float] = param((7.0, 5.5, 2.8), "(width x, depth y, height z) of the room interior "
-                                             "before jitter", unit="m", limits=(2.0, 100.0))
-    size_jitter: float = param(0.1, "relative room-size jitter drawn from the seed, per axis (height: half of it)",
-                               limits=(0.0, 0.5))
+    size: tuple[float, float, float] = kit.room_size_param((7.0, 5.5, 2.8))
+    size_jitter: float = kit.size_jitter_param(0.1)
     table_radius: float = param(0.8, "radius of the round meeting table", unit="m", limits=(0.2, 10.0))
     chairs: tuple[int, int] = param((6, 9), "(min, max) number of chairs around the table", limits=(0, 100))
     windows: int = param(2, "windows on the -x wall, with daylight", limits=(0, 20))

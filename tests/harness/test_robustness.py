@@ -237,9 +237,7 @@ def test_the_shipped_study_takes_one_dev_frame_per_family_and_its_told_rigs_are_
     suite = load_suite(ROOT / "suites" / "tri360-v1.toml")
     family = {f.label: f.entry.family for f in suite.frames("dev")}
     assert [family[f] for f in spec.frames] == ["classroom", "seminar", "lab", "corridor", "office", "library"]
-    # the defaults, and the earlier defaults fused-gated and fused-adaptive (the study was first measured with the
-    # latter; docs/robustness.md)
-    assert spec.methods == (rob.ROBUSTNESS_METHODS[0], "fused-gated", "fused-adaptive", *rob.ROBUSTNESS_METHODS[1:])
+    assert spec.methods == rob.ROBUSTNESS_METHODS
     assert spec.data == Path("data-dev")
     assert all(family_rig.baseline_m == 0.4 and family_rig.tilt_max_rad == 0.0 for family_rig in
                (f.entry.rig for f in suite.frames("dev") if f.label in spec.frames))

@@ -14,6 +14,7 @@ from reconstruction.methods.flow_pipeline import FlowMethod
 from reconstruction.methods.registry import (
     DEFAULT_METHOD,
     PRESETS,
+    RETIRED_PRESETS,
     builtin_methods,
     discover_methods,
     evaluate_default_methods,
@@ -31,9 +32,13 @@ def test_builtin_labels_are_stable_and_unique():
     labels = [m.label for m in builtin_methods()]
     assert len(labels) == len(set(labels))
     for label in ("dis-rect:gradient", "deepflow-rect:average", "deepflow-plain:average", "deepflow-opencv-plain:color",
-                  "oracle-rect:color", "farneback-plain:angle", "fused-gated", "fused-mirror", "fused-adaptive",
-                  "fused", "sweep"):
+                  "oracle-rect:color", "farneback-plain:angle", "fused-mirror", "fused", "sweep"):
         assert label in labels
+    for label in RETIRED_PRESETS:
+        assert label not in labels
+        with pytest.raises(ValueError) as err:
+            get_methods([label])
+        assert str(err.value) == f"{label} is no longer a built-in method: use {RETIRED_PRESETS[label]}"
     assert [m.label for m in evaluate_default_methods()] == [
         "fused-mirror", "sweep", "dis-rect:average", "dis-rect:angle", "dis-rect:gradient", "dis-rect:color",
         "deepflow-rect:average", "deepflow-rect:angle", "deepflow-rect:gradient", "deepflow-rect:color"]

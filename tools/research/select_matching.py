@@ -41,7 +41,6 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-import numpy as np
 import pandas as pd
 
 from harness.commands.parts.suite import evaluate_suite
@@ -58,7 +57,7 @@ from reconstruction.methods.registry import (
 )
 from reconstruction.methods.sweep import SweepMethod
 from reports.tables import leaderboard_table
-from tools.common import run_selection, selection_parser
+from tools.common import cell, run_selection, selection_parser
 from tools.research.candidates import MATCHING
 
 __all__ = ["TOLERANCE", "TIME_TOLERANCE", "COMPARISON_METHODS", "CANDIDATES", "CONTEXT_METHODS", "candidate_methods",
@@ -155,9 +154,6 @@ def selection_markdown(table: pd.DataFrame, label: str, eligible: bool, worst: p
     fams = [c.split(":", 1)[1] for c in table.columns if c.startswith("mae_family:")]
     time_ratio = table["seconds"] / table.loc["fused", "seconds"]
 
-    def fmt(x) -> str:
-        return f"{x:.3f}" if np.isfinite(x) else "-"
-
     lines = [f"# Matching selection on {suite}, split {split}", "",
              f"Rule: eligible = MAE on every family at most {1 + tolerance:.2f} x the better of "
              f"{' and '.join(COMPARISON_METHODS)}, and seconds summed over the frames at most "
@@ -168,7 +164,7 @@ def selection_markdown(table: pd.DataFrame, label: str, eligible: bool, worst: p
         lines += [f"## {title}", "", "| method | all | " + " | ".join(fams) + " | worst ratio | time / fused |",
                   "|---|" + "---:|" * (len(fams) + 3)]
         for m, row in table.sort_values(pooled).iterrows():
-            cells = [fmt(row[pooled]), *(fmt(row[prefix + f]) for f in fams), f"{worst[m]:.2f}",
+            cells = [cell(row[pooled]), *(cell(row[prefix + f]) for f in fams), f"{worst[m]:.2f}",
                      f"{time_ratio[m]:.2f}"]
             lines.append(f"| {'**' + m + '**' if m == label else m} | " + " | ".join(cells) + " |")
         lines.append("")

@@ -36,7 +36,6 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-import numpy as np
 import pandas as pd
 
 from harness.commands.evaluate import evaluate
@@ -47,7 +46,7 @@ from reconstruction.methods.base import Method
 from reconstruction.methods.registry import fused_method, mirror_method, uncalibrated
 from reconstruction.methods.sweep import SweepMethod
 from reports.tables import leaderboard_table
-from tools.common import run_selection, selection_parser
+from tools.common import cell, run_selection, selection_parser
 from tools.research.candidates import PHOTOMETRIC
 
 __all__ = ["CAPTURED_POOLED", "CAPTURED_FAMILY", "IDEAL_POOLED", "IDEAL_FAMILY", "COMPARISON_METHODS",
@@ -136,9 +135,6 @@ def choose(table: pd.DataFrame) -> tuple[str, bool, pd.DataFrame]:
 
 def selection_markdown(table: pd.DataFrame, label: str, eligible: bool, r: pd.DataFrame, where: str) -> str:
     """The selection as Markdown: per condition the method x family MAE table, the bound ratios and the choice."""
-    def fmt(x) -> str:
-        return f"{x:.3f}" if np.isfinite(x) else "-"
-
     lines = [f"# Photometric self-calibration: selection on {where}", "",
              f"Rule: eligible = captured MAE at most {CAPTURED_POOLED} x its ideal MAE pooled and {CAPTURED_FAMILY} x "
              f"on every family; ideal MAE at most {IDEAL_POOLED} x {UNCALIBRATED_DEFAULT}'s pooled and "
@@ -149,14 +145,14 @@ def selection_markdown(table: pd.DataFrame, label: str, eligible: bool, r: pd.Da
         lines += [f"## MAE (m), {cond}", "", "| method | all | " + " | ".join(fams) + " |",
                   "|---|" + "---:|" * (len(fams) + 1)]
         for m, row in table.sort_values(cond).iterrows():
-            cells = [fmt(row[cond]), *(fmt(row[f"{cond}:{f}"]) for f in fams)]
+            cells = [cell(row[cond]), *(cell(row[f"{cond}:{f}"]) for f in fams)]
             lines.append(f"| {'**' + m + '**' if m == label else m} | " + " | ".join(cells) + " |")
         lines.append("")
     lines += ["## Bounds (ratio to the bound; at most 1 meets it)", "",
               "| method | captured / ideal | worst family | ideal / reference | ideal worst family | seconds |",
               "|---|---:|---:|---:|---:|---:|"]
     for m, row in r.iterrows():
-        lines.append(f"| {m} | " + " | ".join(fmt(x) for x in row) + f" | {table.loc[m, 'seconds']:.1f} |")
+        lines.append(f"| {m} | " + " | ".join(cell(x) for x in row) + f" | {table.loc[m, 'seconds']:.1f} |")
     verdict = "meets every bound" if eligible else "no candidate meets every bound: the lowest worst ratio"
     lines += ["", f"Chosen: `{label}` ({verdict}; captured MAE {table.loc[label, CAPTURED]:.4f} m, ideal "
                   f"{table.loc[label, IDEAL]:.4f} m)."]
