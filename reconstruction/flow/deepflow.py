@@ -33,6 +33,7 @@ boundary, so the whole solver is here (numba for the warp and SOR, numpy for the
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import asdict, dataclass, field
 
 import cv2
@@ -45,9 +46,10 @@ from reconstruction.flow.deepmatching import (
     blur_periodic,
     central_differences,
     deep_matching,
+    deep_matching_both,
 )
 
-__all__ = ["DeepFlowParams", "deep_flow", "match_field", "match_weights"]
+__all__ = ["DeepFlowParams", "deep_flow", "deep_flow_both", "match_field", "match_weights"]
 
 DATANORM = 0.1 * 0.1  # squared normalisation added to |grad I|^2 (grey levels^2 per pixel^2)
 EPS2 = 0.001 * 0.001  # squared epsilon of the robust penaliser
@@ -506,3 +508,30 @@ def deep_flow(img0: np.ndarray, img1: np.ndarray, params: DeepFlowParams | None 
         u, v = _one_level(u.astype(np.float32), v.astype(np.float32), im1, im2, lmu.astype(np.float32),
                           lmv.astype(np.float32), lmw.astype(np.float32), half_beta, p)
     return np.ascontiguousarray(np.dstack([u, v]), np.float32)
+
+
+def deep_flow_both(img0: np.ndarray, img1: np.ndarray, params: DeepFlowParams | None = None,
+                   matches: tuple[Matches, Matches] | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """DeepFlow both ways, ``(flow img0 -> img1, flow img1 -> img0)``, the two solved at once on two threads.
+
+    The solver's kernels are single-threaded and release the GIL, so the two directions of a pair use two cores
+    with no synchronisation between them; each result is that of :func:`deep_flow`.
+
+    Args:
+        img0, img1: (H, W, 3) uint8 RGB (or (H, W) grey) images of the same size.
+        params: :class:`DeepFlowParams` (default: the authors' defaults, equirect wrapping).
+        matches: DeepMatching's ``(matches 0 -> 1, matches 1 -> 0)`` (computed by
+            :func:`~reconstruction.flow.deepmatching.deep_matching_both` if None).
+    Returns:
+        Two (H, W, 2) float32 flows, pixels.
+    """
+    p = params or DeepFlowParams()
+    if img0.shape != img1.shape:
+        raise ValueError(f"deep_flow: images differ in size ({img0.shape} vs {img1.shape})")
+    if matches is None:
+        mp = p.matching if p.matching.wrap == p.wrap else DeepMatchingParams(**{**asdict(p.matching), "wrap": p.wrap})
+        matches = deep_matching_both(img0, img1, mp)
+    with ThreadPoolExecutor(max_workers=2, thread_name_prefix="deepflow") as pool:
+        back = pool.submit(deep_flow, img1, img0, p, matches[1])
+        fwd = deep_flow(img0, img1, p, matches[0])
+        return fwd, back.result()
