@@ -170,20 +170,28 @@ def _level1(d0, d1, cell, step, ndy, ndx, ky, kx, circ, wrapc):
     """Atomic-patch response maps (level 1) at every displacement of the search window.
 
     Args:
-        d0, d1: (H, W, 9) pixel descriptors of both images.
+        d0, d1: (H, W, 9) float32 pixel descriptors of both images (H and W multiples of ``cell``).
         cell: cell spacing, pixels; the patch grid step is 2 * cell, a patch's cells sit at offsets
             cell * (k - 1.5), k = 0..3, from its centre (centres at multiples of ``step``).
         ndy, ndx: size of the displacement window; displacement index a <-> dy = a - ky, b <-> dx = b - kx
             (``circ``: dx = b - kx taken modulo W, the window covering every column).
+        wrapc: columns are periodic (cells and displacements wrap); else cells are clamped to the image and a
+            cell displaced out of image 1 correlates 0.
     Returns:
         (n_patches, ndy, ndx) float32 responses in [0, 1], patches in row-major grid order.
+
+    Image 0's cell descriptors are gathered channel-major, (9, H / cell, W / cell), and image 1 is split by
+    column phase: plane ``r`` holds the pixels of columns ``cell * t + r``, so the cells displaced by dx read a
+    contiguous run of a plane's columns and the cell correlations of one row are a vectorisable loop.  The plane
+    has a band of W / cell columns either side (wrapped, or 0 without wrapping) so no index is wrapped in the
+    loop.  Parallel over the vertical displacements.
     """
     h, w, c = d0.shape
     ph, pw = h // step, w // step
     ch, cw = h // cell, w // cell
     out = np.zeros((ph * pw, ndy, ndx), np.float32)
     half = cell // 2
-    scale = 1.0 / (PATCH_CELLS * PATCH_CELLS)
+    scale = np.float32(1.0 / (PATCH_CELLS * PATCH_CELLS))
     # the cell rows / columns of every patch (centre row j * step: cells 2j - 2 .. 2j + 1, clamped or wrapped)
     crow = np.empty((ph, PATCH_CELLS), np.int64)
     for j in range(ph):
@@ -194,43 +202,53 @@ def _level1(d0, d1, cell, step, ndy, ndx, ky, kx, circ, wrapc):
         for v in range(PATCH_CELLS):
             n = 2 * i - 2 + v
             ccol[i, v] = n % cw if wrapc else min(max(n, 0), cw - 1)
+    a0 = np.empty((c, ch, cw), np.float32)  # image 0's cell descriptors
+    for k in range(c):
+        for m in range(ch):
+            for n in range(cw):
+                a0[k, m, n] = d0[m * cell + half, n * cell + half, k]
+    planes = np.zeros((cell, c, h, 3 * cw), np.float32)  # planes[r, k, y, t + cw] = d1[y, cell * t + r, k]
+    for r in range(cell):
+        for k in range(c):
+            for y in range(h):
+                for t in range(-cw, 2 * cw):
+                    if wrapc or 0 <= t < cw:
+                        planes[r, k, y, t + cw] = d1[y, (cell * t + r) % w, k]
+    npatch = ph * pw
     for a in numba.prange(ndy):
         dy = a - ky
-        s = np.zeros((ch, cw), np.float32)
-        rs = np.zeros((ch, pw), np.float32)
-        xi = np.empty(cw, np.int64)
+        s = np.zeros((ch, cw), np.float32)  # cell correlations at one displacement
+        vs = np.zeros((ph, cw), np.float32)  # their sums over each patch row's 4 cell rows
+        row = np.empty((ndx, npatch), np.float32)  # this displacement row's responses, displacement-major
         for b in range(ndx):
-            dx = b - kx
-            for n in range(cw):
-                x1 = n * cell + half + dx
-                if circ or wrapc:
-                    xi[n] = x1 % w
-                else:
-                    xi[n] = x1 if 0 <= x1 < w else -1
+            e = half + b - kx  # image-1 column of cell n: n * cell + e
+            if circ:
+                e = e % w
+            r = e % cell
+            o = e // cell + cw  # plane column of cell 0 (0 <= o <= 2 cw)
             for m in range(ch):
-                y0 = m * cell + half
-                y1 = y0 + dy
-                if y1 < 0 or y1 >= h:
-                    for n in range(cw):
-                        s[m, n] = 0.0
-                    continue
+                srow = s[m]
                 for n in range(cw):
-                    x1 = xi[n]
-                    if x1 < 0:
-                        s[m, n] = 0.0
-                        continue
-                    x0 = n * cell + half
-                    acc = 0.0
-                    for k in range(c):
-                        acc += d0[y0, x0, k] * d1[y1, x1, k]
-                    s[m, n] = acc
-            for m in range(ch):  # separable 4 x 4 cell sums: along columns, then rows
-                for i in range(pw):
-                    rs[m, i] = s[m, ccol[i, 0]] + s[m, ccol[i, 1]] + s[m, ccol[i, 2]] + s[m, ccol[i, 3]]
+                    srow[n] = 0.0
+                y1 = m * cell + half + dy
+                if y1 < 0 or y1 >= h:
+                    continue
+                for k in range(c):
+                    arow = a0[k, m]
+                    prow = planes[r, k, y1, o:o + cw]
+                    for n in range(cw):
+                        srow[n] += arow[n] * prow[n]
+            for j in range(ph):  # separable 4 x 4 cell sums: the 4 cell rows, then the 4 cell columns
+                s0, s1, s2, s3, vrow = s[crow[j, 0]], s[crow[j, 1]], s[crow[j, 2]], s[crow[j, 3]], vs[j]
+                for n in range(cw):
+                    vrow[n] = s0[n] + s1[n] + s2[n] + s3[n]
             for j in range(ph):
-                r0, r1, r2, r3 = crow[j, 0], crow[j, 1], crow[j, 2], crow[j, 3]
                 for i in range(pw):
-                    out[j * pw + i, a, b] = (rs[r0, i] + rs[r1, i] + rs[r2, i] + rs[r3, i]) * scale
+                    row[b, j * pw + i] = (vs[j, ccol[i, 0]] + vs[j, ccol[i, 1]] + vs[j, ccol[i, 2]]
+                                          + vs[j, ccol[i, 3]]) * scale
+        for q in range(npatch):
+            for b in range(ndx):
+                out[q, a, b] = row[b, q]
     return out
 
 
