@@ -260,19 +260,24 @@ def _pool(child, ky_c, kx_c, circ):
         child: (n, 2 ky_c + 1, ndx_c) responses (row index k <-> k - ky_c steps; columns circular of period
             ndx_c if ``circ``, else index k <-> k - kx_c).
     Returns:
-        (n, 2 (ky_c // 2) + 1, ndx_p) with ndx_p = ndx_c // 2 (circular) or 2 (kx_c // 2) + 1.
+        ``(pooled, arg)``: (n, 2 (ky_c // 2) + 1, ndx_p) float32 maxima, with ndx_p = ndx_c // 2 (circular) or
+        2 (kx_c // 2) + 1, and (same shape) uint8 where each maximum lies in its window, 3 (da + 1) + (db + 1)
+        for the child entry (2 a + da, 2 b + db) around the window's centre (the first such entry in that order
+        on ties).
     """
     n, ndy_c, ndx_c = child.shape
     ky_p, kx_p = ky_c // 2, kx_c // 2
     ndy_p = 2 * ky_p + 1
     ndx_p = ndx_c // 2 if circ else 2 * kx_p + 1
     out = np.zeros((n, ndy_p, ndx_p), np.float32)
+    arg = np.zeros((n, ndy_p, ndx_p), np.uint8)
     for q in numba.prange(n):
         for a in range(ndy_p):
             ca = ky_c + 2 * (a - ky_p)
             for b in range(ndx_p):
                 cb = 2 * b if circ else kx_c + 2 * (b - kx_p)
-                best = 0.0
+                best = -1.0
+                where = 4
                 for da in range(-1, 2):
                     aa = ca + da
                     if aa < 0 or aa >= ndy_c:
@@ -286,8 +291,10 @@ def _pool(child, ky_c, kx_c, circ):
                         val = child[q, aa, bb]
                         if val > best:
                             best = val
+                            where = 3 * (da + 1) + db + 1
                 out[q, a, b] = best
-    return out
+                arg[q, a, b] = where
+    return out, arg
 
 
 @numba.njit(parallel=True, cache=True, fastmath=True)
@@ -329,11 +336,15 @@ def _combine(pooled, gh, gw, off, wrapc, nlpow):
 
 
 @numba.njit(parallel=True, cache=True)
-def _backtrack(maps, gh, gw, kys, kxs, circ, wrapc, best_score, best_a, best_b):
+def _backtrack(maps, pooled, args, gh, gw, kys, kxs, circ, wrapc, best_score, best_a, best_b):
     """Top-down: from every local maximum at every level >= 2 down to the atomic patches.
+
+    Each step down takes, for each child, the maximum of its pooling window (the one the parent's response
+    pooled) and goes on from where it lies.
 
     Args:
         maps: list of (n, ndy, ndx) response arrays per level (level 1 first).
+        pooled, args: per level but the last, :func:`_pool` of its map (the maxima and where they lie).
         gh, gw: the patch grid (shared by all levels).
         kys, kxs: (L,) displacement window half-sizes per level (``kxs`` unused when circular).
         best_score, best_a, best_b: (L, n) output: per starting level, each atomic patch's best path score
@@ -382,12 +393,13 @@ def _backtrack(maps, gh, gw, kys, kxs, circ, wrapc, best_score, best_a, best_b):
                                 best_a[lev, pp] = pa
                                 best_b[lev, pp] = pb
                             continue
-                        cm = maps[lv - 1]
+                        pm = pooled[lv - 1]
+                        pg = args[lv - 1]
                         off = 1 << (lv - 1)
                         j, i = pp // gw, pp % gw
                         ca = kys[lv - 1] + 2 * (pa - kys[lv])
                         cb = 2 * pb if circ else kxs[lv - 1] + 2 * (pb - kxs[lv])
-                        cndy, cndx = cm.shape[1], cm.shape[2]
+                        cndx = maps[lv - 1].shape[2]
                         for sj in (-1, 1):
                             cj = j + sj * off
                             if cj < 0 or cj >= gh:
@@ -399,24 +411,12 @@ def _backtrack(maps, gh, gw, kys, kxs, circ, wrapc, best_score, best_a, best_b):
                                 elif ci < 0 or ci >= gw:
                                     continue
                                 cidx = cj * gw + ci
-                                bv = -1.0
-                                ba, bb2 = ca, cb
-                                for da in range(-1, 2):
-                                    aa = ca + da
-                                    if aa < 0 or aa >= cndy:
-                                        continue
-                                    for db in range(-1, 2):
-                                        bb = cb + db
-                                        if circ:
-                                            bb = bb % cndx
-                                        elif bb < 0 or bb >= cndx:
-                                            continue
-                                        val = cm[cidx, aa, bb]
-                                        if val > bv:
-                                            bv = val
-                                            ba, bb2 = aa, bb
-                                if bv < 0.0:
-                                    continue
+                                bv = pm[cidx, pa, pb]  # the child's best in its pooling window, and where
+                                k = np.int64(pg[cidx, pa, pb])
+                                ba = ca + k // 3 - 1
+                                bb2 = cb + k % 3 - 1
+                                if circ:
+                                    bb2 = bb2 % cndx
                                 stack_lev[top], stack_p[top], stack_a[top], stack_b[top] = lv - 1, cidx, ba, bb2
                                 stack_s[top] = sc + bv
                                 top += 1
@@ -451,11 +451,13 @@ def _one_way(d0: np.ndarray, d1: np.ndarray, p: DeepMatchingParams):
     kys, kxs = [ky], [kx]
     psize = PATCH_CELLS * cell
     # build levels while the patch (16, 32, 64, ... working pixels) fits in the image
+    pooled, args = [], []
     while 2 * psize <= min(h, w) and maps[-1].shape[2] >= 3:
-        pooled = _pool(maps[-1], kys[-1], kxs[-1], circ)
+        pm, pa = _pool(maps[-1], kys[-1], kxs[-1], circ)
+        pooled.append(pm)
+        args.append(pa)
         off = (psize // 2) // step  # children at +- a quarter of the parent's size, in grid steps
-        maps.append(_combine(pooled, gh, gw, off, wrapc, float(p.nlpow)))
-        del pooled
+        maps.append(_combine(pm, gh, gw, off, wrapc, float(p.nlpow)))
         kys.append(kys[-1] // 2)
         kxs.append(kxs[-1] // 2)
         psize *= 2
@@ -465,8 +467,8 @@ def _one_way(d0: np.ndarray, d1: np.ndarray, p: DeepMatchingParams):
     all_a = np.zeros((nlev, n), np.int64)
     all_b = np.zeros((nlev, n), np.int64)
     if nlev > 1:
-        _backtrack(numba.typed.List(maps), gh, gw, np.asarray(kys, np.int64), np.asarray(kxs, np.int64), circ,
-                   wrapc, all_s, all_a, all_b)
+        _backtrack(numba.typed.List(maps), numba.typed.List(pooled), numba.typed.List(args), gh, gw,
+                   np.asarray(kys, np.int64), np.asarray(kxs, np.int64), circ, wrapc, all_s, all_a, all_b)
     else:  # a single level: each atomic patch's own best response
         flat = maps[0].reshape(n, -1)
         arg = np.argmax(flat, axis=1)
