@@ -28,7 +28,9 @@ smoothness term and the solver, so the flow crosses the seam with no padding.
 
 OpenCV pieces: image resizing and blurring only.  ``cv2.optflow.createOptFlow_DeepFlow`` (the variational part
 with the same defaults' family) and ``cv2.VariationalRefinement`` have no matching term and no periodic
-boundary, so the whole solver is here (numba for the warp and SOR, numpy for the rest).
+boundary, so the whole solver is here: numba kernels for the warp, the data, matching and smoothness terms and
+SOR, all single-threaded and releasing the GIL (:func:`deep_flow_both` solves a pair's two directions on two
+threads), numpy for the derivatives.
 """
 
 from __future__ import annotations
@@ -217,6 +219,20 @@ def _warp(img, u, v, wrap):
     return out, mask
 
 
+@numba.njit(cache=True, nogil=True, fastmath=True, inline="always")
+def _sor_pixel(du, dv, a12, b1, b2, hx, hy, left, r11, r22, keep, i, j, iu, idn, fu):
+    """One SOR update of pixel (i, j) (see :func:`_sor`), the column neighbours wrapped."""
+    w = du.shape[1]
+    jl = j - 1 if j > 0 else w - 1
+    jr = j + 1 if j < w - 1 else 0
+    wl, wr, wu, wd = left[i, j], hx[i, j], fu * hy[iu, j], hy[i, j]
+    su = wl * du[i, jl] + wr * du[i, jr] + wu * du[iu, j] + wd * du[idn, j]
+    sv = wl * dv[i, jl] + wr * dv[i, jr] + wu * dv[iu, j] + wd * dv[idn, j]
+    nu = keep * du[i, j] + r11[i, j] * (b1[i, j] + su - a12[i, j] * dv[i, j])
+    du[i, j] = nu
+    dv[i, j] = keep * dv[i, j] + r22[i, j] * (b2[i, j] + sv - a12[i, j] * nu)
+
+
 @numba.njit(cache=True, nogil=True, fastmath=True)
 def _sor(du, dv, a11, a12, a22, b1, b2, hx, hy, iters, omega, wrap):
     """Coupled red-black SOR for the increment (du, dv) of one fixed-point iteration (in place).
@@ -224,9 +240,11 @@ def _sor(du, dv, a11, a12, a22, b1, b2, hx, hy, iters, omega, wrap):
     The system per pixel: (a + sum h) d - sum_nb h d_nb = b, with hx[i, j] the weight between (i, j) and
     (i, j + 1) (the last column links to the first when wrapping, else hx[:, -1] must be 0) and hy[i, j] between
     rows i and i + 1 (hy[-1] must be 0).  All arrays (h, w) float32; ``iters`` sweeps, each the pixels with
-    i + j even then those with i + j odd, relaxation ``omega``.  The diagonal's reciprocals are computed once
-    per call.  Single-threaded (releases the GIL): a sweep of a pyramid level is too little work for a parallel
-    loop's barriers to pay off, the more so on a shared machine.
+    i + j even then those with i + j odd, each row's pixels of a colour in column order (with wrapping and an odd
+    width the first and last columns have the same colour: the last then sees the first's new value).  The
+    diagonal's reciprocals are computed once per call; the first and last columns are updated apart so that the
+    row's other pixels are a loop without index wrapping (vectorised).  Single-threaded (releases the GIL): a
+    sweep of a pyramid level is too little work for a parallel loop's barriers to pay off.
     """
     h, w = du.shape
     left = np.empty((h, w), np.float32)  # weight of the left neighbour (0 in the first column without wrapping)
@@ -240,24 +258,31 @@ def _sor(du, dv, a11, a12, a22, b1, b2, hx, hy, iters, omega, wrap):
             left[i, j] = wl
             r11[i, j] = omega / (a11[i, j] + sh + 1e-12)
             r22[i, j] = omega / (a22[i, j] + sh + 1e-12)
-    keep = 1.0 - omega
+    keep = np.float32(1.0 - omega)
     for _ in range(iters):
         for colour in range(2):
             for i in range(h):
-                iu = i - 1 if i > 0 else 0  # the first row's upper weight is 0
+                iu = i - 1 if i > 0 else 0
                 idn = i + 1 if i < h - 1 else h - 1  # hy[h - 1] = 0
-                for j in range((i + colour) % 2, w, 2):
-                    jl = j - 1 if j > 0 else w - 1
-                    jr = j + 1 if j < w - 1 else 0
-                    wl = left[i, j]
-                    wr = hx[i, j]
-                    wu = hy[iu, j] if i > 0 else 0.0
-                    wd = hy[i, j]
-                    su = wl * du[i, jl] + wr * du[i, jr] + wu * du[iu, j] + wd * du[idn, j]
-                    sv = wl * dv[i, jl] + wr * dv[i, jr] + wu * dv[iu, j] + wd * dv[idn, j]
-                    nu = keep * du[i, j] + r11[i, j] * (b1[i, j] + su - a12[i, j] * dv[i, j])
-                    du[i, j] = nu
-                    dv[i, j] = keep * dv[i, j] + r22[i, j] * (b2[i, j] + sv - a12[i, j] * nu)
+                fu = np.float32(1.0) if i > 0 else np.float32(0.0)  # the first row has no upper neighbour
+                j0 = (i + colour) % 2
+                if j0 == 0:
+                    _sor_pixel(du, dv, a12, b1, b2, hx, hy, left, r11, r22, keep, i, 0, iu, idn, fu)
+                    j0 = 2
+                u0, uu, ud, v0, vu, vd = du[i], du[iu], du[idn], dv[i], dv[iu], dv[idn]
+                wlr, wrr, wur, wdr = left[i], hx[i], hy[iu], hy[i]
+                q1, q2, c12, c1, c2 = r11[i], r22[i], a12[i], b1[i], b2[i]
+                n_in = max((w - j0) // 2, 0)  # columns j0, j0 + 2, ..., at most w - 2
+                for t in range(n_in):
+                    j = j0 + 2 * t
+                    wl, wr, wu, wd = wlr[j], wrr[j], fu * wur[j], wdr[j]
+                    su = wl * u0[j - 1] + wr * u0[j + 1] + wu * uu[j] + wd * ud[j]
+                    sv = wl * v0[j - 1] + wr * v0[j + 1] + wu * vu[j] + wd * vd[j]
+                    nu = keep * u0[j] + q1[j] * (c1[j] + su - c12[j] * v0[j])
+                    u0[j] = nu
+                    v0[j] = keep * v0[j] + q2[j] * (c2[j] + sv - c12[j] * nu)
+                if j0 + 2 * n_in == w - 1:
+                    _sor_pixel(du, dv, a12, b1, b2, hx, hy, left, r11, r22, keep, i, w - 1, iu, idn, fu)
 
 
 @numba.njit(cache=True, nogil=True, fastmath=True)
