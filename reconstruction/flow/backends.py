@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from reconstruction.flow.deepflow import DeepFlowParams, deep_flow
+from reconstruction.flow.deepflow import DeepFlowParams, deep_flow_both
 from reconstruction.flow.deepmatching import DeepMatchingParams, Matches, deep_matching_both
 from reconstruction.plugins import Registry, collect_registry, shadow_message, unknown_name_message
 
@@ -84,6 +84,9 @@ def _opencv_deepflow(img0, img1):
 _MATCH_CACHE = threading.local()
 """Per thread (Dask workers run tasks on several threads): ``.pending`` holds the one reverse matching kept."""
 
+_FLOW_CACHE = threading.local()
+"""Per thread: ``.pending`` holds the one reverse DeepFlow kept."""
+
 
 def _digest(*arrays, extra: str = "") -> bytes:
     h = hashlib.blake2b(extra.encode(), digest_size=16)
@@ -113,10 +116,20 @@ def _dm_params(downscale, ngh_rad_x, ngh_rad_y, wrap) -> DeepMatchingParams:
 
 def _deepflow(img0, img1, downscale=1, ngh_rad_x=0, ngh_rad_y=0, wrap=True):
     """DeepFlow as published (Weinzaepfel et al. 2013): DeepMatching + the variational energy with its matching
-    term."""
-    dm = _dm_params(downscale, ngh_rad_x, ngh_rad_y, wrap)
-    matches = cached_matches(img0, img1, dm)
-    return deep_flow(img0, img1, DeepFlowParams(wrap=bool(wrap), matching=dm), matches=matches)
+    term.
+
+    The pipeline asks for each pair's forward then backward flow: the first call matches both ways and solves
+    both flows at once (:func:`~reconstruction.flow.deepflow.deep_flow_both`, one thread each) and keeps the
+    reverse flow for the next call, which returns it if its images are the first call's, swapped."""
+    p = DeepFlowParams(wrap=bool(wrap), matching=_dm_params(downscale, ngh_rad_x, ngh_rad_y, wrap))
+    key = _digest(img0, img1, extra=repr(p))
+    pending = getattr(_FLOW_CACHE, "pending", None)
+    _FLOW_CACHE.pending = None
+    if pending is not None and pending[0] == key:
+        return pending[1]
+    fwd, bwd = deep_flow_both(img0, img1, p, matches=deep_matching_both(img0, img1, p.matching))
+    _FLOW_CACHE.pending = (_digest(img1, img0, extra=repr(p)), bwd)
+    return fwd
 
 
 def _epicflow(img0, img1, downscale=1, ngh_rad_x=0, ngh_rad_y=0, wrap=True, pad=32):

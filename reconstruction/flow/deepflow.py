@@ -28,11 +28,14 @@ smoothness term and the solver, so the flow crosses the seam with no padding.
 
 OpenCV pieces: image resizing and blurring only.  ``cv2.optflow.createOptFlow_DeepFlow`` (the variational part
 with the same defaults' family) and ``cv2.VariationalRefinement`` have no matching term and no periodic
-boundary, so the whole solver is here (numba for the warp and SOR, numpy for the rest).
+boundary, so the whole solver is here: numba kernels for the warp, the data, matching and smoothness terms and
+SOR, all single-threaded and releasing the GIL (:func:`deep_flow_both` solves a pair's two directions on two
+threads), numpy for the derivatives.
 """
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import asdict, dataclass, field
 
 import cv2
@@ -45,9 +48,10 @@ from reconstruction.flow.deepmatching import (
     blur_periodic,
     central_differences,
     deep_matching,
+    deep_matching_both,
 )
 
-__all__ = ["DeepFlowParams", "deep_flow", "match_field", "match_weights"]
+__all__ = ["DeepFlowParams", "deep_flow", "deep_flow_both", "match_field", "match_weights"]
 
 DATANORM = 0.1 * 0.1  # squared normalisation added to |grad I|^2 (grey levels^2 per pixel^2)
 EPS2 = 0.001 * 0.001  # squared epsilon of the robust penaliser
@@ -187,14 +191,14 @@ def match_field(m: Matches, phi: np.ndarray, h: int, w: int, wrap: bool = True,
     return mu.astype(np.float32), mv.astype(np.float32), mw.astype(np.float32)
 
 
-@numba.njit(parallel=True, cache=True)
+@numba.njit(cache=True, nogil=True)
 def _warp(img, u, v, wrap):
     """Bilinear sample of (h, w, c) ``img`` at x + u, y + v; mask 0 where the target leaves the rows (or, without
-    wrapping, the columns)."""
+    wrapping, the columns).  Single-threaded, releases the GIL."""
     h, w, c = img.shape
     out = np.empty_like(img)
     mask = np.empty((h, w), np.float32)
-    for i in numba.prange(h):
+    for i in range(h):
         for j in range(w):
             xx = j + u[i, j]
             yy = i + v[i, j]
@@ -215,65 +219,84 @@ def _warp(img, u, v, wrap):
     return out, mask
 
 
-@numba.njit(parallel=True, cache=True)
+@numba.njit(cache=True, nogil=True, fastmath=True, inline="always")
+def _sor_pixel(du, dv, a12, b1, b2, hx, hy, left, r11, r22, keep, i, j, iu, idn, fu):
+    """One SOR update of pixel (i, j) (see :func:`_sor`), the column neighbours wrapped."""
+    w = du.shape[1]
+    jl = j - 1 if j > 0 else w - 1
+    jr = j + 1 if j < w - 1 else 0
+    wl, wr, wu, wd = left[i, j], hx[i, j], fu * hy[iu, j], hy[i, j]
+    su = wl * du[i, jl] + wr * du[i, jr] + wu * du[iu, j] + wd * du[idn, j]
+    sv = wl * dv[i, jl] + wr * dv[i, jr] + wu * dv[iu, j] + wd * dv[idn, j]
+    nu = keep * du[i, j] + r11[i, j] * (b1[i, j] + su - a12[i, j] * dv[i, j])
+    du[i, j] = nu
+    dv[i, j] = keep * dv[i, j] + r22[i, j] * (b2[i, j] + sv - a12[i, j] * nu)
+
+
+@numba.njit(cache=True, nogil=True, fastmath=True)
 def _sor(du, dv, a11, a12, a22, b1, b2, hx, hy, iters, omega, wrap):
     """Coupled red-black SOR for the increment (du, dv) of one fixed-point iteration (in place).
 
     The system per pixel: (a + sum h) d - sum_nb h d_nb = b, with hx[i, j] the weight between (i, j) and
-    (i, j + 1) (the last column links to the first when wrapping) and hy[i, j] between rows i and i + 1.
+    (i, j + 1) (the last column links to the first when wrapping, else hx[:, -1] must be 0) and hy[i, j] between
+    rows i and i + 1 (hy[-1] must be 0).  All arrays (h, w) float32; ``iters`` sweeps, each the pixels with
+    i + j even then those with i + j odd, each row's pixels of a colour in column order (with wrapping and an odd
+    width the first and last columns have the same colour: the last then sees the first's new value).  The
+    diagonal's reciprocals are computed once per call; the first and last columns are updated apart so that the
+    row's other pixels are a loop without index wrapping (vectorised).  Single-threaded (releases the GIL): a
+    sweep of a pyramid level is too little work for a parallel loop's barriers to pay off.
     """
     h, w = du.shape
+    left = np.empty((h, w), np.float32)  # weight of the left neighbour (0 in the first column without wrapping)
+    r11 = np.empty((h, w), np.float32)  # omega / (a11 + sum of the neighbour weights)
+    r22 = np.empty((h, w), np.float32)
+    for i in range(h):
+        for j in range(w):
+            wl = hx[i, j - 1] if j > 0 else (hx[i, w - 1] if wrap else 0.0)
+            wu = hy[i - 1, j] if i > 0 else 0.0
+            sh = wl + hx[i, j] + wu + hy[i, j]
+            left[i, j] = wl
+            r11[i, j] = omega / (a11[i, j] + sh + 1e-12)
+            r22[i, j] = omega / (a22[i, j] + sh + 1e-12)
+    keep = np.float32(1.0 - omega)
     for _ in range(iters):
         for colour in range(2):
-            for i in numba.prange(h):
-                start = (i + colour) % 2
-                for j in range(start, w, 2):
-                    jl = j - 1
-                    jr = j + 1
-                    sh = 0.0
-                    su = 0.0
-                    sv = 0.0
-                    if jl >= 0 or wrap:
-                        jl = jl % w
-                        wt = hx[i, jl]
-                        sh += wt
-                        su += wt * du[i, jl]
-                        sv += wt * dv[i, jl]
-                    if jr < w or wrap:
-                        jr = jr % w
-                        wt = hx[i, j]
-                        sh += wt
-                        su += wt * du[i, jr]
-                        sv += wt * dv[i, jr]
-                    if i > 0:
-                        wt = hy[i - 1, j]
-                        sh += wt
-                        su += wt * du[i - 1, j]
-                        sv += wt * dv[i - 1, j]
-                    if i < h - 1:
-                        wt = hy[i, j]
-                        sh += wt
-                        su += wt * du[i + 1, j]
-                        sv += wt * dv[i + 1, j]
-                    m11 = a11[i, j] + sh + 1e-12
-                    m22 = a22[i, j] + sh + 1e-12
-                    nu = (1.0 - omega) * du[i, j] + omega * (b1[i, j] + su - a12[i, j] * dv[i, j]) / m11
-                    du[i, j] = nu
-                    dv[i, j] = (1.0 - omega) * dv[i, j] + omega * (b2[i, j] + sv - a12[i, j] * nu) / m22
+            for i in range(h):
+                iu = i - 1 if i > 0 else 0
+                idn = i + 1 if i < h - 1 else h - 1  # hy[h - 1] = 0
+                fu = np.float32(1.0) if i > 0 else np.float32(0.0)  # the first row has no upper neighbour
+                j0 = (i + colour) % 2
+                if j0 == 0:
+                    _sor_pixel(du, dv, a12, b1, b2, hx, hy, left, r11, r22, keep, i, 0, iu, idn, fu)
+                    j0 = 2
+                u0, uu, ud, v0, vu, vd = du[i], du[iu], du[idn], dv[i], dv[iu], dv[idn]
+                wlr, wrr, wur, wdr = left[i], hx[i], hy[iu], hy[i]
+                q1, q2, c12, c1, c2 = r11[i], r22[i], a12[i], b1[i], b2[i]
+                n_in = max((w - j0) // 2, 0)  # columns j0, j0 + 2, ..., at most w - 2
+                for t in range(n_in):
+                    j = j0 + 2 * t
+                    wl, wr, wu, wd = wlr[j], wrr[j], fu * wur[j], wdr[j]
+                    su = wl * u0[j - 1] + wr * u0[j + 1] + wu * uu[j] + wd * ud[j]
+                    sv = wl * v0[j - 1] + wr * v0[j + 1] + wu * vu[j] + wd * vd[j]
+                    nu = keep * u0[j] + q1[j] * (c1[j] + su - c12[j] * v0[j])
+                    u0[j] = nu
+                    v0[j] = keep * v0[j] + q2[j] * (c2[j] + sv - c12[j] * nu)
+                if j0 + 2 * n_in == w - 1:
+                    _sor_pixel(du, dv, a12, b1, b2, hx, hy, left, r11, r22, keep, i, w - 1, iu, idn, fu)
 
 
-@numba.njit(parallel=True, cache=True, fastmath=True)
+@numba.njit(cache=True, nogil=True, fastmath=True)
 def _data_terms(ix, iy, iz, ixx, ixy, iyy, ixz, iyz, du, dv, mask, w_u, w_v, mu, mv, mw, hd, hg, half_beta):
     """The linearised data and matching terms of one fixed-point iteration: per pixel the 2 x 2 system
     ``[[a11, a12], [a12, a22]] (du, dv) = (b1, b2)`` (before smoothness), robust weights from the current
-    increment (du, dv).  Derivative arrays are (h, w, c); the others (h, w)."""
+    increment (du, dv).  Derivative arrays are (h, w, c); the others (h, w).  Single-threaded, releases the GIL."""
     h, w, c = ix.shape
     a11 = np.zeros((h, w), np.float32)
     a12 = np.zeros((h, w), np.float32)
     a22 = np.zeros((h, w), np.float32)
     b1 = np.zeros((h, w), np.float32)
     b2 = np.zeros((h, w), np.float32)
-    for i in numba.prange(h):
+    for i in range(h):
         for j in range(w):
             x11 = 0.0
             x12 = 0.0
@@ -346,48 +369,82 @@ def _dy5(x: np.ndarray) -> np.ndarray:
     return (-r(2) + 8.0 * r(1) - 8.0 * r(-1) + r(-2)) / 12.0
 
 
-def _neighbour_x(x: np.ndarray, wrap: bool) -> np.ndarray:
-    """x[:, j + 1] (the last column: the first if wrapping, else itself)."""
-    return np.roll(x, -1, axis=1) if wrap else np.concatenate([x[:, 1:], x[:, -1:]], axis=1)
+@numba.njit(cache=True, nogil=True, fastmath=True)
+def _smoothness(w_u, w_v, du, dv, quarter_alpha, wrap, b1, b2):
+    """The smoothness term of one fixed-point iteration.
 
+    Diffusivities of the flow ``(u, v) = (w_u + du, w_v + dv)`` (pixels): ``hx[i, j] = quarter_alpha / sqrt(
+    ux^2 + uy^2 + vx^2 + vy^2 + eps^2)`` between (i, j) and (i, j + 1), with the x derivatives the forward
+    differences across that link and the y derivatives the mean of both ends' central differences; ``hy[i, j]``
+    alike between rows i and i + 1.  Without wrapping the last column's hx is 0, and hy of the last row is always
+    0; central differences replicate the edge pixel.  The current flow's smoothness is moved to the right-hand
+    side: ``b1 += sum over neighbours of h (w_u_nb - w_u)`` and ``b2`` alike for ``w_v`` (in place).
 
-def _smoothness(u, v, quarter_alpha: float, wrap: bool):
-    """Diffusivities hx (between (i, j) and (i, j+1)) and hy (between rows i and i+1), (h, w) each."""
-    def cdx(a):
-        return 0.5 * (_neighbour_x(a, wrap) - (np.roll(a, 1, axis=1) if wrap else
-                                               np.concatenate([a[:, :1], a[:, :-1]], axis=1)))
-
-    def cdy(a):
-        ap = np.concatenate([a[:1], a, a[-1:]], axis=0)
-        return 0.5 * (ap[2:] - ap[:-2])
-
-    ux2, vx2, uy2, vy2 = cdx(u), cdx(v), cdy(u), cdy(v)
-    ux1, vx1 = _neighbour_x(u, wrap) - u, _neighbour_x(v, wrap) - v
-    t1 = 0.5 * (uy2 + _neighbour_x(uy2, wrap))
-    t2 = 0.5 * (vy2 + _neighbour_x(vy2, wrap))
-    hx = quarter_alpha / np.sqrt(ux1 * ux1 + t1 * t1 + vx1 * vx1 + t2 * t2 + EPS2)
-    if not wrap:
-        hx[:, -1] = 0.0
-    uy1 = np.zeros_like(u)
-    vy1 = np.zeros_like(v)
-    uy1[:-1], vy1[:-1] = u[1:] - u[:-1], v[1:] - v[:-1]
-    s1 = np.zeros_like(u)
-    s2 = np.zeros_like(v)
-    s1[:-1], s2[:-1] = 0.5 * (ux2[:-1] + ux2[1:]), 0.5 * (vx2[:-1] + vx2[1:])
-    hy = quarter_alpha / np.sqrt(uy1 * uy1 + s1 * s1 + vy1 * vy1 + s2 * s2 + EPS2)
-    hy[-1] = 0.0
-    return np.ascontiguousarray(hx, np.float32), np.ascontiguousarray(hy, np.float32)
-
-
-def _laplacian_rhs(w0, hx, hy, wrap: bool) -> np.ndarray:
-    """sum over neighbours of h (w0_nb - w0): the smoothness of the current flow moved to the right-hand side."""
-    fx = hx * (_neighbour_x(w0, wrap) - w0)  # flux between j and j+1
-    out = fx - (np.roll(fx, 1, axis=1) if wrap else np.concatenate([np.zeros_like(fx[:, :1]), fx[:, :-1]], axis=1))
-    fy = np.zeros_like(w0)
-    fy[:-1] = hy[:-1] * (w0[1:] - w0[:-1])
-    out = out + fy
-    out[1:] -= fy[:-1]
-    return out
+    Args:
+        w_u, w_v, du, dv: (h, w) float32 flow and its increment, pixels.
+        quarter_alpha: alpha / 4.
+        wrap: columns are periodic.
+        b1, b2: (h, w) float32 right-hand sides, updated in place.
+    Returns:
+        ``(hx, hy)``, each (h, w) float32.
+    """
+    h, w = w_u.shape
+    u = np.empty((h, w), np.float32)
+    v = np.empty((h, w), np.float32)
+    for i in range(h):
+        for j in range(w):
+            u[i, j] = w_u[i, j] + du[i, j]
+            v[i, j] = w_v[i, j] + dv[i, j]
+    ux = np.empty((h, w), np.float32)  # central differences, edge pixel replicated (or columns wrapped)
+    vx = np.empty((h, w), np.float32)
+    uy = np.empty((h, w), np.float32)
+    vy = np.empty((h, w), np.float32)
+    for i in range(h):
+        iu, idn = max(i - 1, 0), min(i + 1, h - 1)
+        for j in range(w):
+            if wrap:
+                jl, jr = (j - 1) % w, (j + 1) % w
+            else:
+                jl, jr = max(j - 1, 0), min(j + 1, w - 1)
+            ux[i, j] = 0.5 * (u[i, jr] - u[i, jl])
+            vx[i, j] = 0.5 * (v[i, jr] - v[i, jl])
+            uy[i, j] = 0.5 * (u[idn, j] - u[iu, j])
+            vy[i, j] = 0.5 * (v[idn, j] - v[iu, j])
+    hx = np.zeros((h, w), np.float32)
+    hy = np.zeros((h, w), np.float32)
+    for i in range(h):
+        for j in range(w):
+            if wrap or j < w - 1:
+                jr = (j + 1) % w
+                a = u[i, jr] - u[i, j]
+                b = 0.5 * (uy[i, j] + uy[i, jr])
+                c = v[i, jr] - v[i, j]
+                d = 0.5 * (vy[i, j] + vy[i, jr])
+                hx[i, j] = quarter_alpha / np.sqrt(a * a + b * b + c * c + d * d + EPS2)
+            if i < h - 1:
+                a = u[i + 1, j] - u[i, j]
+                b = 0.5 * (ux[i, j] + ux[i + 1, j])
+                c = v[i + 1, j] - v[i, j]
+                d = 0.5 * (vx[i, j] + vx[i + 1, j])
+                hy[i, j] = quarter_alpha / np.sqrt(a * a + b * b + c * c + d * d + EPS2)
+    for i in range(h):
+        for j in range(w):
+            jr = (j + 1) % w  # hx[i, w - 1] = 0 without wrapping
+            jl = (j - 1) % w
+            fu = hx[i, j] * (w_u[i, jr] - w_u[i, j])
+            fv = hx[i, j] * (w_v[i, jr] - w_v[i, j])
+            if j > 0 or wrap:
+                fu -= hx[i, jl] * (w_u[i, j] - w_u[i, jl])
+                fv -= hx[i, jl] * (w_v[i, j] - w_v[i, jl])
+            if i < h - 1:
+                fu += hy[i, j] * (w_u[i + 1, j] - w_u[i, j])
+                fv += hy[i, j] * (w_v[i + 1, j] - w_v[i, j])
+            if i > 0:
+                fu -= hy[i - 1, j] * (w_u[i, j] - w_u[i - 1, j])
+                fv -= hy[i - 1, j] * (w_v[i, j] - w_v[i - 1, j])
+            b1[i, j] += fu
+            b2[i, j] += fv
+    return hx, hy
 
 
 def _one_level(w_u, w_v, im1, im2, mu, mv, mw, half_beta, p: DeepFlowParams):
@@ -407,12 +464,10 @@ def _one_level(w_u, w_v, im1, im2, mu, mv, mw, half_beta, p: DeepFlowParams):
     du = np.zeros_like(w_u)
     dv = np.zeros_like(w_v)
     for _ in range(int(p.n_inner)):
-        hx, hy = _smoothness(w_u + du, w_v + dv, qa, wrap)
         a11, a12, a22, b1, b2 = _data_terms(ix, iy, iz, ixx, ixy, iyy, ixz, iyz, du, dv, mask, w_u, w_v, mu, mv,
                                             mw, hd, hg, float(half_beta))
-        b1 += _laplacian_rhs(w_u, hx, hy, wrap)
-        b2 += _laplacian_rhs(w_v, hx, hy, wrap)
-        _sor(du, dv, a11, a12, a22, f32(b1), f32(b2), hx, hy, int(p.n_solver), float(p.sor_omega), wrap)
+        hx, hy = _smoothness(w_u, w_v, du, dv, qa, wrap, b1, b2)
+        _sor(du, dv, a11, a12, a22, b1, b2, hx, hy, int(p.n_solver), float(p.sor_omega), wrap)
     return w_u + du, w_v + dv
 
 
@@ -478,3 +533,30 @@ def deep_flow(img0: np.ndarray, img1: np.ndarray, params: DeepFlowParams | None 
         u, v = _one_level(u.astype(np.float32), v.astype(np.float32), im1, im2, lmu.astype(np.float32),
                           lmv.astype(np.float32), lmw.astype(np.float32), half_beta, p)
     return np.ascontiguousarray(np.dstack([u, v]), np.float32)
+
+
+def deep_flow_both(img0: np.ndarray, img1: np.ndarray, params: DeepFlowParams | None = None,
+                   matches: tuple[Matches, Matches] | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """DeepFlow both ways, ``(flow img0 -> img1, flow img1 -> img0)``, the two solved at once on two threads.
+
+    The solver's kernels are single-threaded and release the GIL, so the two directions of a pair use two cores
+    with no synchronisation between them; each result is that of :func:`deep_flow`.
+
+    Args:
+        img0, img1: (H, W, 3) uint8 RGB (or (H, W) grey) images of the same size.
+        params: :class:`DeepFlowParams` (default: the authors' defaults, equirect wrapping).
+        matches: DeepMatching's ``(matches 0 -> 1, matches 1 -> 0)`` (computed by
+            :func:`~reconstruction.flow.deepmatching.deep_matching_both` if None).
+    Returns:
+        Two (H, W, 2) float32 flows, pixels.
+    """
+    p = params or DeepFlowParams()
+    if img0.shape != img1.shape:
+        raise ValueError(f"deep_flow: images differ in size ({img0.shape} vs {img1.shape})")
+    if matches is None:
+        mp = p.matching if p.matching.wrap == p.wrap else DeepMatchingParams(**{**asdict(p.matching), "wrap": p.wrap})
+        matches = deep_matching_both(img0, img1, mp)
+    with ThreadPoolExecutor(max_workers=2, thread_name_prefix="deepflow") as pool:
+        back = pool.submit(deep_flow, img1, img0, p, matches[1])
+        fwd = deep_flow(img0, img1, p, matches[0])
+        return fwd, back.result()

@@ -170,20 +170,28 @@ def _level1(d0, d1, cell, step, ndy, ndx, ky, kx, circ, wrapc):
     """Atomic-patch response maps (level 1) at every displacement of the search window.
 
     Args:
-        d0, d1: (H, W, 9) pixel descriptors of both images.
+        d0, d1: (H, W, 9) float32 pixel descriptors of both images (H and W multiples of ``cell``).
         cell: cell spacing, pixels; the patch grid step is 2 * cell, a patch's cells sit at offsets
             cell * (k - 1.5), k = 0..3, from its centre (centres at multiples of ``step``).
         ndy, ndx: size of the displacement window; displacement index a <-> dy = a - ky, b <-> dx = b - kx
             (``circ``: dx = b - kx taken modulo W, the window covering every column).
+        wrapc: columns are periodic (cells and displacements wrap); else cells are clamped to the image and a
+            cell displaced out of image 1 correlates 0.
     Returns:
         (n_patches, ndy, ndx) float32 responses in [0, 1], patches in row-major grid order.
+
+    Image 0's cell descriptors are gathered channel-major, (9, H / cell, W / cell), and image 1 is split by
+    column phase: plane ``r`` holds the pixels of columns ``cell * t + r``, so the cells displaced by dx read a
+    contiguous run of a plane's columns and the cell correlations of one row are a vectorisable loop.  The plane
+    has a band of W / cell columns either side (wrapped, or 0 without wrapping) so no index is wrapped in the
+    loop.  Parallel over the vertical displacements.
     """
     h, w, c = d0.shape
     ph, pw = h // step, w // step
     ch, cw = h // cell, w // cell
     out = np.zeros((ph * pw, ndy, ndx), np.float32)
     half = cell // 2
-    scale = 1.0 / (PATCH_CELLS * PATCH_CELLS)
+    scale = np.float32(1.0 / (PATCH_CELLS * PATCH_CELLS))
     # the cell rows / columns of every patch (centre row j * step: cells 2j - 2 .. 2j + 1, clamped or wrapped)
     crow = np.empty((ph, PATCH_CELLS), np.int64)
     for j in range(ph):
@@ -194,43 +202,53 @@ def _level1(d0, d1, cell, step, ndy, ndx, ky, kx, circ, wrapc):
         for v in range(PATCH_CELLS):
             n = 2 * i - 2 + v
             ccol[i, v] = n % cw if wrapc else min(max(n, 0), cw - 1)
+    a0 = np.empty((c, ch, cw), np.float32)  # image 0's cell descriptors
+    for k in range(c):
+        for m in range(ch):
+            for n in range(cw):
+                a0[k, m, n] = d0[m * cell + half, n * cell + half, k]
+    planes = np.zeros((cell, c, h, 3 * cw), np.float32)  # planes[r, k, y, t + cw] = d1[y, cell * t + r, k]
+    for r in range(cell):
+        for k in range(c):
+            for y in range(h):
+                for t in range(-cw, 2 * cw):
+                    if wrapc or 0 <= t < cw:
+                        planes[r, k, y, t + cw] = d1[y, (cell * t + r) % w, k]
+    npatch = ph * pw
     for a in numba.prange(ndy):
         dy = a - ky
-        s = np.zeros((ch, cw), np.float32)
-        rs = np.zeros((ch, pw), np.float32)
-        xi = np.empty(cw, np.int64)
+        s = np.zeros((ch, cw), np.float32)  # cell correlations at one displacement
+        vs = np.zeros((ph, cw), np.float32)  # their sums over each patch row's 4 cell rows
+        row = np.empty((ndx, npatch), np.float32)  # this displacement row's responses, displacement-major
         for b in range(ndx):
-            dx = b - kx
-            for n in range(cw):
-                x1 = n * cell + half + dx
-                if circ or wrapc:
-                    xi[n] = x1 % w
-                else:
-                    xi[n] = x1 if 0 <= x1 < w else -1
+            e = half + b - kx  # image-1 column of cell n: n * cell + e
+            if circ:
+                e = e % w
+            r = e % cell
+            o = e // cell + cw  # plane column of cell 0 (0 <= o <= 2 cw)
             for m in range(ch):
-                y0 = m * cell + half
-                y1 = y0 + dy
-                if y1 < 0 or y1 >= h:
-                    for n in range(cw):
-                        s[m, n] = 0.0
-                    continue
+                srow = s[m]
                 for n in range(cw):
-                    x1 = xi[n]
-                    if x1 < 0:
-                        s[m, n] = 0.0
-                        continue
-                    x0 = n * cell + half
-                    acc = 0.0
-                    for k in range(c):
-                        acc += d0[y0, x0, k] * d1[y1, x1, k]
-                    s[m, n] = acc
-            for m in range(ch):  # separable 4 x 4 cell sums: along columns, then rows
-                for i in range(pw):
-                    rs[m, i] = s[m, ccol[i, 0]] + s[m, ccol[i, 1]] + s[m, ccol[i, 2]] + s[m, ccol[i, 3]]
+                    srow[n] = 0.0
+                y1 = m * cell + half + dy
+                if y1 < 0 or y1 >= h:
+                    continue
+                for k in range(c):
+                    arow = a0[k, m]
+                    prow = planes[r, k, y1, o:o + cw]
+                    for n in range(cw):
+                        srow[n] += arow[n] * prow[n]
+            for j in range(ph):  # separable 4 x 4 cell sums: the 4 cell rows, then the 4 cell columns
+                s0, s1, s2, s3, vrow = s[crow[j, 0]], s[crow[j, 1]], s[crow[j, 2]], s[crow[j, 3]], vs[j]
+                for n in range(cw):
+                    vrow[n] = s0[n] + s1[n] + s2[n] + s3[n]
             for j in range(ph):
-                r0, r1, r2, r3 = crow[j, 0], crow[j, 1], crow[j, 2], crow[j, 3]
                 for i in range(pw):
-                    out[j * pw + i, a, b] = (rs[r0, i] + rs[r1, i] + rs[r2, i] + rs[r3, i]) * scale
+                    row[b, j * pw + i] = (vs[j, ccol[i, 0]] + vs[j, ccol[i, 1]] + vs[j, ccol[i, 2]]
+                                          + vs[j, ccol[i, 3]]) * scale
+        for q in range(npatch):
+            for b in range(ndx):
+                out[q, a, b] = row[b, q]
     return out
 
 
@@ -242,19 +260,24 @@ def _pool(child, ky_c, kx_c, circ):
         child: (n, 2 ky_c + 1, ndx_c) responses (row index k <-> k - ky_c steps; columns circular of period
             ndx_c if ``circ``, else index k <-> k - kx_c).
     Returns:
-        (n, 2 (ky_c // 2) + 1, ndx_p) with ndx_p = ndx_c // 2 (circular) or 2 (kx_c // 2) + 1.
+        ``(pooled, arg)``: (n, 2 (ky_c // 2) + 1, ndx_p) float32 maxima, with ndx_p = ndx_c // 2 (circular) or
+        2 (kx_c // 2) + 1, and (same shape) uint8 where each maximum lies in its window, 3 (da + 1) + (db + 1)
+        for the child entry (2 a + da, 2 b + db) around the window's centre (the first such entry in that order
+        on ties).
     """
     n, ndy_c, ndx_c = child.shape
     ky_p, kx_p = ky_c // 2, kx_c // 2
     ndy_p = 2 * ky_p + 1
     ndx_p = ndx_c // 2 if circ else 2 * kx_p + 1
     out = np.zeros((n, ndy_p, ndx_p), np.float32)
+    arg = np.zeros((n, ndy_p, ndx_p), np.uint8)
     for q in numba.prange(n):
         for a in range(ndy_p):
             ca = ky_c + 2 * (a - ky_p)
             for b in range(ndx_p):
                 cb = 2 * b if circ else kx_c + 2 * (b - kx_p)
-                best = 0.0
+                best = -1.0
+                where = 4
                 for da in range(-1, 2):
                     aa = ca + da
                     if aa < 0 or aa >= ndy_c:
@@ -268,8 +291,10 @@ def _pool(child, ky_c, kx_c, circ):
                         val = child[q, aa, bb]
                         if val > best:
                             best = val
+                            where = 3 * (da + 1) + db + 1
                 out[q, a, b] = best
-    return out
+                arg[q, a, b] = where
+    return out, arg
 
 
 @numba.njit(parallel=True, cache=True, fastmath=True)
@@ -311,11 +336,15 @@ def _combine(pooled, gh, gw, off, wrapc, nlpow):
 
 
 @numba.njit(parallel=True, cache=True)
-def _backtrack(maps, gh, gw, kys, kxs, circ, wrapc, best_score, best_a, best_b):
+def _backtrack(maps, pooled, args, gh, gw, kys, kxs, circ, wrapc, best_score, best_a, best_b):
     """Top-down: from every local maximum at every level >= 2 down to the atomic patches.
+
+    Each step down takes, for each child, the maximum of its pooling window (the one the parent's response
+    pooled) and goes on from where it lies.
 
     Args:
         maps: list of (n, ndy, ndx) response arrays per level (level 1 first).
+        pooled, args: per level but the last, :func:`_pool` of its map (the maxima and where they lie).
         gh, gw: the patch grid (shared by all levels).
         kys, kxs: (L,) displacement window half-sizes per level (``kxs`` unused when circular).
         best_score, best_a, best_b: (L, n) output: per starting level, each atomic patch's best path score
@@ -364,12 +393,13 @@ def _backtrack(maps, gh, gw, kys, kxs, circ, wrapc, best_score, best_a, best_b):
                                 best_a[lev, pp] = pa
                                 best_b[lev, pp] = pb
                             continue
-                        cm = maps[lv - 1]
+                        pm = pooled[lv - 1]
+                        pg = args[lv - 1]
                         off = 1 << (lv - 1)
                         j, i = pp // gw, pp % gw
                         ca = kys[lv - 1] + 2 * (pa - kys[lv])
                         cb = 2 * pb if circ else kxs[lv - 1] + 2 * (pb - kxs[lv])
-                        cndy, cndx = cm.shape[1], cm.shape[2]
+                        cndx = maps[lv - 1].shape[2]
                         for sj in (-1, 1):
                             cj = j + sj * off
                             if cj < 0 or cj >= gh:
@@ -381,24 +411,12 @@ def _backtrack(maps, gh, gw, kys, kxs, circ, wrapc, best_score, best_a, best_b):
                                 elif ci < 0 or ci >= gw:
                                     continue
                                 cidx = cj * gw + ci
-                                bv = -1.0
-                                ba, bb2 = ca, cb
-                                for da in range(-1, 2):
-                                    aa = ca + da
-                                    if aa < 0 or aa >= cndy:
-                                        continue
-                                    for db in range(-1, 2):
-                                        bb = cb + db
-                                        if circ:
-                                            bb = bb % cndx
-                                        elif bb < 0 or bb >= cndx:
-                                            continue
-                                        val = cm[cidx, aa, bb]
-                                        if val > bv:
-                                            bv = val
-                                            ba, bb2 = aa, bb
-                                if bv < 0.0:
-                                    continue
+                                bv = pm[cidx, pa, pb]  # the child's best in its pooling window, and where
+                                k = np.int64(pg[cidx, pa, pb])
+                                ba = ca + k // 3 - 1
+                                bb2 = cb + k % 3 - 1
+                                if circ:
+                                    bb2 = bb2 % cndx
                                 stack_lev[top], stack_p[top], stack_a[top], stack_b[top] = lv - 1, cidx, ba, bb2
                                 stack_s[top] = sc + bv
                                 top += 1
@@ -433,11 +451,13 @@ def _one_way(d0: np.ndarray, d1: np.ndarray, p: DeepMatchingParams):
     kys, kxs = [ky], [kx]
     psize = PATCH_CELLS * cell
     # build levels while the patch (16, 32, 64, ... working pixels) fits in the image
+    pooled, args = [], []
     while 2 * psize <= min(h, w) and maps[-1].shape[2] >= 3:
-        pooled = _pool(maps[-1], kys[-1], kxs[-1], circ)
+        pm, pa = _pool(maps[-1], kys[-1], kxs[-1], circ)
+        pooled.append(pm)
+        args.append(pa)
         off = (psize // 2) // step  # children at +- a quarter of the parent's size, in grid steps
-        maps.append(_combine(pooled, gh, gw, off, wrapc, float(p.nlpow)))
-        del pooled
+        maps.append(_combine(pm, gh, gw, off, wrapc, float(p.nlpow)))
         kys.append(kys[-1] // 2)
         kxs.append(kxs[-1] // 2)
         psize *= 2
@@ -447,8 +467,8 @@ def _one_way(d0: np.ndarray, d1: np.ndarray, p: DeepMatchingParams):
     all_a = np.zeros((nlev, n), np.int64)
     all_b = np.zeros((nlev, n), np.int64)
     if nlev > 1:
-        _backtrack(numba.typed.List(maps), gh, gw, np.asarray(kys, np.int64), np.asarray(kxs, np.int64), circ,
-                   wrapc, all_s, all_a, all_b)
+        _backtrack(numba.typed.List(maps), numba.typed.List(pooled), numba.typed.List(args), gh, gw,
+                   np.asarray(kys, np.int64), np.asarray(kxs, np.int64), circ, wrapc, all_s, all_a, all_b)
     else:  # a single level: each atomic patch's own best response
         flat = maps[0].reshape(n, -1)
         arg = np.argmax(flat, axis=1)

@@ -6,7 +6,7 @@ import cv2
 import numpy as np
 
 from reconstruction.flow.backends import FlowBackend, equirect_flow, get_flow
-from reconstruction.flow.deepflow import DeepFlowParams, deep_flow, match_field, match_weights
+from reconstruction.flow.deepflow import DeepFlowParams, deep_flow, deep_flow_both, match_field, match_weights
 from reconstruction.flow.deepmatching import DeepMatchingParams, Matches
 from tests.reconstruction.test_deepmatching import texture
 
@@ -107,3 +107,23 @@ def test_wrapping_backends_get_unpadded_images():
     equirect_flow(FlowBackend("p", fake), img, img, 8)
     assert seen == [(8, 16, 3), (8, 32, 3)]
     assert get_flow("deepflow").wraps and get_flow("epicflow").wraps and not get_flow("deepflow-opencv").wraps
+
+
+def test_both_directions_at_once_equal_each_alone_and_the_backend_keeps_the_reverse():
+    """deep_flow_both (two threads) gives exactly deep_flow of each direction; the deepflow backend's second call
+    (the same images swapped) returns the reverse flow its first call solved, and an unrelated call recomputes."""
+    from reconstruction.flow.deepmatching import deep_matching_both
+
+    img0 = texture(H, W, 9)
+    img1 = np.roll(np.roll(img0, 12, axis=1), 1, axis=0)
+    m = deep_matching_both(img0, img1, PARAMS.matching)
+    f01, f10 = deep_flow_both(img0, img1, PARAMS, m)
+    np.testing.assert_array_equal(f01, deep_flow(img0, img1, PARAMS, matches=m[0]))
+    np.testing.assert_array_equal(f10, deep_flow(img1, img0, PARAMS, matches=m[1]))
+    backend = FlowBackend("deepflow-test", get_flow("deepflow").compute, params={**get_flow("deepflow").params,
+                                                                                   "downscale": 0}, wraps=True)
+    fwd = backend(img0, img1)
+    bwd = backend(img1, img0)
+    np.testing.assert_array_equal(fwd, f01)
+    np.testing.assert_array_equal(bwd, f10)
+    np.testing.assert_array_equal(backend(img1, img0), f10)  # recomputed: nothing pending any more
