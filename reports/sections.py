@@ -84,7 +84,7 @@ from reports.tables import (
 
 __all__ = ["Part", "FramePart", "PLY_CHOICES", "DEFAULT_CLOUD_POINTS", "OTHER_KEY", "SECTION_HALF_ANGLE_DEG",
            "SECTION_NOTE", "section_sample", "leaderboard_part", "flow_mae_part", "breakdown_part",
-           "sparsification_part", "frame_part", "quality_part", "capture_part", "report_html"]
+           "sparsification_part", "frame_anchor", "frame_part", "quality_part", "capture_part", "report_html"]
 
 #: which point clouds become PLY files: every method, only the paper set-up (deepflow-rect) or none
 PLY_CHOICES = ("all", "paper", "none")
@@ -364,9 +364,14 @@ def frame_part(frame, rows: Mapping[str, Mapping], preds: Mapping[str, np.ndarra
                             reference=("ground truth", gt_pts[idx]),
                             limits="Axis limits from the ground truth's 1-99 % range.")
     ply_note = ('<p class="note">PLY point clouds of this frame: ' + ", ".join(links) + "</p>") if links else ""
-    out.html = (f"<h3>{H.esc(scene)} / {H.esc(viewpoint)}</h3>"
+    out.html = (f'<h3 id="{H.esc(frame_anchor(scene, viewpoint))}">{H.esc(scene)} / {H.esc(viewpoint)}</h3>'
                 f'<p class="note">frame: {H.esc(frame.path)}</p>{ply_note}' + "".join(blocks))
     return out
+
+
+def frame_anchor(scene: str, viewpoint: str) -> str:
+    """The id of a frame's heading in the report (``report.html#frame-<scene>-<viewpoint>`` links to its maps)."""
+    return f"frame-{scene}-{viewpoint}"
 
 
 def quality_part(results: pd.DataFrame) -> Part:
@@ -448,7 +453,7 @@ def capture_part(frame, rows: Mapping[str, Mapping], preds: Mapping[str, np.ndar
     blocks += _cloud_blocks(out, rows, preds, cam, colors, idx, view_masks, ply, title, fig_dir, cloud_dir,
                             reference=None,
                             limits="No ground truth: axis limits from the first method's 1-99 % range.")
-    out.html = (f"<h3>{H.esc(scene)} / {H.esc(viewpoint)}</h3>"
+    out.html = (f'<h3 id="{H.esc(frame_anchor(scene, viewpoint))}">{H.esc(scene)} / {H.esc(viewpoint)}</h3>'
                 f'<p class="note">frame: {H.esc(frame.path)} &middot; <strong>{H.esc(NOTHING_SCORED)}</strong> '
                 "(no ground-truth distance)</p>" + "".join(blocks))
     return out

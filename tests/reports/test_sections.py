@@ -72,7 +72,7 @@ def test_frame_part_holds_every_figure_and_cloud(frame):
     assert all(part.files[k][:8] == PNG for k in part.files if k.endswith(".png"))
     pts, col = parse_ply(part.files[f"{clouds}/ground_truth.ply"])
     assert pts.shape == (W * H - 5, 3) and col.dtype == np.uint8  # the sky pixels are no points
-    assert part.html.startswith("<h3>room / v0</h3>") and part.html.count("<img ") == 4
+    assert part.html.startswith('<h3 id="frame-room-v0">room / v0</h3>') and part.html.count("<img ") == 4
     assert 'href="clouds/room/v0/dis-rect/gradient.ply"' in part.html
     # the sparsification curve of the method with a confidence, weighted by the frame's scored pixels
     assert sorted(part.curves) == ["matcher"]
