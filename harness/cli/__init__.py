@@ -16,6 +16,7 @@ from harness.runtime import startup
 startup.guard("tri360")
 # every import below runs under the guard (so ruff's E402 is off for this file, in pyproject.toml)
 import argparse
+import os
 import sys
 
 from harness import __version__
@@ -25,6 +26,9 @@ from harness.data.errors import UserError
 from scenes.registry import SceneError
 
 EXIT_USAGE = 2
+EXIT_BROKEN_PIPE = 141
+"""Exit status when the reader of stdout went away (``tri360 methods | head``): 128 + SIGPIPE, as a shell pipeline's
+commands that die of SIGPIPE have; nothing is printed."""
 
 COMMANDS = {"render": render, "scenes": scenes_cmd, "methods": list_methods, "reconstruct": reconstruct,
             "evaluate": evaluate,
@@ -87,10 +91,16 @@ def main(argv: list[str] | None = None) -> int:
         with startup.sigterm_as_interrupt():
             args = build_parser().parse_args(argv)
             prog = f"tri360 {args.command}"
-            return int(args._module.run(args) or 0)
+            status = int(args._module.run(args) or 0)
+            sys.stdout.flush()  # a reader that went away shows here, not at the interpreter's exit
+            return status
     except (UserError, SceneError) as exc:
         print(f"{prog}: error: {exc}", file=sys.stderr)
         return EXIT_USAGE
+    except BrokenPipeError:
+        # stdout's reader has gone: the rest of the output and the final flush go nowhere, quietly
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return EXIT_BROKEN_PIPE
     except OSError as exc:
         print(f"{prog}: error: {_os_error_line(exc)}", file=sys.stderr)
         return EXIT_USAGE

@@ -1,6 +1,9 @@
 """The tri360 command line: reconstruct and evaluate on synthetic frames, and one-line errors."""
 
 import json
+import os
+import subprocess
+import sys
 
 import pandas as pd
 import pytest
@@ -113,3 +116,17 @@ def test_report_names_the_results_set_where_it_lives(synthetic_root, tmp_path, c
     page = (out / "report.html").read_text()
     header = next(ln for ln in page.splitlines() if "results: " in ln)
     assert f"results: {out.resolve()} &middot;" in header and "partial" not in header
+
+
+@pytest.mark.parametrize("args", [["methods"], ["scenes", "--params"]])
+def test_a_listing_into_a_closed_pipe_stops_quietly(args):
+    """``tri360 methods | head``: when stdout's reader has gone, the command prints nothing on stderr (no
+    "Broken pipe" error line, no traceback at exit) and exits 141 (128 + SIGPIPE), as a pipeline expects."""
+    read_end, write_end = os.pipe()
+    os.close(read_end)  # no reader at all: the first write fails
+    try:
+        proc = subprocess.run([sys.executable, "-m", "harness.cli", *args], stdout=write_end,
+                              stderr=subprocess.PIPE, timeout=300)
+    finally:
+        os.close(write_end)
+    assert proc.stderr.decode() == "" and proc.returncode == 141
