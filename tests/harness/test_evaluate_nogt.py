@@ -256,30 +256,30 @@ def test_report_names_a_missing_quality_map_and_still_draws_the_frame(results, t
 
 
 def test_a_quality_reference_the_method_does_not_compute_runs_along(capture, tmp_path):
-    """fused-gated computes no refined flow, but its quality is compared with fused's (its ``quality_flow``):
-    evaluate runs that flow method along on a frame without ground truth, reports only the asked method, and its
-    disagreement map is assess's with that method's distance as the reference."""
+    """The default (fused-mirror) computes no refined flow, but its quality is compared with fused's (its
+    ``quality_flow``): evaluate runs that flow method along on a frame without ground truth, reports only the asked
+    method, and its disagreement map is assess's with that method's distance as the reference."""
     from reconstruction.methods.base import reference_distance, run_methods, with_references
-    from reconstruction.methods.registry import fused_method, gated_method
+    from reconstruction.methods.registry import fused_method, mirror_method
 
     _, root, frame_dir = capture
-    gated, flow = gated_method(), fused_method().flow
-    assert gated.reference_method.label == flow.label != gated.flow.label
-    assert [m.label for m in with_references([gated])] == [gated.label, flow.label]
-    assert [m.label for m in with_references([gated, flow])] == [gated.label, flow.label]
+    method, flow = mirror_method(), fused_method().flow
+    assert method.reference_method.label == flow.label != method.flow.label
+    assert [m.label for m in with_references([method])] == [method.label, flow.label]
+    assert [m.label for m in with_references([method, flow])] == [method.label, flow.label]
     frame = read_frame(frame_dir)
-    outputs = run_methods(frame, [gated])
-    assert outputs[gated.label].reference is None  # not computed by the method: not in its time
-    ref = reference_distance(frame, gated, outputs)  # run now: the outputs lack it
+    outputs = run_methods(frame, [method])
+    assert outputs[method.label].reference is None  # not computed by the method: not in its time
+    ref = reference_distance(frame, method, outputs)  # run now: the outputs lack it
     alone = run_methods(frame, [flow])[flow.label].distance
     np.testing.assert_allclose(ref, alone, rtol=1e-5, atol=1e-5, equal_nan=True)
-    out = tmp_path / "res-gated"
-    assert main(["evaluate", str(root), "--out", str(out), "--method", gated.label, "--quiet"]) == 0
+    out = tmp_path / "res-method"
+    assert main(["evaluate", str(root), "--out", str(out), "--method", method.label, "--quiet"]) == 0
     table = read_results(out)
-    assert list(table["method"]) == [gated.label]
-    distance = read_float_map(out / map_paths("hall", "pos1", gated.label)[0], DISTANCE_CHANNEL)
-    confidence = read_float_map(out / map_paths("hall", "pos1", gated.label)[1], CONFIDENCE_CHANNEL)
-    stored = read_exr_channels(out / quality_map_path("hall", "pos1", gated.label))
+    assert list(table["method"]) == [method.label]
+    distance = read_float_map(out / map_paths("hall", "pos1", method.label)[0], DISTANCE_CHANNEL)
+    confidence = read_float_map(out / map_paths("hall", "pos1", method.label)[1], CONFIDENCE_CHANNEL)
+    stored = read_exr_channels(out / quality_map_path("hall", "pos1", method.label))
     maps, _ = assess(frame, distance, confidence, reference=ref)
     assert "disagreement" in stored
     np.testing.assert_allclose(stored["disagreement"], maps["disagreement"], rtol=1e-4, atol=1e-4, equal_nan=True)
