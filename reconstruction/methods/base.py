@@ -128,9 +128,9 @@ def reference_distance(frame, method: Method, outputs: dict[str, MethodOutput]) 
     assess`'s ``reference``).
 
     The method's own ``reference`` when its output has one; else, for a method that names one
-    (``reference_method``, e.g. ``fused-gated``'s refined flow, which it does not compute itself), that method's
-    distance: taken from ``outputs`` when the same run computed it, else run now.  None for a method without
-    a reference.
+    (``reference_method``, e.g. the default ``fused-mirror``'s refined flow, which it does not compute itself),
+    that method's distance: taken from ``outputs`` when the same run computed it, else run now.  None for a method
+    without a reference.
 
     Args:
         frame: the frame; method: a method with an output in ``outputs``; outputs: outputs by label
