@@ -88,6 +88,20 @@ _FLOW_CACHE = threading.local()
 """Per thread: ``.pending`` holds the one reverse DeepFlow kept."""
 
 
+def _one_way_of_both(cache: threading.local, img0: np.ndarray, img1: np.ndarray, key: str, both):
+    """The img0 -> img1 half of ``both(img0, img1) -> (forward, reverse)``: the pipeline asks for a pair's forward
+    then its backward result, so the reverse is kept in ``cache`` (one per thread) and is the answer of the next
+    call whose images are these swapped (``key``: what else the result depends on)."""
+    wanted = _digest(img0, img1, extra=key)
+    pending = getattr(cache, "pending", None)
+    cache.pending = None
+    if pending is not None and pending[0] == wanted:
+        return pending[1]
+    fwd, bwd = both(img0, img1)
+    cache.pending = (_digest(img1, img0, extra=key), bwd)
+    return fwd
+
+
 def _digest(*arrays, extra: str = "") -> bytes:
     h = hashlib.blake2b(extra.encode(), digest_size=16)
     for a in arrays:
@@ -99,14 +113,7 @@ def _digest(*arrays, extra: str = "") -> bytes:
 def cached_matches(img0: np.ndarray, img1: np.ndarray, params: DeepMatchingParams) -> Matches:
     """DeepMatching from img0 to img1; the reverse direction, computed with it, is kept for the next call
     (the pipeline asks for the forward then the backward flow of each pair: one matching serves both)."""
-    key = _digest(img0, img1, extra=repr(params))
-    pending = getattr(_MATCH_CACHE, "pending", None)
-    _MATCH_CACHE.pending = None
-    if pending is not None and pending[0] == key:
-        return pending[1]
-    fwd, bwd = deep_matching_both(img0, img1, params)
-    _MATCH_CACHE.pending = (_digest(img1, img0, extra=repr(params)), bwd)
-    return fwd
+    return _one_way_of_both(_MATCH_CACHE, img0, img1, repr(params), lambda a, b: deep_matching_both(a, b, params))
 
 
 def _dm_params(downscale, ngh_rad_x, ngh_rad_y, wrap) -> DeepMatchingParams:
@@ -122,14 +129,7 @@ def _deepflow(img0, img1, downscale=1, ngh_rad_x=0, ngh_rad_y=0, wrap=True):
     both flows at once (:func:`~reconstruction.flow.deepflow.deep_flow_both`, one thread each) and keeps the
     reverse flow for the next call, which returns it if its images are the first call's, swapped."""
     p = DeepFlowParams(wrap=bool(wrap), matching=_dm_params(downscale, ngh_rad_x, ngh_rad_y, wrap))
-    key = _digest(img0, img1, extra=repr(p))
-    pending = getattr(_FLOW_CACHE, "pending", None)
-    _FLOW_CACHE.pending = None
-    if pending is not None and pending[0] == key:
-        return pending[1]
-    fwd, bwd = deep_flow_both(img0, img1, p, matches=deep_matching_both(img0, img1, p.matching))
-    _FLOW_CACHE.pending = (_digest(img1, img0, extra=repr(p)), bwd)
-    return fwd
+    return _one_way_of_both(_FLOW_CACHE, img0, img1, repr(p), lambda a, b: deep_flow_both(a, b, p))
 
 
 def _epicflow(img0, img1, downscale=1, ngh_rad_x=0, ngh_rad_y=0, wrap=True, pad=32):

@@ -492,8 +492,7 @@ def deep_flow(img0: np.ndarray, img1: np.ndarray, params: DeepFlowParams | None 
         raise ValueError(f"deep_flow: images differ in size ({img0.shape} vs {img1.shape})")
     h, w = img0.shape[:2]
     if matches is None:
-        mp = p.matching if p.matching.wrap == p.wrap else DeepMatchingParams(**{**asdict(p.matching), "wrap": p.wrap})
-        matches = deep_matching(img0, img1, mp)
+        matches = deep_matching(img0, img1, _matching_params(p))
 
     def prep(img):
         x = img.astype(np.float32)
@@ -535,6 +534,11 @@ def deep_flow(img0: np.ndarray, img1: np.ndarray, params: DeepFlowParams | None 
     return np.ascontiguousarray(np.dstack([u, v]), np.float32)
 
 
+def _matching_params(p: DeepFlowParams) -> DeepMatchingParams:
+    """The DeepMatching parameters of ``p``, with the flow's ``wrap``."""
+    return p.matching if p.matching.wrap == p.wrap else DeepMatchingParams(**{**asdict(p.matching), "wrap": p.wrap})
+
+
 def deep_flow_both(img0: np.ndarray, img1: np.ndarray, params: DeepFlowParams | None = None,
                    matches: tuple[Matches, Matches] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """DeepFlow both ways, ``(flow img0 -> img1, flow img1 -> img0)``, the two solved at once on two threads.
@@ -554,8 +558,7 @@ def deep_flow_both(img0: np.ndarray, img1: np.ndarray, params: DeepFlowParams | 
     if img0.shape != img1.shape:
         raise ValueError(f"deep_flow: images differ in size ({img0.shape} vs {img1.shape})")
     if matches is None:
-        mp = p.matching if p.matching.wrap == p.wrap else DeepMatchingParams(**{**asdict(p.matching), "wrap": p.wrap})
-        matches = deep_matching_both(img0, img1, mp)
+        matches = deep_matching_both(img0, img1, _matching_params(p))
     with ThreadPoolExecutor(max_workers=2, thread_name_prefix="deepflow") as pool:
         back = pool.submit(deep_flow, img1, img0, p, matches[1])
         fwd = deep_flow(img0, img1, p, matches[0])
