@@ -37,7 +37,7 @@ __all__ = ["ENTRY_POINT_GROUP", "DEFAULT_CONFIGS", "DEFAULT_METHOD", "DEFAULT_VA
            "WALL_PLANES", "ADAPTIVE_PRIOR", "GATED_PRIOR", "builtin_methods", "discover_methods", "get_methods",
            "MIRROR_PLANES", "MIRROR_INTENSITY_WEIGHT",
            "flow_methods", "evaluate_default_methods", "fused_method", "adaptive_method", "gated_method",
-           "mirror_method", "Preset", "PRESETS", "RETIRED_PRESETS", "renamed_label_note", "with_photometric",
+           "mirror_method", "Preset", "PRESETS", "RETIRED_PRESETS", "former_label_note", "with_photometric",
            "uncalibrated"]
 
 ENTRY_POINT_GROUP = "tri360.methods"
@@ -235,7 +235,7 @@ def discover_methods() -> tuple[dict[str, Method], dict[str, str]]:
                           key=lambda m: m.label)
 
 
-def renamed_label_note(label: str) -> str:
+def former_label_note(label: str) -> str:
     """For a flow-pipeline label whose flow was renamed (:data:`reconstruction.flow.backends.RENAMED_FLOWS`), e.g.
     ``deepflowdm-rect:gradient``: ``"deepflowdm-rect:gradient is now called deepflow-rect:gradient"``; for a
     retired named method (:data:`RETIRED_PRESETS`): that it left the built-in methods and what to use instead;
@@ -254,10 +254,10 @@ def get_methods(labels: Sequence[str]) -> list[Method]:
     """Methods by label.
 
     Raises:
-        ValueError: naming the unknown labels (a renamed one with its name now), the named built-in methods,
-            the label pattern of the flow pipeline and the registered plugins' methods (each with its plugin); or a
-            label that a refused plugin also provides (naming the plugin: an outside method never replaces a
-            built-in or another plugin's).
+        ValueError: naming the unknown labels (a renamed one with its name now, a retired one with what to use),
+            the named built-in methods, the label pattern of the flow pipeline and the registered plugins' methods
+            (each with its plugin); or a label that a refused plugin also provides (naming the plugin: an outside
+            method never replaces a built-in or another plugin's).
     """
     reg = collect_registry(builtin_methods(), ENTRY_POINT_GROUP, lambda m: isinstance(m, Method), "Method",
                            key=lambda m: m.label)
@@ -267,16 +267,16 @@ def get_methods(labels: Sequence[str]) -> list[Method]:
             raise ValueError(shadow_message("method", x, reg))
     bad = [x for x in labels if x not in methods]
     if bad:
-        renamed = [renamed_label_note(x) for x in bad if renamed_label_note(x)]
-        if len(renamed) == len(bad):
-            raise ValueError("; ".join(renamed))
+        former = [former_label_note(x) for x in bad if former_label_note(x)]
+        if len(former) == len(bad):
+            raise ValueError("; ".join(former))
         named = [p.label for p in PRESETS]
         plugins = sorted(f"{k} ({reg.sources[k]})" if k in reg.sources else k
                          for k, m in methods.items() if not isinstance(m, FlowMethod) and k not in named)
         raise ValueError(f"unknown method(s) {', '.join(bad)} (named methods: {', '.join(named)}; the flow pipeline: "
                          f"FLOW-rect:VARIANT or FLOW-plain:VARIANT, e.g. dis-rect:gradient; plugins' methods: "
                          f"{', '.join(plugins) or 'none'}; 'tri360 methods' lists them all)"
-                         + (f"; {'; '.join(renamed)}" if renamed else "") + _plugin_note(errors))
+                         + (f"; {'; '.join(former)}" if former else "") + _plugin_note(errors))
     return [methods[x] for x in dict.fromkeys(labels)]
 
 
