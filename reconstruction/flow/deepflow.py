@@ -28,9 +28,12 @@ smoothness term and the solver, so the flow crosses the seam with no padding.
 
 OpenCV pieces: image resizing and blurring only.  ``cv2.optflow.createOptFlow_DeepFlow`` (the variational part
 with the same defaults' family) and ``cv2.VariationalRefinement`` have no matching term and no periodic
-boundary, so the whole solver is here: numba kernels for the warp, the data, matching and smoothness terms and
-SOR, all single-threaded and releasing the GIL (:func:`deep_flow_both` solves a pair's two directions on two
-threads), numpy for the derivatives.
+boundary, so the whole solver is here: numba kernels for the warp, the image derivatives, the data, matching and
+smoothness terms and SOR, all single-threaded and releasing the GIL (:func:`deep_flow_both` solves a pair's two
+directions on two threads).  Per level, the image terms that do not change over the fixed-point iterations (the
+derivatives, their normalisations and the data terms' system before its robust weights) are computed once; the
+SOR sweeps run on a colour-split copy of the system (each row's pixels of one colour contiguous, vectorised);
+scratch arrays are allocated once per flow, for the finest level, and reused by every level.
 """
 
 from __future__ import annotations
@@ -159,11 +162,8 @@ def match_field(m: Matches, phi: np.ndarray, h: int, w: int, wrap: bool = True,
         no match).
     """
     lh, lw = level_hw if level_hw is not None else (h, w)
-    mu = np.zeros((lh, lw), np.float64)
-    mv = np.zeros((lh, lw), np.float64)
-    mw = np.zeros((lh, lw), np.float64)
     if m.x0.size == 0:
-        return mu.astype(np.float32), mv.astype(np.float32), mw.astype(np.float32)
+        return tuple(np.zeros((lh, lw), np.float32) for _ in range(3))
     phi = np.asarray(phi, np.float64)
     sx, sy = lw / w, lh / h
     fu, fv = (m.x1 - m.x0) * sx, (m.y1 - m.y0) * sy
@@ -176,14 +176,18 @@ def match_field(m: Matches, phi: np.ndarray, h: int, w: int, wrap: bool = True,
     x0f, y0f = np.floor(xs), np.floor(ys)
     ax, ay = xs - x0f, ys - y0f
     x0i, y0i = x0f.astype(np.int64), y0f.astype(np.int64)
+    cells, wts = [], []
     for dy, wy in ((0, 1.0 - ay), (1, ay)):
         yi = np.minimum(y0i + dy, lh - 1)
         for dx, wx in ((0, 1.0 - ax), (1, ax)):
             xi = (x0i + dx) % lw if wrap else np.minimum(x0i + dx, lw - 1)
-            wt = phi * wx * wy
-            np.add.at(mw, (yi, xi), wt)
-            np.add.at(mu, (yi, xi), wt * fu)
-            np.add.at(mv, (yi, xi), wt * fv)
+            cells.append(yi * lw + xi)
+            wts.append(phi * wx * wy)
+    # the four corners' splats added one after the other into zeroed maps (bincount adds in input order)
+    cell, wt = np.concatenate(cells), np.concatenate(wts)
+    mw = np.bincount(cell, wt, lh * lw).reshape(lh, lw)
+    mu = np.bincount(cell, wt * np.tile(fu, 4), lh * lw).reshape(lh, lw)
+    mv = np.bincount(cell, wt * np.tile(fv, 4), lh * lw).reshape(lh, lw)
     ok = mw > 1e-10
     mu[ok] /= mw[ok]
     mv[ok] /= mw[ok]
@@ -219,137 +223,189 @@ def _warp(img, u, v, wrap):
     return out, mask
 
 
-@numba.njit(cache=True, nogil=True, fastmath=True, inline="always")
-def _sor_pixel(du, dv, a12, b1, b2, hx, hy, left, r11, r22, keep, i, j, iu, idn, fu):
-    """One SOR update of pixel (i, j) (see :func:`_sor`), the column neighbours wrapped."""
-    w = du.shape[1]
-    jl = j - 1 if j > 0 else w - 1
-    jr = j + 1 if j < w - 1 else 0
-    wl, wr, wu, wd = left[i, j], hx[i, j], fu * hy[iu, j], hy[i, j]
-    su = wl * du[i, jl] + wr * du[i, jr] + wu * du[iu, j] + wd * du[idn, j]
-    sv = wl * dv[i, jl] + wr * dv[i, jr] + wu * dv[iu, j] + wd * dv[idn, j]
-    nu = keep * du[i, j] + r11[i, j] * (b1[i, j] + su - a12[i, j] * dv[i, j])
-    du[i, j] = nu
-    dv[i, j] = keep * dv[i, j] + r22[i, j] * (b2[i, j] + sv - a12[i, j] * nu)
+# the image terms of a pyramid level (_image_terms): per-channel planes (_N_TERMS, c, h, w) and summed planes
+# (_N_SUMS, h, w)
+_IZ, _IX, _IY, _IXX, _IXY, _IYY, _IXZ, _IYZ, _ND, _NX, _NY = range(11)
+_N_TERMS = 11
+_D11, _D12, _D22, _D1, _D2, _G11, _G12, _G22, _G1, _G2 = range(10)
+_N_SUMS = 10
+_SOR_WAVE = 5  # SOR sweeps done together as a wavefront down the rows (_sor)
 
 
-@numba.njit(cache=True, nogil=True, fastmath=True)
-def _sor(du, dv, a11, a12, a22, b1, b2, hx, hy, iters, omega, wrap):
-    """Coupled red-black SOR for the increment (du, dv) of one fixed-point iteration (in place).
+@numba.njit(cache=True, nogil=True, inline="always")
+def _col(j, w, wrap):
+    """Column index j (possibly outside 0..w-1): wrapped if ``wrap``, else clamped to the edge."""
+    if wrap:
+        return j % w
+    return min(max(j, 0), w - 1)
 
-    The system per pixel: (a + sum h) d - sum_nb h d_nb = b, with hx[i, j] the weight between (i, j) and
-    (i, j + 1) (the last column links to the first when wrapping, else hx[:, -1] must be 0) and hy[i, j] between
-    rows i and i + 1 (hy[-1] must be 0).  All arrays (h, w) float32; ``iters`` sweeps, each the pixels with
-    i + j even then those with i + j odd, each row's pixels of a colour in column order (with wrapping and an odd
-    width the first and last columns have the same colour: the last then sees the first's new value).  The
-    diagonal's reciprocals are computed once per call; the first and last columns are updated apart so that the
-    row's other pixels are a loop without index wrapping (vectorised).  Single-threaded (releases the GIL): a
-    sweep of a pyramid level is too little work for a parallel loop's barriers to pay off.
+
+@numba.njit(cache=True, nogil=True)
+def _d5x(x, out, wrap):
+    """out = five-point derivative (1, -8, 0, 8, -1) / 12 of x along columns, in float32 (the same operations as
+    :func:`_dx5`).  x, out: (h, w) float32 planes; columns wrapped or edge-replicated."""
+    h, w = x.shape
+    e8, d12 = np.float32(8.0), np.float32(12.0)
+    for i in range(h):
+        for j in range(min(2, w)):
+            out[i, j] = (-x[i, _col(j + 2, w, wrap)] + e8 * x[i, _col(j + 1, w, wrap)]
+                         - e8 * x[i, _col(j - 1, w, wrap)] + x[i, _col(j - 2, w, wrap)]) / d12
+        for j0 in range(w - 4):  # j = j0 + 2, indices from 0 up (no negative-index handling, vectorised)
+            out[i, j0 + 2] = (-x[i, j0 + 4] + e8 * x[i, j0 + 3] - e8 * x[i, j0 + 1] + x[i, j0]) / d12
+        for j in range(max(w - 2, 2), w):
+            out[i, j] = (-x[i, _col(j + 2, w, wrap)] + e8 * x[i, _col(j + 1, w, wrap)]
+                         - e8 * x[i, _col(j - 1, w, wrap)] + x[i, _col(j - 2, w, wrap)]) / d12
+
+
+@numba.njit(cache=True, nogil=True)
+def _d5y(x, out):
+    """out = five-point derivative of x along rows, edge rows replicated, in float32 (as :func:`_dy5`).
+    x, out: (h, w) float32 planes."""
+    h, w = x.shape
+    e8, d12 = np.float32(8.0), np.float32(12.0)
+    for i in range(h):
+        r2, r1 = min(i + 2, h - 1), min(i + 1, h - 1)
+        m1, m2 = max(i - 1, 0), max(i - 2, 0)
+        for j in range(w):
+            out[i, j] = (-x[r2, j] + e8 * x[r1, j] - e8 * x[m1, j] + x[m2, j]) / d12
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _recip_norm(a, b):
+    """1 / (a^2 + b^2 + DATANORM) in float64 for float32 a, b (the squares summed in float32)."""
+    return 1.0 / (np.float64(a * a + b * b) + DATANORM)
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _image_terms(im1, im2w, wrap, terms, sums):
+    """The image terms of one pyramid level, once per warp.
+
+    Per channel k the planes ``terms[q, k]`` (float32; grey levels, per pixel for each derivative) of
+
+        iz = I2w - I1, ix, iy = five-point x and y derivatives of the mean (I1 + I2w) / 2,
+        ixx = d/dx ix, ixy = d/dy ix, iyy = d/dy iy, ixz = d/dx iz, iyz = d/dy iz,
+        nd = 1 / (ix^2 + iy^2 + DATANORM), nx = 1 / (ixx^2 + ixy^2 + DATANORM), ny = 1 / (iyy^2 + ixy^2 + DATANORM)
+
+    (q = _IZ ... _NY; nd, nx, ny are the per-channel normalisations of the colour and gradient constancy terms),
+    and over the channels the sums ``sums[q]`` (float32, q = _D11 ... _G2) that make the data terms' system
+    apart from its robust weights:
+
+        D11, D12, D22 = sum nd (ix ix, ix iy, iy iy),  D1, D2 = sum nd iz (ix, iy),
+        G11 = sum nx ixx^2 + ny ixy^2,  G12 = sum nx ixx ixy + ny ixy iyy,  G22 = sum nx ixy^2 + ny iyy^2,
+        G1 = sum nx ixx ixz + ny ixy iyz,  G2 = sum nx ixy ixz + ny iyy iyz.
+
+    The derivatives are the float32 operations of :func:`_dx5` / :func:`_dy5`; the normalisations and the sums
+    are computed in float64.  Single-threaded, releases the GIL.
+
+    Args:
+        im1, im2w: (h, w, c) float32 first image and second image warped by the current flow.
+        wrap: columns are periodic.
+        terms: (11, c, h, w) float32, written.
+        sums: (10, h, w) float32, written.
     """
-    h, w = du.shape
-    left = np.empty((h, w), np.float32)  # weight of the left neighbour (0 in the first column without wrapping)
-    r11 = np.empty((h, w), np.float32)  # omega / (a11 + sum of the neighbour weights)
-    r22 = np.empty((h, w), np.float32)
+    h, w, c = im1.shape
+    half = np.float32(0.5)
+    for k in range(c):
+        mean = terms[_ND, k]  # scratch until the normalisations are written
+        z = terms[_IZ, k]
+        for i in range(h):
+            for j in range(w):
+                mean[i, j] = half * (im1[i, j, k] + im2w[i, j, k])
+                z[i, j] = im2w[i, j, k] - im1[i, j, k]
+        _d5x(mean, terms[_IX, k], wrap)
+        _d5y(mean, terms[_IY, k])
+        _d5x(terms[_IX, k], terms[_IXX, k], wrap)
+        _d5y(terms[_IX, k], terms[_IXY, k])
+        _d5y(terms[_IY, k], terms[_IYY, k])
+        _d5x(z, terms[_IXZ, k], wrap)
+        _d5y(z, terms[_IYZ, k])
+    acc = np.empty((_N_SUMS, w))  # one row's sums, float64
     for i in range(h):
-        for j in range(w):
-            wl = hx[i, j - 1] if j > 0 else (hx[i, w - 1] if wrap else 0.0)
-            wu = hy[i - 1, j] if i > 0 else 0.0
-            sh = wl + hx[i, j] + wu + hy[i, j]
-            left[i, j] = wl
-            r11[i, j] = omega / (a11[i, j] + sh + 1e-12)
-            r22[i, j] = omega / (a22[i, j] + sh + 1e-12)
-    keep = np.float32(1.0 - omega)
-    for _ in range(iters):
-        for colour in range(2):
-            for i in range(h):
-                iu = i - 1 if i > 0 else 0
-                idn = i + 1 if i < h - 1 else h - 1  # hy[h - 1] = 0
-                fu = np.float32(1.0) if i > 0 else np.float32(0.0)  # the first row has no upper neighbour
-                j0 = (i + colour) % 2
-                if j0 == 0:
-                    _sor_pixel(du, dv, a12, b1, b2, hx, hy, left, r11, r22, keep, i, 0, iu, idn, fu)
-                    j0 = 2
-                u0, uu, ud, v0, vu, vd = du[i], du[iu], du[idn], dv[i], dv[iu], dv[idn]
-                wlr, wrr, wur, wdr = left[i], hx[i], hy[iu], hy[i]
-                q1, q2, c12, c1, c2 = r11[i], r22[i], a12[i], b1[i], b2[i]
-                n_in = max((w - j0) // 2, 0)  # columns j0, j0 + 2, ..., at most w - 2
-                for t in range(n_in):
-                    j = j0 + 2 * t
-                    wl, wr, wu, wd = wlr[j], wrr[j], fu * wur[j], wdr[j]
-                    su = wl * u0[j - 1] + wr * u0[j + 1] + wu * uu[j] + wd * ud[j]
-                    sv = wl * v0[j - 1] + wr * v0[j + 1] + wu * vu[j] + wd * vd[j]
-                    nu = keep * u0[j] + q1[j] * (c1[j] + su - c12[j] * v0[j])
-                    u0[j] = nu
-                    v0[j] = keep * v0[j] + q2[j] * (c2[j] + sv - c12[j] * nu)
-                if j0 + 2 * n_in == w - 1:
-                    _sor_pixel(du, dv, a12, b1, b2, hx, hy, left, r11, r22, keep, i, w - 1, iu, idn, fu)
+        acc[:] = 0.0
+        for k in range(c):  # a few outputs per loop, columns innermost (vectorised)
+            ix, iy, iz, nd = terms[_IX, k, i], terms[_IY, k, i], terms[_IZ, k, i], terms[_ND, k, i]
+            ixx, ixy, iyy = terms[_IXX, k, i], terms[_IXY, k, i], terms[_IYY, k, i]
+            ixz, iyz, nx, ny = terms[_IXZ, k, i], terms[_IYZ, k, i], terms[_NX, k, i], terms[_NY, k, i]
+            for j in range(w):
+                nd[j] = _recip_norm(ix[j], iy[j])
+                nx[j] = _recip_norm(ixx[j], ixy[j])
+                ny[j] = _recip_norm(iyy[j], ixy[j])
+            for j in range(w):
+                q, gx, gy, gz = _recip_norm(ix[j], iy[j]), np.float64(ix[j]), np.float64(iy[j]), np.float64(iz[j])
+                acc[_D11, j] += q * gx * gx
+                acc[_D12, j] += q * gx * gy
+                acc[_D22, j] += q * gy * gy
+                acc[_D1, j] += q * gz * gx
+                acc[_D2, j] += q * gz * gy
+            for j in range(w):
+                qx, qy = _recip_norm(ixx[j], ixy[j]), _recip_norm(iyy[j], ixy[j])
+                gxx, gxy, gyy = np.float64(ixx[j]), np.float64(ixy[j]), np.float64(iyy[j])
+                acc[_G11, j] += qx * gxx * gxx + qy * gxy * gxy
+                acc[_G12, j] += qx * gxx * gxy + qy * gxy * gyy
+                acc[_G22, j] += qx * gxy * gxy + qy * gyy * gyy
+            for j in range(w):
+                qx, qy = _recip_norm(ixx[j], ixy[j]), _recip_norm(iyy[j], ixy[j])
+                gxx, gxy, gyy = np.float64(ixx[j]), np.float64(ixy[j]), np.float64(iyy[j])
+                gxz, gyz = np.float64(ixz[j]), np.float64(iyz[j])
+                acc[_G1, j] += qx * gxx * gxz + qy * gxy * gyz
+                acc[_G2, j] += qx * gxy * gxz + qy * gyy * gyz
+        for q in range(_N_SUMS):
+            for j in range(w):
+                sums[q, i, j] = acc[q, j]
 
 
-@numba.njit(cache=True, nogil=True, fastmath=True)
-def _data_terms(ix, iy, iz, ixx, ixy, iyy, ixz, iyz, du, dv, mask, w_u, w_v, mu, mv, mw, hd, hg, half_beta):
+@numba.njit(cache=True, nogil=True, fastmath=True, error_model="numpy")
+def _data_terms(terms, sums, mask, du, dv, w_u, w_v, mu, mv, mw, hd, hg, half_beta, a11, a12, a22, b1, b2):
     """The linearised data and matching terms of one fixed-point iteration: per pixel the 2 x 2 system
-    ``[[a11, a12], [a12, a22]] (du, dv) = (b1, b2)`` (before smoothness), robust weights from the current
-    increment (du, dv).  Derivative arrays are (h, w, c); the others (h, w).  Single-threaded, releases the GIL."""
-    h, w, c = ix.shape
-    a11 = np.zeros((h, w), np.float32)
-    a12 = np.zeros((h, w), np.float32)
-    a22 = np.zeros((h, w), np.float32)
-    b1 = np.zeros((h, w), np.float32)
-    b2 = np.zeros((h, w), np.float32)
+    ``[[a11, a12], [a12, a22]] (du, dv) = (b1, b2)`` (before smoothness), the robust weights taken at the current
+    increment (du, dv):
+
+        colour:   psi_d = mask hd / sqrt(sum_k nd (iz + ix du + iy dv)^2 + eps^2)
+        gradient: psi_g = mask hg / sqrt(sum_k nx (ixz + ixx du + ixy dv)^2 + ny (iyz + ixy du + iyy dv)^2 + eps^2)
+        matching: psi_m = half_beta mw / sqrt(|w + d - m|^2 + eps^2)
+        a11 = psi_d D11 + psi_g G11 + psi_m,  a12 = psi_d D12 + psi_g G12,  a22 = psi_d D22 + psi_g G22 + psi_m,
+        b1 = -(psi_d D1 + psi_g G1) - psi_m (w_u - mu),  b2 = -(psi_d D2 + psi_g G2) - psi_m (w_v - mv)
+
+    (the sums D, G of :func:`_image_terms`).  Each row's energies are summed channel by channel with the columns
+    innermost (vectorised).  Single-threaded, releases the GIL.
+
+    Args:
+        terms, sums: (11, c, h, w) and (10, h, w) float32 image terms of :func:`_image_terms`.
+        mask: (h, w) float32, 1 where the warp stays inside the image, else 0.
+        du, dv: (h, w) float32 increment, pixels; w_u, w_v: (h, w) float32 flow, pixels.
+        mu, mv, mw: (h, w) float32 matches' flow (pixels) and weights (:func:`match_field`).
+        hd, hg: colour and gradient constancy weights (delta / 6, gamma / 6); half_beta: matching weight / 2.
+        a11, a12, a22, b1, b2: (h, w) float32, written.
+    """
+    c, h, w = terms.shape[1:]
+    ed = np.zeros(w, np.float32)
+    eg = np.zeros(w, np.float32)
     for i in range(h):
+        if hd > 0:
+            ed[:] = 0.0
+            for k in range(c):
+                for j in range(w):
+                    t = terms[_IZ, k, i, j] + terms[_IX, k, i, j] * du[i, j] + terms[_IY, k, i, j] * dv[i, j]
+                    ed[j] += t * t * terms[_ND, k, i, j]
+        if hg > 0:
+            eg[:] = 0.0
+            for k in range(c):
+                for j in range(w):
+                    gxy = terms[_IXY, k, i, j]
+                    tx = terms[_IXZ, k, i, j] + terms[_IXX, k, i, j] * du[i, j] + gxy * dv[i, j]
+                    ty = terms[_IYZ, k, i, j] + gxy * du[i, j] + terms[_IYY, k, i, j] * dv[i, j]
+                    eg[j] += tx * tx * terms[_NX, k, i, j] + ty * ty * terms[_NY, k, i, j]
         for j in range(w):
-            x11 = 0.0
-            x12 = 0.0
-            x22 = 0.0
-            y1 = 0.0
-            y2 = 0.0
-            u = du[i, j]
-            v = dv[i, j]
-            if hd > 0:
-                e = 0.0
-                for k in range(c):
-                    t = iz[i, j, k] + ix[i, j, k] * u + iy[i, j, k] * v
-                    e += t * t / (ix[i, j, k] ** 2 + iy[i, j, k] ** 2 + DATANORM)
-                psi = mask[i, j] * hd / np.sqrt(e + EPS2)
-                for k in range(c):
-                    q = psi / (ix[i, j, k] ** 2 + iy[i, j, k] ** 2 + DATANORM)
-                    x11 += q * ix[i, j, k] * ix[i, j, k]
-                    x12 += q * ix[i, j, k] * iy[i, j, k]
-                    x22 += q * iy[i, j, k] * iy[i, j, k]
-                    y1 -= q * iz[i, j, k] * ix[i, j, k]
-                    y2 -= q * iz[i, j, k] * iy[i, j, k]
-            if hg > 0:
-                e = 0.0
-                for k in range(c):
-                    nx = ixx[i, j, k] ** 2 + ixy[i, j, k] ** 2 + DATANORM
-                    ny = iyy[i, j, k] ** 2 + ixy[i, j, k] ** 2 + DATANORM
-                    tx = ixz[i, j, k] + ixx[i, j, k] * u + ixy[i, j, k] * v
-                    ty = iyz[i, j, k] + ixy[i, j, k] * u + iyy[i, j, k] * v
-                    e += tx * tx / nx + ty * ty / ny
-                psi = mask[i, j] * hg / np.sqrt(e + EPS2)
-                for k in range(c):
-                    qx = psi / (ixx[i, j, k] ** 2 + ixy[i, j, k] ** 2 + DATANORM)
-                    qy = psi / (iyy[i, j, k] ** 2 + ixy[i, j, k] ** 2 + DATANORM)
-                    gxx, gxy, gyy = ixx[i, j, k], ixy[i, j, k], iyy[i, j, k]
-                    x11 += qx * gxx * gxx + qy * gxy * gxy
-                    x12 += qx * gxx * gxy + qy * gxy * gyy
-                    x22 += qx * gxy * gxy + qy * gyy * gyy
-                    y1 -= qx * gxx * ixz[i, j, k] + qy * gxy * iyz[i, j, k]
-                    y2 -= qx * gxy * ixz[i, j, k] + qy * gyy * iyz[i, j, k]
-            if half_beta > 0 and mw[i, j] > 0:
-                eu = w_u[i, j] + u - mu[i, j]
-                ev = w_v[i, j] + v - mv[i, j]
-                psi = half_beta * mw[i, j] / np.sqrt(eu * eu + ev * ev + EPS2)
-                x11 += psi
-                x22 += psi
-                y1 -= psi * (w_u[i, j] - mu[i, j])
-                y2 -= psi * (w_v[i, j] - mv[i, j])
-            a11[i, j] = x11
-            a12[i, j] = x12
-            a22[i, j] = x22
-            b1[i, j] = y1
-            b2[i, j] = y2
-    return a11, a12, a22, b1, b2
+            pd = mask[i, j] * hd / np.sqrt(ed[j] + EPS2) if hd > 0 else 0.0
+            pg = mask[i, j] * hg / np.sqrt(eg[j] + EPS2) if hg > 0 else 0.0
+            eu = w_u[i, j] + du[i, j] - mu[i, j]
+            ev = w_v[i, j] + dv[i, j] - mv[i, j]
+            pm = half_beta * mw[i, j] / np.sqrt(eu * eu + ev * ev + EPS2)  # 0 where no match
+            a11[i, j] = pd * sums[_D11, i, j] + pg * sums[_G11, i, j] + pm
+            a12[i, j] = pd * sums[_D12, i, j] + pg * sums[_G12, i, j]
+            a22[i, j] = pd * sums[_D22, i, j] + pg * sums[_G22, i, j] + pm
+            b1[i, j] = -(pd * sums[_D1, i, j] + pg * sums[_G1, i, j]) - pm * (w_u[i, j] - mu[i, j])
+            b2[i, j] = -(pd * sums[_D2, i, j] + pg * sums[_G2, i, j]) - pm * (w_v[i, j] - mv[i, j])
 
 
 def _dx5(x: np.ndarray, wrap: bool) -> np.ndarray:
@@ -369,8 +425,40 @@ def _dy5(x: np.ndarray) -> np.ndarray:
     return (-r(2) + 8.0 * r(1) - 8.0 * r(-1) + r(-2)) / 12.0
 
 
-@numba.njit(cache=True, nogil=True, fastmath=True)
-def _smoothness(w_u, w_v, du, dv, quarter_alpha, wrap, b1, b2):
+@numba.njit(cache=True, nogil=True, fastmath=True, error_model="numpy", inline="always")
+def _hx_pixel(u, v, quarter_alpha, i, j, jr, iu, idn):
+    """hx between (i, j) and (i, jr) (see :func:`_smoothness`)."""
+    half = np.float32(0.5)
+    a = u[i, jr] - u[i, j]
+    b = 0.5 * (half * (u[idn, j] - u[iu, j]) + half * (u[idn, jr] - u[iu, jr]))
+    c = v[i, jr] - v[i, j]
+    d = 0.5 * (half * (v[idn, j] - v[iu, j]) + half * (v[idn, jr] - v[iu, jr]))
+    return quarter_alpha / np.sqrt(a * a + b * b + c * c + d * d + EPS2)
+
+
+@numba.njit(cache=True, nogil=True, fastmath=True, error_model="numpy", inline="always")
+def _hy_pixel(u, v, quarter_alpha, i, j, jl, jr):
+    """hy between (i, j) and (i + 1, j) (see :func:`_smoothness`)."""
+    half = np.float32(0.5)
+    a = u[i + 1, j] - u[i, j]
+    b = 0.5 * (half * (u[i, jr] - u[i, jl]) + half * (u[i + 1, jr] - u[i + 1, jl]))
+    c = v[i + 1, j] - v[i, j]
+    d = 0.5 * (half * (v[i, jr] - v[i, jl]) + half * (v[i + 1, jr] - v[i + 1, jl]))
+    return quarter_alpha / np.sqrt(a * a + b * b + c * c + d * d + EPS2)
+
+
+@numba.njit(cache=True, nogil=True, fastmath=True, inline="always")
+def _rhs_pixel(f, hx, hy, wl, i, j, jl, jr, iu, idn):
+    """sum over the neighbours of (i, j) of h (f_nb - f) (see :func:`_smoothness`), wl the left link's weight."""
+    s = hx[i, j] * (f[i, jr] - f[i, j])
+    s -= wl * (f[i, j] - f[i, jl])
+    s += hy[i, j] * (f[idn, j] - f[i, j])
+    s -= hy[iu, j] * (f[i, j] - f[iu, j])
+    return s
+
+
+@numba.njit(cache=True, nogil=True, fastmath=True, error_model="numpy")
+def _smoothness(w_u, w_v, du, dv, quarter_alpha, wrap, b1, b2, hx, hy, u, v):
     """The smoothness term of one fixed-point iteration.
 
     Diffusivities of the flow ``(u, v) = (w_u + du, w_v + dv)`` (pixels): ``hx[i, j] = quarter_alpha / sqrt(
@@ -378,96 +466,250 @@ def _smoothness(w_u, w_v, du, dv, quarter_alpha, wrap, b1, b2):
     differences across that link and the y derivatives the mean of both ends' central differences; ``hy[i, j]``
     alike between rows i and i + 1.  Without wrapping the last column's hx is 0, and hy of the last row is always
     0; central differences replicate the edge pixel.  The current flow's smoothness is moved to the right-hand
-    side: ``b1 += sum over neighbours of h (w_u_nb - w_u)`` and ``b2`` alike for ``w_v`` (in place).
+    side: ``b1 += sum over neighbours of h (w_u_nb - w_u)`` and ``b2`` alike for ``w_v`` (in place).  One pass
+    over the rows (hx, hy and the right-hand side of row i together); the first and last columns apart, so that
+    the other columns are loops without index wrapping (vectorised).
 
     Args:
         w_u, w_v, du, dv: (h, w) float32 flow and its increment, pixels.
         quarter_alpha: alpha / 4.
         wrap: columns are periodic.
         b1, b2: (h, w) float32 right-hand sides, updated in place.
-    Returns:
-        ``(hx, hy)``, each (h, w) float32.
+        hx, hy: (h, w) float32, written.
+        u, v: (h, w) float32 scratch (written with the flow w + d).
     """
     h, w = w_u.shape
-    u = np.empty((h, w), np.float32)
-    v = np.empty((h, w), np.float32)
     for i in range(h):
         for j in range(w):
             u[i, j] = w_u[i, j] + du[i, j]
             v[i, j] = w_v[i, j] + dv[i, j]
-    ux = np.empty((h, w), np.float32)  # central differences, edge pixel replicated (or columns wrapped)
-    vx = np.empty((h, w), np.float32)
-    uy = np.empty((h, w), np.float32)
-    vy = np.empty((h, w), np.float32)
+    wl_last = w - 1 if wrap else 0  # the left neighbour of column 0
+    wr_first = 0 if wrap else w - 1  # the right neighbour of column w - 1
     for i in range(h):
         iu, idn = max(i - 1, 0), min(i + 1, h - 1)
-        for j in range(w):
-            if wrap:
-                jl, jr = (j - 1) % w, (j + 1) % w
-            else:
-                jl, jr = max(j - 1, 0), min(j + 1, w - 1)
-            ux[i, j] = 0.5 * (u[i, jr] - u[i, jl])
-            vx[i, j] = 0.5 * (v[i, jr] - v[i, jl])
-            uy[i, j] = 0.5 * (u[idn, j] - u[iu, j])
-            vy[i, j] = 0.5 * (v[idn, j] - v[iu, j])
-    hx = np.zeros((h, w), np.float32)
-    hy = np.zeros((h, w), np.float32)
-    for i in range(h):
-        for j in range(w):
-            if wrap or j < w - 1:
-                jr = (j + 1) % w
-                a = u[i, jr] - u[i, j]
-                b = 0.5 * (uy[i, j] + uy[i, jr])
-                c = v[i, jr] - v[i, j]
-                d = 0.5 * (vy[i, j] + vy[i, jr])
-                hx[i, j] = quarter_alpha / np.sqrt(a * a + b * b + c * c + d * d + EPS2)
-            if i < h - 1:
-                a = u[i + 1, j] - u[i, j]
-                b = 0.5 * (ux[i, j] + ux[i + 1, j])
-                c = v[i + 1, j] - v[i, j]
-                d = 0.5 * (vx[i, j] + vx[i + 1, j])
-                hy[i, j] = quarter_alpha / np.sqrt(a * a + b * b + c * c + d * d + EPS2)
-    for i in range(h):
-        for j in range(w):
-            jr = (j + 1) % w  # hx[i, w - 1] = 0 without wrapping
-            jl = (j - 1) % w
-            fu = hx[i, j] * (w_u[i, jr] - w_u[i, j])
-            fv = hx[i, j] * (w_v[i, jr] - w_v[i, j])
-            if j > 0 or wrap:
-                fu -= hx[i, jl] * (w_u[i, j] - w_u[i, jl])
-                fv -= hx[i, jl] * (w_v[i, j] - w_v[i, jl])
-            if i < h - 1:
-                fu += hy[i, j] * (w_u[i + 1, j] - w_u[i, j])
-                fv += hy[i, j] * (w_v[i + 1, j] - w_v[i, j])
-            if i > 0:
-                fu -= hy[i - 1, j] * (w_u[i, j] - w_u[i - 1, j])
-                fv -= hy[i - 1, j] * (w_v[i, j] - w_v[i - 1, j])
-            b1[i, j] += fu
-            b2[i, j] += fv
-    return hx, hy
+        for j in range(w - 1):
+            hx[i, j] = _hx_pixel(u, v, quarter_alpha, i, j, j + 1, iu, idn)
+        hx[i, w - 1] = _hx_pixel(u, v, quarter_alpha, i, w - 1, 0, iu, idn) if wrap else np.float32(0.0)
+        if i < h - 1:
+            hy[i, 0] = _hy_pixel(u, v, quarter_alpha, i, 0, wl_last, min(1, w - 1))
+            for j in range(1, w - 1):
+                hy[i, j] = _hy_pixel(u, v, quarter_alpha, i, j, j - 1, j + 1)
+            if w > 1:
+                hy[i, w - 1] = _hy_pixel(u, v, quarter_alpha, i, w - 1, w - 2, wr_first)
+        else:
+            hy[i, :] = 0.0
+        # right-hand side of row i (hy of the last row is 0, and the first row's upper link is itself: both weigh
+        # nothing); the columns without index wrapping in a loop of their own
+        wl0 = hx[i, w - 1] if wrap else np.float32(0.0)
+        jr0 = 1 if w > 1 else 0
+        b1[i, 0] += _rhs_pixel(w_u, hx, hy, wl0, i, 0, w - 1, jr0, iu, idn)
+        b2[i, 0] += _rhs_pixel(w_v, hx, hy, wl0, i, 0, w - 1, jr0, iu, idn)
+        for j in range(1, w - 1):
+            b1[i, j] += _rhs_pixel(w_u, hx, hy, hx[i, j - 1], i, j, j - 1, j + 1, iu, idn)
+            b2[i, j] += _rhs_pixel(w_v, hx, hy, hx[i, j - 1], i, j, j - 1, j + 1, iu, idn)
+        if w > 1:  # hx[i, w - 1] = 0 without wrapping
+            b1[i, w - 1] += _rhs_pixel(w_u, hx, hy, hx[i, w - 2], i, w - 1, w - 2, 0, iu, idn)
+            b2[i, w - 1] += _rhs_pixel(w_v, hx, hy, hx[i, w - 2], i, w - 1, w - 2, 0, iu, idn)
 
 
-def _one_level(w_u, w_v, im1, im2, mu, mv, mw, half_beta, p: DeepFlowParams):
-    """Fixed-point iterations at one pyramid level; returns the refined flow (u, v)."""
+@numba.njit(cache=True, nogil=True, fastmath=True, inline="always")
+def _sor_pixel(U, V, HX, HY, Q1, Q2, C12, C1, C2, keep, i, j, w, wrap):
+    """One SOR update of pixel (i, j) (see :func:`_sor`; arrays in its colour-split layout), the column
+    neighbours wrapped (without wrapping, the missing link's weight is 0)."""
+    h = U.shape[1]
+    c = (i + j) & 1
+    cn = 1 - c
+    t = j >> 1
+    jl = j - 1 if j > 0 else w - 1
+    jr = j + 1 if j < w - 1 else 0
+    cl, cr = (i + jl) & 1, (i + jr) & 1  # the other colour, or with wrapping and an odd width this one
+    wl = HX[cl, i, jl >> 1] if (j > 0 or wrap) else np.float32(0.0)
+    wr = HX[c, i, t]
+    wu = HY[cn, i - 1, t] if i > 0 else np.float32(0.0)
+    wd = HY[c, i, t]  # 0 in the last row
+    iu = i - 1 if i > 0 else 0
+    idn = i + 1 if i < h - 1 else h - 1
+    su = wl * U[cl, i, jl >> 1] + wr * U[cr, i, jr >> 1] + wu * U[cn, iu, t] + wd * U[cn, idn, t]
+    sv = wl * V[cl, i, jl >> 1] + wr * V[cr, i, jr >> 1] + wu * V[cn, iu, t] + wd * V[cn, idn, t]
+    nu = keep * U[c, i, t] + Q1[c, i, t] * (C1[c, i, t] + su - C12[c, i, t] * V[c, i, t])
+    U[c, i, t] = nu
+    V[c, i, t] = keep * V[c, i, t] + Q2[c, i, t] * (C2[c, i, t] + sv - C12[c, i, t] * nu)
+
+
+@numba.njit(cache=True, nogil=True, fastmath=True, inline="always")
+def _sor_row(Uf, Vf, HXf, HYf, Q1f, Q2f, C12f, C1f, C2f, U, V, HX, HY, Q1, Q2, C12, C1, C2, keep, i, colour, h, w, wh,
+             wrap):
+    """The SOR update of row i's pixels of one colour (see :func:`_sor`; ``*f`` the flat views of the split
+    arrays)."""
+    cn = 1 - colour
+    iu = i - 1 if i > 0 else 0
+    idn = i + 1 if i < h - 1 else h - 1  # hy[h - 1] = 0
+    fu = np.float32(1.0) if i > 0 else np.float32(0.0)  # the first row has no upper neighbour
+    j0 = (i + colour) & 1  # the row's first column of this colour
+    t0 = 0
+    if j0 == 0:
+        _sor_pixel(U, V, HX, HY, Q1, Q2, C12, C1, C2, keep, i, 0, w, wrap)
+        t0 = 1
+    t1 = (w - j0) >> 1  # columns j0 + 2 t < w - 1
+    pc = (colour * h + i) * wh  # this row and colour; the left neighbour of t at pl + t, the right at pl + t + 1
+    pl = (cn * h + i) * wh + j0 - 1
+    pu = (cn * h + iu) * wh
+    pd = (cn * h + idn) * wh
+    for t in range(t0, t1):  # unsigned offsets: no negative-index handling, vectorised
+        kc, kl, ku, kd = np.uint64(pc + t), np.uint64(pl + t), np.uint64(pu + t), np.uint64(pd + t)
+        kr = kl + np.uint64(1)
+        wl, wr, wu, wd = HXf[kl], HXf[kc], fu * HYf[ku], HYf[kc]
+        su = wl * Uf[kl] + wr * Uf[kr] + wu * Uf[ku] + wd * Uf[kd]
+        sv = wl * Vf[kl] + wr * Vf[kr] + wu * Vf[ku] + wd * Vf[kd]
+        nu = keep * Uf[kc] + Q1f[kc] * (C1f[kc] + su - C12f[kc] * Vf[kc])
+        Uf[kc] = nu
+        Vf[kc] = keep * Vf[kc] + Q2f[kc] * (C2f[kc] + sv - C12f[kc] * nu)
+    if j0 + 2 * t1 == w - 1:
+        _sor_pixel(U, V, HX, HY, Q1, Q2, C12, C1, C2, keep, i, w - 1, w, wrap)
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _split_row(x, X, i, co, w):
+    """Copy row i's columns 1 .. 2 ((w - 1) // 2) of the (h, w) array x into the colour-split (2, h, ceil(w / 2))
+    array X (see :func:`_sor`); co is the colour of the row's odd columns."""
+    for t in range((w - 1) >> 1):
+        X[co, i, t] = x[i, 2 * t + 1]
+        X[1 - co, i, t + 1] = x[i, 2 * t + 2]
+
+
+@numba.njit(cache=True, nogil=True, fastmath=True, error_model="numpy")
+def _sor(du, dv, a11, a12, a22, b1, b2, hx, hy, iters, omega, wrap, split):
+    """Coupled red-black SOR for the increment (du, dv) of one fixed-point iteration (in place).
+
+    The system per pixel: (a + sum h) d - sum_nb h d_nb = b, with hx[i, j] the weight between (i, j) and
+    (i, j + 1) (the last column links to the first when wrapping, else hx[:, -1] must be 0) and hy[i, j] between
+    rows i and i + 1 (hy[-1] must be 0).  ``iters`` sweeps, each the pixels with i + j even then those with i + j
+    odd, each row's pixels of a colour in column order (with wrapping and an odd width the first and last columns
+    have the same colour: the last then sees the first's new value); every update is
+    ``d <- (1 - omega) d + omega (b + sum_nb h d_nb - a12 d_other) / (a + sum h)``, du first, dv with the new du.
+
+    Layout: for the sweeps, (du, dv) and the coefficients are copied once per call into ``split``, colour apart:
+    pixel (i, j) of colour c = (i + j) % 2 at ``[c, i, j // 2]`` of (2, h, ceil(w / 2)) arrays, so a row's pixels
+    of one colour and their left, right, upper and lower neighbours (all of the other colour) are each contiguous;
+    the diagonal's reciprocals ``omega / (a + sum h)`` are computed in that copy.  The first and last columns are
+    updated apart, the row's other pixels of the colour in a loop without index wrapping (vectorised).
+
+    Order: ``_SOR_WAVE`` sweeps at a time run as a wavefront down the rows (step p updates, for each sweep s of the
+    group in turn, the first colour in row p - 2 s, then the second colour in row p - 2 s - 1), so that a band of
+    rows stays in cache across those sweeps.  Every update reads exactly the values it would read
+    sweep after sweep, so the result is the same, bit for bit.  Single-threaded, releases the GIL: a sweep of a
+    pyramid level is too little work for a parallel loop's barriers to pay off.
+
+    Args:
+        du, dv: (h, w) float32 increment, pixels; updated in place.
+        a11, a12, a22, b1, b2: (h, w) float32 data and matching terms (b with the smoothness moved to it).
+        hx, hy: (h, w) float32 smoothness weights.
+        iters: sweeps; omega: relaxation factor.
+        wrap: columns are periodic.
+        split: (9, n) float32 scratch, n >= 2 h ceil(w / 2) (each row's first 2 h ceil(w / 2) elements are used).
+    """
+    h, w = du.shape
+    wh = (w + 1) // 2
+    n = 2 * h * wh
+    U, V, HX, HY, Q1, Q2, C12, C1, C2 = (split[0, :n].reshape((2, h, wh)), split[1, :n].reshape((2, h, wh)),
+                                         split[2, :n].reshape((2, h, wh)), split[3, :n].reshape((2, h, wh)),
+                                         split[4, :n].reshape((2, h, wh)), split[5, :n].reshape((2, h, wh)),
+                                         split[6, :n].reshape((2, h, wh)), split[7, :n].reshape((2, h, wh)),
+                                         split[8, :n].reshape((2, h, wh)))
+    if w % 2 == 1:  # the unused last entry of the colour with fewer pixels in each row: finite, weightless
+        for q in range(9):
+            for c in range(2):
+                for i in range(h):
+                    if (i + c) & 1 == 1:
+                        split[q, (c * h + i) * wh + wh - 1] = 0.0
+    for i in range(h):
+        fu = 1.0 if i > 0 else 0.0  # the first row has no upper link
+        iu = i - 1 if i > 0 else 0
+        for e in range(2):  # column 0, and column w - 1 when the pairs below leave it out (w even)
+            j = 0 if e == 0 else w - 1
+            if e == 1 and (w % 2 == 1 or w == 1):
+                continue
+            c, t = (i + j) & 1, j >> 1
+            wl = hx[i, j - 1] if j > 0 else (hx[i, w - 1] if wrap else 0.0)  # float64, as the sums
+            sh = wl + hx[i, j] + fu * hy[iu, j] + hy[i, j]
+            Q1[c, i, t] = omega / (a11[i, j] + sh + 1e-12)
+            Q2[c, i, t] = omega / (a22[i, j] + sh + 1e-12)
+            HX[c, i, t], HY[c, i, t], C12[c, i, t] = hx[i, j], hy[i, j], a12[i, j]
+            C1[c, i, t], C2[c, i, t], U[c, i, t], V[c, i, t] = b1[i, j], b2[i, j], du[i, j], dv[i, j]
+        co = (i + 1) & 1  # the colour of the odd columns
+        for t in range((w - 1) >> 1):  # columns 2 t + 1 and 2 t + 2: stride-2 loads, contiguous stores (vectorised)
+            ja, jb = 2 * t + 1, 2 * t + 2
+            sha = np.float64(hx[i, ja - 1]) + hx[i, ja] + fu * hy[iu, ja] + hy[i, ja]
+            shb = np.float64(hx[i, jb - 1]) + hx[i, jb] + fu * hy[iu, jb] + hy[i, jb]
+            Q1[co, i, t] = omega / (a11[i, ja] + sha + 1e-12)
+            Q1[1 - co, i, t + 1] = omega / (a11[i, jb] + shb + 1e-12)
+            Q2[co, i, t] = omega / (a22[i, ja] + sha + 1e-12)
+            Q2[1 - co, i, t + 1] = omega / (a22[i, jb] + shb + 1e-12)
+        _split_row(hx, HX, i, co, w)  # one array per loop: few pointers to check for overlap (vectorised)
+        _split_row(hy, HY, i, co, w)
+        _split_row(a12, C12, i, co, w)
+        _split_row(b1, C1, i, co, w)
+        _split_row(b2, C2, i, co, w)
+        _split_row(du, U, i, co, w)
+        _split_row(dv, V, i, co, w)
+    # flat views: the sweep loop indexes them with unsigned offsets (no negative-index handling, vectorised)
+    Uf, Vf, HXf, HYf, Q1f, Q2f, C12f, C1f, C2f = (split[0], split[1], split[2], split[3], split[4], split[5],
+                                                  split[6], split[7], split[8])
+    keep = np.float32(1.0 - omega)
+    for s0 in range(0, iters, _SOR_WAVE):  # _SOR_WAVE sweeps at a time, as a wavefront down the rows
+        ns = min(_SOR_WAVE, iters - s0)
+        for p in range(h + 2 * ns - 1):
+            for s in range(ns):  # sweep s: the first colour in row p - 2 s, the second in row p - 2 s - 1
+                for colour in range(2):
+                    i = p - 2 * s - colour
+                    if 0 <= i < h:
+                        _sor_row(Uf, Vf, HXf, HYf, Q1f, Q2f, C12f, C1f, C2f, U, V, HX, HY, Q1, Q2, C12, C1, C2, keep,
+                                 i, colour, h, w, wh, wrap)
+    for i in range(h):
+        ce = i & 1
+        for t in range(w >> 1):
+            du[i, 2 * t], du[i, 2 * t + 1] = U[ce, i, t], U[1 - ce, i, t]
+            dv[i, 2 * t], dv[i, 2 * t + 1] = V[ce, i, t], V[1 - ce, i, t]
+        if w % 2 == 1:
+            du[i, w - 1], dv[i, w - 1] = U[ce, i, (w - 1) >> 1], V[ce, i, (w - 1) >> 1]
+
+
+def _work_shapes(h: int, w: int, c: int) -> list[tuple[int, ...]]:
+    """The scratch arrays of one pyramid level of size (h, w) with c channels (see :func:`_one_level`)."""
+    return [(_N_TERMS, c, h, w), (_N_SUMS, h, w)] + [(h, w)] * 9 + [(9, 2 * h * ((w + 1) // 2))]
+
+
+def _one_level(w_u, w_v, im1, im2, mu, mv, mw, half_beta, p: DeepFlowParams, work: np.ndarray):
+    """Fixed-point iterations at one pyramid level; returns the refined flow (u, v).
+
+    Args:
+        w_u, w_v: (h, w) float32 flow from the coarser level, pixels.
+        im1, im2: (h, w, c) float32 images.
+        mu, mv, mw: (h, w) float32 matching term (:func:`match_field`).
+        half_beta: the level's matching weight / 2.
+        p: the parameters.
+        work: float32 scratch of at least the total size of :func:`_work_shapes` (h, w, c), reused by every
+            level so that the kernels allocate nothing large.
+    Returns:
+        ``(u, v)``, each (h, w) float32, pixels.
+    """
     wrap = p.wrap
+    h, w, c = im1.shape
+    views, o = [], 0
+    for shape in _work_shapes(h, w, c):
+        n = int(np.prod(shape))
+        views.append(work[o:o + n].reshape(shape))
+        o += n
+    terms, sums, a11, a12, a22, b1, b2, hx, hy, su, sv, split = views
     im2w, mask = _warp(im2, w_u, w_v, wrap)
-    mean = 0.5 * (im1 + im2w)
-    iz = im2w - im1
-    ix = _dx5(mean, wrap)
-    iy = _dy5(mean)
-    ixx, ixy, iyy = _dx5(ix, wrap), _dy5(ix), _dy5(iy)
-    ixz, iyz = _dx5(iz, wrap), _dy5(iz)
+    _image_terms(im1, im2w, wrap, terms, sums)
     hd, hg, qa = p.delta * 0.5 / 3.0, p.gamma * 0.5 / 3.0, 0.25 * p.alpha
-    f32 = lambda a: np.ascontiguousarray(a, np.float32)  # noqa: E731
-    ix, iy, iz, ixx, ixy, iyy, ixz, iyz = (f32(a) for a in (ix, iy, iz, ixx, ixy, iyy, ixz, iyz))
-    mask = f32(mask)
     du = np.zeros_like(w_u)
     dv = np.zeros_like(w_v)
     for _ in range(int(p.n_inner)):
-        a11, a12, a22, b1, b2 = _data_terms(ix, iy, iz, ixx, ixy, iyy, ixz, iyz, du, dv, mask, w_u, w_v, mu, mv,
-                                            mw, hd, hg, float(half_beta))
-        hx, hy = _smoothness(w_u, w_v, du, dv, qa, wrap, b1, b2)
-        _sor(du, dv, a11, a12, a22, b1, b2, hx, hy, int(p.n_solver), float(p.sor_omega), wrap)
+        _data_terms(terms, sums, mask, du, dv, w_u, w_v, mu, mv, mw, hd, hg, float(half_beta), a11, a12, a22, b1, b2)
+        _smoothness(w_u, w_v, du, dv, qa, wrap, b1, b2, hx, hy, su, sv)
+        _sor(du, dv, a11, a12, a22, b1, b2, hx, hy, int(p.n_solver), float(p.sor_omega), wrap, split)
     return w_u + du, w_v + dv
 
 
@@ -515,6 +757,7 @@ def deep_flow(img0: np.ndarray, img1: np.ndarray, params: DeepFlowParams | None 
         if min(lw, lh) <= p.min_size:
             break
     n_lev = len(sizes)
+    work = np.empty(sum(int(np.prod(x)) for x in _work_shapes(h, w, s1.shape[2])), np.float32)
     u = v = None
     for k in range(n_lev - 1, -1, -1):
         lw, lh = sizes[k]
@@ -530,7 +773,7 @@ def deep_flow(img0: np.ndarray, img1: np.ndarray, params: DeepFlowParams | None 
         lmu, lmv, lmw = match_field(matches, phi, h, w, p.wrap, (lh, lw))
         half_beta = 0.5 * p.beta * ((k / (n_lev - 1)) ** p.bk if (p.bk > 0 and n_lev > 1) else 1.0)
         u, v = _one_level(u.astype(np.float32), v.astype(np.float32), im1, im2, lmu.astype(np.float32),
-                          lmv.astype(np.float32), lmw.astype(np.float32), half_beta, p)
+                          lmv.astype(np.float32), lmw.astype(np.float32), half_beta, p, work)
     return np.ascontiguousarray(np.dstack([u, v]), np.float32)
 
 
