@@ -60,6 +60,10 @@ class PhotometricParams:
         tukey_c: Tukey biweight constant, in units of the residuals' robust standard deviation (1.4826 MAD).
         iterations: reweighting iterations.
         max_log_gain: the field's |log gain| is clipped to this (natural log; 2.0 = a factor of 7.4).
+        even: the field keeps only the monomials even in every coordinate (and ``|x|, |y|, |z|``): a fall-off
+            symmetric about the camera's axes, as two like back-to-back lenses give, which a brightness
+            difference between one side of the room and the other (a glossy floor's view-dependent reflection)
+            cannot move.
     """
 
     mode: str = "gain-field"
@@ -73,6 +77,7 @@ class PhotometricParams:
     tukey_c: float = 4.685
     iterations: int = 8
     max_log_gain: float = 2.0
+    even: bool = False
 
     def __post_init__(self):
         if self.mode not in ("none", "gain-field"):
@@ -113,22 +118,24 @@ def linear_to_srgb(linear: np.ndarray, dtype=np.float64) -> np.ndarray:
     return np.floor(s * 255.0 + 0.5).astype(np.uint8)
 
 
-def basis(bearings: np.ndarray, degree: int) -> np.ndarray:
+def basis(bearings: np.ndarray, degree: int, even: bool = False) -> np.ndarray:
     """The field's basis functions at camera-frame bearings.
 
     Args:
         bearings: (..., 3) unit bearings in the camera's frame.
         degree: highest monomial degree (0: no field).
+        even: only the monomials whose every power is even.
     Returns:
         (..., J) float64: every monomial ``x^i y^j z^k`` with ``1 <= i + j + k <= degree`` whose ``z`` power is at
-        most 1 (``z^2 = 1 - x^2 - y^2`` makes the others redundant), then ``|x|, |y|, |z|`` (when degree >= 1).
+        most 1 (``z^2 = 1 - x^2 - y^2`` makes the others redundant; with ``even``, ``i``, ``j`` even and no ``z``),
+        then ``|x|, |y|, |z|`` (when degree >= 1).
     """
     b = np.asarray(bearings, dtype=np.float64)
     x, y, z = b[..., 0], b[..., 1], b[..., 2]
     cols = []
     for total in range(1, degree + 1):
         for i, j, k in itertools.product(range(total + 1), repeat=3):
-            if i + j + k == total and k <= 1:
+            if i + j + k == total and k <= 1 and not (even and (i % 2 or j % 2 or k % 2)):
                 cols.append(x ** i * y ** j * z ** k)
     if degree >= 1:
         cols += [np.abs(x), np.abs(y), np.abs(z)]
@@ -225,7 +232,8 @@ def align_images(images: dict, cameras: dict, params: PhotometricParams = Photom
     lin_c = _reduce(srgb_to_linear(images["C"]).astype(np.float32), f)
     h, w = lin_c.shape[:2]
     info = {}
-    phi_small = basis(bearing_grid(w, h), params.degree if distance is not None else params.pixel_degree)
+    phi_small = basis(bearing_grid(w, h), params.degree if distance is not None else params.pixel_degree,
+                      params.even)
     if distance is not None:
         d_small = _reduce(np.asarray(distance, np.float32), f)
         world = bearing_grid(w, h, cameras["C"].rotation) * d_small[..., None] + np.asarray(cameras["C"].position)

@@ -35,6 +35,11 @@ def test_basis_columns_and_the_seam_kink():
     assert basis(b, 2).shape == (8, 16, 3 + 5 + 3)  # z^2 is left out: 1 - x^2 - y^2
     phi = basis(b, 2)
     np.testing.assert_allclose(phi[..., -2], np.abs(b[..., 1]), atol=0)  # |y|: the fisheyes' seam kink
+    even = basis(b, 4, even=True)  # x^2, y^2, x^4, x^2 y^2, y^4, then |x|, |y|, |z|
+    assert even.shape == (8, 16, 5 + 3)
+    flipped = b * np.array([-1.0, 1.0, -1.0])  # every even function is the same at (-x, y, -z)
+    np.testing.assert_allclose(basis(flipped, 4, even=True), even, atol=1e-12)
+    assert not np.allclose(basis(flipped, 2), phi)  # the full basis has odd monomials
 
 
 def test_fit_recovers_gains_and_field_despite_outliers():

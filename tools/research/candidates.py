@@ -129,4 +129,5 @@ PHOTOMETRIC: dict[str, PhotometricCandidate] = by_label(
     PhotometricCandidate("fused-mirror-i0.5", PhotometricParams(), 0.5),
     PhotometricCandidate("fused-mirror-i0.25", PhotometricParams(), 0.25),
     PhotometricCandidate("fused-mirror-i0.5-d4", PhotometricParams(degree=4), 0.5),
+    PhotometricCandidate("fused-mirror-even", PhotometricParams(even=True), 0.25),
 )
