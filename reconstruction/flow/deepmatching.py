@@ -18,10 +18,12 @@ Quasi-dense correspondences between two images from a hierarchical, correlationa
    (a child at ``p + o`` whose parent moves by ``delta`` is expected at ``p + o + delta``: the same
    displacement), so the aggregation is pool, subsample, average, power.  Every level keeps the atomic grid
    (step 8), so every patch of a level is a child of up to four parents of the next one; levels are built while
-   the parent patch (32, 64, 128, ... working pixels) fits in the image.
+   the parent patch (32, 64, 128, ... working pixels) fits in the image.  Every level's responses are stored
+   displacement-major, (dy, dx, patch), so pooling and averaging are loops over contiguous patch vectors.
 4. **Top-down backtracking**: from every local maximum (3 x 3) of every patch's response map at every level >= 2
-   the argmax of each child's pooling window is followed down to level 1; an atomic patch reached along a path
-   scores the sum of the responses on that path and keeps its best-scoring match.
+   the argmax of each child's pooling window (recorded while pooling) is followed down to level 1; an atomic
+   patch reached along a path scores the sum of the responses on that path and keeps its best-scoring match
+   (the first in a fixed order on equal scores, whatever the threads).
 5. **Reciprocal verification**: matching is run both ways (image 0 -> 1 and 1 -> 0); a match p -> q is kept if
    the backward match of the atomic patch of image 1 nearest to q leads back to within ``reciprocal_px`` of p.
 
@@ -51,6 +53,8 @@ from dataclasses import asdict, dataclass
 import cv2
 import numba
 import numpy as np
+from numba.core import types as nbtypes
+from numba.extending import intrinsic
 
 __all__ = ["DeepMatchingParams", "Matches", "deep_matching", "deep_matching_both", "pixel_descriptors", "blur_periodic",
            "central_differences"]
@@ -178,7 +182,8 @@ def _level1(d0, d1, cell, step, ndy, ndx, ky, kx, circ, wrapc):
         wrapc: columns are periodic (cells and displacements wrap); else cells are clamped to the image and a
             cell displaced out of image 1 correlates 0.
     Returns:
-        (n_patches, ndy, ndx) float32 responses in [0, 1], patches in row-major grid order.
+        (ndy, ndx, n_patches) float32 responses in [0, 1], displacement-major (each displacement's responses of
+        all patches are contiguous), patches in row-major grid order.
 
     Image 0's cell descriptors are gathered channel-major, (9, H / cell, W / cell), and image 1 is split by
     column phase: plane ``r`` holds the pixels of columns ``cell * t + r``, so the cells displaced by dx read a
@@ -189,7 +194,7 @@ def _level1(d0, d1, cell, step, ndy, ndx, ky, kx, circ, wrapc):
     h, w, c = d0.shape
     ph, pw = h // step, w // step
     ch, cw = h // cell, w // cell
-    out = np.zeros((ph * pw, ndy, ndx), np.float32)
+    out = np.empty((ndy, ndx, ph * pw), np.float32)
     half = cell // 2
     scale = np.float32(1.0 / (PATCH_CELLS * PATCH_CELLS))
     # the cell rows / columns of every patch (centre row j * step: cells 2j - 2 .. 2j + 1, clamped or wrapped)
@@ -214,12 +219,10 @@ def _level1(d0, d1, cell, step, ndy, ndx, ky, kx, circ, wrapc):
                 for t in range(-cw, 2 * cw):
                     if wrapc or 0 <= t < cw:
                         planes[r, k, y, t + cw] = d1[y, (cell * t + r) % w, k]
-    npatch = ph * pw
     for a in numba.prange(ndy):
         dy = a - ky
         s = np.zeros((ch, cw), np.float32)  # cell correlations at one displacement
         vs = np.zeros((ph, cw), np.float32)  # their sums over each patch row's 4 cell rows
-        row = np.empty((ndx, npatch), np.float32)  # this displacement row's responses, displacement-major
         for b in range(ndx):
             e = half + b - kx  # image-1 column of cell n: n * cell + e
             if circ:
@@ -228,198 +231,372 @@ def _level1(d0, d1, cell, step, ndy, ndx, ky, kx, circ, wrapc):
             o = e // cell + cw  # plane column of cell 0 (0 <= o <= 2 cw)
             for m in range(ch):
                 srow = s[m]
-                for n in range(cw):
-                    srow[n] = 0.0
                 y1 = m * cell + half + dy
                 if y1 < 0 or y1 >= h:
-                    continue
-                for k in range(c):
-                    arow = a0[k, m]
-                    prow = planes[r, k, y1, o:o + cw]
                     for n in range(cw):
-                        srow[n] += arow[n] * prow[n]
+                        srow[n] = 0.0
+                    continue
+                if c == 9:  # the descriptors' size: the 9 products accumulated in registers
+                    q0, q1, q2, q3, q4 = a0[0, m], a0[1, m], a0[2, m], a0[3, m], a0[4, m]
+                    q5, q6, q7, q8 = a0[5, m], a0[6, m], a0[7, m], a0[8, m]
+                    pl = planes[r]
+                    p0, p1, p2 = pl[0, y1, o:o + cw], pl[1, y1, o:o + cw], pl[2, y1, o:o + cw]
+                    p3, p4, p5 = pl[3, y1, o:o + cw], pl[4, y1, o:o + cw], pl[5, y1, o:o + cw]
+                    p6, p7, p8 = pl[6, y1, o:o + cw], pl[7, y1, o:o + cw], pl[8, y1, o:o + cw]
+                    for n in range(cw):
+                        acc = q0[n] * p0[n]
+                        acc += q1[n] * p1[n]
+                        acc += q2[n] * p2[n]
+                        acc += q3[n] * p3[n]
+                        acc += q4[n] * p4[n]
+                        acc += q5[n] * p5[n]
+                        acc += q6[n] * p6[n]
+                        acc += q7[n] * p7[n]
+                        acc += q8[n] * p8[n]
+                        srow[n] = acc
+                else:
+                    for n in range(cw):
+                        srow[n] = 0.0
+                    for k in range(c):
+                        arow = a0[k, m]
+                        prow = planes[r, k, y1, o:o + cw]
+                        for n in range(cw):
+                            srow[n] += arow[n] * prow[n]
             for j in range(ph):  # separable 4 x 4 cell sums: the 4 cell rows, then the 4 cell columns
                 s0, s1, s2, s3, vrow = s[crow[j, 0]], s[crow[j, 1]], s[crow[j, 2]], s[crow[j, 3]], vs[j]
                 for n in range(cw):
                     vrow[n] = s0[n] + s1[n] + s2[n] + s3[n]
-            for j in range(ph):
-                for i in range(pw):
-                    row[b, j * pw + i] = (vs[j, ccol[i, 0]] + vs[j, ccol[i, 1]] + vs[j, ccol[i, 2]]
-                                          + vs[j, ccol[i, 3]]) * scale
-        for q in range(npatch):
-            for b in range(ndx):
-                out[q, a, b] = row[b, q]
+            orow = out[a, b]
+            for j in range(ph):  # patch column i covers cell columns 2i - 2 .. 2i + 1: only i = 0 wraps / clamps
+                vrow = vs[j]
+                base = j * pw
+                orow[base] = (vrow[ccol[0, 0]] + vrow[ccol[0, 1]] + vrow[ccol[0, 2]] + vrow[ccol[0, 3]]) * scale
+                for i in range(1, pw):
+                    orow[base + i] = (vrow[2 * i - 2] + vrow[2 * i - 1] + vrow[2 * i] + vrow[2 * i + 1]) * scale
     return out
 
 
-@numba.njit(parallel=True, cache=True, fastmath=True)
-def _pool(child, ky_c, kx_c, circ):
-    """Max-pool 3 x 3 and subsample by 2 every patch's response map (displacement coordinates).
+_LN2_HI = 6.93147180369123816490e-01  # ln 2 split (fdlibm): k * _LN2_HI is exact for |k| < 2**20
+_LN2_LO = 1.90821492927058770002e-10
+_INV_LN2 = 1.44269504088896338700e+00
+_SQRT2 = 1.4142135623730951
+_ROUND = 6755399441055744.0  # 1.5 * 2**52: x + _ROUND holds round(x) in its low mantissa bits
+_ROUND_BITS = 0x4338000000000000  # the bit pattern of _ROUND
+_TWO52 = 4503599627370496.0
+_HARD_ULPS = 1 << 16  # results this close (float64 ulps) to a float32 rounding midpoint are redone with libm
+_F32_MIN = 1.1754943508222875e-38  # smallest normal float32
+_F32_MAX = 3.4e38
+
+
+@intrinsic
+def _f64_bits(typingctx, x):
+    """The bit pattern of a float64, as int64."""
+    def codegen(context, builder, signature, args):
+        return builder.bitcast(args[0], context.get_value_type(nbtypes.int64))
+    return nbtypes.int64(nbtypes.float64), codegen
+
+
+@intrinsic
+def _bits_f64(typingctx, i):
+    """The float64 of an int64 bit pattern."""
+    def codegen(context, builder, signature, args):
+        return builder.bitcast(args[0], context.get_value_type(nbtypes.float64))
+    return nbtypes.float64(nbtypes.int64), codegen
+
+
+@numba.njit(cache=True, error_model="numpy", fastmath={"contract"})
+def _pow_f32(x, e, out, redo):
+    """``out[q] = float32(x[q] ** e)`` for (n,) float64 ``x >= 0``, the same float32 as libm's ``pow``.
+
+    ``x ** e = exp(e log x)`` in float64 by range reduction and polynomials, a loop that vectorises (relative
+    error below 1e-12), rounded to float32; the few results within ``_HARD_ULPS`` float64 ulps (about 7e-12
+    relative) of a float32 rounding midpoint, and out-of-range ones, are recomputed with libm's ``pow``, so the
+    float32 result is libm's.  ``redo`` is an (n,) bool scratch buffer.
+    """
+    n = x.size
+    if e <= 0.0:  # 0^e is not 0: libm throughout (not a pyramid's case)
+        for q in range(n):
+            out[q] = np.float32(x[q] ** e)
+        return
+    nredo = 0
+    for q in range(n):
+        xq = x[q]
+        bits = _f64_bits(xq)  # x = 2^k m: m in [1, 2) and the biased exponent (as 2^52 + k + 1023)
+        m = _bits_f64((bits & 0x000FFFFFFFFFFFFF) | 0x3FF0000000000000)
+        kd = _bits_f64((bits >> 52) | 0x4330000000000000) - (_TWO52 + 1023.0)
+        big = m > _SQRT2  # m in [sqrt(1/2), sqrt(2))
+        m = m * 0.5 if big else m
+        kd = kd + 1.0 if big else kd
+        s = (m - 1.0) / (m + 1.0)  # log m = 2 atanh(s) = 2 (s + s^3 / 3 + ... + s^15 / 15), |s| < 0.172
+        z = s * s
+        z2 = z * z
+        pz = ((1.0 / 3.0 + z * (1.0 / 5.0)) + z2 * (1.0 / 7.0 + z * (1.0 / 9.0))
+              + z2 * z2 * ((1.0 / 11.0 + z * (1.0 / 13.0)) + z2 * (1.0 / 15.0)))
+        s2 = 2.0 * s
+        y = e * (kd * _LN2_HI + (kd * _LN2_LO + (s2 + s2 * z * pz)))  # e log x
+        y = min(max(y, -700.0), 700.0)
+        nr = y * _INV_LN2 + _ROUND
+        nd = nr - _ROUND  # exp(y) = 2^nd exp(r), |r| <= ln(2) / 2, exp(r) to the r^11 term
+        r = (y - nd * _LN2_HI) - nd * _LN2_LO
+        r2 = r * r
+        r4 = r2 * r2
+        p = (((1.0 + r) + r2 * (0.5 + r * (1.0 / 6.0)))
+             + r4 * ((1.0 / 24.0 + r * (1.0 / 120.0)) + r2 * (1.0 / 720.0 + r * (1.0 / 5040.0)))
+             + r4 * r4 * ((1.0 / 40320.0 + r * (1.0 / 362880.0)) + r2 * (1.0 / 3628800.0 + r * (1.0 / 39916800.0))))
+        vb = _f64_bits(p) + ((_f64_bits(nr) - _ROUND_BITS) << 52)  # p * 2^nd
+        v = _bits_f64(vb)
+        d = (vb & 0x1FFFFFFF) - 0x10000000  # the 29 bits float32 drops, from the rounding midpoint
+        bad = ((d <= _HARD_ULPS) & (d >= -_HARD_ULPS)) | (v < _F32_MIN) | (v > _F32_MAX)
+        pos = xq > 0.0
+        out[q] = np.float32(v) if pos else np.float32(0.0)
+        redo[q] = bad & pos
+        nredo += bad & pos
+    if nredo > 0:
+        for q in range(n):
+            if redo[q]:
+                out[q] = np.float32(x[q] ** e)
+
+
+@numba.njit(parallel=True, cache=True, error_model="numpy")
+def _pool_combine(child, ky_c, kx_c, circ, gh, gw, off, wrapc, nlpow):
+    """One pyramid step: max-pool 3 x 3 and subsample by 2 every child's responses, then each parent's
+    ``(mean of its children's pooled responses)^nlpow``.
 
     Args:
-        child: (n, 2 ky_c + 1, ndx_c) responses (row index k <-> k - ky_c steps; columns circular of period
-            ndx_c if ``circ``, else index k <-> k - kx_c).
+        child: (2 ky_c + 1, ndx_c, n) float32 responses of the child level, displacement-major: entry (k, l, q)
+            is patch q at dy = k - ky_c and dx = l - kx_c (columns circular of period ndx_c if ``circ``, dx = l),
+            in the level's displacement steps.
+        gh, gw: the patch grid (n = gh * gw, row-major), shared by all levels.
+        off: the parent at grid (j, i) has its children at (j +- off, i +- off) (a quarter of the parent's size,
+            in grid steps); columns wrap if ``wrapc``, else children off the grid are left out.
+        nlpow: the power non-linearity.
     Returns:
-        ``(pooled, arg)``: (n, 2 (ky_c // 2) + 1, ndx_p) float32 maxima, with ndx_p = ndx_c // 2 (circular) or
-        2 (kx_c // 2) + 1, and (same shape) uint8 where each maximum lies in its window, 3 (da + 1) + (db + 1)
-        for the child entry (2 a + da, 2 b + db) around the window's centre (the first such entry in that order
-        on ties).
+        ``(pooled, arg, parent)``, each (2 ky_p + 1, ndx_p, n) with ky_p = ky_c // 2 and ndx_p = ndx_c // 2
+        (circular) or 2 (kx_c // 2) + 1, displacement-major.  ``pooled[a, b, q]`` (float32): the maximum of
+        ``child[ca + da, cb + db, q]`` over da, db in -1..1 (entries off the map left out, columns wrapped if
+        ``circ``), the window centred on the parent displacement, ca = ky_c + 2 (a - ky_p) and cb = 2 b
+        (circular) or kx_c + 2 (b - kx_p).  ``arg[a, b, q]`` (uint8): where it lies, 3 (da + 1) + (db + 1), the
+        first such entry in that order on ties.  ``parent[a, b, q]`` (float32): the mean of ``pooled[a, b]``
+        over q's children (summed in float64 in the order (-off, -off), (-off, +off), (+off, -off),
+        (+off, +off)) to the power ``nlpow`` (:func:`_pow_f32`: libm's ``pow`` rounded to float32; 0 for a
+        parent without children).  In displacement coordinates the children's offsets cancel, so no shift is
+        needed.  Parallel over the parent displacements, each a vectorisable loop over the n patches.
     """
-    n, ndy_c, ndx_c = child.shape
+    ndy_c, ndx_c, n = child.shape
     ky_p, kx_p = ky_c // 2, kx_c // 2
     ndy_p = 2 * ky_p + 1
     ndx_p = ndx_c // 2 if circ else 2 * kx_p + 1
-    out = np.zeros((n, ndy_p, ndx_p), np.float32)
-    arg = np.zeros((n, ndy_p, ndx_p), np.uint8)
-    for q in numba.prange(n):
-        for a in range(ndy_p):
-            ca = ky_c + 2 * (a - ky_p)
-            for b in range(ndx_p):
-                cb = 2 * b if circ else kx_c + 2 * (b - kx_p)
-                best = -1.0
-                where = 4
-                for da in range(-1, 2):
-                    aa = ca + da
-                    if aa < 0 or aa >= ndy_c:
-                        continue
-                    for db in range(-1, 2):
-                        bb = cb + db
-                        if circ:
-                            bb = bb % ndx_c
-                        elif bb < 0 or bb >= ndx_c:
-                            continue
-                        val = child[q, aa, bb]
-                        if val > best:
-                            best = val
-                            where = 3 * (da + 1) + db + 1
-                out[q, a, b] = best
-                arg[q, a, b] = where
-    return out, arg
-
-
-@numba.njit(parallel=True, cache=True, fastmath=True)
-def _combine(pooled, gh, gw, off, wrapc, nlpow):
-    """Parents' responses: ``(mean of the 4 children's pooled responses)^nlpow``.
-
-    Every level uses the same patch grid (gh x gw, one patch per atomic grid position); the parent at (j, i)
-    has its children at (j +- off, i +- off) (``off`` = a quarter of the parent's size, in grid steps).  In
-    displacement coordinates the children's offsets cancel, so no shift is needed.
-    """
-    n, ndy, ndx = pooled.shape
-    out = np.zeros((n, ndy, ndx), np.float32)
-    for q in numba.prange(n):
-        j, i = q // gw, q % gw
-        kids = np.empty(4, np.int64)
-        nk = 0
-        for sj in (-1, 1):
-            cj = j + sj * off
-            if cj < 0 or cj >= gh:
+    pooled = np.empty((ndy_p, ndx_p, n), np.float32)
+    arg = np.empty((ndy_p, ndx_p, n), np.uint8)
+    out = np.empty((ndy_p, ndx_p, n), np.float32)
+    inv = np.zeros(n)  # 1 / number of children (0: none)
+    for j in range(gh):
+        nj = (1 if j - off >= 0 else 0) + (1 if j + off < gh else 0)
+        for i in range(gw):
+            ni = 2 if wrapc else (1 if i - off >= 0 else 0) + (1 if i + off < gw else 0)
+            if nj * ni > 0:
+                inv[j * gw + i] = 1.0 / (nj * ni)
+    for t in numba.prange(ndy_p * ndx_p):
+        a, b = t // ndx_p, t % ndx_p
+        ca = ky_c + 2 * (a - ky_p)
+        cb = 2 * b if circ else kx_c + 2 * (b - kx_p)
+        pr, ag = pooled[a, b], arg[a, b]
+        where = np.empty(n, np.int32)  # (same width as the values: the selects vectorise)
+        first = True
+        for da in range(-1, 2):
+            aa = ca + da
+            if aa < 0 or aa >= ndy_c:
                 continue
-            for si in (-1, 1):
-                ci = i + si * off
-                if wrapc:
-                    ci = ci % gw
-                elif ci < 0 or ci >= gw:
+            for db in range(-1, 2):
+                bb = cb + db
+                if circ:
+                    if bb < 0:
+                        bb += ndx_c
+                    elif bb >= ndx_c:
+                        bb -= ndx_c
+                elif bb < 0 or bb >= ndx_c:
                     continue
-                kids[nk] = cj * gw + ci
-                nk += 1
-        if nk == 0:
-            continue
-        inv = 1.0 / nk
-        for a in range(ndy):
-            for b in range(ndx):
-                tot = 0.0
-                for k in range(nk):
-                    tot += pooled[kids[k], a, b]
-                out[q, a, b] = (tot * inv) ** nlpow
-    return out
+                src = child[aa, bb]
+                k = np.int32(3 * (da + 1) + db + 1)
+                if first:
+                    for q in range(n):
+                        pr[q] = src[q]
+                        where[q] = k
+                    first = False
+                else:  # strictly greater: the first maximum in window order is kept
+                    for q in range(n):
+                        up = src[q] > pr[q]
+                        pr[q] = src[q] if up else pr[q]
+                        where[q] = k if up else where[q]
+        for q in range(n):
+            ag[q] = np.uint8(where[q])
+        tot = np.zeros(n)
+        for sj in (-1, 1):
+            for si in (-1, 1):
+                sh = si * off
+                lo, hi = max(0, -sh), min(gw, gw - sh)  # columns whose child column i + sh needs no wrap
+                for j in range(gh):
+                    cj = j + sj * off
+                    if cj < 0 or cj >= gh:
+                        continue
+                    dst, srcr = j * gw, cj * gw + sh
+                    for i in range(lo, hi):
+                        tot[dst + i] += pr[srcr + i]
+                    if wrapc:
+                        for i in range(0, min(lo, gw)):
+                            tot[dst + i] += pr[cj * gw + (i + sh) % gw]
+                        for i in range(max(hi, 0), gw):
+                            tot[dst + i] += pr[cj * gw + (i + sh) % gw]
+        for q in range(n):
+            tot[q] *= inv[q]
+        _pow_f32(tot, nlpow, out[a, b], np.empty(n, np.bool_))
+        for q in range(n):
+            if inv[q] == 0.0:
+                out[a, b, q] = 0.0
+    return pooled, arg, out
+
+
+@numba.njit(cache=True)
+def _backtrack_row(maps, pooled, args, gh, gw, kys, kxs, circ, wrapc, lev, a, best_s, best_a, best_b, best_r):
+    """:func:`_backtrack` from the starts of level ``lev`` (0-based) in displacement row ``a``.
+
+    Updates ``best_s, best_a, best_b, best_r`` ((n,) float64, int64, int64, int64: each atomic patch's best path
+    score, 0 if none yet, its level-1 displacement indices and the rank of that path) where a path scores more,
+    or as much with a lower rank.
+    """
+    m = maps[lev]
+    ndy, ndx, n = m.shape
+    leaves = np.int64(1) << (2 * lev)  # at most 4^lev atomic patches per start
+    flag = np.empty(n, np.bool_)
+    stack_lev = np.empty(256, np.int64)
+    stack_p = np.empty(256, np.int64)
+    stack_a = np.empty(256, np.int64)
+    stack_b = np.empty(256, np.int64)
+    stack_s = np.empty(256, np.float64)
+    for b in range(ndx):
+        row = m[a, b]
+        for q in range(n):  # the local maxima at (a, b): > 0 and no neighbour above
+            flag[q] = row[q] > 0.0
+        for da in range(-1, 2):
+            aa = a + da
+            if aa < 0 or aa >= ndy:
+                continue
+            for db in range(-1, 2):
+                if da == 0 and db == 0:
+                    continue
+                bb = b + db
+                if circ:
+                    if bb < 0:
+                        bb += ndx
+                    elif bb >= ndx:
+                        bb -= ndx
+                elif bb < 0 or bb >= ndx:
+                    continue
+                nrow = m[aa, bb]
+                for q in range(n):
+                    flag[q] = flag[q] & (nrow[q] <= row[q])
+        for p in range(n):
+            if not flag[p]:
+                continue
+            rank = ((p * ndy + a) * ndx + b) * leaves  # the start's place in (p, a, b) order, then the leaf's
+            stack_lev[0], stack_p[0], stack_a[0], stack_b[0], stack_s[0] = lev, p, a, b, row[p]
+            top = 1
+            while top > 0:
+                top -= 1
+                lv, pp, pa, pb, sc = stack_lev[top], stack_p[top], stack_a[top], stack_b[top], stack_s[top]
+                if lv == 0:
+                    if sc > best_s[pp] or (sc == best_s[pp] and rank < best_r[pp]):
+                        best_s[pp] = sc
+                        best_a[pp] = pa
+                        best_b[pp] = pb
+                        best_r[pp] = rank
+                    rank += 1
+                    continue
+                pm = pooled[lv - 1]
+                pg = args[lv - 1]
+                cndx = maps[lv - 1].shape[1]
+                off = 1 << (lv - 1)
+                j, i = pp // gw, pp % gw
+                ca = kys[lv - 1] + 2 * (pa - kys[lv])
+                cb = 2 * pb if circ else kxs[lv - 1] + 2 * (pb - kxs[lv])
+                for sj in (-1, 1):
+                    cj = j + sj * off
+                    if cj < 0 or cj >= gh:
+                        continue
+                    for si in (-1, 1):
+                        ci = i + si * off
+                        if wrapc:
+                            ci = ci % gw
+                        elif ci < 0 or ci >= gw:
+                            continue
+                        cidx = cj * gw + ci
+                        k = np.int64(pg[pa, pb, cidx])  # where the child's pooled maximum lies in its window
+                        ba = ca + k // 3 - 1
+                        bb2 = cb + k % 3 - 1
+                        if circ:
+                            if bb2 < 0:
+                                bb2 += cndx
+                            elif bb2 >= cndx:
+                                bb2 -= cndx
+                        stack_lev[top], stack_p[top], stack_a[top], stack_b[top] = lv - 1, cidx, ba, bb2
+                        stack_s[top] = sc + pm[pa, pb, cidx]
+                        top += 1
 
 
 @numba.njit(parallel=True, cache=True)
-def _backtrack(maps, pooled, args, gh, gw, kys, kxs, circ, wrapc, best_score, best_a, best_b):
+def _backtrack(maps, pooled, args, gh, gw, kys, kxs, circ, wrapc):
     """Top-down: from every local maximum at every level >= 2 down to the atomic patches.
 
-    Each step down takes, for each child, the maximum of its pooling window (the one the parent's response
-    pooled) and goes on from where it lies.
+    A start is a displacement (a, b) of a patch p at level >= 2 whose response is > 0 and not below any of its
+    8 neighbours' (columns circular if ``circ``).  Each step down takes, for each child, the maximum of its
+    pooling window (the one the parent's response pooled, recorded by :func:`_pool_combine`) and goes on from
+    where it lies; an atomic patch reached scores the sum of the responses along the path.
 
     Args:
-        maps: list of (n, ndy, ndx) response arrays per level (level 1 first).
-        pooled, args: per level but the last, :func:`_pool` of its map (the maxima and where they lie).
-        gh, gw: the patch grid (shared by all levels).
+        maps: list of (ndy, ndx, n) float32 response arrays per level (level 1 first), displacement-major.
+        pooled, args: per level but the last, the pooled responses and where they lie (:func:`_pool_combine`).
+        gh, gw: the patch grid (n = gh * gw, shared by all levels).
         kys, kxs: (L,) displacement window half-sizes per level (``kxs`` unused when circular).
-        best_score, best_a, best_b: (L, n) output: per starting level, each atomic patch's best path score
-            and its level-1 displacement indices (levels are filled in parallel, then reduced by the caller).
+    Returns:
+        ``(score, a, b)``: (L, n) float64 and int64: per starting level, each atomic patch's best path score (0:
+        none) and its level-1 displacement indices.  On equal scores the path met first wins, in the order:
+        start patch, then its displacement (a, b) row-major, then depth-first (children in the order
+        (-off, -off), (-off, +off), (+off, -off), (+off, +off), the last pushed explored first).  Every
+        path carries its rank in that order, so the parallel tasks (one per level and displacement row) are
+        reduced to the same result whatever the threads.
     """
     nlev = len(maps)
-    for lev in numba.prange(1, nlev):
-        stack_lev = np.empty(256, np.int64)
-        stack_p = np.empty(256, np.int64)
-        stack_a = np.empty(256, np.int64)
-        stack_b = np.empty(256, np.int64)
-        stack_s = np.empty(256, np.float64)
-        m = maps[lev]
-        ndy, ndx = m.shape[1], m.shape[2]
-        for p in range(m.shape[0]):
-            for a in range(ndy):
-                for b in range(ndx):
-                    v = m[p, a, b]
-                    if v <= 0.0:
-                        continue
-                    is_max = True
-                    for da in range(-1, 2):
-                        aa = a + da
-                        if aa < 0 or aa >= ndy:
-                            continue
-                        for db in range(-1, 2):
-                            if da == 0 and db == 0:
-                                continue
-                            bb = b + db
-                            if circ:
-                                bb = bb % ndx
-                            elif bb < 0 or bb >= ndx:
-                                continue
-                            if m[p, aa, bb] > v:
-                                is_max = False
-                    if not is_max:
-                        continue
-                    stack_lev[0], stack_p[0], stack_a[0], stack_b[0], stack_s[0] = lev, p, a, b, v
-                    top = 1
-                    while top > 0:
-                        top -= 1
-                        lv, pp, pa, pb, sc = stack_lev[top], stack_p[top], stack_a[top], stack_b[top], stack_s[top]
-                        if lv == 0:
-                            if sc > best_score[lev, pp]:
-                                best_score[lev, pp] = sc
-                                best_a[lev, pp] = pa
-                                best_b[lev, pp] = pb
-                            continue
-                        pm = pooled[lv - 1]
-                        pg = args[lv - 1]
-                        off = 1 << (lv - 1)
-                        j, i = pp // gw, pp % gw
-                        ca = kys[lv - 1] + 2 * (pa - kys[lv])
-                        cb = 2 * pb if circ else kxs[lv - 1] + 2 * (pb - kxs[lv])
-                        cndx = maps[lv - 1].shape[2]
-                        for sj in (-1, 1):
-                            cj = j + sj * off
-                            if cj < 0 or cj >= gh:
-                                continue
-                            for si in (-1, 1):
-                                ci = i + si * off
-                                if wrapc:
-                                    ci = ci % gw
-                                elif ci < 0 or ci >= gw:
-                                    continue
-                                cidx = cj * gw + ci
-                                bv = pm[cidx, pa, pb]  # the child's best in its pooling window, and where
-                                k = np.int64(pg[cidx, pa, pb])
-                                ba = ca + k // 3 - 1
-                                bb2 = cb + k % 3 - 1
-                                if circ:
-                                    bb2 = bb2 % cndx
-                                stack_lev[top], stack_p[top], stack_a[top], stack_b[top] = lv - 1, cidx, ba, bb2
-                                stack_s[top] = sc + bv
-                                top += 1
+    n = gh * gw
+    ntask = 0
+    for lev in range(1, nlev):
+        ntask += maps[lev].shape[0]
+    task_lev = np.empty(ntask, np.int64)
+    task_a = np.empty(ntask, np.int64)
+    t = 0
+    for lev in range(nlev - 1, 0, -1):  # the top levels (long paths) first
+        for a in range(maps[lev].shape[0]):
+            task_lev[t], task_a[t] = lev, a
+            t += 1
+    ts = np.zeros((ntask, n))
+    ta = np.zeros((ntask, n), np.int64)
+    tb = np.zeros((ntask, n), np.int64)
+    tr = np.full((ntask, n), np.iinfo(np.int64).max)
+    for t in numba.prange(ntask):
+        _backtrack_row(maps, pooled, args, gh, gw, kys, kxs, circ, wrapc, task_lev[t], task_a[t], ts[t], ta[t],
+                       tb[t], tr[t])
+    score = np.zeros((nlev, n))
+    best_a = np.zeros((nlev, n), np.int64)
+    best_b = np.zeros((nlev, n), np.int64)
+    best_r = np.full((nlev, n), np.iinfo(np.int64).max)
+    for t in range(ntask):
+        lev = task_lev[t]
+        for x in range(n):
+            if ts[t, x] > score[lev, x] or (ts[t, x] == score[lev, x] and tr[t, x] < best_r[lev, x]):
+                score[lev, x] = ts[t, x]
+                best_a[lev, x] = ta[t, x]
+                best_b[lev, x] = tb[t, x]
+                best_r[lev, x] = tr[t, x]
+    return score, best_a, best_b
 
 
 def _working_size(h: int, w: int, downscale: int) -> tuple[int, int]:
@@ -452,28 +629,28 @@ def _one_way(d0: np.ndarray, d1: np.ndarray, p: DeepMatchingParams):
     psize = PATCH_CELLS * cell
     # build levels while the patch (16, 32, 64, ... working pixels) fits in the image
     pooled, args = [], []
-    while 2 * psize <= min(h, w) and maps[-1].shape[2] >= 3:
-        pm, pa = _pool(maps[-1], kys[-1], kxs[-1], circ)
+    while 2 * psize <= min(h, w) and maps[-1].shape[1] >= 3:
+        off = (psize // 2) // step  # children at +- a quarter of the parent's size, in grid steps
+        pm, pa, parent = _pool_combine(maps[-1], kys[-1], kxs[-1], circ, gh, gw, off, wrapc, float(p.nlpow))
         pooled.append(pm)
         args.append(pa)
-        off = (psize // 2) // step  # children at +- a quarter of the parent's size, in grid steps
-        maps.append(_combine(pm, gh, gw, off, wrapc, float(p.nlpow)))
+        maps.append(parent)
         kys.append(kys[-1] // 2)
         kxs.append(kxs[-1] // 2)
         psize *= 2
     n = gh * gw
     nlev = len(maps)
-    all_s = np.zeros((nlev, n))
-    all_a = np.zeros((nlev, n), np.int64)
-    all_b = np.zeros((nlev, n), np.int64)
     if nlev > 1:
-        _backtrack(numba.typed.List(maps), numba.typed.List(pooled), numba.typed.List(args), gh, gw,
-                   np.asarray(kys, np.int64), np.asarray(kxs, np.int64), circ, wrapc, all_s, all_a, all_b)
-    else:  # a single level: each atomic patch's own best response
-        flat = maps[0].reshape(n, -1)
-        arg = np.argmax(flat, axis=1)
-        all_s[0] = flat[np.arange(n), arg]
-        all_a[0], all_b[0] = np.divmod(arg, maps[0].shape[2])
+        with numba.parallel_chunksize(1):  # tasks of uneven cost: hand them out one at a time
+            all_s, all_a, all_b = _backtrack(numba.typed.List(maps), numba.typed.List(pooled),
+                                             numba.typed.List(args), gh, gw, np.asarray(kys, np.int64),
+                                             np.asarray(kxs, np.int64), circ, wrapc)
+    else:  # a single level: each atomic patch's own best response (the first in (a, b) order on ties)
+        flat = maps[0].reshape(-1, n)
+        arg = np.argmax(flat, axis=0)
+        all_s = flat[arg, np.arange(n)][None].astype(np.float64)
+        a1, b1 = np.divmod(arg, maps[0].shape[1])
+        all_a, all_b = a1[None], b1[None]
     top = np.argmax(all_s, axis=0)  # the best path over starting levels (first level on ties: deterministic)
     idx = np.arange(n)
     best_s, best_a, best_b = all_s[top, idx], all_a[top, idx], all_b[top, idx]
