@@ -55,6 +55,9 @@ class FlowBackend:
         params: keyword parameters passed to ``compute`` (recorded in ``config.json``).
         min_width: the smallest equirect width, pixels, the backend was measured to work at.
         wraps: the backend treats columns as periodic itself (:func:`equirect_flow` then does not pad).
+        warm_up: called once per process before the backend's first timed call (:meth:`prepare`): compiles (or
+            loads from numba's cache) the kernels, so that a frame's flow seconds are the flow's and not the
+            compiler's; None = nothing to prepare.
     """
 
     name: str
@@ -63,13 +66,45 @@ class FlowBackend:
     params: dict = field(default_factory=dict)
     min_width: int = 16
     wraps: bool = False
+    warm_up: Callable[[], None] | None = field(default=None, compare=False)
 
     def __call__(self, img0: np.ndarray, img1: np.ndarray) -> np.ndarray:
         return self.compute(img0, img1, **self.params)
 
+    def prepare(self) -> None:
+        """Run :attr:`warm_up` if this process has not run it yet (thread-safe)."""
+        if self.warm_up is None:
+            return
+        with _WARM_LOCK:
+            if self.warm_up not in _WARMED:
+                self.warm_up()
+                _WARMED.add(self.warm_up)
+
     def config(self) -> dict:
         """JSON-able description: name, description and parameters."""
         return {"name": self.name, "description": self.description, "params": dict(self.params)}
+
+
+_WARM_LOCK = threading.Lock()
+_WARMED: set = set()
+"""The warm-up functions this process has run."""
+
+
+def _warm_pair() -> tuple[np.ndarray, np.ndarray]:
+    """A small textured (64, 128, 3) uint8 pair, the second the first shifted by 3 columns."""
+    rng = np.random.default_rng(0)
+    img = cv2.GaussianBlur((rng.random((64, 128, 3)) * 255).astype(np.uint8), (0, 0), 1.5)
+    return img, np.ascontiguousarray(np.roll(img, 3, axis=1))
+
+
+def _warm_matching() -> None:
+    """DeepMatching's kernels, on a small pair."""
+    deep_matching_both(*_warm_pair(), DeepMatchingParams())
+
+
+def _warm_deepflow() -> None:
+    """DeepMatching's and DeepFlow's kernels, on a small pair."""
+    deep_flow_both(*_warm_pair(), DeepFlowParams())
 
 
 def _gray(img: np.ndarray) -> np.ndarray:
@@ -205,12 +240,12 @@ def builtin_flows() -> list[FlowBackend]:
         FlowBackend("deepflow", _deepflow, "DeepFlow as published (Weinzaepfel et al. 2013): DeepMatching + the "
                     "variational energy with its matching term; periodic in longitude",
                     params={"downscale": 1, "ngh_rad_x": 0, "ngh_rad_y": 0, "wrap": True}, min_width=60,
-                    wraps=True),
+                    wraps=True, warm_up=_warm_deepflow),
         FlowBackend("deepflow-opencv", _opencv_deepflow, "OpenCV's DeepFlow: the variational energy only (no "
                     "DeepMatching, no matching term), on images padded at the seam", min_width=8),
         FlowBackend("epicflow", _epicflow, "DeepMatching + OpenCV edge-aware interpolation + variational refinement",
                     params={"downscale": 1, "ngh_rad_x": 0, "ngh_rad_y": 0, "wrap": True, "pad": 32},
-                    min_width=60, wraps=True),
+                    min_width=60, wraps=True, warm_up=_warm_matching),
         FlowBackend("dis", _dis, "OpenCV DIS, medium preset, stride 3, variational refinement",
                     params={"preset": "medium", "finest_scale": 0, "patch_size": 8, "patch_stride": 3,
                             "gd_iterations": 25, "var_iterations": 10, "var_alpha": 10.0,

@@ -34,7 +34,8 @@ class PairMatch:
         flow_px: (H, W) magnitude of the flow in the flow frame, pixels (0 for the oracle).
         fb_error_px: (H, W) forward-backward inconsistency, pixels: |F(p) + B(p + F(p))| with B the flow from
             the other image back to C's (0 for the oracle).  Large values flag occlusions and failed matches.
-        seconds: wall time of the flow computation.
+        seconds: wall time of the flow computation (after the backend's once-per-process warm-up,
+            :meth:`~reconstruction.flow.backends.FlowBackend.prepare`).
     """
 
     name: str
@@ -73,6 +74,10 @@ def match_pair(frame, name: str, flow: str | FlowBackend, rectify: bool = True, 
     rect = rectifying_rotation(t, cam_c.rotation)
     rot_fc, rot_fk = (rect, rect) if rectify else (cam_c.rotation, cam_k.rotation)
     a = bearing_grid(w, h, cam_c.rotation)  # (H, W, 3) world bearings of C's pixels
+    backend = None
+    if not (isinstance(flow, str) and flow == ORACLE):
+        backend = flow if isinstance(flow, FlowBackend) else get_flow(flow)
+        backend.prepare()  # once per process: compilation is not the flow's time
     start = time.perf_counter()
     if isinstance(flow, str) and flow == ORACLE:
         if "C" not in frame.distance:
@@ -86,7 +91,6 @@ def match_pair(frame, name: str, flow: str | FlowBackend, rectify: bool = True, 
         flow_px = np.zeros((h, w))
         fb_err = np.zeros((h, w))
     else:
-        backend = flow if isinstance(flow, FlowBackend) else get_flow(flow)
         img_c = warp_equirect(frame.images["C"], rot_fc, cam_c.rotation)
         img_k = warp_equirect(frame.images[name], rot_fk, cam_k.rotation)
         npad = default_pad(w, rectify) if pad is None else pad

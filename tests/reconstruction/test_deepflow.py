@@ -127,3 +127,18 @@ def test_both_directions_at_once_equal_each_alone_and_the_backend_keeps_the_reve
     np.testing.assert_array_equal(fwd, f01)
     np.testing.assert_array_equal(bwd, f10)
     np.testing.assert_array_equal(backend(img1, img0), f10)  # recomputed: nothing pending any more
+
+
+def test_a_backend_warms_up_once_per_process_before_its_first_timed_flow():
+    calls = []
+
+    def warm():
+        calls.append(1)
+
+    backend = FlowBackend("warm-test", lambda a, b: np.zeros(a.shape[:2] + (2,), np.float32), warm_up=warm)
+    backend.prepare()
+    backend.prepare()
+    FlowBackend("warm-test-2", backend.compute, warm_up=warm).prepare()  # the same warm-up: already run
+    assert calls == [1]
+    assert get_flow("deepflow").warm_up is not None and get_flow("dis").warm_up is None
+    FlowBackend("plain", backend.compute).prepare()  # nothing to prepare
