@@ -117,7 +117,7 @@ def _run(args, root: Path) -> int:
         res[stage] = run_stage(stage, frame_dir, args.width)
         r = res[stage]
         extra = {k: v for k, v in r.items() if k not in ("seconds", "cpu_s", "peak_gb", "warmup_peak_gb")}
-        print(f"  {stage:<13s} {r['seconds']:8.2f} s wall, {r['cpu_s']:8.2f} s CPU (all threads), peak RSS "
+        print(f"  {stage:<22s} {r['seconds']:8.2f} s wall, {r['cpu_s']:8.2f} s CPU (all threads), peak RSS "
               f"{r['peak_gb']:.2f} GB  {json.dumps(extra)}", flush=True)
     fr, dis = res["frame"], res["dis"]
     print(f"  flow stages: deepflow / dis = {fr['seconds'] / max(dis['seconds'], 1e-9):.1f} x", flush=True)
