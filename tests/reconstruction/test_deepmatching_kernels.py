@@ -115,7 +115,7 @@ def test_pool_combine_equals_reference(circ, wrapc):
     child = (rng.integers(0, 4, (2 * ky_c + 1, ndx_c, gh * gw)) / 4).astype(np.float32)
     got = _pool_combine(child, ky_c, kx_c, circ, gh, gw, off, wrapc, 1.4)
     want = pool_combine_reference(child, ky_c, kx_c, circ, gh, gw, off, wrapc, 1.4)
-    for g, w_, name in zip(got, want, ("pooled", "arg", "parent")):
+    for g, w_, name in zip(got, want, ("pooled", "arg", "parent"), strict=True):
         assert g.shape == w_.shape, name
         np.testing.assert_array_equal(g, w_, err_msg=name)
 
@@ -188,5 +188,5 @@ def test_backtrack_equals_serial_reference(circ, wrapc):
                      circ, wrapc)
     want = backtrack_reference(maps, pooled, args, gh, gw, kys, kxs, circ, wrapc)
     assert np.count_nonzero(want[0]) > 0.5 * want[0][1:].size  # most atomic patches reached from each level
-    for g, w_ in zip(got, want):
+    for g, w_ in zip(got, want, strict=True):
         np.testing.assert_array_equal(g, w_)
