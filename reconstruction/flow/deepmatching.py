@@ -357,6 +357,19 @@ def _pow_f32(x, e, out, redo):
                 out[q] = np.float32(x[q] ** e)
 
 
+@numba.njit(cache=True, inline="always")
+def _window_col(bb, ndx, circ):
+    """Displacement column ``bb`` of a 3 x 3 window (at most one period outside ``[0, ndx)``): wrapped when
+    ``circ``, else -1 when it lies outside."""
+    if circ:
+        if bb < 0:
+            return bb + ndx
+        if bb >= ndx:
+            return bb - ndx
+        return bb
+    return bb if 0 <= bb < ndx else -1
+
+
 @numba.njit(parallel=True, cache=True, error_model="numpy")
 def _pool_combine(child, ky_c, kx_c, circ, gh, gw, off, wrapc, nlpow):
     """One pyramid step: max-pool 3 x 3 and subsample by 2 every child's responses, then each parent's
@@ -408,13 +421,8 @@ def _pool_combine(child, ky_c, kx_c, circ, gh, gw, off, wrapc, nlpow):
             if aa < 0 or aa >= ndy_c:
                 continue
             for db in range(-1, 2):
-                bb = cb + db
-                if circ:
-                    if bb < 0:
-                        bb += ndx_c
-                    elif bb >= ndx_c:
-                        bb -= ndx_c
-                elif bb < 0 or bb >= ndx_c:
+                bb = _window_col(cb + db, ndx_c, circ)
+                if bb < 0:
                     continue
                 src = child[aa, bb]
                 k = np.int32(3 * (da + 1) + db + 1)
@@ -484,13 +492,8 @@ def _backtrack_row(maps, pooled, args, gh, gw, kys, kxs, circ, wrapc, lev, a, be
             for db in range(-1, 2):
                 if da == 0 and db == 0:
                     continue
-                bb = b + db
-                if circ:
-                    if bb < 0:
-                        bb += ndx
-                    elif bb >= ndx:
-                        bb -= ndx
-                elif bb < 0 or bb >= ndx:
+                bb = _window_col(b + db, ndx, circ)
+                if bb < 0:
                     continue
                 nrow = m[aa, bb]
                 for q in range(n):
