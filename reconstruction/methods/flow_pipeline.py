@@ -37,10 +37,18 @@ from reconstruction.refine.weights import (
     lateral_confidence,
     to_gray,
 )
+from reconstruction.rig_calibration import (
+    NO_RIG_CALIBRATION,
+    RigParams,
+    corrected_pose,
+    fit_rotation,
+    rotation_vector_matrix,
+    usable_matches,
+)
 
-__all__ = ["DEFAULT_FLOW", "PAIRS", "Reconstruction", "reconstruct", "available_variants", "fuse_average",
-           "fill_invalid", "fill_edge_aware", "Prepared", "prepare", "variant_problem", "refine_variant", "FlowMethod",
-           "config_label", "flow_confidence", "run_flow_group"]
+__all__ = ["DEFAULT_FLOW", "PAIRS", "Reconstruction", "reconstruct", "self_calibrate", "posed", "available_variants",
+           "fuse_average", "fill_invalid", "fill_edge_aware", "Prepared", "prepare", "variant_problem",
+           "refine_variant", "FlowMethod", "config_label", "flow_confidence", "run_flow_group"]
 
 DEFAULT_FLOW = "dis"  # chosen by measurement, see docs/refinement.md
 PAIRS = ("U", "R")
@@ -65,6 +73,10 @@ class Reconstruction:
         seconds: wall time per stage (``flow_U``, ``flow_R``, ``triangulate``, ``average``, each variant).
         iterations: LM iterations per variant.
         confidence: (H, W) float32 per variant, in [0, 1] (:func:`flow_confidence`).
+        cameras: the poses the flow and triangulation used: the frame's told ones, or U's and R's
+            self-calibrated (:mod:`reconstruction.rig_calibration`).
+        rig: per corrected camera what the rig self-calibration fitted (:class:`~reconstruction.rig_calibration.
+            RigFit`, with ``applied``); empty when it did not run.
     """
 
     distance: dict[str, np.ndarray] = field(default_factory=dict)
@@ -73,6 +85,8 @@ class Reconstruction:
     seconds: dict[str, float] = field(default_factory=dict)
     iterations: dict[str, int] = field(default_factory=dict)
     confidence: dict[str, np.ndarray] = field(default_factory=dict)
+    cameras: dict = field(default_factory=dict)
+    rig: dict = field(default_factory=dict)
 
 
 def fill_invalid(d: np.ndarray, valid: np.ndarray, max_sigma_px: float = 64.0) -> np.ndarray:
@@ -342,7 +356,8 @@ def reconstruct(frame, flow: str | FlowBackend = DEFAULT_FLOW, rectify: bool = T
                 variants: Sequence[str | RefineConfig] | None = None,
                 limits: TriangulationLimits = TriangulationLimits(),
                 on_stage: Callable[[str], None] | None = None,
-                photometric: PhotometricParams = NO_CALIBRATION) -> Reconstruction:
+                photometric: PhotometricParams = NO_CALIBRATION,
+                rig: RigParams = NO_RIG_CALIBRATION) -> Reconstruction:
     """Reconstruct camera C's per-pixel distance from a frame's three images.
 
     Args:
@@ -358,6 +373,10 @@ def reconstruct(frame, flow: str | FlowBackend = DEFAULT_FLOW, rectify: bool = T
             oracle) the gain field from the correspondences of a :data:`PREPASS_FLOW` pass on reduced images; the
             flow runs on the corrected images; the colour variants' LM uses images corrected again from the
             ``average`` distance's correspondences (stage ``photometric_color``).
+        rig: rig self-calibration (:mod:`reconstruction.rig_calibration`, not for the oracle): U's and R's
+            rotations fitted to the matches of the same pre-pass (run for it alone when the photometric field does
+            not need it) before the photometric field; everything after it uses the corrected poses
+            (``Reconstruction.cameras``).
     Returns:
         A :class:`Reconstruction`.
     Raises:
@@ -369,20 +388,9 @@ def reconstruct(frame, flow: str | FlowBackend = DEFAULT_FLOW, rectify: bool = T
                                    for v in variants if v != "average")}
     h, w = frame.height, frame.width
     note = on_stage or (lambda _s: None)
-    seconds = {}
-    raw = frame
-    if photometric.mode != "none":
-        note("photometric")
-        start = time.perf_counter()
-        frame, _ = aligned_frame(raw, photometric)  # per-channel gains from the same pixels
-        if photometric.prepass_factor > 1 and flow != ORACLE:  # the field from a reduced flow pass's matches
-            small = reduced_frame(frame, photometric.prepass_factor)
-            d_small = prepare(small, PREPASS_FLOW, True, limits).d0.reshape(small.height, small.width)
-            d_full = cv2.resize(d_small.astype(np.float32), (w, h), interpolation=cv2.INTER_NEAREST)
-            frame, _ = aligned_frame(raw, photometric, distance=d_full)
-        seconds["photometric"] = time.perf_counter() - start
+    raw, frame, fits, seconds = self_calibrate(frame, photometric, rig, limits, flow != ORACLE, note)
     prep = prepare(frame, flow, rectify, limits, note)
-    out = Reconstruction(seconds={**seconds, **prep.seconds})
+    out = Reconstruction(seconds={**seconds, **prep.seconds}, cameras=dict(frame.cameras), rig=fits)
     if photometric.mode != "none" and any(c.color_weight > 0 for c in configs.values()):
         start = time.perf_counter()
         frame, _ = aligned_frame(raw, photometric, distance=prep.d0.reshape(h, w))
@@ -402,6 +410,81 @@ def reconstruct(frame, flow: str | FlowBackend = DEFAULT_FLOW, rectify: bool = T
         out.distance[name] = d.astype(np.float32)
         out.confidence[name] = flow_confidence(out.distance[name], prep)
     return out
+
+
+def self_calibrate(frame, photometric: PhotometricParams, rig: RigParams, limits: TriangulationLimits,
+                   prepass: bool = True, note: Callable[[str], None] = lambda _s: None):
+    """The self-calibration before the flow (:func:`reconstruct`'s ``photometric`` and ``rig``).
+
+    Returns:
+        ``(raw, matched, fits, seconds)``: ``raw`` the input frame seen with the self-calibrated poses (its images
+        as they are; the input itself when nothing ran), ``matched`` the frame to match (``raw`` with U's and R's
+        images corrected), per corrected camera the rig fit, and the stages' seconds: ``photometric`` (the
+        corrections and the pre-pass) and ``rig`` (the fit; the pre-pass too when there is no photometric
+        correction).
+    """
+    seconds, fits = {}, {}
+    if photometric.mode == "none" and (rig.mode == "none" or not prepass):
+        return frame, frame, fits, seconds
+    h, w = frame.height, frame.width
+    note("photometric" if photometric.mode != "none" else "rig")
+    start = time.perf_counter()
+    raw = frame
+    if photometric.mode != "none":
+        frame, _ = aligned_frame(raw, photometric)  # per-channel gains from the same pixels
+    field = photometric.mode != "none" and photometric.prepass_factor > 1
+    if prepass and (field or rig.mode != "none"):  # a reduced flow pass's matches
+        small = reduced_frame(frame, max(photometric.prepass_factor, 1))
+        prep = prepare(small, PREPASS_FLOW, True, limits)
+        d_small = prep.d0
+        if rig.mode != "none":
+            t_rig = time.perf_counter()
+            cameras = dict(raw.cameras)
+            d_pair, valid = [], []
+            for k in PAIRS:
+                m = prep.matches[k]
+                fit = fit_rotation(prep.bearings, usable_matches(small.images["C"], m.bearing, m.fb_error_px,
+                                                                 prep.valid[k], rig), m.baseline,
+                                   min_sin=rig.min_sin)
+                fit["applied"] = bool(0.0 < fit["degrees"] <= rig.max_degrees)
+                fits[k] = fit
+                omega = np.asarray(fit["omega"]) if fit["applied"] else np.zeros(3)
+                cameras[k] = corrected_pose(raw.cameras[k], omega)
+                # the pre-pass's matches seen from the corrected pose, triangulated again
+                g = pair_geometry(prep.bearings, m.baseline, m.bearing.reshape(-1, 3) @ rotation_vector_matrix(omega).T)
+                d_k, v_k = triangulate_sines(g, limits)
+                d_pair.append(d_k)
+                valid.append(v_k)
+            d_small = fuse_average(d_pair, valid, (small.height, small.width))
+            raw = _PosedView(raw, cameras)
+            frame = _PosedView(frame, cameras)
+            seconds["rig"] = time.perf_counter() - t_rig
+        if field:
+            d_full = cv2.resize(d_small.reshape(small.height, small.width).astype(np.float32), (w, h),
+                                interpolation=cv2.INTER_NEAREST)
+            frame, _ = aligned_frame(raw, photometric, distance=d_full)
+    if photometric.mode == "none":
+        seconds["rig"] = time.perf_counter() - start
+    else:
+        seconds["photometric"] = time.perf_counter() - start - seconds.get("rig", 0.0)
+    return raw, frame, fits, seconds
+
+
+class _PosedView:
+    """``frame`` with other poses: every other attribute is read from ``frame``."""
+
+    def __init__(self, frame, cameras: dict):
+        self._frame = frame
+        self.cameras = cameras
+
+    def __getattr__(self, name):
+        return getattr(self._frame, name)
+
+
+def posed(frame, cameras: dict | None):
+    """``frame`` seen with ``cameras`` as its poses (a view; ``frame`` itself unchanged), or ``frame`` itself
+    when ``cameras`` is empty or None."""
+    return _PosedView(frame, cameras) if cameras else frame
 
 
 # ------------------------------------------------------------------------------------------ as a Method
@@ -432,6 +515,8 @@ class FlowMethod:
         limits: triangulation validity limits and distance clamp.
         photometric: photometric self-calibration of U and R against C before the flow and the colour terms
             (:class:`reconstruction.photometry.PhotometricParams`; mode ``"none"`` = the images as they are).
+        rig: rig self-calibration of U's and R's rotations against C before the flow
+            (:class:`reconstruction.rig_calibration.RigParams`; mode ``"none"`` = the told poses as they are).
     """
 
     flow: FlowBackend | str
@@ -439,6 +524,7 @@ class FlowMethod:
     refine: RefineConfig | None = None
     limits: TriangulationLimits = TriangulationLimits()
     photometric: PhotometricParams = PhotometricParams()
+    rig: RigParams = RigParams()
 
     @property
     def flow_name(self) -> str:
@@ -456,13 +542,14 @@ class FlowMethod:
     def group_key(self) -> tuple:
         """Methods with equal keys share the flow, triangulation and ``average`` stages."""
         flow = self.flow if isinstance(self.flow, str) else (self.flow.name, repr(sorted(self.flow.params.items())))
-        return ("flow-pipeline", flow, self.rectify, self.limits, self.photometric)
+        return ("flow-pipeline", flow, self.rectify, self.limits, self.photometric, self.rig)
 
     def config(self) -> dict:
         flow = {"name": self.flow} if isinstance(self.flow, str) else self.flow.config()
         return {"kind": "flow-pipeline", "label": self.label, "flow": flow, "rectify": self.rectify,
                 "variant": self.variant, "refine": None if self.refine is None else self.refine.config(),
-                "triangulation": asdict(self.limits), "photometric": asdict(self.photometric)}
+                "triangulation": asdict(self.limits), "photometric": asdict(self.photometric),
+                "rig": asdict(self.rig)}
 
     def run(self, frame) -> MethodOutput:
         return self.run_group(frame, [self])[self.label]
@@ -475,7 +562,7 @@ class FlowMethod:
 
     def outputs(self, result: Reconstruction, members: Sequence[FlowMethod]) -> dict[str, MethodOutput]:
         """The outputs of ``members`` (variants of this configuration) from one :func:`reconstruct` result."""
-        shared = {k: result.seconds[k] for k in ("photometric", "flow_U", "flow_R", "triangulate", "average")
+        shared = {k: result.seconds[k] for k in ("rig", "photometric", "flow_U", "flow_R", "triangulate", "average")
                   if k in result.seconds}
         outs = {}
         for m in members:
@@ -485,6 +572,8 @@ class FlowMethod:
             seconds = {**shared, **own}
             seconds["total"] = sum(seconds.values())
             info = {"lm_iterations": result.iterations[m.variant]} if m.refine is not None else {}
+            if result.rig:
+                info["rig_calibration"] = result.rig
             outs[m.label] = MethodOutput(distance=result.distance[m.variant], confidence=result.confidence[m.variant],
                                          seconds=seconds, info=info)
         return outs
@@ -498,7 +587,8 @@ def run_flow_group(frame, members: Sequence,
     the flow-prior sweep, :class:`reconstruction.methods.prior_sweep.PriorSweepMethod`): those have ``flow``
     (their :class:`FlowMethod`), the same ``group_key`` and a
     ``run_on_flows(frame, members, flow_outputs, on_stage)`` that runs all members of their own type given the
-    flow outputs by label.  The flow variants they use are computed along with the members' own.
+    flow outputs by label.  The flow variants they use are computed along with the members' own, and they are
+    given the frame with the poses the flow used (self-calibrated, :func:`self_calibrate`).
 
     Returns:
         Outputs by member label.
@@ -514,12 +604,13 @@ def run_flow_group(frame, members: Sequence,
         raise ValueError("methods of different flow configurations in one group: "
                          + ", ".join(m.label for m in members))
     wanted = [m.refine if m.refine is not None else "average" for m in flows]
-    result = reconstruct(frame, head.flow, head.rectify, wanted, head.limits, on_stage, head.photometric)
+    result = reconstruct(frame, head.flow, head.rectify, wanted, head.limits, on_stage, head.photometric, head.rig)
     flow_outs = head.outputs(result, flows)
     outs = {m.label: flow_outs[m.label] for m in own}
     by_type: dict[type, list] = {}
     for u in users:
         by_type.setdefault(type(u), []).append(u)
+    calibrated = posed(frame, result.cameras if result.rig else None)  # the users match with the same poses
     for kind in by_type.values():
-        outs.update(kind[0].run_on_flows(frame, kind, flow_outs, on_stage))
+        outs.update(kind[0].run_on_flows(calibrated, kind, flow_outs, on_stage))
     return {m.label: outs[m.label] for m in members}

@@ -236,7 +236,8 @@ class PriorSweepMethod:
                 flow = flow_outputs[m.flow.label]
                 seconds = {"flow": flow.total_seconds, **{k: v for k, v in seconds.items() if k != "total"}}
                 seconds["total"] = sum(seconds.values())
+                rig = {"rig_calibration": flow.info["rig_calibration"]} if "rig_calibration" in flow.info else {}
                 outs[m.label] = MethodOutput(distance=d, confidence=conf, seconds=seconds,
-                                             info={**info, "flow_label": m.flow.label},
+                                             info={**info, "flow_label": m.flow.label, **rig},
                                              reference=flow.distance if m.quality_flow is None else None)
         return outs

@@ -30,6 +30,7 @@ from reconstruction.methods.sweep import SweepMethod
 from reconstruction.photometry import NO_CALIBRATION, PhotometricParams
 from reconstruction.plugins import collect_registry, merge_registry, shadow_message
 from reconstruction.refine.lm import refuse_shadowed_variant, variant_registry
+from reconstruction.rig_calibration import NO_RIG_CALIBRATION
 from reconstruction.sweep.cost import CostParams
 from reconstruction.sweep.planes import PlaneParams
 
@@ -168,12 +169,17 @@ def with_photometric(method: PriorSweepMethod, params: PhotometricParams, label:
 
 
 def uncalibrated(method: PriorSweepMethod) -> PriorSweepMethod:
-    """``method`` matching the images as they are (no photometric self-calibration) with the sweep cost's default
-    intensity weight, labelled ``<label>-raw``: the ablation that shows what the self-calibration and the weight
-    chosen with it do (on cameras that meter each on their own they are what keeps the sweep working)."""
+    """``method`` matching the images as they are with the told poses (no photometric or rig self-calibration) and
+    the sweep cost's default intensity weight, labelled ``<label>-raw``: the ablation that shows what the
+    self-calibration and the weight chosen with it do (on cameras that meter each on their own they are what keeps
+    the sweep working)."""
     raw = with_photometric(method, NO_CALIBRATION, f"{method.label}-raw")
     cost = dataclasses.replace(raw.sweep.cost, intensity_weight=CostParams().intensity_weight)
-    return dataclasses.replace(raw, sweep=dataclasses.replace(raw.sweep, cost=cost))
+    quality = raw.quality_flow
+    return dataclasses.replace(raw, sweep=dataclasses.replace(raw.sweep, cost=cost),
+                               flow=dataclasses.replace(raw.flow, rig=NO_RIG_CALIBRATION),
+                               quality_flow=None if quality is None else dataclasses.replace(quality,
+                                                                                             rig=NO_RIG_CALIBRATION))
 
 
 @dataclass(frozen=True)

@@ -27,16 +27,17 @@ from reconstruction.methods.registry import (
 from reconstruction.methods.sweep import Prior, sweep_distance, sweep_distances
 from reconstruction.photometry import NO_CALIBRATION
 from reconstruction.refine.lm import get_variant
+from reconstruction.rig_calibration import NO_RIG_CALIBRATION
 from reconstruction.sweep.planes import add_prior
 from tests.helpers import make_synthetic_frame
 from tests.reconstruction.test_sweep import tilted_frame
 
 
 def uncalibrated(m: PriorSweepMethod) -> PriorSweepMethod:
-    """``m`` without photometric self-calibration: the plain sweep then sees exactly the images the fused sweep
-    sees (with it, the fused sweep fits the gain field from its prior's correspondences, the plain sweep from its
-    coarse pass's)."""
-    return dataclasses.replace(m, flow=dataclasses.replace(m.flow, photometric=NO_CALIBRATION),
+    """``m`` without photometric or rig self-calibration: the plain sweep then sees exactly the images and poses
+    the fused sweep sees (with it, the fused sweep fits the gain field from its prior's correspondences, the plain
+    sweep from its coarse pass's, and the fused sweep matches with the flow's self-calibrated poses)."""
+    return dataclasses.replace(m, flow=dataclasses.replace(m.flow, photometric=NO_CALIBRATION, rig=NO_RIG_CALIBRATION),
                                sweep=dataclasses.replace(m.sweep, photometric=NO_CALIBRATION))
 
 

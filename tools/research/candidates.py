@@ -19,6 +19,7 @@ from reconstruction.methods.base import Method
 from reconstruction.methods.prior_sweep import PriorParams, PriorSweepMethod
 from reconstruction.methods.registry import WALL_PLANES, with_photometric
 from reconstruction.photometry import PhotometricParams
+from reconstruction.rig_calibration import NO_RIG_CALIBRATION, RigParams
 from reconstruction.sweep.planes import PlaneParams
 
 __all__ = ["MatchingCandidate", "PhotometricCandidate", "by_label", "WALLS_COARSE3", "MATCHING", "PHOTOMETRIC"]
@@ -58,21 +59,29 @@ class PhotometricCandidate:
         photometric: the self-calibration of its flow, sweep and quality flow
             (:class:`reconstruction.photometry.PhotometricParams`).
         intensity_weight: the sweep cost's intensity weight.
+        rig: the rig self-calibration of its flow and quality flow (:class:`reconstruction.rig_calibration.
+            RigParams`).
     """
 
     label: str
     photometric: PhotometricParams
     intensity_weight: float
+    rig: RigParams = RigParams()
 
     def method(self, base: PriorSweepMethod) -> PriorSweepMethod:
         """The candidate built on ``base`` (the default's matching, ``mirror_method()``)."""
         m = with_photometric(base, self.photometric, self.label)
         cost = dataclasses.replace(m.sweep.cost, intensity_weight=self.intensity_weight)
-        return dataclasses.replace(m, sweep=dataclasses.replace(m.sweep, cost=cost))
+        quality = m.quality_flow
+        return dataclasses.replace(m, sweep=dataclasses.replace(m.sweep, cost=cost),
+                                   flow=dataclasses.replace(m.flow, rig=self.rig),
+                                   quality_flow=None if quality is None else dataclasses.replace(quality, rig=self.rig))
 
     def record(self) -> dict:
-        """What ``selection.json`` records of the candidate: ``photometric`` (as a dict) and ``intensity_weight``."""
-        return {"photometric": dataclasses.asdict(self.photometric), "intensity_weight": self.intensity_weight}
+        """What ``selection.json`` records of the candidate: ``photometric`` and ``rig`` (as dicts) and
+        ``intensity_weight``."""
+        return {"photometric": dataclasses.asdict(self.photometric), "intensity_weight": self.intensity_weight,
+                "rig": dataclasses.asdict(self.rig)}
 
 
 C = TypeVar("C", MatchingCandidate, PhotometricCandidate)
@@ -130,4 +139,5 @@ PHOTOMETRIC: dict[str, PhotometricCandidate] = by_label(
     PhotometricCandidate("fused-mirror-i0.25", PhotometricParams(), 0.25),
     PhotometricCandidate("fused-mirror-i0.5-d4", PhotometricParams(degree=4), 0.5),
     PhotometricCandidate("fused-mirror-even", PhotometricParams(even=True), 0.25),
+    PhotometricCandidate("fused-mirror-told-poses", PhotometricParams(), 0.25, NO_RIG_CALIBRATION),
 )
