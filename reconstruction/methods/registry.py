@@ -36,7 +36,7 @@ from reconstruction.sweep.planes import PlaneParams
 
 __all__ = ["ENTRY_POINT_GROUP", "DEFAULT_CONFIGS", "DEFAULT_METHOD", "DEFAULT_VARIANTS", "PAPER_CONFIG",
            "WALL_PLANES", "ADAPTIVE_PRIOR", "GATED_PRIOR", "builtin_methods", "discover_methods", "get_methods",
-           "MIRROR_PLANES", "MIRROR_INTENSITY_WEIGHT",
+           "MIRROR_PLANES", "MIRROR_INTENSITY_WEIGHT", "MIRROR_BLUR_PX",
            "flow_methods", "evaluate_default_methods", "fused_method", "adaptive_method", "gated_method",
            "mirror_method", "Preset", "PRESETS", "RETIRED_PRESETS", "former_label_note", "with_photometric",
            "uncalibrated"]
@@ -64,6 +64,11 @@ MIRROR_PLANES = dataclasses.replace(WALL_PLANES, mirror_tolerance=0.2)
 #: ``python -m tools.research.select_photometric`` among 1, 0.5 and 0.25 on the dev split under both conditions
 #: (docs/photometry.md)
 MIRROR_INTENSITY_WEIGHT = 0.25
+#: ``fused-mirror``'s Gaussian blur of the sweep's grey images, pixels: what a real camera's noise and JPEG leave
+#: on far, weakly textured surfaces weighs less in the gradients; chosen by
+#: ``python -m tools.research.select_photometric`` among 0, 0.5, 0.7 and 1 on the dev split under both conditions
+#: (docs/photometry.md)
+MIRROR_BLUR_PX = 0.7
 #: ``fused-adaptive``'s prior weight: ``fused``'s, scaled by the share of pixels where the flow and the plain coarse
 #: sweep agree within 5 %: 0 below 60 %, full above 80 % (:class:`reconstruction.methods.prior_sweep.PriorParams`)
 ADAPTIVE_PRIOR = PriorParams(frame_agreement_low=0.6, frame_agreement_high=0.8)
@@ -150,10 +155,10 @@ def mirror_method() -> PriorSweepMethod:
     """``fused-mirror`` (the default): ``fused-gated`` with :data:`MIRROR_PLANES`, so that the room bound holds on
     polished floors whose mirror image of the ceiling wins the coarse pass, and the sweep cost's intensity term
     weighted :data:`MIRROR_INTENSITY_WEIGHT` (what a gain difference between the cameras leaves after the
-    self-calibration weighs less against the gradients); chosen on the dev split of suites/tri360-v2.toml under
-    both conditions (docs/photometry.md)."""
+    self-calibration weighs less against the gradients) and its images blurred by :data:`MIRROR_BLUR_PX`; chosen
+    on the dev split of suites/tri360-v2.toml under both conditions (docs/photometry.md)."""
     gated = gated_method()
-    cost = dataclasses.replace(gated.sweep.cost, intensity_weight=MIRROR_INTENSITY_WEIGHT)
+    cost = dataclasses.replace(gated.sweep.cost, intensity_weight=MIRROR_INTENSITY_WEIGHT, blur_px=MIRROR_BLUR_PX)
     return dataclasses.replace(gated, sweep=dataclasses.replace(gated.sweep, planes=MIRROR_PLANES, cost=cost),
                                label="fused-mirror")
 
@@ -170,11 +175,12 @@ def with_photometric(method: PriorSweepMethod, params: PhotometricParams, label:
 
 def uncalibrated(method: PriorSweepMethod) -> PriorSweepMethod:
     """``method`` matching the images as they are with the told poses (no photometric or rig self-calibration) and
-    the sweep cost's default intensity weight, labelled ``<label>-raw``: the ablation that shows what the
+    the sweep cost's default intensity weight and blur, labelled ``<label>-raw``: the ablation that shows what the
     self-calibration and the weight chosen with it do (on cameras that meter each on their own they are what keeps
     the sweep working)."""
     raw = with_photometric(method, NO_CALIBRATION, f"{method.label}-raw")
-    cost = dataclasses.replace(raw.sweep.cost, intensity_weight=CostParams().intensity_weight)
+    cost = dataclasses.replace(raw.sweep.cost, intensity_weight=CostParams().intensity_weight,
+                               blur_px=CostParams().blur_px)
     quality = raw.quality_flow
     return dataclasses.replace(raw, sweep=dataclasses.replace(raw.sweep, cost=cost),
                                flow=dataclasses.replace(raw.flow, rig=NO_RIG_CALIBRATION),

@@ -9,6 +9,7 @@ import pytest
 from harness.data.errors import UserError
 from reconstruction.methods.registry import MIRROR_INTENSITY_WEIGHT, mirror_method, uncalibrated
 from reconstruction.photometry import NO_CALIBRATION
+from reconstruction.rig_calibration import NO_RIG_CALIBRATION
 from tools.research.select_photometric import (
     CANDIDATES,
     UNCALIBRATED_DEFAULT,
@@ -74,8 +75,13 @@ def test_candidates_and_the_reference():
     raw = methods[UNCALIBRATED_DEFAULT]
     assert raw.flow.photometric == NO_CALIBRATION and raw.sweep.photometric == NO_CALIBRATION
     assert raw.sweep.cost.intensity_weight == 1.0 and raw.quality_flow.photometric == NO_CALIBRATION
+    assert raw.flow.rig == NO_RIG_CALIBRATION and raw.quality_flow.rig == NO_RIG_CALIBRATION
+    assert raw.sweep.cost.blur_px == 0.0
     assert methods["fused-mirror-i0.25"].sweep.cost.intensity_weight == 0.25
+    assert methods["fused-mirror-told-poses"].flow.rig == NO_RIG_CALIBRATION
     assert mirror_method().sweep.cost.intensity_weight == MIRROR_INTENSITY_WEIGHT
+    chosen = methods["fused-mirror-rig-b0.7"]  # the default is exactly the candidate the selection chose
+    assert {**chosen.config(), "label": "fused-mirror"} == mirror_method().config()
     assert uncalibrated(mirror_method()).label == "fused-mirror-raw"
     with pytest.raises(UserError, match="candidates"):
         candidate_methods(["fused-mirror-i7"])

@@ -61,27 +61,29 @@ class PhotometricCandidate:
         intensity_weight: the sweep cost's intensity weight.
         rig: the rig self-calibration of its flow and quality flow (:class:`reconstruction.rig_calibration.
             RigParams`).
+        blur_px: the Gaussian blur of the sweep's grey images, pixels (``CostParams.blur_px``).
     """
 
     label: str
     photometric: PhotometricParams
     intensity_weight: float
     rig: RigParams = RigParams()
+    blur_px: float = 0.0
 
     def method(self, base: PriorSweepMethod) -> PriorSweepMethod:
         """The candidate built on ``base`` (the default's matching, ``mirror_method()``)."""
         m = with_photometric(base, self.photometric, self.label)
-        cost = dataclasses.replace(m.sweep.cost, intensity_weight=self.intensity_weight)
+        cost = dataclasses.replace(m.sweep.cost, intensity_weight=self.intensity_weight, blur_px=self.blur_px)
         quality = m.quality_flow
         return dataclasses.replace(m, sweep=dataclasses.replace(m.sweep, cost=cost),
                                    flow=dataclasses.replace(m.flow, rig=self.rig),
                                    quality_flow=None if quality is None else dataclasses.replace(quality, rig=self.rig))
 
     def record(self) -> dict:
-        """What ``selection.json`` records of the candidate: ``photometric`` and ``rig`` (as dicts) and
-        ``intensity_weight``."""
+        """What ``selection.json`` records of the candidate: ``photometric`` and ``rig`` (as dicts),
+        ``intensity_weight`` and ``blur_px``."""
         return {"photometric": dataclasses.asdict(self.photometric), "intensity_weight": self.intensity_weight,
-                "rig": dataclasses.asdict(self.rig)}
+                "rig": dataclasses.asdict(self.rig), "blur_px": self.blur_px}
 
 
 C = TypeVar("C", MatchingCandidate, PhotometricCandidate)
@@ -140,4 +142,8 @@ PHOTOMETRIC: dict[str, PhotometricCandidate] = by_label(
     PhotometricCandidate("fused-mirror-i0.5-d4", PhotometricParams(degree=4), 0.5),
     PhotometricCandidate("fused-mirror-even", PhotometricParams(even=True), 0.25),
     PhotometricCandidate("fused-mirror-told-poses", PhotometricParams(), 0.25, NO_RIG_CALIBRATION),
+    PhotometricCandidate("fused-mirror-rig", PhotometricParams(), 0.25),
+    PhotometricCandidate("fused-mirror-rig-b0.5", PhotometricParams(), 0.25, blur_px=0.5),
+    PhotometricCandidate("fused-mirror-rig-b0.7", PhotometricParams(), 0.25, blur_px=0.7),
+    PhotometricCandidate("fused-mirror-rig-b1", PhotometricParams(), 0.25, blur_px=1.0),
 )
