@@ -210,7 +210,7 @@ PRESETS = (
            "the sweep over spheres, floor/ceiling and wall planes with the unrefined dis-rect distance as SGM prior, "
            "weighted by C's texture, the sweep's confidence and how much of the frame the two agree on; its room "
            "bound tells a polished floor's mirror image of the ceiling from the floor; its cost weighs intensity "
-           "0.25 against gradients 2"),
+           "0.25 against gradients 2 on images blurred by 0.7 px; U's and R's gains and rotations self-calibrated"),
     Preset("fused", fused_method,
            "the sweep over spheres and floor/ceiling planes (no wall planes) with the refined dis-rect:gradient "
            "distance as SGM prior at one constant weight"),
