@@ -130,7 +130,9 @@ def test_the_default_is_fused_gated_with_the_mirror_test_and_a_lighter_intensity
     assert cfg["sweep"]["planes"]["mirror_tolerance"] == 0.2 and gated["sweep"]["planes"]["mirror_tolerance"] == 0.0
     assert cfg["sweep"]["cost"]["intensity_weight"] == 0.25 and gated["sweep"]["cost"]["intensity_weight"] == 1.0
     cfg["sweep"]["planes"]["mirror_tolerance"] = 0.0
+    assert cfg["sweep"]["cost"]["blur_px"] == 0.7 and gated["sweep"]["cost"]["blur_px"] == 0.0
     cfg["sweep"]["cost"]["intensity_weight"] = 1.0
+    cfg["sweep"]["cost"]["blur_px"] = 0.0
     assert {**cfg, "label": "fused-gated"} == gated
 
 
