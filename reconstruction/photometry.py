@@ -36,7 +36,7 @@ MAX_FIT_PIXELS = 15000
 
 __all__ = ["NO_CALIBRATION", "PhotometricParams", "srgb_to_linear", "linear_to_srgb", "basis", "fit_gain",
            "align_images",
-           "aligned_frame"]
+           "aligned_frame", "FrameView"]
 
 
 @dataclass(frozen=True)
@@ -268,16 +268,16 @@ def aligned_frame(frame, params: PhotometricParams, distance: np.ndarray | None 
     """A shallow copy of ``frame`` (any object with ``images`` and ``cameras``) whose images are
     :func:`align_images`'s, and the fit's info; ``frame`` itself is unchanged."""
     images, info = align_images(frame.images, frame.cameras, params, distance)
-    clone = _FrameView(frame, images)
-    return clone, info
+    return FrameView(frame, images=images), info
 
 
-class _FrameView:
-    """``frame`` with other images: every other attribute is read from ``frame``."""
+class FrameView:
+    """``frame`` with some attributes replaced (e.g. ``images``, ``cameras``); every other one is read from
+    ``frame``, which is unchanged."""
 
-    def __init__(self, frame, images: dict):
+    def __init__(self, frame, **replaced):
         self._frame = frame
-        self.images = images
+        self.__dict__.update(replaced)
 
     def __getattr__(self, name):
         return getattr(self._frame, name)

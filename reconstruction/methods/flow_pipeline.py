@@ -18,7 +18,7 @@ from reconstruction.camera.equirect import bearing_grid
 from reconstruction.flow.backends import ORACLE, FlowBackend
 from reconstruction.flow.matching import PairMatch, match_pair
 from reconstruction.methods.base import MethodOutput
-from reconstruction.photometry import NO_CALIBRATION, PhotometricParams, aligned_frame
+from reconstruction.photometry import NO_CALIBRATION, FrameView, PhotometricParams, aligned_frame
 from reconstruction.refine.lm import (
     ColorTerm,
     RefineConfig,
@@ -456,8 +456,8 @@ def self_calibrate(frame, photometric: PhotometricParams, rig: RigParams, limits
                 d_pair.append(d_k)
                 valid.append(v_k)
             d_small = fuse_average(d_pair, valid, (small.height, small.width))
-            raw = _PosedView(raw, cameras)
-            frame = _PosedView(frame, cameras)
+            raw = FrameView(raw, cameras=cameras)
+            frame = FrameView(frame, cameras=cameras)
             seconds["rig"] = time.perf_counter() - t_rig
         if field:
             d_full = cv2.resize(d_small.reshape(small.height, small.width).astype(np.float32), (w, h),
@@ -470,21 +470,10 @@ def self_calibrate(frame, photometric: PhotometricParams, rig: RigParams, limits
     return raw, frame, fits, seconds
 
 
-class _PosedView:
-    """``frame`` with other poses: every other attribute is read from ``frame``."""
-
-    def __init__(self, frame, cameras: dict):
-        self._frame = frame
-        self.cameras = cameras
-
-    def __getattr__(self, name):
-        return getattr(self._frame, name)
-
-
 def posed(frame, cameras: dict | None):
     """``frame`` seen with ``cameras`` as its poses (a view; ``frame`` itself unchanged), or ``frame`` itself
     when ``cameras`` is empty or None."""
-    return _PosedView(frame, cameras) if cameras else frame
+    return FrameView(frame, cameras=cameras) if cameras else frame
 
 
 # ------------------------------------------------------------------------------------------ as a Method
