@@ -338,7 +338,7 @@ def no_method_may_run(env: Env, mp) -> None:
     """Setup: any method run fails loudly (not with exit 2), so a refusal proves the check came before any work."""
     def forbidden(*args, **kwargs):
         raise AssertionError("a method ran before the preconditions were checked")
-    mp.setattr(harness.commands.evaluate, "run_methods", forbidden)
+    mp.setattr(harness.commands.evaluate, "run_blind", forbidden)
 
 
 def vp001_without_ground_truth(env: Env, mp) -> None:

@@ -23,10 +23,12 @@ carries the marker of a results set.  Every name that becomes part of a map's pa
 flow configuration, variant) is checked (:func:`harness.data.names.check_name`), and every frame must have usable
 ground truth (or, below, none may have it), all before the first method runs.
 
-**Methods never see ground truth.**  Every method, built in or outside, in this process or on a Dask worker, runs
-on :func:`methods_view` of its frame: images (copies) and rig, no ``distance`` and no ``path``; only the scorer
-reads the true distance.  The one exception is the built-in ``oracle`` flow pipeline (:func:`needs_ground_truth`),
-whose label says that it uses it.
+**Methods never see the frame.**  Every method, built in or outside, in this process or on a Dask worker, runs on its
+:class:`reconstruction.methods.base.MethodInput`: read-only copies of the images and the told rig, nothing else (no
+ground truth, path, provenance or photometric record); an outside method runs in a process of its own
+(:func:`harness.runtime.blind.run_blind`).  Only the scorer reads the true distance.  The one exception is the
+built-in ``oracle`` flow pipeline (:func:`harness.runtime.blind.needs_ground_truth`), whose label says that it uses
+it.
 
 **Frames without ground truth** (real captures, ``tri360 import``): when *no* frame of the data root has ground
 truth, the methods run and nothing is scored.  Each row has empty metrics, ``valid_px`` 0, the method's
@@ -41,9 +43,8 @@ reconstruct`` gives both).
 
 from __future__ import annotations
 
-import dataclasses
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -59,18 +60,18 @@ from harness.data.outputs import RESULTS_FORMAT, check_output, mark_output, stag
 from harness.data.provenance import software
 from harness.data.results import map_paths, quality_map_path, write_results
 from harness.data.suite import IDEAL
+from harness.runtime.blind import run_blind
 from harness.runtime.context import IN_PROCESS, RunContext
-from reconstruction.flow.backends import ORACLE
 from reconstruction.methods.base import (
     Method,
+    MethodInput,
     MethodOutput,
     flow_fields,
     method_groups,
     reference_distance,
-    run_methods,
     with_references,
 )
-from reconstruction.methods.flow_pipeline import FlowMethod, config_label
+from reconstruction.methods.flow_pipeline import config_label
 from reconstruction.quality import assess
 from reports.metrics import breakdown
 from reports.regions import region_summaries, regions
@@ -79,7 +80,7 @@ from reports.tables import method_summary, quality_summary
 from scenes.registry import discover
 
 __all__ = ["FrameRef", "select_frames", "evaluate", "evaluate_task", "method_groups", "summary_text",
-           "results_config", "checked_maps", "needs_ground_truth", "methods_view", "run_blind"]
+           "results_config", "checked_maps"]
 
 
 @dataclass(frozen=True)
@@ -134,37 +135,6 @@ def select_frames(data_root: Path, scenes: Sequence[str] | None = None) -> list[
                             "(give each frame a unique scene/viewpoint, or evaluate them separately)")
         seen[key] = r.path
     return refs
-
-
-def needs_ground_truth(method: Method) -> bool:
-    """True for the one kind of method that is handed ground truth: the built-in flow pipeline with flow ``oracle``
-    (exact correspondences from C's true distance, labelled ``oracle-...``).  A subclass or any outside method is
-    never handed it, whatever it calls its flow."""
-    return type(method) is FlowMethod and method.flow == ORACLE
-
-
-def methods_view(frame):
-    """What a method sees of ``frame``: the images (copies, so that a method cannot change what is scored) and
-    the rig, without the ground-truth distance and without the frame's directory (which holds the distance
-    files)."""
-    return dataclasses.replace(frame, distance={}, path=None,
-                               images={k: np.array(v, copy=True) for k, v in frame.images.items()})
-
-
-def run_blind(frame, methods: Sequence[Method],
-              on_stage: Callable[[str], None] | None = None) -> dict[str, MethodOutput]:
-    """:func:`run_methods` on :func:`methods_view` of ``frame``: no method sees ground truth, except the built-in
-    oracle (:func:`needs_ground_truth`), which runs on the frame itself.
-
-    Returns:
-        Outputs by method label, in the order of ``methods``.
-    """
-    oracles = [m for m in methods if needs_ground_truth(m)]
-    others = [m for m in methods if not needs_ground_truth(m)]
-    outs = run_methods(methods_view(frame), others, on_stage=on_stage) if others else {}
-    if oracles:
-        outs.update(run_methods(frame, oracles, on_stage=on_stage))
-    return {m.label: outs[m.label] for m in methods}
 
 
 def check_method_paths(methods: Sequence[Method]) -> None:
@@ -307,7 +277,7 @@ def _unscored_row(frame, method: Method, outputs: dict[str, MethodOutput]) -> tu
     method's output on the frame by label (the reference distance may be another's, :func:`reference_distance`)."""
     output = outputs[method.label]
     pred, conf = checked_maps(frame, method, output)
-    maps, quality = assess(frame, pred, conf, reference_distance(methods_view(frame), method, outputs))
+    maps, quality = assess(frame, pred, conf, reference_distance(MethodInput.of(frame), method, outputs))
     row = {"scene": frame.scene, "viewpoint": frame.viewpoint, "method": method.label, **flow_fields(method),
            "width": frame.width, "height": frame.height, **dict.fromkeys(METRIC_COLUMNS, float("nan")),
            "valid_px": 0, "seconds": round(output.total_seconds, 4), **{c: quality[c] for c in QUALITY_COLUMNS}}

@@ -20,7 +20,7 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
-from harness.commands.evaluate import checked_maps, methods_view, run_blind
+from harness.commands.evaluate import checked_maps
 from harness.data import jsonio
 from harness.data.atomic import atomic_write_bytes, atomic_write_text
 from harness.data.errors import UserError
@@ -35,9 +35,10 @@ from harness.data.predictions import (
     write_prediction,
 )
 from harness.data.provenance import software
+from harness.runtime.blind import run_blind
 from harness.runtime.context import IN_PROCESS, RunContext
 from harness.runtime.progress import progress_bar
-from reconstruction.methods.base import Method, MethodOutput, reference_distance, with_references
+from reconstruction.methods.base import Method, MethodInput, MethodOutput, reference_distance, with_references
 from reconstruction.quality import assess
 from reports.metrics import summary
 from reports.pointcloud import ply_bytes, point_grid
@@ -47,7 +48,7 @@ __all__ = ["run_with_progress", "reconstruct_to", "check_one_method"]
 
 def run_with_progress(frame, methods: Sequence[Method], desc: str, progress: bool = True,
                       on_stage: Callable[[str], None] | None = None) -> dict[str, MethodOutput]:
-    """:func:`harness.commands.evaluate.run_blind` (no method but the oracle sees ground truth) with a stage progress
+    """:func:`harness.runtime.blind.run_blind` (no method but the oracle sees ground truth) with a stage progress
     bar; a method's ValueError (e.g. the oracle without ground
     truth) becomes a :class:`UserError` naming the frame."""
     with progress_bar(None, desc=desc, unit="stage", enabled=progress, leave=False) as bar:
@@ -128,7 +129,7 @@ def reconstruct_to(frame_dir: Path, out: Path, method: Method, ctx: RunContext =
             "method": method.label, "config": method.config(), "seconds": output.seconds, "info": output.info,
             "software": software()}
     quality_maps, info["quality"] = assess(frame, output.distance, output.confidence,
-                                           reference_distance(methods_view(frame), method, outputs))
+                                           reference_distance(MethodInput.of(frame), method, outputs))
     if frame.has_ground_truth:
         info["metrics"] = summary(output.distance, frame.distance["C"], output.confidence)
     method_info = _method_info(method)

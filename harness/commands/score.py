@@ -1,14 +1,14 @@
 """The score command: score predictions on disk (``tri360-pred/1``), from any method, against the ground truth.
 
-Each predictions root becomes a :class:`PredictionMethod`, a :class:`reconstruction.methods.base.Method` that
-reads its maps instead of computing them, and goes through exactly the same path as built-in methods
-(:func:`harness.commands.evaluate.evaluate`): the same metrics, regions, results files, config.json and report.
+Each predictions root becomes a :class:`harness.data.predictions.PredictionMethod`, a
+:class:`reconstruction.methods.base.Method` that reads its maps instead of computing them, and goes through exactly
+the same path as built-in methods (:func:`harness.commands.evaluate.evaluate`): the same metrics, regions, results
+files, config.json and report.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field
 from pathlib import Path
 
 import pandas as pd
@@ -16,38 +16,11 @@ import pandas as pd
 from harness.commands.evaluate import evaluate, select_frames
 from harness.data.errors import UserError
 from harness.data.names import check_name
-from harness.data.predictions import FORMAT, prediction_dir, read_method_info, read_prediction
+from harness.data.predictions import PredictionMethod, prediction_dir, read_method_info
 from harness.runtime.context import IN_PROCESS, RunContext
-from reconstruction.methods.base import MethodOutput
 from reconstruction.methods.registry import builtin_methods
 
-__all__ = ["PredictionMethod", "prediction_methods", "score"]
-
-
-@dataclass(frozen=True)
-class PredictionMethod:
-    """A method whose outputs are predictions on disk.
-
-    Attributes:
-        label: the name the results use (``--method``, else method.json's ``name``, else the folder's name), a
-            safe name (:func:`harness.data.names.check_name`): it becomes part of the maps' paths.
-        root: the predictions root.
-        info: the contents of ``method.json`` (may be empty).
-        label_source: where the label came from (``--method``, the method.json path, the folder), for messages.
-    """
-
-    label: str
-    root: Path
-    info: dict = field(default_factory=dict)
-    label_source: str = "--method"
-
-    def config(self) -> dict:
-        return {"kind": "predictions", "format": FORMAT, "label": self.label, "label_source": self.label_source,
-                "root": str(self.root.resolve()), "method.json": self.info}
-
-    def run(self, frame) -> MethodOutput:
-        pred = read_prediction(self.root, frame.scene, frame.viewpoint, frame.width, frame.height)
-        return MethodOutput(distance=pred.distance, confidence=pred.confidence, seconds={"total": float("nan")})
+__all__ = ["PredictionMethod", "prediction_methods", "score"]  # PredictionMethod: harness.data.predictions
 
 
 def prediction_methods(pred_roots: Sequence[Path], names: Sequence[str] | None = None) -> list[PredictionMethod]:

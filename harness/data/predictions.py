@@ -29,9 +29,10 @@ from harness.data import jsonio
 from harness.data.atomic import atomic_write_text
 from harness.data.errors import FrameError
 from harness.data.exr import CONFIDENCE_CHANNEL, DISTANCE_CHANNEL, float_channel, read_exr_channels, write_float_map
+from reconstruction.methods.base import MethodOutput
 
-__all__ = ["FORMAT", "Prediction", "prediction_dir", "write_prediction", "read_prediction", "read_method_info",
-           "write_method_info", "METHOD_INFO_KEYS"]
+__all__ = ["FORMAT", "Prediction", "PredictionMethod", "prediction_dir", "write_prediction", "read_prediction",
+           "read_method_info", "write_method_info", "METHOD_INFO_KEYS"]
 
 FORMAT = "tri360-pred/1"
 METHOD_INFO_KEYS = ("name", "description", "url", "parameters")
@@ -139,3 +140,30 @@ def write_method_info(pred_root: Path, info: dict) -> Path:
     path = Path(pred_root) / "method.json"
     atomic_write_text(path, jsonio.dumps({"format": FORMAT, **info}, indent=2))
     return path
+
+
+@dataclass(frozen=True)
+class PredictionMethod:
+    """A method whose outputs are predictions on disk (``tri360 score``): it reads the frame's maps, so it is handed
+    the frame's names (the runtime's ``run_blind``), never its ground truth.
+
+    Attributes:
+        label: the name the results use (``--method``, else method.json's ``name``, else the folder's name), a
+            safe name (:func:`harness.data.names.check_name`): it becomes part of the maps' paths.
+        root: the predictions root.
+        info: the contents of ``method.json`` (may be empty).
+        label_source: where the label came from (``--method``, the method.json path, the folder), for messages.
+    """
+
+    label: str
+    root: Path
+    info: dict = field(default_factory=dict)
+    label_source: str = "--method"
+
+    def config(self) -> dict:
+        return {"kind": "predictions", "format": FORMAT, "label": self.label, "label_source": self.label_source,
+                "root": str(self.root.resolve()), "method.json": self.info}
+
+    def run(self, frame) -> MethodOutput:
+        pred = read_prediction(self.root, frame.scene, frame.viewpoint, frame.width, frame.height)
+        return MethodOutput(distance=pred.distance, confidence=pred.confidence, seconds={"total": float("nan")})

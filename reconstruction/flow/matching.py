@@ -80,9 +80,10 @@ def match_pair(frame, name: str, flow: str | FlowBackend, rectify: bool = True, 
         backend.prepare()  # once per process: compilation is not the flow's time
     start = time.perf_counter()
     if isinstance(flow, str) and flow == ORACLE:
-        if "C" not in frame.distance:
-            raise ValueError(f"flow 'oracle' needs ground-truth distance, which frame {frame.path} lacks")
-        d = frame.distance["C"].astype(np.float64)
+        truth = getattr(frame, "distance", {})  # a method's input (MethodInput) has none: only the frame has
+        if "C" not in truth:
+            raise ValueError("flow 'oracle' needs ground-truth distance, which this frame does not give it")
+        d = truth["C"].astype(np.float64)
         finite = np.isfinite(d)
         rel = np.where(finite[..., None], cam_c.position + np.where(finite, d, 0.0)[..., None] * a - cam_k.position,
                        a)

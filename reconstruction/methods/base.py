@@ -5,6 +5,11 @@ and outside ones (entry-point group ``tri360.methods``) implement the same proto
 way.  A method's ``label`` is stable and human-readable (``dis-rect:gradient``, ``deepflow-plain:average``),
 and ``config()`` returns its full configuration, which ``config.json`` records beside every results set.
 
+A method's ``run`` receives a :class:`MethodInput`, never the frame: the three images (read-only copies), the told
+rig (poses, baseline) and the size, which is what a real rig would hand it.  No ground truth, no path, no provenance
+(scene recipe, rig placement, a captured twin's true poses), no photometric record; built anew for every group of
+methods, so nothing a method does to its input reaches the scorer or another method.
+
 Methods that share work (the four variants of one flow configuration share the flow and the
 triangulation) say so with a common ``group_key``; :func:`run_methods` then runs each group once through
 the first member's ``run_group``.
@@ -12,14 +17,68 @@ the first member's ``run_group``.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Hashable, Sequence
+from collections.abc import Callable, Hashable, Mapping, Sequence
 from dataclasses import dataclass, field
+from types import MappingProxyType
 from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
-__all__ = ["Method", "MethodOutput", "method_groups", "run_methods", "flow_fields", "with_references",
+from reconstruction.camera.rig import CAMERA_NAMES, CameraPose
+
+__all__ = ["Method", "MethodInput", "MethodOutput", "method_groups", "run_methods", "flow_fields", "with_references",
            "reference_distance"]
+
+
+def _frozen(a) -> np.ndarray:
+    """A read-only copy of ``a``."""
+    out = np.array(a, copy=True)
+    out.setflags(write=False)
+    return out
+
+
+@dataclass(frozen=True, eq=False)
+class MethodInput:
+    """What a method's ``run`` receives for one frame: what a real rig hands it, and nothing else.
+
+    Built with copies of what it is given (:meth:`of` a frame), every array read-only and every mapping immutable,
+    so a method can change neither the frame that is scored nor another method's input.
+
+    Attributes:
+        width, height: image size, pixels (``width == 2 * height``).
+        baseline_m: the told baseline, metres.
+        cameras: the told pose of each camera (``"C"``, ``"U"``, ``"R"``): :class:`CameraPose` with read-only
+            ``position`` (3,) metres and ``rotation`` (3, 3) world-from-camera.
+        images: (H, W, 3) uint8 sRGB image of each camera, RGB channel order, read-only.
+    """
+
+    width: int
+    height: int
+    baseline_m: float
+    cameras: Mapping[str, CameraPose]
+    images: Mapping[str, np.ndarray]
+
+    def __post_init__(self) -> None:
+        cameras = {name: CameraPose(_frozen(np.asarray(self.cameras[name].position, np.float64)),
+                                    _frozen(np.asarray(self.cameras[name].rotation, np.float64)))
+                   for name in CAMERA_NAMES}
+        images = {name: _frozen(self.images[name]) for name in CAMERA_NAMES}
+        object.__setattr__(self, "width", int(self.width))
+        object.__setattr__(self, "height", int(self.height))
+        object.__setattr__(self, "baseline_m", float(self.baseline_m))
+        object.__setattr__(self, "cameras", MappingProxyType(cameras))
+        object.__setattr__(self, "images", MappingProxyType(images))
+
+    @classmethod
+    def of(cls, frame) -> MethodInput:
+        """The input of a method for ``frame`` (anything with ``width``, ``height``, ``baseline_m``, ``cameras``
+        and ``images``: a :class:`harness.data.frame.Frame`, or another input): copies, nothing else of it."""
+        return cls(frame.width, frame.height, frame.baseline_m, frame.cameras, frame.images)
+
+    def __reduce__(self):
+        # mapping proxies do not pickle: an input travels (to a Dask worker, to a method's own process) as plain
+        # dicts and is frozen again on arrival
+        return (MethodInput, (self.width, self.height, self.baseline_m, dict(self.cameras), dict(self.images)))
 
 
 @dataclass
@@ -61,9 +120,8 @@ class Method(Protocol):
         """The full configuration (every parameter, JSON-able)."""
         ...
 
-    def run(self, frame) -> MethodOutput:
-        """Camera C's distance for ``frame`` (a :class:`harness.data.frame.Frame`-like object with ``width``,
-        ``height``, ``baseline_m``, ``cameras``, ``images`` and, possibly, ``distance``)."""
+    def run(self, frame: MethodInput) -> MethodOutput:
+        """Camera C's distance for the frame whose :class:`MethodInput` is ``frame``."""
         ...
 
 

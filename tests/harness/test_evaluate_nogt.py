@@ -158,7 +158,7 @@ def test_mixed_data_root_is_refused_in_one_line(capture, tmp_path, capsys, monke
 
     def forbidden(*args, **kwargs):
         raise AssertionError("a method ran before the frames were checked")
-    monkeypatch.setattr("harness.commands.evaluate.run_methods", forbidden)
+    monkeypatch.setattr("harness.commands.evaluate.run_blind", forbidden)
     capsys.readouterr()
     assert main(["evaluate", str(mixed), "--out", str(tmp_path / "res"), *METHODS, "--quiet"]) == 2
     err = capsys.readouterr().err.strip()
