@@ -31,16 +31,26 @@ class Registry:
     Attributes:
         entries: entries by name (the built-ins, then the accepted outside entries).
         errors: error message by plugin source: plugins that failed to load and outside entries refused because
-            their name was taken.
+            their name was taken or is not a string; one plugin's refusals are joined by ``"; "``, so every refused
+            name is in its message.
         sources: plugin source (``entry point NAME (VALUE)``) of each accepted outside entry, by name.
-        refused: by name, ``(plugin source, holder)`` of each refused outside entry; holder is ``"built in"`` or
-            the source of the plugin that holds the name.
+        refused: by name, ``(plugin source, holder)`` of the first refused outside entry of that name; holder is
+            ``"built in"`` or the source of the plugin that holds the name.
+        refusals: every refused outside entry in the order met: ``(name, plugin source, why)``, ``why`` the
+            refusal's message (as in ``errors``).
     """
 
     entries: dict[str, Any] = field(default_factory=dict)
     errors: dict[str, str] = field(default_factory=dict)
     sources: dict[str, str] = field(default_factory=dict)
     refused: dict[str, tuple[str, str]] = field(default_factory=dict)
+    refusals: list[tuple[Any, str, str]] = field(default_factory=list)
+
+    def refuse(self, name, source: str, why: str) -> None:
+        """Record that ``source``'s entry ``name`` is refused because of ``why`` (added to ``source``'s error, after
+        any earlier refusal of the same plugin)."""
+        self.refusals.append((name, source, why))
+        self.errors[source] = f"{self.errors[source]}; {why}" if source in self.errors else why
 
 
 def _items(obj: Any) -> list:
@@ -79,7 +89,8 @@ def collect_registry(builtins: Iterable[Any], group: str, accept: Callable[[Any]
                      key: Callable[[Any], str], found: list[tuple[str, Any]] | None = None,
                      errors: dict[str, str] | None = None) -> Registry:
     """Built-in entries plus those of ``group``'s entry points, by ``key(entry)``.  An outside entry whose name is
-    taken (by a built-in or by a plugin loaded before it) is refused: it stays out, and ``errors`` names it.
+    taken (by a built-in or by a plugin loaded before it), or is not a non-empty string, is refused: it stays out,
+    and ``errors`` (and :attr:`Registry.refusals`) name it, every refused entry of a plugin in its one message.
 
     Args:
         found, errors: the loaded outside entries ``[(source, entry)]`` and load errors, when the caller loaded
@@ -91,13 +102,20 @@ def collect_registry(builtins: Iterable[Any], group: str, accept: Callable[[Any]
     for b in builtins:
         reg.entries[key(b)] = b
     for source, item in found:
-        name = key(item)
+        try:
+            name = key(item)
+        except Exception as exc:  # an outside object without the name attribute: reported, never fatal
+            reg.refuse(None, source, f"refused: its {what} has no usable name ({type(exc).__name__}: {exc})")
+            continue
+        if not isinstance(name, str) or not name:
+            reg.refuse(name, source, f"refused: it provides {what} named {name!r}, not a non-empty string")
+            continue
         if name in reg.entries:
             holder = reg.sources.get(name, "built in")
-            reg.refused[name] = (source, holder)
+            reg.refused.setdefault(name, (source, holder))
             taken = "the built-in one" if holder == "built in" else holder
-            reg.errors[source] = (f"refused: it provides {what} {name!r}, a name {taken} already has "
-                                  "(an outside entry never replaces another; rename it)")
+            reg.refuse(name, source, f"refused: it provides {what} {name!r}, a name {taken} already has "
+                                     "(an outside entry never replaces another; rename it)")
             continue
         reg.entries[name] = item
         reg.sources[name] = source

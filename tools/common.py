@@ -1,6 +1,6 @@
-"""What the tools share: goal lines and exit statuses (every benchmark), the bench frame (``pipeline``, ``flow``,
-``sweep``), and the options, cluster and output of the selection scripts (``select_matching``,
-``select_photometric``).
+"""What the tools share: the argument parser of every tool (an argument error is one line and exit status 2),
+goal lines and exit statuses (every benchmark), the bench frame (``pipeline``, ``flow``, ``sweep``), and the options,
+cluster and output of the selection scripts (``select_matching``, ``select_photometric``).
 """
 
 from __future__ import annotations
@@ -20,14 +20,14 @@ from harness.data.errors import UserError
 from harness.data.frame import Frame, find_frames, read_frame, write_frame
 from harness.data.outputs import mark_output
 from harness.render.raycast import render_frame
+from harness.runtime.arguments import EXIT_USAGE, ArgumentParser
 from harness.runtime.cluster import ClusterOptions
 from harness.runtime.context import RunContext
 from scenes.model import choose_viewpoints
 from scenes.registry import get_scene
 
-__all__ = ["SCENE", "cell", "user_error", "goal_line", "goals_status", "report_goals", "synthetic_box_frame",
-           "load_or_render_frame",
-           "selection_parser", "run_selection"]
+__all__ = ["EXIT_USAGE", "ArgumentParser", "SCENE", "cell", "user_error", "goal_line", "goals_status",
+           "report_goals", "synthetic_box_frame", "load_or_render_frame", "selection_parser", "run_selection"]
 
 # ------------------------------------------------------------------------------------------------------ goals
 
@@ -129,7 +129,7 @@ def selection_parser(module: str, description: str, default_suite: Path, suite_h
                      candidates_help: str) -> argparse.ArgumentParser:
     """The options every selection script takes: ``DATA_ROOT``, ``--out``, ``--suite``, ``--split``, ``--quiet``,
     ``--candidates`` and where to run (``--workers N`` | ``--scheduler ADDRESS``); the script adds its own."""
-    parser = argparse.ArgumentParser(prog=f"python -m {module}", description=description)
+    parser = ArgumentParser(prog=f"python -m {module}", description=description)
     parser.add_argument("data_root", type=Path, metavar="DATA_ROOT")
     parser.add_argument("--out", type=Path, required=True, help="results set to write (with selection.md/json)")
     parser.add_argument("--suite", type=Path, default=default_suite, help=suite_help)

@@ -27,7 +27,6 @@ from harness.runtime import startup
 if __name__ == "__main__":  # run as a script: Ctrl-C during the imports below is one line and 130
     startup.guard("regression")
 
-import argparse
 import datetime
 import json
 import math
@@ -46,6 +45,7 @@ from harness.render.base import RenderSettings
 from harness.runtime.context import QUIET, RunContext
 from reconstruction.methods.flow_pipeline import DEFAULT_FLOW
 from reconstruction.methods.registry import DEFAULT_METHOD, DEFAULT_VARIANTS, flow_methods, get_methods
+from tools.common import ArgumentParser
 
 #: panorama width of every regression frame, pixels (height = width / 2)
 REGRESSION_WIDTH = 400
@@ -257,7 +257,7 @@ def write_bounds(data: dict, path: Path | str) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m tools.regression", description=__doc__.split("\n\n")[0])
+    parser = ArgumentParser(prog="python -m tools.regression", description=__doc__.split("\n\n")[0])
     parser.add_argument("--update", action="store_true", help="re-run and rewrite the bounds file")
     parser.add_argument("--margin", type=float, default=DEFAULT_MARGIN,
                         help="with --update: bound = measured x (1 + margin) (default %(default)s)")

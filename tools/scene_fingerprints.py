@@ -29,7 +29,6 @@ from harness.runtime import startup
 if __name__ == "__main__":  # run as a script: Ctrl-C during the imports below is one line and 130
     startup.guard("scene_fingerprints")
 
-import argparse
 import dataclasses
 import hashlib
 import json
@@ -43,6 +42,7 @@ import numpy as np
 from harness.data.atomic import atomic_write_text
 from scenes.model import SceneEntry, SceneSpec, choose_viewpoints
 from scenes.registry import discover
+from tools.common import ArgumentParser
 
 FILE = Path(__file__).resolve().parents[1] / "tests" / "scenes" / "scene_fingerprints.json"
 """The repository's fingerprints (``--file`` picks another)."""
@@ -199,8 +199,8 @@ def update(path: Path, families: Mapping[str, SceneEntry], force: bool = False) 
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m tools.scene_fingerprints",
-                                     description=__doc__.split("\n\n")[0])
+    parser = ArgumentParser(prog="python -m tools.scene_fingerprints",
+                            description=__doc__.split("\n\n")[0])
     parser.add_argument("--file", type=Path, default=FILE, help="the fingerprint file (default: %(default)s)")
     parser.add_argument("--update", action="store_true", help="rewrite the file from the scenes as they build now")
     parser.add_argument("--force", action="store_true",

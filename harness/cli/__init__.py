@@ -23,9 +23,10 @@ from harness import __version__
 from harness.cli import evaluate, import_, list_methods, perturb, reconstruct, render, report, score, study
 from harness.cli import scenes as scenes_cmd
 from harness.data.errors import UserError
+from harness.runtime.arguments import EXIT_USAGE
+from harness.runtime.arguments import ArgumentParser as OneLineParser
 from scenes.registry import SceneError
 
-EXIT_USAGE = 2
 EXIT_BROKEN_PIPE = 141
 """Exit status when the reader of stdout went away (``tri360 methods | head``): 128 + SIGPIPE, as a shell pipeline's
 commands that die of SIGPIPE have; nothing is printed."""
@@ -45,12 +46,10 @@ class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
         return super()._get_help_string(action)
 
 
-class ArgumentParser(argparse.ArgumentParser):
-    """An argument error is one line, ``tri360 CMD: error: ...`` and where to look, and exit status 2 (argparse
-    prints the whole usage block).  Subcommand parsers are made of the same class (``add_subparsers``)."""
-
-    def error(self, message: str):
-        self.exit(EXIT_USAGE, f"{self.prog}: error: {message} (see `{self.prog} --help`)\n")
+class ArgumentParser(OneLineParser):
+    """An argument error is one line, ``tri360 CMD: error: ...`` and where to look, and exit status 2
+    (:class:`harness.runtime.arguments.ArgumentParser`).  Subcommand parsers are made of the same class
+    (``add_subparsers``)."""
 
     def parse_args(self, args=None, namespace=None):
         """As argparse's, but unrecognized arguments are reported by the command's parser (``tri360 CMD``)."""

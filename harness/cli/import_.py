@@ -14,7 +14,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     for name, what in (("C", "reference camera"), ("U", "camera above C"), ("R", "camera right of C")):
         parser.add_argument(name, type=Path, metavar=f"{name}_IMAGE", help=f"{what}: equirect JPEG or PNG, W = 2H")
     parser.add_argument("--rig", type=Path, required=True, metavar="RIG.json",
-                        help="tri360-rig/1 file: poses of U and R relative to C (docs/real-captures.md; "
+                        help="tri360-rig/1 file: poses of U and R relative to C, and optionally each camera's "
+                             "photometric record, carried into frame.json (docs/real-captures.md; "
                              "examples/rig_paper_L_0.4m.json)")
     parser.add_argument("--out", type=Path, required=True, metavar="DATA/SCENE/VIEWPOINT",
                         help="frame directory to write; DATA must be absent, empty or a data root tri360 wrote")

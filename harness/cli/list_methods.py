@@ -15,8 +15,8 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
-    lines, errors = method_listing()
+    lines, warnings = method_listing()
     print("\n".join(lines))
-    for source, msg in errors.items():
-        print(f"warning: {source} failed to load: {msg}", file=sys.stderr)
+    for line in warnings:
+        print(line, file=sys.stderr)
     return 0

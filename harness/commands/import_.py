@@ -5,6 +5,9 @@ in C's camera frame (X right, Y forward, Z up; metres; rotation = C-from-camera,
 imported frame puts C at the world origin with the identity rotation, so world = C's frame.  Images may be JPEG
 or PNG (anything OpenCV decodes), any size with W = 2H, all three the same size; ``width`` resizes them
 (area-averaged) first.  ``frame.json``'s ``renderer`` records the sources (paths and SHA-256) and the rig file.
+A camera's ``photometric`` record in the rig file (``cameras.<C|U|R>.photometric``,
+:class:`harness.data.photometric.Photometric`: every key, each valid) is carried over into the frame's
+``frame.json``; a malformed one is refused, naming the rig file, the camera and the key.
 """
 
 from __future__ import annotations
@@ -23,6 +26,7 @@ from harness.data.frame import Frame, write_frame
 from harness.data.images import read_png
 from harness.data.names import check_name
 from harness.data.outputs import check_output, mark_output
+from harness.data.photometric import Photometric
 from harness.data.provenance import software
 from reconstruction.camera.rig import CAMERA_NAMES, CameraPose
 
@@ -36,11 +40,13 @@ def _sha256(path: Path) -> str:
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
-def read_rig(path: Path) -> tuple[dict[str, CameraPose], float, dict]:
-    """Read a ``tri360-rig/1`` file -> (poses of C, U, R in C's frame, baseline_m, the parsed JSON).
+def read_rig(path: Path) -> tuple[dict[str, CameraPose], float, dict[str, Photometric], dict]:
+    """Read a ``tri360-rig/1`` file -> (poses of C, U, R in C's frame, baseline_m, the cameras' photometric records
+    (cameras without one left out), the parsed JSON).
 
     Raises:
-        UserError: naming ``path``: missing, not JSON, wrong format tag, a missing or malformed pose.
+        UserError: naming ``path``: missing, not JSON, wrong format tag, a missing or malformed pose, a malformed
+            photometric record (naming the camera and the key).
     """
     path = Path(path)
     try:
@@ -76,7 +82,24 @@ def read_rig(path: Path) -> tuple[dict[str, CameraPose], float, dict]:
     if isinstance(baseline, bool) or not isinstance(baseline, (int, float)) or not math.isfinite(baseline) \
             or baseline <= 0:
         raise UserError(f"{path}: baseline_m must be a positive number, got {baseline!r}")
-    return poses, float(baseline), raw
+    return poses, float(baseline), _rig_photometric(path, cams), raw
+
+
+def _rig_photometric(path: Path, cams: dict) -> dict[str, Photometric]:
+    """The ``photometric`` records of a rig file's cameras, checked (:meth:`Photometric.from_json`)."""
+    out = {}
+    for k in CAMERA_NAMES:
+        c = cams.get(k)
+        if c is None:
+            continue
+        if not isinstance(c, dict):
+            raise UserError(f"{path}: cameras.{k} must be an object, got {type(c).__name__}")
+        if "photometric" in c:
+            try:
+                out[k] = Photometric.from_json(c["photometric"], f"cameras.{k}.photometric")
+            except ValueError as exc:
+                raise UserError(f"{path}: {exc}") from None
+    return out
 
 
 def _load(path: Path, label: str) -> tuple[np.ndarray, list[int]]:
@@ -121,7 +144,7 @@ def import_frame(images: dict[str, Path], rig: Path, out: Path, width: int | Non
     scene = check_name(out.parent.name, "--out (scene directory)")
     viewpoint = check_name(out.name, "--out (viewpoint directory)")
     root = out.parent.parent
-    poses, baseline, rig_json = read_rig(rig)
+    poses, baseline, photometric, rig_json = read_rig(rig)
     check_output(root, "data", [*images.values(), Path(rig)])
     loaded, sizes = {}, {}
     for name in CAMERA_NAMES:
@@ -138,7 +161,7 @@ def import_frame(images: dict[str, Path], rig: Path, out: Path, width: int | Non
                 "rig": {"path": str(Path(rig).resolve()), "sha256": _sha256(rig), "name": rig_json.get("name", "")},
                 "software": software()}
     frame = Frame(scene=scene, viewpoint=viewpoint, width=w, height=h, baseline_m=baseline, cameras=poses,
-                  images=loaded, renderer=renderer)
+                  images=loaded, renderer=renderer, photometric=photometric)
     try:
         target = write_frame(frame, root)
     except FrameError as exc:

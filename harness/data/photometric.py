@@ -7,7 +7,7 @@ ideal image into that camera's image, in linear light, in this order: vignetting
 ``1 - edge_loss * (theta / 90 deg) ** 2``, ``theta`` the angle from the nearer of the two back-to-back lens axes
 ``+-axis``), exposure (``2 ** exposure_stops``), white balance (R, G, B gains), noise (variance
 ``shot * x + read`` at linear level ``x``, seeded with ``seed``), the response curve (``"srgb"`` or ``"gamma-G"``),
-JPEG at ``jpeg_quality`` (0 = none).
+JPEG at ``jpeg_quality`` (0 = none).  A record in a file has every key of :data:`KEYS` (none takes a default).
 """
 
 from __future__ import annotations
@@ -55,10 +55,11 @@ class Photometric:
 
     @classmethod
     def from_json(cls, raw, where: str = "photometric") -> Photometric:
-        """Read and check a record.
+        """Read and check a record: every key of :data:`KEYS`, each valid, and no other (the keys present are
+        checked first, then that none is missing).
 
         Raises:
-            ValueError: one line naming ``where`` and the bad key.
+            ValueError: one line naming ``where`` and the bad, unknown or missing key(s).
         """
         if not isinstance(raw, dict):
             raise ValueError(f"{where} must be an object, got {type(raw).__name__}")
@@ -96,6 +97,10 @@ class Photometric:
         seed = raw.get("seed", d.seed)
         if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2 ** 63:
             raise ValueError(f"{where}.seed must be a non-negative integer, got {seed!r}")
+        missing = [k for k in KEYS if k not in raw]
+        if missing:
+            raise ValueError(f"{where}: missing key(s) {', '.join(missing)} (a photometric record needs every key: "
+                             f"{', '.join(KEYS)})")
         return cls(e, wb, vig, noise, response, q, seed)
 
     @property

@@ -65,7 +65,6 @@ from harness.runtime import startup
 if __name__ == "__main__":  # run as a script: Ctrl-C during the imports below is one line and 130
     startup.guard("validate_quality")
 
-import argparse
 import dataclasses
 import re
 import sys
@@ -81,8 +80,6 @@ from harness.commands.evaluate import (
     FrameRef,
     checked_maps,
     frame_labels,
-    methods_view,
-    run_blind,
     scorable_frame,
     select_frames,
 )
@@ -95,10 +92,11 @@ from harness.data.exr import CONFIDENCE_CHANNEL, DISTANCE_CHANNEL, read_float_ma
 from harness.data.outputs import check_output, mark_output, staged_directory
 from harness.data.provenance import software
 from harness.data.results import map_paths, read_config, read_results_set
+from harness.runtime.blind import run_blind
 from harness.runtime.context import IN_PROCESS, RunContext
 from harness.runtime.progress import progress_bar
 from reconstruction.camera.rig import CAMERA_NAMES
-from reconstruction.methods.base import Method, reference_distance, with_references
+from reconstruction.methods.base import Method, MethodInput, reference_distance, with_references
 from reconstruction.methods.registry import get_methods
 from reconstruction.photometry import NO_CALIBRATION
 from reconstruction.quality import (
@@ -114,6 +112,7 @@ from reports.quality_validation import (
     ranking_summary,
     validation_markdown,
 )
+from tools.common import ArgumentParser
 
 __all__ = ["FORMAT", "frame_family", "calibration_choice", "config_difference", "resolve_method",
            "ground_truth_frames", "stored_maps", "validate_quality", "main"]
@@ -321,7 +320,7 @@ def _run(method: Method, frame, reference: bool = True) -> tuple[np.ndarray, np.
     try:
         outputs = run_blind(frame, with_references([method]) if reference else [method])
         output = outputs[method.label]
-        ref = reference_distance(methods_view(frame), method, outputs) if reference else None
+        ref = reference_distance(MethodInput.of(frame), method, outputs) if reference else None
     except ValueError as exc:
         raise UserError(f"{frame.path}: {exc}") from None
     d, conf = checked_maps(frame, method, output)
@@ -453,7 +452,7 @@ def validate_quality(data_root: Path, method_label: str, out: Path, results: Pat
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog=f"python -m tools.research.{PROG}", description=__doc__.splitlines()[0])
+    parser = ArgumentParser(prog=f"python -m tools.research.{PROG}", description=__doc__.splitlines()[0])
     parser.add_argument("data_root", type=Path, metavar="DATA_ROOT", help="data root of frames with ground truth")
     parser.add_argument("--method", required=True, metavar="LABEL", help="registered method label (e.g. fused)")
     parser.add_argument("--out", type=Path, required=True, metavar="DIR",
