@@ -9,6 +9,8 @@ Frames are tiny ``synthetic_box`` frames ray-cast in numpy (``tests.helpers``).
 from __future__ import annotations
 
 import dataclasses
+import gc
+import inspect
 import json
 import os
 import shutil
@@ -23,11 +25,19 @@ import pytest
 
 import harness.commands.parts.suite
 import harness.commands.perturb
+import harness.runtime.blind
 import reconstruction.flow.backends
+import reconstruction.methods.base
 import reconstruction.plugins
 import reconstruction.refine.lm
+import tools.overview
+import tools.regression
+import tools.research.select_matching
+import tools.research.select_photometric
+import tools.scene_fingerprints
 from harness.cli import main
 from harness.commands.evaluate import evaluate, evaluate_task
+from harness.commands.parts.captured import captured_twin
 from harness.commands.parts.suite import render_suite
 from harness.commands.study import LIMIT_FRAMES
 from harness.data.atomic import parse_staging_name
@@ -35,6 +45,8 @@ from harness.data.errors import UserError
 from harness.data.exr import read_distance_exr
 from harness.data.frame import write_frame
 from harness.data.outputs import MARKER, check_output, mark_output, output_kind
+from harness.data.photometric import KEYS as PHOTOMETRIC_KEYS
+from harness.data.photometric import CameraDistribution
 from harness.data.predictions import write_method_info, write_prediction
 from harness.runtime.cluster import ClusterOptions
 from harness.runtime.context import QUIET, RunContext
@@ -123,12 +135,52 @@ class Peeker:
 
 
 class Scribbler(Peeker):
-    """An outside method that overwrites the images it is handed (what is scored must not change)."""
+    """An outside method that makes its input writable and overwrites it: black images, U moved 5 cm up (what is
+    scored, and what any other method sees, must not change)."""
 
     def run(self, frame) -> MethodOutput:
         for img in frame.images.values():
+            img.setflags(write=True)  # its own copy: allowed, and harmless
             img[...] = 0
+        position = frame.cameras["U"].position
+        position.setflags(write=True)
+        position[2] += 0.05
         return super().run(frame)
+
+
+class Snoop(Peeker):
+    """An outside method that looks everywhere for what a method must not see: the frame's ground truth, directory,
+    provenance (a twin's true poses, the rig placement, the scene recipe, a perturbation's true cameras) and
+    photometric records on its input; a path in ``sys.argv``; a frame in its callers' stack frames or anywhere in its
+    process.  It writes what it found (a list of strings) as JSON to ``report`` and returns a constant 1 m."""
+
+    SECRETS = ("distance", "path", "renderer", "photometric", "scene", "viewpoint", "has_ground_truth", "metadata")
+
+    def __init__(self, report: Path, label: str = "snoop"):
+        super().__init__(label)
+        self.report = str(report)
+
+    def run(self, frame) -> MethodOutput:
+        found = [f"input.{name}" for name in self.SECRETS if hasattr(frame, name)]
+        found += [f"argv {a}" for a in sys.argv[1:] if os.path.exists(a)]
+        def holds_frame(v) -> bool:
+            return hasattr(v, "renderer") or hasattr(v, "has_ground_truth") or (hasattr(v, "distance")
+                                                                              and hasattr(v, "images"))
+        for info in inspect.stack()[1:]:
+            found += [f"stack {info.function}.{k}" for k, v in info.frame.f_locals.items() if holds_frame(v)]
+        found += [f"gc {type(o).__name__}" for o in gc.get_objects() if type(o).__name__ in ("Frame", "FrameRef")]
+        try:
+            frame.cameras["U"] = frame.cameras["C"]
+            found.append("cameras can be replaced")
+        except TypeError:
+            pass
+        try:
+            frame.images["C"][0, 0] = 0
+            found.append("images are writable")
+        except ValueError:
+            pass
+        Path(self.report).write_text(json.dumps(found))
+        return MethodOutput(np.full((frame.height, frame.width), 1.0, np.float32))
 
 
 class OracleImpostor(FlowMethod):
@@ -169,6 +221,46 @@ class TestEvaluateHidesGroundTruth:
         regions_a = (tmp_path / "a" / "regions.csv").read_text()
         assert regions_a.replace("peeker", "x") == (tmp_path / "b" / "regions.csv").read_text().replace("peeker", "x")
 
+    def test_a_method_editing_its_input_changes_no_other_methods_result(self, root, tmp_path):
+        builtin = flow_methods(["dis"], [True], ["average"])
+        alone = evaluate(root, tmp_path / "a", builtin, report=False, ctx=QUIET).set_index("method")
+        beside = evaluate(root, tmp_path / "b", [Scribbler(), *builtin], report=False, ctx=QUIET).set_index("method")
+        label = builtin[0].label
+        # the same computation on the same images and poses: equal to float rounding (metres)
+        np.testing.assert_allclose(beside.loc[label, ["mae_m", "rmse_m"]].to_numpy(float),
+                                   alone.loc[label, ["mae_m", "rmse_m"]].to_numpy(float), rtol=1e-9, atol=1e-12)
+        assert beside.loc[label, "valid_px"] == alone.loc[label, "valid_px"]
+
+    def test_a_snooping_method_finds_nothing_in_evaluate(self, root, tmp_path):
+        report = tmp_path / "found.json"
+        evaluate(root, tmp_path / "res", [Snoop(report)], report=False, ctx=QUIET)
+        assert json.loads(report.read_text()) == []
+
+    def test_a_snooping_plugin_finds_nothing_through_the_commands(self, root, tmp_path, monkeypatch):
+        install_plugins(monkeypatch, "tri360.methods", FakeEntryPoint("snoop", "snoop_pkg:M",
+                                                                      Snoop(tmp_path / "found.json")))
+        for argv in (["evaluate", root, "--method", "snoop", "--out", tmp_path / "res", "--no-report", "--quiet"],
+                     ["reconstruct", root / "synthetic_box" / "vp000", "--method", "snoop", "--out", tmp_path / "p",
+                      "--quiet"]):
+            (tmp_path / "found.json").unlink(missing_ok=True)
+            assert run_cli(argv) == 0
+            assert json.loads((tmp_path / "found.json").read_text()) == [], argv[0]
+
+    def test_a_builtin_method_is_handed_a_read_only_copy(self, root, tmp_path, monkeypatch):
+        seen = []
+        original = reconstruction.methods.base.run_methods
+
+        def spy(frame, methods, on_stage=None):
+            seen.append(frame)
+            return original(frame, methods, on_stage=on_stage)
+        monkeypatch.setattr(harness.runtime.blind, "run_methods", spy)
+        evaluate(root, tmp_path / "res", flow_methods(["dis"], [True], ["average"]), report=False, ctx=QUIET)
+        (inp,) = seen
+        assert not any(hasattr(inp, name) for name in Snoop.SECRETS)
+        assert not inp.images["C"].flags.writeable and not inp.cameras["U"].position.flags.writeable
+        with pytest.raises(TypeError):
+            inp.cameras["U"] = inp.cameras["C"]
+
     def test_a_subclass_calling_its_flow_oracle_is_not_handed_ground_truth(self, root, tmp_path, capfd):
         impostor = OracleImpostor("oracle")
         with pytest.raises(Exception, match="needs ground-truth distance"):
@@ -192,9 +284,11 @@ class TestEvaluateHidesGroundTruth:
 
 @pytest.mark.cluster
 def test_evaluate_on_dask_workers_hides_ground_truth(root, tmp_path, dask_cluster):
-    table = evaluate(root, tmp_path / "res", [Peeker()], report=False,
+    report = tmp_path / "found.json"
+    table = evaluate(root, tmp_path / "res", [Peeker(), Snoop(report)], report=False,
                      ctx=RunContext(ClusterOptions(scheduler=dask_cluster.address), progress=False))
     assert table.set_index("method").mae_m["peeker"] > 0.3
+    assert json.loads(report.read_text()) == []
 
 
 # ------------------------------------------------------------------------------------------------- plugins
@@ -486,6 +580,25 @@ class TestPerturb:
         assert snapshot(out) == before and staging_leftovers(tmp_path) == []
 
 
+class TestPerturbTwin:
+    """``tri360 perturb`` of a captured twin (:func:`twin_root`, in the evaluate / score --suite section)."""
+
+    @pytest.mark.parametrize("applies", [["rotation=0.5", "exposure=0.5"], ["translation=0.5"], ["noise=2"]])
+    def test_it_keeps_the_photometric_records_and_records_the_true_poses(self, twin_root, tmp_path, applies):
+        out = tmp_path / "out"
+        argv = ["perturb", twin_root[1] / TWIN, "--out", out] + [a for x in applies for a in ("--apply", x)]
+        assert run_cli(argv) == 0
+        src = json.loads((twin_root[1] / TWIN / "frame.json").read_text(encoding="utf-8"))
+        new = json.loads((out / TWIN / "frame.json").read_text(encoding="utf-8"))
+        for k in "CUR":
+            assert new["cameras"][k]["photometric"] == src["cameras"][k]["photometric"]
+        condition, perturbation = new["renderer"]["condition"], new["renderer"]["perturbation"]
+        assert condition == src["renderer"]["condition"]
+        if "noise=2" not in applies:  # the images keep the true poses of the twin's source, not its told ones
+            assert perturbation["true_cameras"] == condition["true_cameras"]
+            assert perturbation["true_baseline_m"] == condition["true_baseline_m"]
+
+
 # ------------------------------------------------------------------------------- argument errors (every command)
 
 
@@ -597,6 +710,34 @@ class TestRenderSuite:
         assert in_scene[1].exists() and at_root[1].exists()  # a live process's are left alone
 
 
+def captured_suite_file(where: Path, translation_mm: str = "[1.0, 2.0]", groups: str = "") -> Path:
+    """The one-viewpoint audit suite with a ``captured`` condition, ``groups`` more ``[[frames]]`` tables."""
+    path = where / "captured.toml"
+    path.write_text(SUITE.format(viewpoints=1) + groups + "\n[conditions.captured]\n"
+                    f"translation_mm = {translation_mm}\n", encoding="utf-8")
+    return path
+
+
+class TestRenderSuiteConditions:
+    def test_a_calibration_error_the_rig_cannot_take_is_refused_before_any_work(self, tmp_path, capfd,
+                                                                                monkeypatch):
+        path = captured_suite_file(tmp_path, "[900, 1000]")
+        monkeypatch.setattr(harness.commands.parts.suite, "plan", no_plan)
+        line = expect_refusal(["render", "--suite", path, "--split", "dev", "--out", tmp_path / "data"], capfd,
+                              tmp_path, f"{path}: [conditions.captured] translation_mm: ", "up to 1000 mm",
+                              "frames[0] (synthetic_box-s11, baseline 0.4 m)", "impossible rig", "below 4 mm")
+        assert "frame.json" not in line and not (tmp_path / "data").exists()
+
+    def test_a_group_named_like_a_twin_directory_is_refused(self, tmp_path, capfd, monkeypatch):
+        path = captured_suite_file(tmp_path, groups='\n[[frames]]\nfamily = "synthetic_box"\nseed = 12\n'
+                                                    'viewpoints = 1\nsplit = "dev"\n'
+                                                    'name = "synthetic_box-s11.captured"\n')
+        monkeypatch.setattr(harness.commands.parts.suite, "plan", no_plan)
+        expect_refusal(["render", "--suite", path, "--split", "dev", "--out", tmp_path / "data"], capfd, tmp_path,
+                       f"{path}: frames[1] name: 'synthetic_box-s11.captured'", "frames[0]'s captured twins")
+        assert not (tmp_path / "data").exists()
+
+
 # --------------------------------------------------------------------------------- evaluate / score --suite
 
 
@@ -630,6 +771,68 @@ class TestSuiteDataCheck:
                        capfd, tmp_path, "synthetic_box/vp000 is not in suite audit split dev")
 
 
+@pytest.fixture(scope="module")
+def twin_root(tmp_path_factory):
+    """The captured audit suite file and a data root holding its dev split: one frame and its twin."""
+    tmp = tmp_path_factory.mktemp("audittwins")
+    path = captured_suite_file(tmp)
+    render_suite(path, "dev", tmp / "data", ctx=QUIET)
+    return path, tmp / "data"
+
+
+TWIN = "synthetic_box-s11.captured/vp000"
+TWIN_SOURCE = "synthetic_box-s11/vp000"
+TAMPERED = [("told poses reset", "the told pose of U is its true pose, but the recorded calibration error of U"),
+            ("photometric records dropped", "cameras.C has no photometric record"),
+            ("source image changed", f"its source frame {TWIN_SOURCE} changed after the twin was derived")]
+
+
+def tamper_twin(data: Path, how: str) -> None:
+    """Change the twin of :func:`twin_root`'s data root, or its source image, in one of the ways of TAMPERED."""
+    if how == "source image changed":
+        png = data / TWIN_SOURCE / "C.png"
+        img = cv2.imread(str(png))
+        img[0, 0] = 255 - img[0, 0]
+        cv2.imwrite(str(png), img)
+        return
+    meta_path = data / TWIN / "frame.json"
+    meta = json.loads(meta_path.read_text(encoding="utf-8"))
+    record = meta["renderer"]["condition"]
+    for k in "CUR":
+        if how == "told poses reset" and k != "C":
+            meta["cameras"][k].update(record["true_cameras"][k])
+        elif how == "photometric records dropped":
+            del meta["cameras"][k]["photometric"]
+    if how == "told poses reset":
+        meta["baseline_m"] = record["true_baseline_m"]
+    meta_path.write_text(json.dumps(meta), encoding="utf-8")
+
+
+class TestSuiteTwinCheck:
+    @pytest.mark.parametrize("command", ["evaluate", "score"])
+    @pytest.mark.parametrize(("how", "culprit"), TAMPERED)
+    def test_a_twin_that_does_not_match_its_derivation_is_refused(self, twin_root, tmp_path, capfd, command, how,
+                                                                  culprit):
+        data = tmp_path / "data"
+        shutil.copytree(twin_root[1], data)
+        tamper_twin(data, how)
+        argv = ([command, data] if command == "evaluate" else [command, tmp_path, "--data", data])
+        expect_refusal([*argv, "--suite", twin_root[0], "--split", "dev", "--out", tmp_path / "res"], capfd,
+                       tmp_path, f"{data / TWIN / 'frame.json'}: twin {TWIN} does not match its derivation: ",
+                       culprit, f"`tri360 render --suite {twin_root[0]} --split dev --out {data}`")
+
+    @pytest.mark.parametrize("how", [how for how, _ in TAMPERED])
+    def test_render_derives_such_a_twin_again_and_leaves_its_source_alone(self, twin_root, tmp_path, how):
+        data = tmp_path / "data"
+        shutil.copytree(twin_root[1], data)
+        tamper_twin(data, how)
+        source = snapshot(data / TWIN_SOURCE)
+        assert run_cli(["render", "--suite", twin_root[0], "--split", "dev", "--out", data, "--quiet"]) == 0
+        assert snapshot(data / TWIN_SOURCE) == source
+        suite = harness.commands.parts.suite.load(twin_root[0])
+        assert len(harness.commands.parts.suite.check_suite_data(suite, "dev", data)) == 2
+
+
 # ------------------------------------------------------------- partials of killed evaluate / score / perturb
 
 
@@ -651,3 +854,238 @@ class TestRerunRemovesPartials:
         dead, live = plant_partials(tmp_path, "out")
         assert run_cli(["perturb", root, "--out", tmp_path / "out", "--apply", "noise=2"]) == 0
         assert not dead.exists() and live.exists()
+
+
+# ------------------------------------------------------------------------------------------------ overview
+# (python -m tools.overview RESULTS FRAME_DIR --out PNG)
+
+
+def expect_tool_refusal(tool_main, argv: list, capfd, tree: Path, prog: str, *culprits: str) -> str:
+    """Run a tool's ``main(argv)``: status 2, one line ``<prog>: ...`` naming every culprit, nothing under ``tree``
+    changed."""
+    capfd.readouterr()
+    before = snapshot(tree)
+    try:
+        code = tool_main([str(a) for a in argv])
+    except SystemExit as exc:
+        code = exc.code
+    out, err = capfd.readouterr()
+    lines = [line for line in (out + err).splitlines() if line.strip()]
+    assert code == 2, f"exit status {code}; output: {lines}"
+    assert len(lines) == 1 and lines[0].startswith(f"{prog}: "), lines
+    for c in culprits:
+        assert str(c) in lines[0], f"{c!r} not named in {lines[0]!r}"
+    assert snapshot(tree) == before, "a refused tool wrote or changed files"
+    assert staging_leftovers(tree) == []
+    return lines[0]
+
+
+OVERVIEW = "python -m tools.overview"
+
+
+@pytest.fixture(scope="class")
+def evaluated(tmp_path_factory):
+    """``(a directory, the data root in it, its frame directory, a results set of method 'peeker' evaluated on it)``,
+    shared by a class's tests (each uses names of its own in the directory)."""
+    tmp = tmp_path_factory.mktemp("overview")
+    data = tmp / "data"
+    frame_dir = write_frame(make_synthetic_frame(64), data)
+    res = tmp / "res"
+    evaluate(data, res, [Peeker()], report=False, ctx=QUIET)
+    return tmp, data, frame_dir, res
+
+
+class TestOverview:
+    def test_results_csv_as_out_is_refused(self, evaluated, capfd):
+        tmp, _, frame_dir, res = evaluated
+        expect_tool_refusal(tools.overview.main, [res, frame_dir, "--method", "peeker", "--out", res / "results.csv"],
+                            capfd, tmp, OVERVIEW, str(res / "results.csv"), "not an overview PNG")
+
+    def test_an_input_image_of_the_frame_as_out_is_refused(self, evaluated, capfd):
+        tmp, _, frame_dir, res = evaluated
+        expect_tool_refusal(tools.overview.main, [res, frame_dir, "--method", "peeker", "--out", frame_dir / "C.png"],
+                            capfd, tmp, OVERVIEW, str(frame_dir / "C.png"))
+
+    def test_a_new_file_inside_the_results_set_or_the_data_root_is_refused(self, evaluated, capfd):
+        tmp, data, frame_dir, res = evaluated
+        for out in (res / "overview.png", data / "overview.png", frame_dir / "overview.png"):
+            expect_tool_refusal(tools.overview.main, [res, frame_dir, "--method", "peeker", "--out", out], capfd,
+                                tmp, OVERVIEW, str(out), "is inside")
+
+    def test_an_existing_directory_as_out_is_one_line(self, evaluated, capfd):
+        tmp, _, frame_dir, res = evaluated
+        (tmp / "pics").mkdir()
+        line = expect_tool_refusal(tools.overview.main, [res, frame_dir, "--method", "peeker", "--out", tmp / "pics"],
+                                   capfd, tmp, OVERVIEW, str(tmp / "pics"), "is a directory")
+        assert "Traceback" not in line
+
+    def test_a_parent_that_is_a_file_or_absent_is_refused(self, evaluated, capfd):
+        tmp, _, frame_dir, res = evaluated
+        (tmp / "afile").write_text("x")
+        expect_tool_refusal(tools.overview.main, [res, frame_dir, "--method", "peeker", "--out",
+                                                  tmp / "afile" / "o.png"], capfd, tmp, OVERVIEW, "afile")
+        expect_tool_refusal(tools.overview.main, [res, frame_dir, "--method", "peeker", "--out",
+                                                  tmp / "nowhere" / "o.png"], capfd, tmp, OVERVIEW, "nowhere")
+
+    @pytest.mark.skipif(os.geteuid() == 0, reason="root writes into a read-only directory")
+    def test_an_unwritable_parent_is_refused(self, evaluated, capfd):
+        tmp, _, frame_dir, res = evaluated
+        (tmp / "ro").mkdir()
+        (tmp / "ro").chmod(0o500)
+        try:
+            expect_tool_refusal(tools.overview.main, [res, frame_dir, "--method", "peeker", "--out",
+                                                      tmp / "ro" / "o.png"], capfd, tmp, OVERVIEW, "not writable")
+        finally:
+            (tmp / "ro").chmod(0o700)
+
+    def test_only_a_png_the_tool_wrote_is_replaced(self, evaluated, capfd):
+        tmp, _, frame_dir, res = evaluated
+        foreign = tmp / "foreign.png"
+        foreign.write_bytes(cv2.imencode(".png", np.zeros((8, 16, 3), np.uint8))[1].tobytes())
+        expect_tool_refusal(tools.overview.main, [res, frame_dir, "--method", "peeker", "--out", foreign], capfd,
+                            tmp, OVERVIEW, str(foreign), "not an overview PNG")
+        out = tmp / "overview.png"
+        assert tools.overview.main([str(res), str(frame_dir), "--method", "peeker", "--out", str(out)]) == 0
+        first = out.read_bytes()
+        assert tools.overview.main([str(res), str(frame_dir), "--method", "peeker", "--out", str(out)]) == 0
+        assert out.read_bytes() == first and staging_leftovers(tmp) == []
+
+    def test_a_frame_of_another_data_root_with_the_same_names_is_refused(self, evaluated, capfd):
+        tmp, _, frame_dir, res = evaluated
+        other = write_frame(make_synthetic_frame(64), tmp / "other")
+        assert (other.parent.name, other.name) == (frame_dir.parent.name, frame_dir.name)
+        expect_tool_refusal(tools.overview.main, [res, other, "--method", "peeker", "--out", tmp / "o.png"], capfd,
+                            tmp, OVERVIEW, str(other), str(frame_dir.resolve()))
+
+    def test_a_results_set_without_frames_json_is_refused(self, evaluated, capfd):
+        tmp, _, frame_dir, res = evaluated
+        bare = tmp / "bare-res"
+        shutil.copytree(res, bare)
+        (bare / "frames.json").unlink()
+        expect_tool_refusal(tools.overview.main, [bare, frame_dir, "--method", "peeker", "--out", tmp / "o.png"],
+                            capfd, tmp, OVERVIEW, str(bare / "frames.json"))
+
+
+# ---------------------------------------------------------------------------- research tools (argument errors)
+# (tools/research/*.py, tools/regression.py, tools/overview.py, tools/scene_fingerprints.py)
+
+
+class TestResearchToolArguments:
+    @pytest.mark.parametrize("tool, argv, culprit", [
+        ("overview", ["res", "frame", "--bogus"], "--bogus"),
+        ("overview", [], "required"),
+        ("regression", ["--bounds", "b.json", "--margin", "wide"], "--margin"),
+        ("regression", ["--bounds", "b.json", "--waive", "nonsense"], "--waive"),
+        ("scene_fingerprints", ["--nope"], "--nope"),
+        ("research.validate_quality", ["data"], "--method"),
+        ("research.select_matching", ["data"], "--out"),
+        ("research.select_photometric", ["data", "--out", "o", "--split", "train"], "--split"),
+    ])
+    def test_an_argument_error_is_one_line_naming_the_tool_and_help(self, tool, argv, culprit, capfd, tmp_path):
+        module = {"overview": tools.overview, "regression": tools.regression,
+                  "scene_fingerprints": tools.scene_fingerprints,
+                  "research.validate_quality": validate_quality,
+                  "research.select_matching": tools.research.select_matching,
+                  "research.select_photometric": tools.research.select_photometric}[tool]
+        prog = f"python -m tools.{tool}"
+        line = expect_tool_refusal(module.main, argv, capfd, tmp_path, f"{prog}: error", culprit,
+                                   f"`{prog} --help`")
+        assert "usage:" not in line
+
+
+# -------------------------------------------------------------------------------------------------- import
+# (a rig file's photometric records)
+
+
+def rig_with(where: Path, **photometric) -> Path:
+    """The example rig with a ``photometric`` record for each camera given."""
+    rig = json.loads(RIG.read_text())
+    for name, record in photometric.items():
+        rig["cameras"].setdefault(name, {})["photometric"] = record
+    where.mkdir(parents=True, exist_ok=True)
+    path = where / "rig.json"
+    path.write_text(json.dumps(rig))
+    return path
+
+
+FULL_RECORD = {"exposure_stops": 0.3, "white_balance": [1.1, 1.0, 0.9], "vignetting": {"axis": "y", "edge_loss": 0.2},
+               "noise": {"shot": 0.001, "read": 0.0001}, "response": "srgb", "jpeg_quality": 90, "seed": 7}
+
+
+class TestImportPhotometric:
+    def test_a_record_holding_nan_is_refused_naming_the_key(self, jpegs, tmp_path, capfd):
+        c, u, r = copy_images(jpegs, tmp_path / "in")
+        rig = rig_with(tmp_path / "in", U={**FULL_RECORD, "exposure_stops": float("nan")})
+        assert "NaN" in rig.read_text()
+        expect_refusal(["import", c, u, r, "--rig", rig, "--out", tmp_path / "d" / "s" / "v"], capfd, tmp_path,
+                       str(rig), "cameras.U.photometric.exposure_stops", "nan")
+
+    def test_a_record_without_a_seed_is_refused_naming_the_key(self, jpegs, tmp_path, capfd):
+        c, u, r = copy_images(jpegs, tmp_path / "in")
+        rig = rig_with(tmp_path / "in", R={k: v for k, v in FULL_RECORD.items() if k != "seed"})
+        expect_refusal(["import", c, u, r, "--rig", rig, "--out", tmp_path / "d" / "s" / "v"], capfd, tmp_path,
+                       str(rig), "cameras.R.photometric", "seed")
+
+    def test_valid_records_are_carried_into_frame_json(self, jpegs, tmp_path):
+        c, u, r = copy_images(jpegs, tmp_path / "in")
+        rig = rig_with(tmp_path / "in", C=FULL_RECORD, U={**FULL_RECORD, "seed": 8})
+        out = tmp_path / "d" / "s" / "v"
+        assert run_cli(["import", c, u, r, "--rig", rig, "--out", out]) == 0
+        cams = json.loads((out / "frame.json").read_text())["cameras"]
+        assert cams["C"]["photometric"] == FULL_RECORD and cams["U"]["photometric"]["seed"] == 8
+        assert "photometric" not in cams["R"]
+
+
+# ------------------------------------------------------------------------------------------------- methods
+# (tri360 methods: plugin labels that cannot be selected)
+
+
+class TestMethodsListing:
+    def test_unusable_plugin_labels_are_warned_about_one_line_each_and_not_listed(self, monkeypatch, capfd):
+        install_plugins(monkeypatch, "tri360.methods",
+                        FakeEntryPoint("two", "two_pkg:M", [Peeker("sweep"), Peeker("fused-mirror")]),
+                        FakeEntryPoint("spaced", "spaced_pkg:M", Peeker("my method")),
+                        FakeEntryPoint("fine", "fine_pkg:M", Peeker("fine-one")))
+        capfd.readouterr()
+        assert run_cli(["methods"]) == 0
+        out, err = capfd.readouterr()
+        warnings = err.strip().splitlines()
+        assert len(warnings) == 3, warnings
+        assert all(w.startswith("warning: ") and "cannot be selected" in w for w in warnings)
+        for label, source in (("'sweep'", "two_pkg:M"), ("'fused-mirror'", "two_pkg:M"),
+                              ("'my method'", "spaced_pkg:M")):
+            assert any(label in w and source in w for w in warnings), (label, warnings)
+        plugins = out.split("plugins' methods")[1].splitlines()[1:]
+        assert [ln.split()[0] for ln in plugins if ln.strip()] == ["fine-one"]
+
+    def test_every_refused_name_of_one_entry_point_is_reported(self, monkeypatch):
+        install_plugins(monkeypatch, "tri360.methods",
+                        FakeEntryPoint("two", "two_pkg:M", [Peeker("sweep"), Peeker("fused-mirror")]))
+        methods, errors = discover_methods()
+        (source, message), = errors.items()
+        assert "two_pkg:M" in source and "'sweep'" in message and "'fused-mirror'" in message
+        with pytest.raises(ValueError, match=r"two_pkg:M.*'sweep'.*'fused-mirror'"):
+            get_methods(["sweep-nonesuch"])
+
+
+# ------------------------------------------------------------------------------------- frame / photometric
+# (a camera's photometric record in frame.json)
+
+
+class TestFramePhotometric:
+    def test_a_record_missing_a_key_is_refused_naming_file_camera_and_key(self, tmp_path, capfd):
+        data = tmp_path / "data"
+        d = write_frame(make_synthetic_frame(64), data)
+        meta = json.loads((d / "frame.json").read_text())
+        meta["cameras"]["U"]["photometric"] = {"noise": {"shot": 0.001, "read": 0.0001}}
+        (d / "frame.json").write_text(json.dumps(meta))
+        expect_refusal(["evaluate", data, "--out", tmp_path / "res", "--method", "sweep"], capfd, tmp_path,
+                       str(d / "frame.json"), "cameras.U.photometric", "seed")
+        expect_refusal(["reconstruct", d, "--out", tmp_path / "p", "--method", "sweep"], capfd, tmp_path,
+                       "cameras.U.photometric", "exposure_stops")
+
+    def test_what_tri360_writes_has_every_key(self, tmp_path):
+        twin = captured_twin(make_synthetic_frame(64), CameraDistribution(), seed=3)
+        d = write_frame(twin, tmp_path / "data")
+        cams = json.loads((d / "frame.json").read_text())["cameras"]
+        assert all(set(cams[n]["photometric"]) == set(PHOTOMETRIC_KEYS) for n in "CUR")

@@ -3,14 +3,20 @@
 
 For every frame under a data root, writes ``<out>/<scene>/<viewpoint>/`` with the perturbed images and told poses,
 the source's ground-truth distance maps unchanged, and in ``frame.json``'s ``renderer`` a ``perturbation`` record:
-the source frame (its real path and a SHA-256 over its files), the seed, every perturbation applied (in
-:data:`~harness.commands.parts.perturbations.ORDER`) with its level and what was drawn per camera, and -- when poses
-were perturbed -- the true poses of U and R.
+the source frame (its real path and a SHA-256 over its files, :func:`source_record`), the seed, every perturbation
+applied (in :data:`~harness.commands.parts.perturbations.ORDER`) with its level and what was drawn per camera, and
+-- when poses were perturbed -- the true poses of U and R.
 
 Pose perturbations change only what the method is *told* (the poses in ``frame.json``); the images keep the true
 poses.  C's pose is never perturbed (U and R are calibrated relative to C), so C's distance map -- the one scored --
 stays exact.  U's and R's distance maps stay those of their *true* poses (``perturbation.true_cameras``), not of
-the told ones.  Deterministic: the same source, perturbations and seed give byte-identical frames.
+the told ones.  The true poses are the source's own true poses when it records them (a captured twin's
+``renderer.condition.true_cameras``, an earlier perturbation's ``true_cameras``: :func:`true_rig`), else its told
+ones.
+
+The source's photometric records (``cameras.<name>.photometric``, a captured twin's cameras) are kept: each
+describes the camera that recorded the source image, and the image perturbations of ``applied`` act on that image,
+in their order, after it.  Deterministic: the same source, perturbations and seed give byte-identical frames.
 """
 
 from __future__ import annotations
@@ -24,9 +30,10 @@ from harness.data.errors import FrameError, UserError
 from harness.data.frame import Frame, find_frames, frame_dir, read_frame, validate_metadata, write_frame
 from harness.data.outputs import check_output, mark_output, staged_directory
 from harness.data.provenance import software
-from reconstruction.camera.rig import CAMERA_NAMES
+from reconstruction.camera.rig import CAMERA_NAMES, CameraPose
 
-__all__ = ["parse_applies", "perturb_frame", "checked_perturbation", "perturb_root", "perturb_frames", "frame_hash"]
+__all__ = ["parse_applies", "perturb_frame", "checked_perturbation", "perturb_root", "perturb_frames", "frame_hash",
+           "source_record", "true_rig"]
 
 
 def parse_applies(items: list[str], option: str = "--apply") -> list[tuple[str, float | int]]:
@@ -63,6 +70,48 @@ def frame_hash(directory: Path) -> str:
     return h.hexdigest()
 
 
+def source_record(directory: Path) -> dict:
+    """What a derived frame records of its source frame directory: ``{"path": its real path, "sha256":
+    frame_hash(directory)}``."""
+    return {"path": str(Path(directory).resolve()), "sha256": frame_hash(directory)}
+
+
+def true_rig(frame: Frame) -> tuple[dict[str, CameraPose], float]:
+    """The true poses of ``frame``'s cameras and its true baseline.
+
+    A captured twin records them in ``renderer.condition`` and a frame perturbed with calibration error in
+    ``renderer.perturbation`` (``true_cameras`` of U and R, ``true_baseline_m``; the condition's first); C's told
+    pose is exact in both.  A frame that records neither is told its true poses.
+
+    Raises:
+        FrameError: naming the frame's ``frame.json`` and the record, for a record that is malformed or describes
+            an impossible rig (the checks of :func:`harness.data.frame.validate_metadata`).
+    """
+    meta_path = Path(frame.path or Path(frame.scene) / frame.viewpoint) / "frame.json"
+    for where in ("condition", "perturbation"):
+        record = frame.renderer.get(where)
+        if not (isinstance(record, dict) and "true_cameras" in record):
+            continue
+        true = record["true_cameras"]
+        if not (isinstance(true, dict) and set(true) == {"U", "R"} and "true_baseline_m" in record):
+            raise FrameError(f"{meta_path}: renderer.{where}: true_cameras must hold the poses of U and R, and "
+                             "true_baseline_m the true baseline")
+        meta = frame.metadata()
+        meta["cameras"] = {**meta["cameras"], **true}
+        meta["baseline_m"] = record["true_baseline_m"]
+        try:
+            cameras = validate_metadata(meta, meta_path)
+        except FrameError as exc:
+            reason = str(exc).removeprefix(str(meta_path)).lstrip(": ")
+            where += ".true_cameras"
+            if reason.startswith("(cameras."):  # a pose's own problem: name the camera in the record
+                camera, reason = reason.removeprefix("(cameras.").split("): ", 1)
+                where += f".{camera}"
+            raise FrameError(f"{meta_path}: renderer.{where}: {reason}") from None
+        return cameras, float(meta["baseline_m"])
+    return dict(frame.cameras), float(frame.baseline_m)
+
+
 def perturb_frame(frame: Frame, applies: list[tuple[str, float | int]], seed: int, source: dict) -> Frame:
     """A new :class:`Frame`: ``frame`` with ``applies`` done to it (see the module doc); ``frame`` is unchanged.
 
@@ -74,6 +123,9 @@ def perturb_frame(frame: Frame, applies: list[tuple[str, float | int]], seed: in
 
     The result is not validated: a large translation can make ``|U - C|`` and ``|R - C|`` disagree on one baseline
     (:func:`perturb_root` checks every derived frame before writing any).
+
+    Raises:
+        FrameError: the source's record of its true poses is malformed (:func:`true_rig`).
     """
     applies = sorted(applies, key=lambda a: P.ORDER.index(a[0]))  # the fixed physical order, whatever the caller's
     cameras = dict(frame.cameras)
@@ -103,15 +155,16 @@ def perturb_frame(frame: Frame, applies: list[tuple[str, float | int]], seed: in
         records.append({"kind": kind, "level": level, "unit": P.KINDS[kind], "seed": int(seed), "drawn": drawn})
     record = {"source": dict(source), "seed": int(seed), "applied": records, "software": software()}
     if any(k in ("rotation", "translation") for k, _ in applies):
-        record["true_cameras"] = {n: frame.cameras[n].to_json() for n in ("U", "R")}
-        record["true_baseline_m"] = float(frame.baseline_m)
+        true_cameras, true_baseline = true_rig(frame)
+        record["true_cameras"] = {n: true_cameras[n].to_json() for n in ("U", "R")}
+        record["true_baseline_m"] = true_baseline
     if "perturbation" in frame.renderer:
         record["source"]["perturbation"] = frame.renderer["perturbation"]
     renderer = {k: v for k, v in frame.renderer.items() if k != "perturbation"}
     renderer["perturbation"] = record
     return Frame(scene=frame.scene, viewpoint=frame.viewpoint, width=frame.width, height=frame.height,
                  baseline_m=baseline, cameras=cameras, images=images, distance=dict(frame.distance),
-                 renderer=renderer)
+                 renderer=renderer, photometric=dict(frame.photometric))
 
 
 def checked_perturbation(d: Path, frame: Frame, applies: list[tuple[str, float | int]], seed: int, out: Path,
@@ -121,9 +174,9 @@ def checked_perturbation(d: Path, frame: Frame, applies: list[tuple[str, float |
 
     Raises:
         UserError: naming ``option`` and the perturbations, the frame and why its told rig is impossible.
+        FrameError: the source's record of its true poses is malformed (:func:`true_rig`).
     """
-    source = {"path": str(Path(d).resolve()), "sha256": frame_hash(d)}
-    new = perturb_frame(frame, applies, seed, source)
+    new = perturb_frame(frame, applies, seed, source_record(d))
     try:
         validate_metadata(new.metadata(), Path(out) / new.scene / new.viewpoint / "frame.json")
     except FrameError as exc:

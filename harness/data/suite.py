@@ -28,6 +28,11 @@ Frames land in ``<data root>/<name>/vp000 ...``.  A published suite file is neve
 family it uses and the complete render settings (with tri360's defaults for what the file leaves out): two results
 with the same suite id and split were measured on the same frames.
 
+Twins under a condition live in ``<data root>/<name>.<condition>/vp000 ...``: no group may be named like another
+group's twin directory.  A condition's calibration error is checked against every group's rig when the file is
+read (:func:`told_rig_problem`): the largest error the condition can draw, in the worst direction, must leave a
+told rig that frame validation (``harness.data.frame``) accepts.
+
 Every problem is one :class:`UserError` line naming the file and the key.  This module reads and checks only; the
 render settings' names and defaults come from the caller (``harness.commands.parts.suite``, which owns
 ``RenderSettings``).
@@ -44,13 +49,19 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from harness.data.errors import UserError
+import numpy as np
+
+from harness.data.errors import FrameError, UserError
+from harness.data.frame import FORMAT as FRAME_FORMAT
+from harness.data.frame import baseline_tolerance_m, validate_metadata
 from harness.data.names import check_name
 from harness.data.photometric import AXES, CameraDistribution, gamma_of
+from reconstruction.camera.rig import CameraPose, Rig, yaw_rotation
 from scenes.model import DIFFICULTY_TAGS, RENDERERS, ParameterError, SceneEntry
 from scenes.registry import discover
 
-__all__ = ["FORMAT", "SPLITS", "IDEAL", "SuiteRig", "SuiteEntry", "SuiteFrame", "Suite", "load_suite", "suite_id"]
+__all__ = ["FORMAT", "SPLITS", "IDEAL", "SuiteRig", "SuiteEntry", "SuiteFrame", "Suite", "load_suite", "suite_id",
+           "told_rig_problem"]
 
 FORMAT = "tri360-suite/1"
 SPLITS = ("dev", "test")
@@ -334,6 +345,86 @@ def _condition(path: Path, name, raw) -> CameraDistribution:
     return CameraDistribution(**values)
 
 
+_TOLD_RIG_PATH = Path("told-rig")
+
+
+def _worst_told_rigs(baseline_m: float, translation_mm: float,
+                     rotation_deg: float) -> list[dict[str, CameraPose]]:
+    """The told rigs of a level rig of ``baseline_m`` whose U and R are each off by ``translation_mm`` and
+    ``rotation_deg``, their errors in the directions worst for frame validation: one baseline longer and the other
+    shorter (baseline tolerance), both shorter (camera separation), U and R moved towards each other (their
+    separation) and turned towards each other (colinearity).  C is exact, as in a twin."""
+    true = Rig(baseline_m=baseline_m).poses()
+    up, right = true["U"].position - true["C"].position, true["R"].position - true["C"].position
+    up, right = up / np.linalg.norm(up), right / np.linalg.norm(right)
+    diagonal = (right - up) / math.sqrt(2.0)
+    turn = yaw_rotation(math.radians(rotation_deg))
+    out = []
+    for d_u, d_r in ((up, -right), (-up, -right), (diagonal, -diagonal), (right, up)):
+        out.append({"C": true["C"],
+                    "U": CameraPose(true["U"].position + d_u * translation_mm / 1000.0, turn @ true["U"].rotation),
+                    "R": CameraPose(true["R"].position + d_r * translation_mm / 1000.0, turn @ true["R"].rotation)})
+    return out
+
+
+def told_rig_problem(baseline_m: float, translation_mm: float, rotation_deg: float) -> str | None:
+    """Why frame validation (:func:`harness.data.frame.validate_metadata`) could refuse the told rig of a twin whose
+    rig has baseline ``baseline_m`` and whose U and R calibration errors reach ``translation_mm`` and
+    ``rotation_deg`` (the worst directions, :func:`_worst_told_rigs`; the told ``baseline_m`` is the mean of the
+    told ``|U - C|`` and ``|R - C|``, as a twin records it), or None if no such draw can make an invalid frame."""
+    for cameras in _worst_told_rigs(baseline_m, translation_mm, rotation_deg):
+        told = [float(np.linalg.norm(cameras[k].position - cameras["C"].position)) for k in ("U", "R")]
+        meta = {"format": FRAME_FORMAT, "scene": "told-rig", "viewpoint": "vp000", "width": 2, "height": 1,
+                "baseline_m": sum(told) / 2.0, "cameras": {k: v.to_json() for k, v in cameras.items()}}
+        try:
+            validate_metadata(meta, _TOLD_RIG_PATH)
+        except FrameError as exc:
+            return str(exc).removeprefix(str(_TOLD_RIG_PATH)).lstrip(": ")
+    return None
+
+
+def _check_calibration(path: Path, name: str, dist: CameraDistribution, entries: list[SuiteEntry]) -> None:
+    """Refuse a condition whose largest calibration error could make a twin's told rig invalid in some group."""
+    problems: dict[tuple[float, float], str | None] = {}
+
+    def problem(baseline_m: float, translation_mm: float) -> str | None:
+        key = (baseline_m, translation_mm)
+        if key not in problems:
+            problems[key] = told_rig_problem(baseline_m, translation_mm, dist.rotation_deg[1])
+        return problems[key]
+
+    for key, mm, what in (("rotation_deg", 0.0, f"{dist.rotation_deg[1]:g} degrees"),
+                          ("translation_mm", dist.translation_mm[1], f"{dist.translation_mm[1]:g} mm")):
+        for i, e in enumerate(entries):
+            reason = problem(e.rig.baseline_m, mm)
+            if reason is None:
+                continue
+            hint = ""
+            if key == "translation_mm":  # the frame format's baseline tolerance of the tightest group
+                fits = min(baseline_tolerance_m(x.rig.baseline_m) * 1000.0 for x in entries)
+                if all(problem(x.rig.baseline_m, fits * (1.0 - 1e-6)) is None for x in entries):
+                    hint = f"; keep the high end below {fits:g} mm (the tolerance of the tightest group's baseline)"
+            _fail(path, f"[conditions.{name}] {key}",
+                  f"a calibration error of up to {what} can make a told rig that frame validation refuses, in "
+                  f"frames[{i}] ({e.name}, baseline {e.rig.baseline_m:g} m): {reason}{hint}")
+
+
+def _check_directories(path: Path, entries: list[SuiteEntry], conditions: Mapping) -> None:
+    """Refuse a suite whose groups and twins would share a scene directory (``<group>`` and ``<group>.<condition>``)
+    or whose twin directory is not a safe name."""
+    owners = {e.name: (f"frames[{i}] name", f"the name of frames[{i}]") for i, e in enumerate(entries)}
+    for i, e in enumerate(entries):
+        for c in conditions:
+            d = f"{e.name}.{c}"
+            twins = f"the directory of frames[{i}]'s {c} twins ({e.name!r} under [conditions.{c}])"
+            check_name(d, f"{path}: frames[{i}] name: {twins}")
+            if d in owners:
+                where, other = owners[d]
+                _fail(path, where, f"{d!r} is {other} and also {twins}: their frames would overwrite each other; "
+                                   "rename one")
+            owners[d] = (f"[conditions.{c}]", twins)
+
+
 def suite_id(file_bytes: bytes, code_versions: Mapping, render: Mapping) -> str:
     """``"sha256:<16 hex>"`` of the suite file's bytes, every family's code version and the render settings.
 
@@ -359,7 +450,8 @@ def load_suite(path: Path, render_defaults: Mapping, scenes: dict[str, SceneEntr
     Raises:
         UserError: one line naming the file and the key: unreadable file, bad TOML, wrong format, unknown key,
             wrong type, unknown family/preset/parameter, a scene parameter of the wrong type or out of range,
-            duplicate frame names, or a seed used by both splits.
+            duplicate frame names, a group named like another group's twin directory, a seed used by both splits,
+            or a condition whose calibration error could make an impossible told rig (:func:`told_rig_problem`).
     """
     path = Path(path)
     try:
@@ -407,6 +499,9 @@ def load_suite(path: Path, render_defaults: Mapping, scenes: dict[str, SceneEntr
     if not isinstance(raw_conditions, dict):
         _fail(path, "conditions", "must be a table of [conditions.<name>] tables")
     conditions = {k: _condition(path, k, v) for k, v in raw_conditions.items()}
+    _check_directories(path, entries, conditions)
+    for k, dist in conditions.items():
+        _check_calibration(path, k, dist, entries)
     code_versions = {e.family: scenes[e.family].code_version for e in entries}
     return Suite(path=path, name=name, description=description, render=render, entries=tuple(entries),
                  code_versions=code_versions, id=suite_id(data, code_versions, render), conditions=conditions)

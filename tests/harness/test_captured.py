@@ -7,15 +7,18 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import shutil
 
 import numpy as np
 import pytest
 
 from harness.cli import main
-from harness.commands.parts.captured import captured_twin
+from harness.commands.parts.captured import calibration_error, captured_twin
 from harness.commands.parts.suite import check_suite_data, evaluate_suite, load, plan, render_suite
+from harness.commands.perturb import perturb_frame, source_record
 from harness.data.errors import FrameError, UserError
 from harness.data.frame import read_frame, write_frame
+from harness.data.images import read_png, write_png
 from harness.data.photometric import CameraDistribution, Photometric, noise_parameters
 from harness.data.results import read_results
 from harness.render.camera import apply, vignetting_gain
@@ -150,6 +153,20 @@ def test_captured_twin_is_deterministic_and_records_what_it_did():
         captured_twin(t1, CameraDistribution(), 7)
 
 
+def test_calibration_error_redraws_the_told_poses_and_a_twin_needs_an_ideal_source():
+    f = make_synthetic_frame(64)
+    twin = captured_twin(f, CameraDistribution(), 7, source={"path": "p", "sha256": "0" * 64})
+    told, drawn = calibration_error(f.cameras, CameraDistribution(), 7)
+    assert drawn == twin.renderer["condition"]["calibration_error"] and set(drawn) == {"U", "R"}
+    assert twin.renderer["condition"]["source"] == {"path": "p", "sha256": "0" * 64}
+    for k in "CUR":
+        np.testing.assert_array_equal(told[k].position, twin.cameras[k].position)
+        np.testing.assert_array_equal(told[k].rotation, twin.cameras[k].rotation)
+    perturbed = perturb_frame(f, [("rotation", 0.5)], 1, {})
+    with pytest.raises(ValueError, match="records true poses other than its told ones"):
+        captured_twin(perturbed, CameraDistribution(), 7)
+
+
 def test_suite_conditions_are_checked(tmp_path):
     good = tmp_path / "s.toml"
     good.write_text(SUITE)
@@ -215,6 +232,73 @@ def test_a_twin_derived_otherwise_is_refused(tmp_path):
     plain.write_text(SUITE.split("[conditions.captured]")[0] + SUITE.split("translation_mm = [1.0, 2.0]\n")[1])
     with pytest.raises(UserError, match="not in suite"):
         check_suite_data(load(plain), "dev", root)
+
+
+@pytest.fixture(scope="module")
+def captured_root(tmp_path_factory):
+    """The mini-captured suite file and a data root holding its dev split (frames and twins)."""
+    tmp = tmp_path_factory.mktemp("captured")
+    path = tmp / "s.toml"
+    path.write_text(SUITE)
+    render_suite(path, "dev", tmp / "data", ctx=QUIET)
+    return path, tmp / "data"
+
+
+TWIN = "synthetic_box-s11.captured/vp001"
+SOURCE = "synthetic_box-s11/vp001"
+
+
+def _edit_twin(root, edit) -> None:
+    meta_path = root / TWIN / "frame.json"
+    meta = json.loads(meta_path.read_text())
+    edit(meta)
+    meta_path.write_text(json.dumps(meta))
+
+
+def _reset_told_poses(root) -> None:
+    def edit(meta):
+        record = meta["renderer"]["condition"]
+        for k in "UR":
+            meta["cameras"][k].update(record["true_cameras"][k])
+        meta["baseline_m"] = record["true_baseline_m"]
+    _edit_twin(root, edit)
+
+
+def _change_the_source(root) -> None:
+    img = read_png(root / SOURCE / "C.png")
+    img[0, 0] = 255 - img[0, 0]
+    write_png(root / SOURCE / "C.png", img)
+
+
+@pytest.mark.parametrize(("tamper", "message"), [
+    (_reset_told_poses, r"the told pose of U is its true pose, but the recorded calibration error of U \(.* mm\) "
+                        r"says it is off"),
+    (lambda root: _edit_twin(root, lambda m: m["cameras"]["R"].pop("photometric")),
+     r"cameras\.R has no photometric record \(the captured condition draws one for every camera: C, U, R\)"),
+    (lambda root: _edit_twin(root, lambda m: [m["cameras"][k].pop("photometric") for k in "CUR"]),
+     r"cameras\.C has no photometric record"),
+    (lambda root: _edit_twin(root, lambda m: m["cameras"]["U"]["photometric"].update(exposure_stops=0.0)),
+     r"cameras\.U\.photometric is not the captured condition's draw for seed 11001"),
+    (_change_the_source, r"its source frame synthetic_box-s11/vp001 changed after the twin was derived"),
+    (lambda root: _edit_twin(root, lambda m: m["renderer"]["condition"].pop("source")),
+     r"it records no hash of its source frame synthetic_box-s11/vp001"),
+])
+def test_a_twin_that_does_not_match_its_derivation_is_refused_and_render_derives_it_again(captured_root, tmp_path,
+                                                                                          tamper, message):
+    path, rendered = captured_root
+    root = tmp_path / "data"
+    shutil.copytree(rendered, root)
+    tamper(root)
+    with pytest.raises(UserError, match=message) as info:
+        check_suite_data(load(path), "dev", root)
+    text = str(info.value)
+    assert text.startswith(f"{root / TWIN / 'frame.json'}: twin {TWIN} does not match its derivation: ")
+    assert "\n" not in text and f"`tri360 render --suite {path} --split dev --out {root}`" in text
+    source = {p.name: p.read_bytes() for p in (root / SOURCE).iterdir()}
+    render_suite(path, "dev", root, ctx=QUIET)  # the twin is derived again from the source as it is now
+    assert len(check_suite_data(load(path), "dev", root)) == 4
+    assert {p.name: p.read_bytes() for p in (root / SOURCE).iterdir()} == source
+    assert read_frame(root / TWIN).renderer["condition"]["source"] == source_record(root / SOURCE)
 
 
 def test_evaluate_cli_on_a_captured_root(tmp_path):

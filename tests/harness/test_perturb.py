@@ -3,14 +3,17 @@
 from __future__ import annotations
 
 import json
+import shutil
 
 import numpy as np
 import pytest
 
 from harness.cli import main
+from harness.commands.parts.captured import captured_twin
 from harness.commands.parts.perturbations import ORDER, noise_parameters, srgb_to_linear
 from harness.commands.perturb import frame_hash, perturb_root
 from harness.data.frame import read_frame, write_frame
+from harness.data.photometric import CameraDistribution
 from tests.helpers import make_synthetic_frame
 
 LEVELS = {"rotation": 0.5, "translation": 2.0, "exposure": 0.5, "white_balance": 0.1, "noise": 3.0, "jpeg": 60,
@@ -112,4 +115,42 @@ def test_impossible_told_rig_refused_before_writing(source, tmp_path, capsys):
     assert main(["perturb", str(root), "--out", str(tmp_path / "o"), "--apply", "translation=200"]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "--apply translation=200" in err and "impossible rig" in err
+    assert not (tmp_path / "o").exists()
+
+
+@pytest.fixture(scope="module")
+def twin(tmp_path_factory):
+    """A data root holding one captured twin (photometric records, told poses off its true ones)."""
+    root = tmp_path_factory.mktemp("twin")
+    return root, write_frame(captured_twin(make_synthetic_frame(width=120), CameraDistribution(), 7), root)
+
+
+def test_perturbing_a_twin_keeps_its_photometric_records_and_its_true_poses(twin, tmp_path):
+    root, d = twin
+    src = read_frame(d)
+    (once,) = perturb_root(root, tmp_path / "once", [("rotation", 0.5), ("exposure", 0.5)], seed=3)
+    (twice,) = perturb_root(tmp_path / "once", tmp_path / "twice", [("translation", 0.5)], seed=4)
+    for out in (once, twice):
+        new = read_frame(out)
+        assert new.photometric == src.photometric
+        condition, perturbation = new.renderer["condition"], new.renderer["perturbation"]
+        assert condition == src.renderer["condition"]
+        assert perturbation["true_cameras"] == condition["true_cameras"]  # the images' poses, not the told ones
+        assert perturbation["true_baseline_m"] == condition["true_baseline_m"]
+    told = read_frame(once)
+    for n in "UR":  # the rotation error is on top of the twin's told pose
+        assert _angle_deg(told.cameras[n].rotation, src.cameras[n].rotation) == pytest.approx(0.5, abs=1e-6)
+
+
+def test_a_malformed_true_pose_record_is_one_line(twin, tmp_path, capsys):
+    root, d = twin
+    data = tmp_path / "data"
+    shutil.copytree(root, data)
+    meta_path = data / d.relative_to(root) / "frame.json"
+    meta = json.loads(meta_path.read_text())
+    meta["renderer"]["condition"]["true_cameras"]["U"]["position"] = [0.0, 0.0]
+    meta_path.write_text(json.dumps(meta))
+    assert main(["perturb", str(data), "--out", str(tmp_path / "o"), "--apply", "rotation=0.5"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"{meta_path}: renderer.condition.true_cameras" in err[0] and "position" in err[0]
     assert not (tmp_path / "o").exists()

@@ -17,15 +17,19 @@ import pandas as pd
 import pytest
 
 from harness.cli import main
+from harness.commands.parts.captured import calibration_error
 from harness.commands.parts.suite import check_suite_data, evaluate_suite, load, plan, render_suite
 from harness.commands.render import DEFAULTS
 from harness.data.errors import UserError
-from harness.data.frame import read_frame
+from harness.data.frame import FORMAT as FRAME_FORMAT
+from harness.data.frame import read_frame, validate_metadata
+from harness.data.photometric import CameraDistribution
 from harness.data.predictions import write_prediction
 from harness.data.results import read_results
-from harness.data.suite import load_suite, suite_id
+from harness.data.suite import load_suite, suite_id, told_rig_problem
 from harness.runtime.context import QUIET
 from reconstruction.camera.equirect import bearing_grid, project
+from reconstruction.camera.rig import Rig
 from reconstruction.methods.registry import get_methods
 from reports.tables import leaderboard_markdown, leaderboard_table
 from scenes.registry import discover
@@ -135,6 +139,56 @@ def test_bad_suites_are_refused_naming_file_and_key(tmp_path, edit, message):
 
 def test_missing_suite_file_is_one_line(tmp_path):
     assert main(["evaluate", str(tmp_path), "--suite", str(tmp_path / "nope.toml"), "--split", "dev"]) == 2
+
+
+CAPTURED = "\n[conditions.captured]\ntranslation_mm = [{lo}, {hi}]\n"
+
+
+@pytest.mark.parametrize(("lo", "hi", "message"), [
+    (900, 1000, r"\[conditions\.captured\] translation_mm: a calibration error of up to 1000 mm can make a told rig "
+                r"that frame validation refuses, in frames\[0\] \(synthetic_box-s11, baseline 0\.4 m\): impossible "
+                r"rig: .* keep the high end below 3 mm"),
+    # box_room's 0.3 m rig allows 3 mm (1 %); synthetic_box's 0.4 m rig would take 3.5
+    (1.0, 3.5, r"translation_mm: a calibration error of up to 3\.5 mm .* in frames\[1\] \(box_room-s12, baseline "
+               r"0\.3 m\): impossible rig: \|U - C\| = 0\.3035 m contradicts baseline_m = 0\.3 m"),
+])
+def test_a_condition_is_checked_against_every_groups_rig(tmp_path, lo, hi, message):
+    path = write(tmp_path, MINI.format(width=64) + CAPTURED.format(lo=lo, hi=hi))
+    with pytest.raises(UserError, match=message) as info:
+        load(path)
+    assert str(info.value).startswith(str(path)) and "\n" not in str(info.value)
+    assert load(write(tmp_path, MINI.format(width=64) + CAPTURED.format(lo=1.0, hi=2.9), "ok.toml")).conditions
+
+
+def test_the_rig_rule_is_the_worst_draw_of_the_frame_validation():
+    """Every draw of an error below the bound makes a frame that validates; just above it, the worst does not."""
+    for b in (0.05, 0.3, 0.4, 1.0):
+        bound_mm = max(0.01 * b, 0.001) * 1000
+        assert told_rig_problem(b, 0.999 * bound_mm, 45.0) is None
+        assert "impossible rig" in told_rig_problem(b, 1.001 * bound_mm, 0.0)
+        dist = CameraDistribution(rotation_deg=(0.0, 45.0), translation_mm=(0.999 * bound_mm, 0.999 * bound_mm))
+        true = Rig(position=np.array([0.0, 0.0, 1.3]), yaw_rad=0.7, baseline_m=b, pitch_rad=0.1).poses()
+        for seed in range(200):
+            told, _ = calibration_error(true, dist, seed)
+            gaps = [float(np.linalg.norm(told[k].position - told["C"].position)) for k in ("U", "R")]
+            validate_metadata({"format": FRAME_FORMAT, "scene": "s", "viewpoint": "vp000", "width": 2, "height": 1,
+                               "baseline_m": sum(gaps) / 2, "cameras": {k: v.to_json() for k, v in told.items()}},
+                              Path("frame.json"))
+
+
+@pytest.mark.parametrize(("edit", "message"), [
+    (lambda t: t.replace('seed = 21', 'seed = 13\nname = "synthetic_box-s11.captured"').replace(
+        'split = "test"', 'split = "dev"'),
+     r"frames\[2\] name: 'synthetic_box-s11\.captured' is the name of frames\[2\] and also the directory of "
+     r"frames\[0\]'s captured twins \('synthetic_box-s11' under \[conditions\.captured\]\)"),
+    (lambda t: t.replace('seed = 21', 'seed = 21\nname = "' + "x" * 95 + '"'),
+     r"frames\[2\] name: the directory of frames\[2\]'s captured twins .* is 104 characters long"),
+])
+def test_a_group_named_like_a_twin_directory_is_refused(tmp_path, edit, message):
+    path = write(tmp_path, edit(MINI.format(width=64)) + CAPTURED.format(lo=1.0, hi=2.0))
+    with pytest.raises(UserError, match=message) as info:
+        load(path)
+    assert str(info.value).startswith(str(path)) and "\n" not in str(info.value)
 
 
 def test_suite_id_changes_with_the_file_a_code_version_or_a_render_setting(tmp_path, mini):

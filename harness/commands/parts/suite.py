@@ -6,12 +6,20 @@ with the machinery of every render (``harness.commands.render``): resumable (com
 settings are kept, others refused naming the difference unless ``force``), atomic frames, and on a Dask
 cluster (the run context's) one Dask task per frame.
 
+A twin under a condition (``<group>.<condition>/vpNNN``) is derived from its rendered frame after that frame is
+rendered (:func:`harness.commands.parts.captured.captured_twin`) and records its source's SHA-256
+(:func:`harness.commands.perturb.source_record`).  A rerun keeps a complete twin that matches its derivation
+(:func:`twin_problem`) and derives again, from the frame now stored, a twin whose source is rendered in this run or
+which no longer matches (a twin is a function of its source, the condition and its seed: nothing is lost); a twin
+derived with other condition settings is refused like any frame rendered otherwise.
+
 ``tri360 evaluate DATA --suite FILE --split dev`` (and ``score``) first checks, reading only the ``frame.json``
 files, that the data root holds exactly the split's frames rendered with the suite's settings (the same
 comparison a rerun of ``render`` makes) and refuses, naming the frame, when a frame is missing, extra, or was
-rendered otherwise; the results then carry the suite's id and split (``config.json``'s ``suite`` entry and the
-``suite_id``/``split`` columns), and each row its family and difficulty tags, so the leaderboard gets a column per
-family and per tag.
+rendered otherwise; each twin must also match its derivation (its source's hash, every camera's photometric
+record, its told poses: :func:`twin_problem`).  The results then carry the suite's id and split (``config.json``'s
+``suite`` entry and the ``suite_id``/``split`` columns), and each row its family and difficulty tags, so the
+leaderboard gets a column per family and per tag.
 """
 
 from __future__ import annotations
@@ -22,28 +30,34 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
 from harness.commands.evaluate import FrameRef, evaluate, select_frames
-from harness.commands.parts.captured import captured_twin
+from harness.commands.parts.captured import calibration_error, captured_twin, twin_generator
+from harness.commands.perturb import frame_hash, source_record
 from harness.commands.render import DEFAULTS, RenderItem, check_width, differences, render_items
 from harness.commands.score import score
 from harness.commands.study import LIMIT_FRAMES
 from harness.data.atomic import clean_stale_partials
-from harness.data.errors import UserError
-from harness.data.frame import frame_dir, is_complete, read_frame, write_frame
+from harness.data.errors import FrameError, UserError
+from harness.data.frame import frame_dir, is_complete, parse_photometric, read_frame, write_frame
 from harness.data.outputs import check_output, ensure_output_dir, mark_output
 from harness.data.suite import IDEAL, Suite, SuiteFrame, load_suite
 from harness.render.base import RenderSettings, identity
 from harness.render.registry import get_renderer
 from harness.runtime.context import IN_PROCESS, RunContext
 from harness.runtime.progress import progress_bar
-from reconstruction.camera.rig import Rig
+from reconstruction.camera.rig import CAMERA_NAMES, CameraPose, Rig
 from reconstruction.methods.base import Method
 from scenes.model import SceneSpec, choose_viewpoints
 from scenes.registry import discover
 
-__all__ = ["PlannedFrame", "load", "plan", "render_suite", "check_suite_data", "evaluate_suite", "score_suite"]
+__all__ = ["PlannedFrame", "load", "plan", "render_suite", "check_suite_data", "twin_problem", "evaluate_suite",
+           "score_suite"]
+
+TWIN_TOLERANCE = 1e-9
+"""Relative tolerance of a twin's recorded numbers against their derivation (float64 rounding, not a draw)."""
 
 
 @dataclass(frozen=True)
@@ -109,12 +123,16 @@ def plan(suite: Suite, split: str, threads: int = 0) -> list[PlannedFrame]:
     return out + twins
 
 
-def _stored_differences(d: Path, p: PlannedFrame, suite: Suite) -> list[str]:
-    """What differs between the frame stored in ``d`` and the planned one (a twin: also its condition record)."""
+def _read_meta(d: Path) -> dict:
     try:
-        meta = json.loads((d / "frame.json").read_text(encoding="utf-8"))
+        return json.loads((d / "frame.json").read_text(encoding="utf-8"))
     except (OSError, json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise UserError(f"{d / 'frame.json'}: unreadable ({exc})") from None
+
+
+def _stored_differences(meta: dict, p: PlannedFrame, suite: Suite) -> list[str]:
+    """What differs between a stored frame (its ``frame.json``) and the planned one (a twin: also its condition
+    record and the frame it came from)."""
     condition = p.frame.condition
     record = meta.get("renderer", {}).get("condition") if isinstance(meta.get("renderer"), dict) else None
     if condition == IDEAL:
@@ -132,6 +150,88 @@ def _stored_differences(d: Path, p: PlannedFrame, suite: Suite) -> list[str]:
     except (KeyError, TypeError, AttributeError):
         return [*out, "the condition record has no true_cameras"]
     return out + differences(source, p.identity, p.rig)
+
+
+def _close(a, b) -> bool:
+    """Whether two JSON values are equal, floats within :data:`TWIN_TOLERANCE` (relative, at least absolute)."""
+    if isinstance(a, dict) and isinstance(b, dict):
+        return a.keys() == b.keys() and all(_close(a[k], b[k]) for k in a)
+    if isinstance(a, list | tuple) and isinstance(b, list | tuple):
+        return len(a) == len(b) and all(_close(x, y) for x, y in zip(a, b, strict=True))
+    numbers = [isinstance(x, int | float) and not isinstance(x, bool) for x in (a, b)]
+    if all(numbers) and (isinstance(a, float) or isinstance(b, float)):
+        return abs(a - b) <= TWIN_TOLERANCE * max(1.0, abs(a), abs(b))
+    return a == b
+
+
+def _pose(raw) -> CameraPose:
+    pose = CameraPose(np.asarray(raw["position"], np.float64), np.asarray(raw["rotation"], np.float64))
+    if pose.position.shape != (3,) or pose.rotation.shape != (3, 3):
+        raise ValueError("not a pose")
+    return pose
+
+
+def _same_pose(a: CameraPose, b: CameraPose) -> bool:
+    return bool(np.allclose(a.position, b.position, rtol=0.0, atol=TWIN_TOLERANCE)
+                and np.allclose(a.rotation, b.rotation, rtol=0.0, atol=TWIN_TOLERANCE))
+
+
+def twin_problem(meta: dict, p: PlannedFrame, suite: Suite, source_dir: Path) -> str | None:
+    """What is wrong with a stored twin whose condition record and true poses match the suite
+    (:func:`_stored_differences` found nothing), or None.
+
+    Checked, against the source frame stored in ``source_dir`` and the condition's draw for the twin's seed (cheap:
+    no image is derived again): the source's SHA-256 (:func:`harness.commands.perturb.frame_hash`) is the one the
+    twin recorded; every camera (C, U, R) has the photometric record the condition draws; the recorded calibration
+    error is the draw and U's and R's told poses are their true poses with it (so a twin whose told poses were
+    reset to the true ones is refused); ``baseline_m`` is the mean of the told ``|U - C|`` and ``|R - C|``.
+
+    Args:
+        meta: the twin's parsed ``frame.json``.  p: the planned twin.  suite: its suite.
+        source_dir: the directory of the rendered frame the twin is derived from.
+    """
+    condition, seed = p.frame.condition, p.frame.twin_seed
+    dist = suite.conditions[condition]
+    record = meta["renderer"]["condition"]
+    source = p.frame.source.label
+    recorded = record.get("source")
+    if not (isinstance(recorded, dict) and isinstance(recorded.get("sha256"), str)):
+        return f"it records no hash of its source frame {source} (renderer.condition.source.sha256)"
+    now = frame_hash(source_dir)
+    if recorded["sha256"] != now:
+        return (f"its source frame {source} changed after the twin was derived (its files' sha256 is now "
+                f"{now[:16]}..., the twin recorded {recorded['sha256'][:16]}...)")
+    try:
+        photometric = parse_photometric(meta, Path("frame.json"))
+    except FrameError as exc:
+        return str(exc).removeprefix("frame.json: ")
+    for k in CAMERA_NAMES:
+        if k not in photometric:
+            return (f"cameras.{k} has no photometric record (the {condition} condition draws one for every camera: "
+                    f"{', '.join(CAMERA_NAMES)})")
+        if not _close(photometric[k].to_json(), dist.draw(twin_generator(seed, "photometric", k)).to_json()):
+            return f"cameras.{k}.photometric is not the {condition} condition's draw for seed {seed}"
+    try:
+        told = {k: _pose(meta["cameras"][k]) for k in CAMERA_NAMES}
+        true = {"C": told["C"], **{k: _pose(record["true_cameras"][k]) for k in ("U", "R")}}
+    except (KeyError, TypeError, ValueError):
+        return "its told poses or renderer.condition.true_cameras are not poses"
+    want, drawn = calibration_error(true, dist, seed)
+    if not _close(record.get("calibration_error"), json.loads(json.dumps(drawn))):
+        return f"renderer.condition.calibration_error is not the {condition} condition's draw for seed {seed}"
+    for k in ("U", "R"):
+        if _same_pose(told[k], want[k]):
+            continue
+        error = ", ".join(f"{v['degrees']:.3g} degrees" if part == "rotation" else f"{v['mm']:.3g} mm"
+                          for part, v in drawn.get(k, {}).items()) or "none"
+        if _same_pose(told[k], true[k]):
+            return (f"the told pose of {k} is its true pose, but the recorded calibration error of {k} ({error}) "
+                    "says it is off")
+        return f"the told pose of {k} is not its true pose with the recorded calibration error of {k} ({error})"
+    mean = float(np.mean([np.linalg.norm(told[k].position - told["C"].position) for k in ("U", "R")]))
+    if not _close(meta.get("baseline_m"), mean):
+        return f"baseline_m {meta.get('baseline_m')!r} is not the mean of the told |U - C| and |R - C| ({mean:.9g})"
+    return None
 
 
 def render_suite(path: Path, split: str, out_root: Path, threads: int = DEFAULTS.threads, force: bool = False,
@@ -166,16 +266,23 @@ def render_suite(path: Path, split: str, out_root: Path, threads: int = DEFAULTS
     planned = plan(suite, split, threads)
     out_root = check_output(Path(out_root), "data")  # absent, empty or a data root tri360 wrote
     todo = []
+    rendering = set()  # the directories of the rendered frames this run writes: their twins are derived again
     for p in planned:
         d = frame_dir(out_root, p.frame.scene, p.frame.viewpoint)
+        source = frame_dir(out_root, p.frame.source.scene, p.frame.viewpoint)
         if not force and is_complete(d):
-            diff = _stored_differences(d, p, suite)
+            meta = _read_meta(d)
+            diff = _stored_differences(meta, p, suite)
             if diff:
                 raise UserError(f"{d} holds a frame rendered with other settings than suite {suite.name} "
                                 f"({suite.id}) asks: {'; '.join(diff)}; use --force to re-render it or choose "
                                 "another --out")
-            continue
+            if p.frame.condition == IDEAL or (
+                    source not in rendering and twin_problem(meta, p, suite, source) is None):
+                continue
         todo.append(p)
+        if p.frame.condition == IDEAL:
+            rendering.add(d)
     dirs = [frame_dir(out_root, p.frame.scene, p.frame.viewpoint) for p in planned]
     scene_dirs = [out_root / scene for scene in dict.fromkeys(p.frame.scene for p in planned)]
     created = [d for d in (*scene_dirs, out_root, *out_root.parents) if not d.exists()]
@@ -209,7 +316,8 @@ def _derive_twins(suite: Suite, split: str, todo: list[PlannedFrame], out_root: 
         for p in todo:
             src = frame_dir(out_root, p.frame.source.scene, p.frame.viewpoint)
             frame = read_frame(src)
-            twin = captured_twin(frame, suite.conditions[p.frame.condition], p.frame.twin_seed, p.frame.condition)
+            twin = captured_twin(frame, suite.conditions[p.frame.condition], p.frame.twin_seed, p.frame.condition,
+                                 source=source_record(src))
             twin.scene = p.frame.scene
             write_frame(twin, out_root)
             bar.update(1)
@@ -225,7 +333,8 @@ def check_suite_data(suite: Suite, split: str, data_root: Path) -> list[FrameRef
 
     Raises:
         UserError: naming the first frame that is missing, extra (not in the split) or rendered with other
-            settings (and how), or anything :func:`harness.commands.evaluate.select_frames` refuses.
+            settings (and how), the ``frame.json`` of the first twin that does not match its derivation (and what,
+            :func:`twin_problem`), or anything :func:`harness.commands.evaluate.select_frames` refuses.
     """
     data_root = Path(data_root)
     refs = select_frames(data_root)
@@ -243,10 +352,18 @@ def check_suite_data(suite: Suite, split: str, data_root: Path) -> list[FrameRef
                             "root of its own)")
     wanted = {(p.frame.scene, p.frame.viewpoint): p for p in plan(suite, split)}
     for key, p in wanted.items():
-        diff = _stored_differences(by_key[key].path, p, suite)
+        d = by_key[key].path
+        meta = _read_meta(d)
+        diff = _stored_differences(meta, p, suite)
         if diff:
-            raise UserError(f"{by_key[key].path}: frame {p.frame.label} was not rendered with the settings of suite "
+            raise UserError(f"{d}: frame {p.frame.label} was not rendered with the settings of suite "
                             f"{suite.name} ({suite.id}): {'; '.join(diff)}")
+        if p.frame.condition != IDEAL:
+            problem = twin_problem(meta, p, suite, by_key[(p.frame.source.scene, p.frame.viewpoint)].path)
+            if problem:
+                raise UserError(f"{d / 'frame.json'}: twin {p.frame.label} does not match its derivation: {problem}; "
+                                f"derive it again with `tri360 render --suite {suite.path} --split {split} --out "
+                                f"{data_root}`")
     return [by_key[k] for k in wanted]
 
 
