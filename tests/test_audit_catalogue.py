@@ -993,6 +993,29 @@ class TestResearchToolArguments:
         assert "usage:" not in line
 
 
+class TestToolFiles:
+    """The files the maintenance tools read and write: a file that is not theirs is never replaced, a malformed one
+    is one line; checked before any render."""
+
+    @pytest.mark.parametrize("tool, flag", [(tools.regression, "--bounds"), (tools.scene_fingerprints, "--file")])
+    @pytest.mark.parametrize("target", ["README.md", "csv", "dir", "missing-folder/x.json"])
+    def test_update_never_replaces_a_file_that_is_not_its_own(self, tool, flag, target, capfd, tmp_path):
+        paths = {"README.md": tmp_path / "README.md", "csv": tmp_path / "results.csv", "dir": tmp_path / "d",
+                 "missing-folder/x.json": tmp_path / "missing-folder" / "x.json"}
+        (tmp_path / "README.md").write_text("# a project\n")
+        (tmp_path / "results.csv").write_text("scene,mae_m\nx,0.1\n")
+        (tmp_path / "d").mkdir()
+        prog = f"python -m {tool.__name__}"
+        argv = [flag, paths[target], "--update", *(["--force"] if tool is tools.scene_fingerprints else [])]
+        expect_tool_refusal(tool.main, argv, capfd, tmp_path, prog, paths[target])
+
+    @pytest.mark.parametrize("tool, flag", [(tools.regression, "--bounds"), (tools.scene_fingerprints, "--file")])
+    def test_a_file_that_is_not_its_own_is_one_line_when_checked(self, tool, flag, capfd, tmp_path):
+        (tmp_path / "results.csv").write_text("scene,mae_m\nx,0.1\n")
+        expect_tool_refusal(tool.main, [flag, tmp_path / "results.csv"], capfd, tmp_path,
+                            f"python -m {tool.__name__}", tmp_path / "results.csv", "not")
+
+
 # -------------------------------------------------------------------------------------------------- import
 # (a rig file's photometric records)
 

@@ -45,7 +45,9 @@ from harness.render.base import RenderSettings
 from harness.runtime.context import QUIET, RunContext
 from reconstruction.methods.flow_pipeline import DEFAULT_FLOW
 from reconstruction.methods.registry import DEFAULT_METHOD, DEFAULT_VARIANTS, flow_methods, get_methods
-from tools.common import ArgumentParser
+from tools.common import ArgumentParser, user_error
+
+PROG = "python -m tools.regression"
 
 #: panorama width of every regression frame, pixels (height = width / 2)
 REGRESSION_WIDTH = 400
@@ -245,9 +247,26 @@ def load_bounds(path: Path | str) -> dict:
         data = json.loads(path.read_text(encoding="utf-8"))
     except FileNotFoundError:
         raise FileNotFoundError(f"{path}: no regression bounds (generate them with `make regress-update`)") from None
+    except IsADirectoryError:
+        raise ValueError(f"{path}: is a directory, not a regression bounds file") from None
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise ValueError(f"{path}: not a regression bounds file (not JSON: {exc})") from None
     if not isinstance(data, dict) or not isinstance(data.get("bounds"), dict):
         raise ValueError(f"{path}: not a regression bounds file (no \"bounds\" mapping)")
     return data
+
+
+def check_bounds_target(path: Path) -> None:
+    """Refuse ``path`` as the bounds file ``--update`` writes unless it is absent or a bounds file (this tool never
+    replaces another file), in an existing folder; checked before any rendering.
+
+    Raises:
+        ValueError: one line naming ``path``.
+    """
+    if path.exists() or path.is_symlink():
+        load_bounds(path)  # a bounds file, or one line saying what it is not
+    elif not path.parent.is_dir():
+        raise ValueError(f"{path}: its folder does not exist")
 
 
 def write_bounds(data: dict, path: Path | str) -> None:
@@ -257,7 +276,7 @@ def write_bounds(data: dict, path: Path | str) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = ArgumentParser(prog="python -m tools.regression", description=__doc__.split("\n\n")[0])
+    parser = ArgumentParser(prog=PROG, description=__doc__.split("\n\n")[0])
     parser.add_argument("--update", action="store_true", help="re-run and rewrite the bounds file")
     parser.add_argument("--margin", type=float, default=DEFAULT_MARGIN,
                         help="with --update: bound = measured x (1 + margin) (default %(default)s)")
@@ -280,12 +299,16 @@ def main(argv: list[str] | None = None) -> int:
     if args.waive and not args.update:
         parser.error("--waive needs --update")
 
-    if not args.update:
-        data = load_bounds(args.bounds)  # fail before rendering anything
-        width, height = data.get("resolution", [REGRESSION_WIDTH, REGRESSION_WIDTH // 2])
-        samples = int(data.get("blender_samples", BLENDER_SAMPLES))
-    else:
-        width, height, samples = REGRESSION_WIDTH, REGRESSION_WIDTH // 2, BLENDER_SAMPLES
+    try:  # fail before rendering anything
+        if not args.update:
+            data = load_bounds(args.bounds)
+            width, height = data.get("resolution", [REGRESSION_WIDTH, REGRESSION_WIDTH // 2])
+            samples = int(data.get("blender_samples", BLENDER_SAMPLES))
+        else:
+            check_bounds_target(args.bounds)
+            width, height, samples = REGRESSION_WIDTH, REGRESSION_WIDTH // 2, BLENDER_SAMPLES
+    except (OSError, ValueError) as exc:
+        return user_error(PROG, exc)
     start = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix="tri360-regression-") as tmp:
         table = run_regression(tmp, data=args.data, width=width, samples=samples, threads=args.threads,

@@ -42,7 +42,7 @@ import numpy as np
 from harness.data.atomic import atomic_write_text
 from scenes.model import SceneEntry, SceneSpec, choose_viewpoints
 from scenes.registry import discover
-from tools.common import ArgumentParser
+from tools.common import ArgumentParser, user_error
 
 FILE = Path(__file__).resolve().parents[1] / "tests" / "scenes" / "scene_fingerprints.json"
 """The repository's fingerprints (``--file`` picks another)."""
@@ -130,9 +130,28 @@ def compute(families: Mapping[str, SceneEntry] | None = None) -> dict[str, dict]
     return {name: family_record(entry) for name, entry in sorted(families.items())}
 
 
+def _read(path: Path) -> dict:
+    """A fingerprint file's JSON, of any recipe.
+
+    Raises:
+        ValueError: one line naming ``path``: missing, a directory, not JSON, or not a fingerprint file.
+    """
+    try:
+        data = json.loads(Path(path).read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise ValueError(f"{path}: no fingerprint file (write it with `{UPDATE_COMMAND}`)") from None
+    except IsADirectoryError:
+        raise ValueError(f"{path}: is a directory, not a fingerprint file") from None
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise ValueError(f"{path}: not a fingerprint file (not JSON: {exc})") from None
+    if not isinstance(data, dict) or "format" not in data or not isinstance(data.get("families"), dict):
+        raise ValueError(f"{path}: not a fingerprint file (no \"format\" and \"families\")")
+    return data
+
+
 def load(path: Path = FILE) -> dict[str, dict]:
     """The stored family records of a fingerprint file."""
-    data = json.loads(Path(path).read_text())
+    data = _read(path)
     if data.get("format") != FORMAT or data.get("seeds") != list(SEEDS) or data.get("viewpoints") != VIEWPOINTS:
         raise ValueError(f"{path}: written by another fingerprint recipe (format/seeds/viewpoints); rewrite it: "
                          f"{UPDATE_COMMAND} --force")
@@ -183,9 +202,18 @@ def check(stored: Mapping[str, dict], families: Mapping[str, SceneEntry],
 
 def update(path: Path, families: Mapping[str, SceneEntry], force: bool = False) -> list[str]:
     """Rewrite the fingerprint file from ``families``; without ``force``, refuse (returning the problems, writing
-    nothing) when a family builds other scenes under the version its fingerprints record."""
+    nothing) when a family builds other scenes under the version its fingerprints record.
+
+    Raises:
+        ValueError: ``path`` exists and is not a fingerprint file (of any recipe), or its folder does not exist.
+    """
+    path = Path(path)
+    if path.exists() or path.is_symlink():
+        _read(path)  # only a fingerprint file is ever replaced
+    elif not path.parent.is_dir():
+        raise ValueError(f"{path}: its folder does not exist")
     now = compute(families)
-    if not force and Path(path).is_file():
+    if not force and path.is_file():
         stored = load(path)
         refused = [msg for name, entry in families.items() if name in stored
                    if (msg := unchanged_version_problem(name, entry, stored[name], now[name])) is not None]
@@ -208,12 +236,15 @@ def main(argv: list[str] | None = None) -> int:
                              "when the fingerprint recipe changed, never to let changed scenes keep their version)")
     args = parser.parse_args(argv)
     families = builtin_families()
-    if args.update:
-        problems = update(args.file, families, force=args.force)
-        if not problems:
-            print(f"wrote {args.file} ({len(families)} families)")
-    else:
-        problems = check(load(args.file), families)
+    try:
+        if args.update:
+            problems = update(args.file, families, force=args.force)
+            if not problems:
+                print(f"wrote {args.file} ({len(families)} families)")
+        else:
+            problems = check(load(args.file), families)
+    except (OSError, ValueError) as exc:
+        return user_error("python -m tools.scene_fingerprints", exc)
     for line in problems:
         print(line, file=sys.stderr)
     return 1 if problems else 0
