@@ -35,7 +35,8 @@ def run_isolated(inp: MethodInput, methods: Sequence[Method],
                  on_stage: Callable[[str], None] | None = None) -> dict[str, MethodOutput]:
     """Run ``methods`` (:func:`run_methods`) on ``inp`` in a new Python process that holds nothing else.
 
-    The process is ended if this one is interrupted (Ctrl-C, SIGTERM) while it runs.
+    The process runs in a session of its own (a terminal's Ctrl-C does not reach it) and is ended if this one is
+    interrupted (Ctrl-C, SIGTERM) while it runs.
 
     Returns:
         Outputs by method label.
@@ -51,7 +52,10 @@ def run_isolated(inp: MethodInput, methods: Sequence[Method],
                         "an outside method must be picklable (cloudpickle)") from None
     if on_stage is not None:
         on_stage(labels)
-    proc = subprocess.Popen([sys.executable, "-c", _CHILD], stdin=subprocess.PIPE, stdout=subprocess.PIPE)
+    # a session of its own: a terminal's Ctrl-C reaches this process only, which ends the child (below) and says so
+    # in one line; the child never prints a traceback of its own start-up
+    proc = subprocess.Popen([sys.executable, "-c", _CHILD], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                            start_new_session=True)
     try:
         answer, _ = proc.communicate(payload)
     except BaseException:
@@ -73,7 +77,7 @@ def run_isolated(inp: MethodInput, methods: Sequence[Method],
 def child_main() -> None:
     """The process of an outside method (:func:`run_isolated`): read ``sys.path``, the methods and their input on
     standard input, run them, write ``(status, outputs or exception, traceback text)`` on standard output."""
-    signal.signal(signal.SIGINT, signal.SIG_DFL)  # Ctrl-C ends it without a word; the caller reports
+    signal.signal(signal.SIGINT, signal.SIG_DFL)  # a SIGINT sent to it ends it without a word; the caller reports
     answer = os.fdopen(os.dup(1), "wb")
     os.dup2(2, 1)  # what the method prints goes to standard error, never into the answer
     stream = io.BytesIO(sys.stdin.buffer.read())

@@ -7,18 +7,24 @@ import dataclasses
 import functools
 import os
 import pickle
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from harness.data.errors import UserError
+from harness.data.frame import write_frame
 from harness.runtime.blind import is_builtin, needs_ground_truth, run_blind
 from harness.runtime.isolation import run_isolated
 from reconstruction.flow.backends import get_flow
 from reconstruction.methods.base import MethodInput, MethodOutput
 from reconstruction.methods.flow_pipeline import FlowMethod
 from reconstruction.methods.registry import builtin_methods, flow_methods
-from tests.helpers import make_synthetic_frame
+from tests.helpers import make_synthetic_frame, sigint_default
 
 
 @pytest.fixture(scope="module")
@@ -132,3 +138,73 @@ class Dying(Constant):
 def test_a_method_whose_process_dies_is_named(frame):
     with pytest.raises(UserError, match=r"method dying: its process ended without an answer \(exit status 3\)"):
         run_isolated(MethodInput.of(frame), [Dying()])
+
+
+SLOW_PLUGIN = '''
+import os, time
+from pathlib import Path
+import numpy as np
+from reconstruction.methods.base import MethodOutput
+
+
+class Slow:
+    label = "slow"
+
+    def config(self):
+        return {"kind": "slow"}
+
+    def run(self, frame):
+        Path(os.environ["SLOW_STARTED"]).write_text(str(os.getpid()))
+        time.sleep(120)
+        return MethodOutput(np.ones((frame.height, frame.width), np.float32))
+
+
+METHODS = [Slow()]
+'''
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    return Path(f"/proc/{pid}/stat").read_text().split()[2] != "Z"
+
+
+def test_ctrl_c_while_an_outside_method_runs_is_one_line_and_ends_its_process(frame, tmp_path):
+    """A plugin installed as a user would (an entry point on PYTHONPATH) runs in its own process; Ctrl-C to the
+    command's process group while it runs: exit status 130, one line, and the method's process is gone."""
+    site = tmp_path / "site"
+    (site / "slowplug-0.1.dist-info").mkdir(parents=True)
+    (site / "slowplug.py").write_text(SLOW_PLUGIN)
+    (site / "slowplug-0.1.dist-info" / "METADATA").write_text("Metadata-Version: 2.1\nName: slowplug\nVersion: 0.1\n")
+    (site / "slowplug-0.1.dist-info" / "entry_points.txt").write_text("[tri360.methods]\nslow = slowplug:METHODS\n")
+    write_frame(frame, tmp_path / "data")
+    started = tmp_path / "started"
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(site), os.environ.get("PYTHONPATH", "")]),
+           "SLOW_STARTED": str(started)}
+    cmd = [sys.executable, "-m", "harness.cli", "evaluate", str(tmp_path / "data"), "--method", "slow", "--out",
+           str(tmp_path / "res"), "--no-report"]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
+                            preexec_fn=sigint_default, start_new_session=True)
+    try:
+        deadline = time.monotonic() + 120
+        while not started.exists() and proc.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert started.exists(), proc.communicate()
+        time.sleep(0.2)
+        child = int(started.read_text())
+        assert child != proc.pid
+        os.killpg(proc.pid, signal.SIGINT)  # as a terminal's Ctrl-C: the command's whole process group
+        _, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+    assert proc.returncode == 130, err
+    assert len(err.strip().splitlines()) == 1, err
+    deadline = time.monotonic() + 10
+    while _alive(child) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert not _alive(child)
+    assert not (tmp_path / "res").exists()
