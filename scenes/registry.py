@@ -18,7 +18,7 @@ from reconstruction.plugins import Registry, collect_registry, load_entry_points
 from scenes.model import RENDERERS, RESERVED_PARAMETERS, SceneEntry, SceneError
 
 __all__ = ["ENTRY_POINT_GROUP", "RENDERERS", "RESERVED_PARAMETERS", "SceneEntry", "SceneError", "discover",
-           "get_scene"]
+           "get_scene", "scene_registry"]
 
 ENTRY_POINT_GROUP = "tri360.scenes"
 
@@ -33,7 +33,7 @@ def _collect(obj, source: str) -> list[SceneEntry]:
     return out
 
 
-def _registry() -> Registry:
+def scene_registry() -> Registry:
     """The scene files of this package, then the entry points; an outside scene whose name is taken is refused."""
     entries: dict[str, SceneEntry] = {}
     errors: dict[str, str] = {}
@@ -64,7 +64,7 @@ def discover() -> tuple[dict[str, SceneEntry], dict[str, str]]:
         rather than hiding the other scenes, and so is an outside scene whose name a built-in (or an earlier
         plugin's) scene has: it is refused, never replacing the other.
     """
-    reg = _registry()
+    reg = scene_registry()
     return reg.entries, reg.errors
 
 
@@ -76,7 +76,7 @@ def get_scene(name: str) -> tuple[SceneEntry, str]:
             name that a refused outside scene also has (naming its plugin).
     """
     family, _, preset = name.partition(":")
-    reg = _registry()
+    reg = scene_registry()
     entries, errors = reg.entries, reg.errors
     if family in reg.refused:
         raise SceneError(shadow_message("scene", family, reg))

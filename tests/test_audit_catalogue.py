@@ -1058,6 +1058,20 @@ class TestImportPhotometric:
         assert cams["C"]["photometric"] == FULL_RECORD and cams["U"]["photometric"]["seed"] == 8
         assert "photometric" not in cams["R"]
 
+    @pytest.mark.parametrize("where, key", [((), "units"), (("cameras",), "L"), (("cameras", "C"), "position"),
+                                            (("cameras", "U"), "focal")])
+    def test_a_key_the_rig_file_does_not_hold_is_refused_not_ignored(self, jpegs, tmp_path, capfd, where, key):
+        c, u, r = copy_images(jpegs, tmp_path / "in")
+        rig = json.loads(RIG.read_text())
+        node = rig
+        for w in where:
+            node = node.setdefault(w, {})
+        node[key] = [0.0, 0.0, 0.1]
+        path = tmp_path / "in" / "rig.json"
+        path.write_text(json.dumps(rig))
+        expect_refusal(["import", c, u, r, "--rig", path, "--out", tmp_path / "d" / "s" / "v"], capfd, tmp_path,
+                       str(path), ".".join([*where, key]))
+
 
 # ------------------------------------------------------------------------------------------------- methods
 # (tri360 methods: plugin labels that cannot be selected)
@@ -1080,6 +1094,19 @@ class TestMethodsListing:
             assert any(label in w and source in w for w in warnings), (label, warnings)
         plugins = out.split("plugins' methods")[1].splitlines()[1:]
         assert [ln.split()[0] for ln in plugins if ln.strip()] == ["fine-one"]
+
+    def test_scenes_warns_about_every_refused_scene_of_a_plugin_and_lists_neither(self, monkeypatch, capfd):
+        fakes = [SceneEntry(**{**get_scene(n)[0].__dict__, "description": "not the built-in", "source": ""})
+                 for n in ("corridor", "office")]
+        install_plugins(monkeypatch, "tri360.scenes", FakeEntryPoint("two", "two_pkg:SCENES", fakes))
+        capfd.readouterr()
+        assert run_cli(["scenes"]) == 0
+        out, err = capfd.readouterr()
+        warnings = err.strip().splitlines()
+        assert len(warnings) == 2, warnings
+        for name in ("'corridor'", "'office'"):
+            assert any(name in w and "two_pkg:SCENES" in w and "cannot be selected" in w for w in warnings), warnings
+        assert "not the built-in" not in out
 
     def test_every_refused_name_of_one_entry_point_is_reported(self, monkeypatch):
         install_plugins(monkeypatch, "tri360.methods",

@@ -16,9 +16,9 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
-    lines, errors = scene_listing(args.params)
+    lines, warnings = scene_listing(args.params)
     for line in lines:
         print(line)
-    for source, msg in errors.items():
-        print(f"warning: {source} failed to load: {msg}", file=sys.stderr)
+    for line in warnings:
+        print(line, file=sys.stderr)
     return 0

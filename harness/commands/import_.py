@@ -40,13 +40,28 @@ def _sha256(path: Path) -> str:
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
+#: what a rig file may hold, at the top, and in each camera: C is the origin of the rig (no pose of its own)
+RIG_KEYS = ("format", "cameras", "baseline_m", "name", "description")
+CAMERA_KEYS = {"C": ("photometric",), "U": ("position", "rotation", "photometric"),
+               "R": ("position", "rotation", "photometric")}
+
+
+def _no_other_keys(path: Path, where: str, raw: dict, allowed) -> None:
+    """Refuse a key of ``raw`` not in ``allowed`` (it would be ignored without a word), naming it."""
+    unknown = sorted(str(k) for k in raw if k not in allowed)
+    if unknown:
+        why = " (C is the rig's origin: its pose is not given)" if where == "cameras.C." else ""
+        raise UserError(f"{path}: unknown key(s) {', '.join(where + k for k in unknown)} in the rig file; it holds "
+                        f"{', '.join(where + k for k in allowed)}{why}")
+
+
 def read_rig(path: Path) -> tuple[dict[str, CameraPose], float, dict[str, Photometric], dict]:
     """Read a ``tri360-rig/1`` file -> (poses of C, U, R in C's frame, baseline_m, the cameras' photometric records
     (cameras without one left out), the parsed JSON).
 
     Raises:
         UserError: naming ``path``: missing, not JSON, wrong format tag, a missing or malformed pose, a malformed
-            photometric record (naming the camera and the key).
+            photometric record (naming the camera and the key), a key the rig file does not hold (naming it).
     """
     path = Path(path)
     try:
@@ -63,6 +78,11 @@ def read_rig(path: Path) -> tuple[dict[str, CameraPose], float, dict[str, Photom
     cams = raw.get("cameras")
     if not isinstance(cams, dict) or not all(k in cams for k in ("U", "R")):
         raise UserError(f"{path}: rig file needs 'cameras' with 'U' and 'R' (poses relative to C)")
+    _no_other_keys(path, "", raw, RIG_KEYS)
+    _no_other_keys(path, "cameras.", cams, CAMERA_NAMES)
+    for k in CAMERA_NAMES:
+        if isinstance(cams.get(k), dict):
+            _no_other_keys(path, f"cameras.{k}.", cams[k], CAMERA_KEYS[k])
     poses = {"C": CameraPose(np.zeros(3), np.eye(3))}
     for k in ("U", "R"):
         c = cams[k]

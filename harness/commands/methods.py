@@ -10,8 +10,7 @@ its own instead.
 
 from __future__ import annotations
 
-from harness.data.errors import UserError
-from harness.data.names import check_name
+from harness.commands.parts.plugins import unusable
 from reconstruction.flow.backends import ORACLE, flow_registry
 from reconstruction.methods.base import Method
 from reconstruction.methods.flow_pipeline import DEFAULT_FLOW, FlowMethod, config_label
@@ -24,7 +23,7 @@ from reconstruction.methods.registry import (
     PRESETS,
     builtin_methods,
 )
-from reconstruction.plugins import Registry, collect_registry
+from reconstruction.plugins import collect_registry
 from reconstruction.refine.lm import variant_registry
 
 __all__ = ["AVERAGE", "ORACLE_TEXT", "method_listing"]
@@ -40,34 +39,15 @@ def _rows(pairs: list[tuple[str, str]], indent: str = "  ") -> list[str]:
     return [f"{indent}{a:<{width}}  {b}".rstrip() for a, b in pairs]
 
 
-def _unusable(what: str, reg: Registry) -> tuple[set[str], list[str]]:
-    """The accepted outside names of ``reg`` that cannot be selected, and one warning line for each of them, each
-    refused name and each plugin that failed to load (``what``: ``method``, ``flow``, ``variant``)."""
-    lines, refused_sources = [], set()
-    for name, source, why in reg.refusals:
-        refused_sources.add(source)
-        lines.append(f"warning: {what} {name!r} of {source} cannot be selected: {why}")
-    lines += [f"warning: {source} failed to load: {msg}" for source, msg in reg.errors.items()
-              if source not in refused_sources]
-    bad = set()
-    for name, source in reg.sources.items():
-        try:
-            check_name(name, f"{what} {name!r} of {source} cannot be selected")
-        except UserError as exc:
-            bad.add(name)
-            lines.append(f"warning: {exc}")
-    return bad, lines
-
-
 def method_listing() -> tuple[list[str], list[str]]:
     """The lines ``tri360 methods`` prints, and its warnings, one line each: every plugin that failed to load and
     every outside method, flow or variant that cannot be selected (module doc), none of which is listed."""
     reg = collect_registry(builtin_methods(), ENTRY_POINT_GROUP, lambda m: isinstance(m, Method), "Method",
                            key=lambda m: m.label)
     flow_reg, variant_reg = flow_registry(), variant_registry()
-    bad_methods, warnings = _unusable("method", reg)
-    bad_flows, flow_warnings = _unusable("flow", flow_reg)
-    bad_variants, variant_warnings = _unusable("variant", variant_reg)
+    bad_methods, warnings = unusable("method", reg)
+    bad_flows, flow_warnings = unusable("flow", flow_reg)
+    bad_variants, variant_warnings = unusable("variant", variant_reg)
     flows = {k: v for k, v in flow_reg.entries.items() if k not in bad_flows}
     variants = {k: v for k, v in variant_reg.entries.items() if k not in bad_variants}
     out = ["named methods (* = the default, what 'tri360 reconstruct' runs):"]

@@ -4,15 +4,19 @@ dataclass, ``SceneEntry.describe_parameters``) and each preset's overrides."""
 
 from __future__ import annotations
 
-from scenes.registry import discover
+from harness.commands.parts.plugins import unusable
+from scenes.registry import scene_registry
 
 __all__ = ["scene_listing"]
 
 
-def scene_listing(params: bool = False) -> tuple[list[str], dict[str, str]]:
+def scene_listing(params: bool = False) -> tuple[list[str], list[str]]:
     """The lines ``tri360 scenes`` prints (with ``params``: every scene's parameters and every preset's values),
-    and the scene plugins that failed to load (source -> message)."""
-    entries, errors = discover()
+    and its warnings, one line each: every scene plugin that failed to load and every outside scene that cannot be
+    selected (:func:`harness.commands.parts.plugins.unusable`), none of which is listed."""
+    reg = scene_registry()
+    bad, warnings = unusable("scene", reg)
+    entries = {k: v for k, v in reg.entries.items() if k not in bad}
     out = []
     for name in sorted(entries):
         e = entries[name]
@@ -28,4 +32,4 @@ def scene_listing(params: bool = False) -> tuple[list[str], dict[str, str]]:
     if not entries:
         out.append("no scenes registered")
     out.append("(* = default preset; use --scene NAME:PRESET; [renderer] = the default of --renderer)")
-    return out, errors
+    return out, warnings
