@@ -57,9 +57,10 @@ def cell(x: float) -> str:
 
 
 def user_error(prog: str, exc: Exception) -> int:
-    """Print a tool's one line ``<prog>: <message>`` for an anticipated failure on stderr; return exit status 2."""
-    print(f"{prog}: {exc}", file=sys.stderr)
-    return 2
+    """Print a tool's one line ``<prog>: error: <message>`` for an anticipated failure on stderr (as the commands and
+    the argument parser say it); return exit status 2."""
+    print(f"{prog}: error: {exc}", file=sys.stderr)
+    return EXIT_USAGE
 
 
 # ------------------------------------------------------------------------------------------------ bench frame
