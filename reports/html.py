@@ -24,6 +24,7 @@ table { border-collapse: collapse; font-size: .85em; margin: .8em 0; }
 th, td { border: 1px solid #ccc; padding: .25em .55em; text-align: right; white-space: nowrap; }
 th { background: #f0f0f0; } td.text, th.text { text-align: left; }
 tr.paper td { background: #fff6dd; font-style: italic; }
+tr.reference td { background: #e8eef8; font-style: italic; }
 figure { margin: 1em 0; } figure img { max-width: 100%; height: auto; border: 1px solid #ddd; }
 figcaption { font-size: .85em; color: #555; }
 .problems { background: #fdecea; border: 1px solid #e0a0a0; padding: .6em 1em; }
@@ -113,7 +114,8 @@ def sortable_table(df: pd.DataFrame, keys: list[list], better: list[str], *, tab
         df: display strings, one column per table column.
         keys: per row, per column, the sort key: a number (numeric column), a string, or None (no value: always
             sorted last).
-        better: per column "low" / "high" (numeric; the first click sorts best first) or "" (text column).
+        better: per column "low" / "high" (numeric; the first click sorts best first), "ref" (numeric, a reference
+            that is neither better nor worse; the first click sorts ascending) or "" (text column).
         table_id: the table's ``id``.
         text_columns: the first this many columns are left-aligned.
         best: optional (rows, cols) bool: cells marked ``class="best"`` (highlighted).
@@ -125,7 +127,7 @@ def sortable_table(df: pd.DataFrame, keys: list[list], better: list[str], *, tab
     n = len(df.columns)
     if len(keys) != len(df) or any(len(r) != n for r in keys) or len(better) != n:
         raise ValueError(f"sortable_table: need one sort key per cell ({len(df)} x {n}) and one 'better' per column")
-    numeric = [b in ("low", "high") for b in better]
+    numeric = [b in ("low", "high", "ref") for b in better]
     head = ""
     if groups:
         head += "<tr>" + "".join(f'<th class="group" colspan="{span}">{esc(label)}</th>' for label, span in groups)

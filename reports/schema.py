@@ -6,6 +6,11 @@ and are empty for other methods.  A frame without ground truth (a real capture) 
 ``valid_px`` 0 and the ground-truth-free quality figures (:data:`QUALITY_COLUMNS`), and no region or breakdown rows.
 ``breakdown.csv``: the same key plus a breakdown kind and bin (long format).
 
+Every scored row (and region row) also carries the frame's floor (:data:`FLOOR_COLUMNS`, ``reports.floor``): the MAE
+an ideal matcher with 0.25 px angular error per pair would make over the same pixels, and the row's MAE as a multiple
+of it.  The floor is a reference, not a method: it is a column of every method's row rather than a row of its own,
+so that every table, leaderboard and regression check that ranks the rows keeps ranking only methods.
+
 Pure: the column lists, their types and the DataFrame constructors.  The files themselves are read and written
 by ``harness.data.results`` with these definitions.
 """
@@ -18,7 +23,8 @@ from reports.metrics import SUMMARY_KEYS
 
 __all__ = ["KEY_COLUMNS", "FLOW_COLUMNS", "SUITE_COLUMNS", "CORE_METRIC_COLUMNS", "METRIC_COLUMNS", "RESULT_COLUMNS",
            "RESULT_REQUIRED", "REGION_COLUMNS", "REGION_REQUIRED", "BREAKDOWN_COLUMNS", "INT_COLUMNS", "TEXT_COLUMNS",
-           "BOOL_COLUMNS", "QUALITY_COLUMNS", "unscored_rows", "results_table", "regions_table", "breakdown_table"]
+           "BOOL_COLUMNS", "QUALITY_COLUMNS", "FLOOR_COLUMNS", "unscored_rows", "results_table", "regions_table",
+           "breakdown_table"]
 
 #: identify a row
 KEY_COLUMNS = ["scene", "viewpoint", "method"]
@@ -27,8 +33,16 @@ FLOW_COLUMNS = ["flow", "rectify", "variant"]
 #: the first metrics, always present, in the order every results set has had them (``seconds`` is the
 #: method's wall time on the frame)
 CORE_METRIC_COLUMNS = ["mae_m", "rmse_m", "median_m", "absrel", "delta1", "outlier_rate", "valid_px", "seconds"]
-#: every metric of reports.metrics.summary, then ``ause`` (empty where the method gives no confidence)
-METRIC_COLUMNS = [*CORE_METRIC_COLUMNS, *(k for k in SUMMARY_KEYS if k not in CORE_METRIC_COLUMNS), "ause"]
+#: the floor of the row's pixels (``reports.floor``; docs/metrics.md, "The floor"): ``floor_m``, the MAE in metres of an
+#: ideal matcher whose angular error is ``reports.floor.FLOOR_PX`` = 0.25 px per pair (Gaussian, pairs combined by
+#: inverse variance), computed from the truth and the rig over exactly the pixels of the row's ``mae_m`` (the frame's
+#: scored pixels, or the region's), and ``mae_x_floor`` = ``mae_m / floor_m`` (unitless; 1 = the ideal matcher).
+#: Empty for frames without ground truth; older results sets lack them
+FLOOR_COLUMNS = ["floor_m", "mae_x_floor"]
+#: every metric of reports.metrics.summary, then ``ause`` (empty where the method gives no confidence), then the
+#: :data:`FLOOR_COLUMNS`
+METRIC_COLUMNS = [*CORE_METRIC_COLUMNS, *(k for k in SUMMARY_KEYS if k not in CORE_METRIC_COLUMNS), "ause",
+                  *FLOOR_COLUMNS]
 #: what the frame is (its scene family, difficulty tags joined by ``;``, the condition of its cameras: ``ideal`` or
 #: the name of a derived condition such as ``captured``) and, for a suite's split, the suite id and split (empty
 #: otherwise); older results sets lack them

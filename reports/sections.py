@@ -30,11 +30,13 @@ regions or ground-truth cloud::
 
 **Leaderboard** (:func:`leaderboard_part`, :func:`reports.tables.leaderboard_table`): one row per method of the
 results (flow-pipeline methods by their label, e.g. ``dis-rect:gradient``, and every other method, e.g.
-``sweep`` or a scored predictions root), columns ``mae_m median_m p90_m bad_5pct delta110 coverage ause`` and
-the MAE of every region but ``all`` (which equals ``mae_m``), pooled over frames with each frame weighted by its
-scored pixels; the paper's Fig. 4 MAEs follow as quoted rows.  In the HTML the table sorts by clicking a column
-header (best first on the first click, reversed on the next; empty cells last), and the best value of each
-column among tri360's rows is highlighted.
+``sweep`` or a scored predictions root), the columns of :data:`reports.tables.LEADERBOARD_OVERALL` (``mae_m``, the MAE
+as a multiple of the floor ``mae_x_floor`` and the floor ``floor_m`` itself, ``median_m p90_m bad_5pct delta110
+coverage ause``...) and the MAE of every region but ``all`` (which equals ``mae_m``), pooled over frames with each
+frame weighted by its scored pixels; the paper's Fig. 4 MAEs follow as quoted rows.  Below it, the floor per region
+and every method's region MAE as a multiple of it (:func:`reports.tables.floor_region_table`).  In the HTML the
+leaderboard sorts by clicking a column header (best first on the first click, reversed on the next; empty cells
+last), and the best value of each column among tri360's rows is highlighted (never the floor: a reference).
 
 **Sparsification** (:func:`frame_part`, :func:`sparsification_part`): for every method with a confidence map,
 per frame :func:`reports.metrics.sparsification_curves`, then their pixel-weighted mean
@@ -63,11 +65,15 @@ from reports.pointcloud import ply_bytes, point_grid
 from reports.regions import regions as frame_regions
 from reports.schema import METRIC_COLUMNS, QUALITY_COLUMNS, unscored_rows
 from reports.tables import (
+    FLOOR_ROW,
+    FLOOR_TEXT,
     LEADERBOARD_OVERALL,
     NOTHING_SCORED,
     QUALITY_HEADERS,
     config_order,
     config_title,
+    floor_region_display,
+    floor_region_table,
     group_columns,
     leaderboard_display,
     leaderboard_markdown,
@@ -157,15 +163,18 @@ def section_sample(frame, n_points: int, pixels: np.ndarray | None = None):
 def leaderboard_part(results: pd.DataFrame, regions: pd.DataFrame | None = None,
                      kinds: Mapping[str, str] | None = None) -> Part:
     """The leaderboard: ``leaderboard.csv``, ``leaderboard.md`` (also the printed markdown) and its sortable HTML
-    table; ``table`` is :func:`reports.tables.leaderboard_table`.
+    table, then the floor and every method's MAE as a multiple of it per region
+    (:func:`reports.tables.floor_region_table`, in the leaderboard's order; also in ``leaderboard.md``); ``table``
+    is :func:`reports.tables.leaderboard_table`.
 
     Args:
         results: validated results table; regions: validated region table or None (region columns empty);
         kinds: method label -> kind (``config.json``).
     """
     board = leaderboard_table(results, regions, dict(kinds or {}))
-    md = leaderboard_markdown(board)
-    return Part(html=_leaderboard_html(board, regions is not None),
+    floors = floor_region_table(results, regions, list(board.loc[board["source"] == "tri360", "method"]))
+    md = leaderboard_markdown(board, floors)
+    return Part(html=_leaderboard_html(board, regions is not None) + _floor_html(floors, regions is not None),
                 files={"leaderboard.csv": board.to_csv(index=False), "leaderboard.md": md}, markdown=md, table=board)
 
 
@@ -514,7 +523,9 @@ def _leaderboard_html(board: pd.DataFrame, have_regions: bool) -> str:
             "all pixels for the MAEs and shares, the pixel-weighted mean of the per-frame values for median, p90 "
             "and AUSE. Lower is better except for &delta; &lt; 1.10 and coverage; a missing or invalid prediction "
             "counts with error = true distance. Click a column header to sort (best first, click again to "
-            "reverse); highlighted: the best value of the column. Shaded rows: the paper's own Fig. 4 MAEs (one "
+            "reverse); highlighted: the best value of the column. " + H.esc(FLOOR_TEXT) + " MAE (&times; floor) "
+            "is the pooled MAE divided by the pooled floor of the same frames; floor (m) is a reference, not a "
+            "merit. Shaded rows: the paper's own Fig. 4 MAEs (one "
             "1000x500 classroom frame of theirs, DeepFlow), quoted, <strong>not computed by "
             "tri360</strong>. Regions: docs/metrics.md" + ("" if have_regions else " (no regions.csv: empty)")
             + ". Also as " + H.link("leaderboard.csv", "leaderboard.csv") + " and "
@@ -523,6 +534,21 @@ def _leaderboard_html(board: pd.DataFrame, have_regions: bool) -> str:
             + H.sortable_table(view["display"], view["keys"], view["better"], table_id="leaderboard",
                                text_columns=2, best=view["best"], row_classes=view["row_classes"], groups=groups,
                                data_keys=view["columns"]))
+
+
+def _floor_html(floors: pd.DataFrame, have_regions: bool) -> str:
+    """The floor and the MAE as a multiple of it per region (:func:`reports.tables.floor_region_table`), as HTML."""
+    note = ('<p class="note">First row (shaded): the floor in metres over all scored pixels and in each region. '
+            + H.esc(FLOOR_TEXT) + " Then each method's MAE divided by the floor of the same pixels (1 = the ideal "
+            "matcher; pooled over the method's frames as the leaderboard pools). Regions: docs/metrics.md"
+            + ("" if have_regions else " (no regions.csv: empty)") + ".</p>")
+    if not np.isfinite(floors.iloc[0, 1:].to_numpy(dtype=np.float64)).any():
+        note = '<p class="note">These results carry no floor (their floor_m column is empty).</p>'
+    view = floor_region_display(floors)
+    return ("<h3>The floor and the MAE as a multiple of it, per region</h3>" + note + '<div class="scroll">'
+            + H.table(view, text_columns=1,
+                      row_classes=["reference" if m == FLOOR_ROW else "" for m in floors["method"]])
+            + "</div>")
 
 
 def _all_results_html(results: pd.DataFrame, nothing_scored: bool = False) -> str:
@@ -538,5 +564,7 @@ def _all_results_html(results: pd.DataFrame, nothing_scored: bool = False) -> st
         full[c] = full[c].map(lambda v: f"{v:.5f}")
     for c in ("absrel", "delta1", "outlier_rate"):
         full[c] = full[c].map(lambda v: f"{v:.4f}")
+    full["floor_m"] = full["floor_m"].map(lambda v: f"{v:.5f}")
+    full["mae_x_floor"] = full["mae_x_floor"].map(lambda v: f"{v:.2f}")
     full["seconds"] = full["seconds"].map(lambda v: f"{v:.2f}")
     return '<div class="scroll">' + H.table(full.astype(str), text_columns=8) + "</div>"

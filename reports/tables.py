@@ -1,5 +1,6 @@
-"""The results tables: the MAE table of the flow pipeline (variant x scene, % reduction against ``average``) and
-the leaderboard (every method x overall metrics and MAE per region), with their markdown and display forms.
+"""The results tables: the MAE table of the flow pipeline (variant x scene, % reduction against ``average``), the
+leaderboard (every method x overall metrics and MAE per region) and the floor per region with every method's MAE as a
+multiple of it (``reports.floor``), with their markdown and display forms.
 
 Pure: validated results DataFrames in (``harness.data.results`` reads them from a results directory with the
 columns of :mod:`reports.schema`), DataFrames and text out.
@@ -15,6 +16,7 @@ import pandas as pd
 from reconstruction.methods.flow_pipeline import config_label
 from reconstruction.methods.registry import PAPER_CONFIG
 from reconstruction.quality import CALIBRATION_THRESHOLD
+from reports.floor import FLOOR_PX, times_floor
 from reports.regions import REGION_NAMES
 from reports.schema import QUALITY_COLUMNS, unscored_rows
 
@@ -39,6 +41,10 @@ __all__ = [
     "leaderboard_table",
     "leaderboard_display",
     "leaderboard_markdown",
+    "FLOOR_ROW",
+    "FLOOR_TEXT",
+    "floor_region_table",
+    "floor_region_display",
     "NOTHING_SCORED",
     "QUALITY_HEADERS",
     "quality_table",
@@ -105,12 +111,14 @@ def method_order(results: pd.DataFrame) -> list[str]:
 
 
 #: the metrics of :func:`method_summary`, each the mean over a method's frames
-SUMMARY_METRICS = ("mae_m", "median_m", "delta110", "seconds")
+SUMMARY_METRICS = ("mae_m", "mae_x_floor", "median_m", "delta110", "seconds")
 
 
 def method_summary(results: pd.DataFrame) -> pd.DataFrame:
-    """One row per method, best first: the mean over its frames of MAE (m), median absolute error (m), the share
-    of pixels with ``max(pred/gt, gt/pred) < 1.10`` (``delta110``, 0..1) and its wall time per frame (s).
+    """One row per method, best first: the mean over its frames of MAE (m), of the MAE as a multiple of the frame's
+    floor (``mae_x_floor``: the mean of the per-frame ratios, as the MAE is the mean of the per-frame MAEs; 1 = an
+    ideal matcher, ``reports.floor``), of the median absolute error (m), of the share of pixels with
+    ``max(pred/gt, gt/pred) < 1.10`` (``delta110``, 0..1) and of its wall time per frame (s).
 
     Args:
         results: a results table (``RESULT_COLUMNS``; a metric column it lacks reads as NaN).
@@ -228,10 +236,13 @@ def mae_markdown(table: pd.DataFrame) -> str:
 # ---------------------------------------------------------------------------------------------- leaderboard
 
 
-#: overall columns of the leaderboard: (results.csv column, which way is better: "low" or "high")
-LEADERBOARD_OVERALL = (("mae_m", "low"), ("mae_sw_m", "low"), ("median_m", "low"), ("median_sw_m", "low"),
-                       ("p90_m", "low"), ("bad_5pct", "low"), ("delta110", "high"), ("coverage", "high"),
-                       ("ause", "low"))
+#: overall columns of the leaderboard: (results.csv column, which way is better: "low" or "high"; "ref" for a
+#: reference that is not the method's merit: the floor of its frames)
+LEADERBOARD_OVERALL = (("mae_m", "low"), ("mae_x_floor", "low"), ("floor_m", "ref"), ("mae_sw_m", "low"),
+                       ("median_m", "low"), ("median_sw_m", "low"), ("p90_m", "low"), ("bad_5pct", "low"),
+                       ("delta110", "high"), ("coverage", "high"), ("ause", "low"))
+#: leaderboard columns that are the ratio of two pooled columns (numerator, denominator), not pooled themselves
+RATIO_COLUMNS = {"mae_x_floor": ("mae_m", "floor_m")}
 #: solid-angle-weighted columns: pooled over frames by the scored pixels' solid angle (``valid_sr``), not their count
 SOLID_ANGLE_COLUMNS = {"mae_sw_m", "median_sw_m"}
 #: prefixes of the per-family and per-difficulty-tag MAE columns (plain and solid-angle weighted)
@@ -244,6 +255,7 @@ LEADERBOARD_REGIONS = tuple(r for r in REGION_NAMES if r != "all")
 #: leaderboard columns shown as percentages (shares 0..1 in leaderboard.csv)
 SHARE_COLUMNS = {"bad_5pct", "delta110", "coverage"}
 LEADERBOARD_HEADERS = {"method": "method", "kind": "kind", "frames": "frames", "mae_m": "MAE (m)",
+                       "mae_x_floor": "MAE (× floor)", "floor_m": "floor (m)",
                        "mae_sw_m": "MAE, solid-angle weighted (m)", "median_sw_m": "median, solid-angle weighted (m)",
                        "median_m": "median (m)", "p90_m": "p90 (m)", "bad_5pct": "bad 5 % (%)",
                        "delta110": "δ < 1.10 (%)", "coverage": "coverage (%)", "ause": "AUSE (m)"}
@@ -299,6 +311,9 @@ def leaderboard_table(results: pd.DataFrame, regions: pd.DataFrame | None = None
     one frame per method every number is that frame's.  A NaN of any frame gives NaN (e.g. ``ause`` of a method
     without confidence).  The solid-angle-weighted columns (``mae_sw_m``, ``median_sw_m``: each pixel weighted by
     cos latitude) pool with each frame weighted by its scored pixels' solid angle (``valid_sr``) instead.
+    ``floor_m`` is the floor of the method's frames pooled the same way (the MAE an ideal matcher makes over the
+    same pixels, ``reports.floor``), and ``mae_x_floor`` the pooled ``mae_m`` divided by it (:data:`RATIO_COLUMNS`:
+    a ratio of the pooled values, not a pooled ratio; NaN for results without the floor).
 
     When the rows name their family and difficulty tags (``family``, ``tags``), ``mae_family:<family>`` and
     ``mae_tag:<tag>`` (then ``mae_sw_family:...``, ``mae_sw_tag:...``, solid-angle weighted) pool the MAE over the
@@ -338,6 +353,8 @@ def leaderboard_table(results: pd.DataFrame, regions: pd.DataFrame | None = None
             weight = "valid_sr" if col in SOLID_ANGLE_COLUMNS else "valid_px"
             row[col] = (pixel_weighted(sub[col], sub[weight]) if col in sub.columns and weight in sub.columns
                         else float("nan"))
+        for col, (num, den) in RATIO_COLUMNS.items():
+            row[col] = times_floor(row[num], row[den])
         for plain, weighted, mask in groups:
             part = results[sel & mask]
             row[plain] = pixel_weighted(part["mae_m"], part["valid_px"]) if len(part) else float("nan")
@@ -388,6 +405,8 @@ def _metric_columns(table: pd.DataFrame | None = None) -> list[tuple[str, str]]:
 def _fmt(col: str, v: float) -> str:
     if not math.isfinite(v):
         return "—"
+    if col in RATIO_COLUMNS:
+        return f"{v:.2f}"
     return f"{100 * v:.2f}" if col in SHARE_COLUMNS else f"{v:.5f}"
 
 
@@ -398,9 +417,9 @@ def leaderboard_display(table: pd.DataFrame) -> dict:
         dict with ``display`` (DataFrame of strings: method, kind, frames, the overall columns (metres to 5
         decimals, shares in %) and one MAE column per region), ``columns`` (the leaderboard column behind each
         displayed one), ``keys`` (per row, per column: the sort key, float or str; None for a missing number),
-        ``better`` (per column "low", "high" or "" for text), ``best`` ((rows, cols) bool: the best value of the
-        column among tri360's rows, ties included within 1e-9 relative) and ``row_classes`` ("paper" for the
-        quoted rows).
+        ``better`` (per column "low", "high", "ref" for a reference number (the floor) or "" for text), ``best``
+        ((rows, cols) bool: the best value of each "low" / "high" column among tri360's rows, ties included within
+        1e-9 relative) and ``row_classes`` ("paper" for the quoted rows).
     """
     metric_cols = _metric_columns(table)
     columns = ["method", "kind", "frames", *(c for c, _ in metric_cols)]
@@ -418,6 +437,8 @@ def leaderboard_display(table: pd.DataFrame) -> dict:
     best = np.zeros((len(table), len(columns)), dtype=bool)
     ours = (table["source"] == "tri360").to_numpy()
     for j, (col, way) in enumerate(metric_cols, start=3):
+        if way not in ("low", "high"):
+            continue
         v = table[col].to_numpy(dtype=np.float64)
         ok = ours & np.isfinite(v)
         if ok.any():
@@ -427,15 +448,81 @@ def leaderboard_display(table: pd.DataFrame) -> dict:
             "row_classes": ["paper" if s == "paper" else "" for s in table["source"]]}
 
 
-def leaderboard_markdown(table: pd.DataFrame) -> str:
+#: the label of the floor's row in :func:`floor_region_table`
+FLOOR_ROW = "floor (m)"
+#: what the floor is, in one sentence of the report
+FLOOR_TEXT = (f"The floor is the MAE an ideal matcher would make over the same pixels: {FLOOR_PX:g} px angular error "
+              "per pair (Gaussian), pairs combined by inverse variance, computed from the true distance and the rig "
+              "(docs/metrics.md, \"The floor\").")
+
+
+def floor_region_table(results: pd.DataFrame, regions: pd.DataFrame | None = None,
+                       methods: list[str] | None = None) -> pd.DataFrame:
+    """The floor and every method's MAE as a multiple of it, over all scored pixels and per region.
+
+    Args:
+        results: validated ``results.csv`` (its ``floor_m`` per frame: ``reports.schema.FLOOR_COLUMNS``; NaN or
+            absent: no floor).
+        regions: validated ``regions.csv`` or None (region columns NaN).
+        methods: the method rows, in order (default :func:`method_order`).
+    Returns:
+        DataFrame with columns ``method``, ``all`` and each of :data:`LEADERBOARD_REGIONS`.  First row
+        (``method`` = :data:`FLOOR_ROW`): the floor in metres, pooled over every frame of the results (each frame
+        once, weighted by its scored pixels in the region, as the leaderboard pools).  Then one row per method: its
+        MAE pooled over its frames divided by the floor pooled over the same frames (unitless; 1 = the ideal
+        matcher), NaN where either is missing.
+    """
+    cols = ["all", *LEADERBOARD_REGIONS]
+    methods = method_order(results) if methods is None else list(methods)
+    parts = {"all": results.assign(region="all")}
+    if regions is not None:
+        parts.update({r: regions[regions["region"] == r] for r in LEADERBOARD_REGIONS})
+
+    def pooled(part: pd.DataFrame | None, col: str) -> float:
+        if part is None or part.empty or col not in part.columns:
+            return float("nan")
+        return pixel_weighted(part[col], part["valid_px"])
+
+    floor_row = {"method": FLOOR_ROW}
+    for c in cols:
+        part = parts.get(c)
+        # the floor is the frame's, the same in every method's row: each frame once (a row with its pixels)
+        frames = (None if part is None else
+                  part.sort_values("valid_px", ascending=False, kind="stable").drop_duplicates(["scene", "viewpoint"]))
+        floor_row[c] = pooled(frames, "floor_m")
+    rows = [floor_row]
+    for label in methods:
+        row = {"method": label}
+        for c in cols:
+            part = parts.get(c)
+            mine = None if part is None else part[part["method"] == label]
+            row[c] = times_floor(pooled(mine, "mae_m"), pooled(mine, "floor_m"))
+        rows.append(row)
+    return pd.DataFrame(rows, columns=["method", *cols])
+
+
+def floor_region_display(table: pd.DataFrame) -> pd.DataFrame:
+    """:func:`floor_region_table` as strings: the floor in metres (5 decimals), the multiples to 2 decimals, "—"
+    where there is no value."""
+    out = table.copy().astype(object)
+    for c in table.columns[1:]:
+        out[c] = [_fmt("floor_m" if m == FLOOR_ROW else "mae_x_floor", float(v))
+                  for m, v in zip(table["method"], table[c], strict=True)]
+    return out
+
+
+def leaderboard_markdown(table: pd.DataFrame, floors: pd.DataFrame | None = None) -> str:
     """Markdown document with the leaderboard (from :func:`leaderboard_table`): overall metrics, then MAE per
-    region; the paper's quoted rows are marked."""
+    region, then (with ``floors``, :func:`floor_region_table`) the floor and the MAE as a multiple of it per region;
+    the paper's quoted rows are marked."""
     overall = [c for c, _ in LEADERBOARD_OVERALL]
     lines = [
         "# Leaderboard: camera C's distance, every method",
         "",
         "Pooled over each method's frames, each frame weighted by its scored pixels: exact over all pixels for",
         "MAE and the shares; the pixel-weighted mean of the per-frame values for median, p90 and AUSE.",
+        FLOOR_TEXT,
+        "MAE (× floor) is the pooled MAE divided by the pooled floor of the same frames.",
         "Shares in %; lower is better except for δ < 1.10 and coverage.  A missing or invalid prediction",
         "counts with error = true distance.  Rows of kind \"quoted from the paper\" are the paper's own Fig. 4 MAEs",
         "(one 1000x500 classroom frame of theirs, DeepFlow), not computed by tri360.",
@@ -472,6 +559,15 @@ def leaderboard_markdown(table: pd.DataFrame) -> str:
         for _, r in table[table["source"] == "tri360"].iterrows():
             cells = [r["method"], *(_fmt("mae_m", float(r[c])) for c in cols)]
             lines.append("| " + " | ".join(_md_cell(x) for x in cells) + " |")
+    if floors is not None:
+        disp = floor_region_display(floors)
+        lines += ["", "## The floor and the MAE as a multiple of it, per region", "",
+                  f"First row: the floor in metres. {FLOOR_TEXT} Then each method's MAE divided by the floor of the "
+                  "same pixels (1 = the ideal matcher).", "",
+                  "| method | " + " | ".join(str(c) for c in disp.columns[1:]) + " |",
+                  "|---|" + "---:|" * (len(disp.columns) - 1)]
+        for _, r in disp.iterrows():
+            lines.append("| " + " | ".join(_md_cell(x) for x in r) + " |")
     return "\n".join(lines) + "\n"
 
 

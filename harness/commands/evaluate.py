@@ -2,7 +2,8 @@
 
 Writes a results set into ``out``::
 
-    results.csv, results.json   one row per (scene, viewpoint, method): reports.schema.RESULT_COLUMNS
+    results.csv, results.json   one row per (scene, viewpoint, method): reports.schema.RESULT_COLUMNS, with the
+                                frame's floor (reports.floor) beside the MAE
     regions.csv                 the same metrics per region of each frame (reports.regions)
     breakdown.csv               errors by angle to each baseline, true distance and texture
     frames.json                 where each evaluated frame lives
@@ -73,6 +74,7 @@ from reconstruction.methods.base import (
 )
 from reconstruction.methods.flow_pipeline import config_label
 from reconstruction.quality import assess
+from reports.floor import floor_fields, frame_floor_sigma, region_floors
 from reports.metrics import breakdown
 from reports.regions import region_summaries, regions
 from reports.schema import METRIC_COLUMNS, QUALITY_COLUMNS, breakdown_table, regions_table, results_table, unscored_rows
@@ -284,11 +286,15 @@ def _unscored_row(frame, method: Method, outputs: dict[str, MethodOutput]) -> tu
     return row, maps
 
 
-def _score_rows(frame, method: Method, output: MethodOutput, masks: dict) -> tuple[dict, list[dict], list[dict]]:
-    """The results row, the breakdown rows and the region rows of one method on one frame."""
+def _score_rows(frame, method: Method, output: MethodOutput, masks: dict,
+                floors: dict[str, float]) -> tuple[dict, list[dict], list[dict]]:
+    """The results row, the breakdown rows and the region rows of one method on one frame; ``floors``: the frame's
+    floor per region (:func:`reports.floor.region_floors` over ``masks``), which every row carries beside its MAE
+    (``reports.schema.FLOOR_COLUMNS``)."""
     pred, conf = checked_maps(frame, method, output)
     key = {"scene": frame.scene, "viewpoint": frame.viewpoint, "method": method.label, **flow_fields(method)}
-    region_rows = [{**key, **r} for r in region_summaries(frame, pred, conf, masks=masks)]
+    region_rows = [{**key, **r, **floor_fields(r["mae_m"], floors[r["region"]])}
+                   for r in region_summaries(frame, pred, conf, masks=masks)]
     overall = next(r for r in region_rows if r["region"] == "all")
     row = {**key, "width": frame.width, "height": frame.height,
            **{k: v for k, v in overall.items() if k not in key and k != "region"},
@@ -313,6 +319,8 @@ def evaluate_task(frame_path: str, methods: Sequence[Method], stage: str, scored
     path = Path(frame_path)
     frame = scorable_frame(path, scored)
     masks = regions(frame) if scored else {}
+    # the floor (an ideal matcher's MAE) per region, from the truth and the rig: the same for every method
+    floors = region_floors(frame_floor_sigma(frame), masks) if scored else {}
     try:
         # the methods never see ground truth (run_blind); a frame without ground truth is assessed: the quality
         # references run along (sharing their flow)
@@ -323,7 +331,7 @@ def evaluate_task(frame_path: str, methods: Sequence[Method], stage: str, scored
     for method in methods:
         output = outputs[method.label]
         if scored:
-            row, brs, rrs = _score_rows(frame, method, output, masks)
+            row, brs, rrs = _score_rows(frame, method, output, masks, floors)
         else:
             (row, quality), brs, rrs = _unscored_row(frame, method, outputs), [], []
             write_exr_channels(Path(stage) / quality_map_path(frame.scene, frame.viewpoint, method.label,
@@ -430,9 +438,10 @@ def config_keys(table: pd.DataFrame, other: str = "") -> tuple[list[str], list[s
 
 def summary_text(table: pd.DataFrame) -> str:
     """The results table as the plain-text summary a run prints: one row per method, best MAE first (means over
-    its frames, :func:`reports.tables.method_summary`); a mean that is not a number (a frame without one) is
-    ``-``.  Results of frames without ground truth (nothing scored) print, after a line saying so, the means of
-    their quality figures instead (:func:`reports.tables.quality_summary`)."""
+    its frames, :func:`reports.tables.method_summary`; ``x floor`` is the mean over its frames of the MAE as a multiple
+    of the frame's floor, ``mae_x_floor``); a mean that is not a number (a frame without one) is ``-``.  Results of
+    frames without ground truth (nothing scored) print, after a line saying so, the means of their quality figures
+    instead (:func:`reports.tables.quality_summary`)."""
 
     def num(x: float, fmt: str) -> str:
         return format(x, fmt) if np.isfinite(x) else "-"
@@ -446,8 +455,8 @@ def summary_text(table: pd.DataFrame) -> str:
         return "no ground truth: nothing scored; ground-truth-free quality figures (medians), mean over frames:\n" \
             + _columns_text(header, rows)
     summary = method_summary(table)
-    header = ["method", "frames", "MAE (m)", "median (m)", "delta<1.10", "s/frame"]
-    rows = [[str(r.method), str(r.frames), num(r.mae_m, ".4f"), num(r.median_m, ".4f"),
+    header = ["method", "frames", "MAE (m)", "x floor", "median (m)", "delta<1.10", "s/frame"]
+    rows = [[str(r.method), str(r.frames), num(r.mae_m, ".4f"), num(r.mae_x_floor, ".2f"), num(r.median_m, ".4f"),
              num(100.0 * r.delta110, ".1f") + (" %" if np.isfinite(r.delta110) else ""), num(r.seconds, ".1f")]
             for r in summary.itertuples(index=False)]
     return _columns_text(header, rows)

@@ -12,9 +12,13 @@ import pytest
 from harness.cli import main
 from harness.commands.evaluate import evaluate, select_frames, summary_text
 from harness.data.errors import UserError
+from harness.data.frame import read_frame
+from harness.data.results import read_regions, read_results
 from harness.runtime.context import QUIET, RunContext
 from reconstruction.methods.base import MethodOutput
 from reconstruction.methods.registry import flow_methods
+from reports.floor import floor_mae, frame_floor_sigma, region_floors
+from reports.regions import regions
 from reports.schema import RESULT_COLUMNS
 
 
@@ -98,15 +102,45 @@ def test_rerun_replaces_the_whole_results_set(synthetic_root, tmp_path):
 
 def test_summary_text_is_one_row_per_method_best_first_and_never_drops_a_missing_metric():
     rows = [{"scene": "s", "viewpoint": v, "method": m, "flow": "", "rectify": "", "variant": "", "mae_m": x,
-             "median_m": x / 2, "delta110": 0.5, "seconds": 2.0}
+             "median_m": x / 2, "delta110": 0.5, "seconds": 2.0, "floor_m": 0.05, "mae_x_floor": x / 0.05}
             for m, v, x in (("m", "vp0", 1.0), ("m", "vp1", float("nan")), ("good", "vp0", 0.25), ("good", "vp1", 0.75),
                             ("bad", "vp0", 3.0))]
     lines = summary_text(pd.DataFrame(rows)).splitlines()
-    assert lines[0].split() == ["method", "frames", "MAE", "(m)", "median", "(m)", "delta<1.10", "s/frame"]
+    assert lines[0].split() == ["method", "frames", "MAE", "(m)", "x", "floor", "median", "(m)", "delta<1.10",
+                                "s/frame"]
     assert [line.split()[:3] for line in lines[1:]] == [["good", "2", "0.5000"], ["bad", "1", "3.0000"],
                                                         ["m", "2", "-"]]  # a NaN frame: no mean, shown last
-    assert lines[1].split()[3:] == ["0.2500", "50.0", "%", "2.0"]
+    assert lines[1].split()[3:] == ["10.00", "0.2500", "50.0", "%", "2.0"]  # x floor: mean of 5 and 15
+    assert lines[3].split()[3] == "-"
     assert "nan" not in "\n".join(lines).lower() and len({len(line) for line in lines}) == 1  # aligned
+
+
+def test_every_scored_row_carries_the_frames_floor(synthetic_root, tmp_path):
+    """results.csv and regions.csv: floor_m is the frame's floor over the row's pixels (the same for every method of
+    a frame, per region too) and mae_x_floor = mae_m / floor_m; the summary prints the mean multiple."""
+    out = tmp_path / "res"
+    methods = [Constant(2.0, "two"), Constant(3.0, "three")]
+    table = evaluate(synthetic_root, out, methods, report=False, ctx=QUIET)
+    regions_csv = read_regions(out)
+    for vp in ("vp000", "vp001"):
+        frame = read_frame(synthetic_root / "synthetic_box" / vp)
+        sigma = frame_floor_sigma(frame)
+        floors = region_floors(sigma, regions(frame))
+        assert floors["all"] == pytest.approx(floor_mae(sigma), rel=1e-12)
+        assert 0 < floors["all"] < 0.1  # metres: a 200x100 box room a few metres across, 0.25 px
+        rows = table[table.viewpoint == vp]
+        np.testing.assert_allclose(rows.floor_m, floors["all"], rtol=1e-12)  # the same for every method
+        np.testing.assert_allclose(rows.mae_x_floor, rows.mae_m / floors["all"], rtol=1e-12)
+        for _, r in regions_csv[regions_csv.viewpoint == vp].iterrows():
+            want = floors[r.region]
+            assert r.floor_m == pytest.approx(want, rel=1e-9, nan_ok=True), r.region  # CSV round trip
+            assert r.mae_x_floor == pytest.approx(r.mae_m / want, rel=1e-9, nan_ok=True), r.region
+    assert regions_csv.floor_m.notna().sum() > len(regions_csv) / 2  # most regions hold pixels here
+    on_disk = read_results(out)
+    np.testing.assert_allclose(on_disk.floor_m, table.floor_m, rtol=1e-9)
+    summary = summary_text(table).splitlines()
+    two = next(line for line in summary if line.startswith("two")).split()
+    assert two[3] == f"{table[table.method == 'two'].mae_x_floor.mean():.2f}"
 
 
 def test_progress_bar_names_frame_and_methods(synthetic_root, tmp_path, capsys):

@@ -16,6 +16,7 @@ from harness.data.frame import read_frame
 from harness.data.predictions import write_method_info, write_prediction
 from harness.runtime.context import QUIET
 from reconstruction.methods.registry import flow_methods
+from reports.floor import floor_mae, frame_floor_sigma
 
 
 def outside_prediction(frame, seed=0):
@@ -69,6 +70,10 @@ def test_score_matches_an_independent_computation(pred_root, synthetic_root, tmp
             assert row[key] == pytest.approx(ref[key], rel=1e-3), key
         assert np.isfinite(row["ause"]) and row["ause"] >= 0
         assert row["flow"] != row["flow"] or row["flow"] == ""  # empty (NaN in pandas) for outside methods
+        # the frame's floor (an ideal matcher's MAE over the same pixels) and the MAE as a multiple of it
+        floor = floor_mae(frame_floor_sigma(frame))
+        assert row["floor_m"] == pytest.approx(floor, rel=1e-9) and 0 < floor < row["mae_m"]  # metres
+        assert row["mae_x_floor"] == pytest.approx(ref["mae_m"] / floor, rel=1e-4)
     regions = pd.read_csv(out / "regions.csv")
     got = set(regions.region)
     assert {"all", "textureless", "discontinuity", "occluded"} <= got
@@ -91,7 +96,7 @@ def test_score_and_evaluate_agree_for_a_builtin_method(synthetic_root, tmp_path)
                  "--no-report", "--quiet"]) == 0
     scored = pd.read_csv(tmp_path / "scored" / "results.csv")
     assert list(scored.method) == [m.label] * 2
-    for col in ("mae_m", "median_m", "p90_m", "coverage", "delta1", "bad_1pct"):
+    for col in ("mae_m", "median_m", "p90_m", "coverage", "delta1", "bad_1pct", "floor_m", "mae_x_floor"):
         np.testing.assert_allclose(scored[col], direct[col], rtol=1e-6, err_msg=col)
 
 

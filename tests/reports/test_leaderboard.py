@@ -17,11 +17,15 @@ from harness.data.frame import read_frame
 from harness.data.results import map_paths, read_regions, read_results
 from reports import html as H
 from reports import plots
+from reports.floor import GAUSSIAN_MAE_FACTOR, frame_floor_sigma
 from reports.metrics import pooled_sparsification_curves, pooled_summary, sparsification_curves
 from reports.regions import regions
 from reports.tables import (
+    FLOOR_ROW,
     LEADERBOARD_REGIONS,
     PAPER_MAE_M,
+    floor_region_display,
+    floor_region_table,
     leaderboard_display,
     leaderboard_markdown,
     leaderboard_table,
@@ -112,6 +116,43 @@ def test_leaderboard_pools_frames_by_scored_pixels():
     assert paper.drop(columns=["mae_m", "frames"]).select_dtypes("number").isna().all().all()  # MAE only
 
 
+def test_leaderboard_floor_is_pooled_and_the_multiple_is_a_ratio_of_pooled_values():
+    results, region = _by_hand_results()
+    results["floor_m"] = [0.02, 0.05, 0.02, 0.05]  # the frame's floor: the same for every method of a frame
+    results["mae_x_floor"] = results["mae_m"] / results["floor_m"]
+    t = leaderboard_table(results, region).set_index("method")
+    assert t.loc["m1", "floor_m"] == pytest.approx((0.02 * 100 + 0.05 * 300) / 400, abs=1e-12)  # metres
+    # (0.1 * 100 + 0.2 * 300) / (0.02 * 100 + 0.05 * 300), not the pixel-weighted mean of the ratios (4.25)
+    assert t.loc["m1", "mae_x_floor"] == pytest.approx(0.175 / 0.0425, abs=1e-12)
+    assert t.loc["m0", "mae_x_floor"] == pytest.approx(0.065 / 0.0425, abs=1e-12)
+    assert t.loc[t["source"] == "paper", ["floor_m", "mae_x_floor"]].isna().all().all()
+    assert t.loc["m1", "mae_m"] == pytest.approx(0.175, abs=1e-12)  # the other columns are unchanged
+    md = leaderboard_markdown(leaderboard_table(results[results["method"] == "m1"], region))
+    assert "| m1 | — | 2 | 0.17500 | 4.12 | 0.04250 |" in md
+    # results without the floor (older sets): the columns are empty, never made up
+    old = leaderboard_table(results.drop(columns=["floor_m", "mae_x_floor"]), region).set_index("method")
+    assert old[["floor_m", "mae_x_floor"]].isna().all().all()
+
+
+def test_floor_region_table_by_hand():
+    results, region = _by_hand_results()
+    results["floor_m"] = [0.02, 0.05, 0.02, 0.05]
+    region["floor_m"] = [0.1, np.nan, 0.1, 0.2]  # per frame: a 0.1, b 0.2 (NaN where m1's region is empty)
+    table = floor_region_table(results, region, methods=["m0", "m1"]).set_index("method")
+    assert list(table.index) == [FLOOR_ROW, "m0", "m1"]
+    assert list(table.columns) == ["all", *LEADERBOARD_REGIONS]
+    assert table.loc[FLOOR_ROW, "all"] == pytest.approx(0.0425, abs=1e-12)  # every frame once, by its pixels
+    assert table.loc[FLOOR_ROW, "textureless"] == pytest.approx((0.1 * 10 + 0.2 * 30) / 40, abs=1e-12)
+    assert table.loc["m0", "textureless"] == pytest.approx(((0.2 * 10 + 0.4 * 30) / 40) / 0.175, abs=1e-12)
+    assert table.loc["m1", "textureless"] == pytest.approx(0.3 / 0.1, abs=1e-12)  # only frame a has the region
+    assert table.loc["m0", "all"] == pytest.approx(0.065 / 0.0425, abs=1e-12)
+    assert np.isnan(table.loc["m0", "pole"]) and np.isnan(table.loc[FLOOR_ROW, "pole"])  # no rows for it
+    view = floor_region_display(table.reset_index())
+    assert list(view.iloc[0][["all", "pole"]]) == ["0.04250", "—"] and view.iloc[2]["textureless"] == "3.00"
+    no_regions = floor_region_table(results, None)
+    assert no_regions[list(LEADERBOARD_REGIONS)].isna().all().all() and no_regions["all"].notna().all()
+
+
 def test_pixel_weighted_edge_cases():
     assert pixel_weighted([1.0, np.nan], [2, 0]) == 1.0  # NaN without weight is ignored
     assert np.isnan(pixel_weighted([1.0, np.nan], [2, 1]))
@@ -142,6 +183,11 @@ def test_region_and_overall_columns_equal_pooling_the_pixels(mixed):
             assert got == pytest.approx(pooled["mae_m"], abs=1e-9, nan_ok=True), (method, region)
             compared += bool(np.isfinite(got))
         assert compared >= 5  # discontinuity, epipoles, pole, distance bands hold pixels here
+        # the floor pools the frames' ideal-matcher errors over the same pixels: sqrt(2/pi) x their mean sigma
+        sigmas = np.concatenate([frame_floor_sigma(f)[np.isfinite(f.distance["C"])] for f in frames.values()])
+        assert board.loc[method, "floor_m"] == pytest.approx(GAUSSIAN_MAE_FACTOR * sigmas.mean(), rel=1e-9)
+        assert board.loc[method, "mae_x_floor"] == pytest.approx(board.loc[method, "mae_m"] / sigmas.mean()
+                                                                 / GAUSSIAN_MAE_FACTOR, rel=1e-9)
     assert board.loc["outside", "coverage"] < 1.0  # its NaN pixels count
 
 
@@ -160,6 +206,24 @@ def test_leaderboard_files_and_html(mixed):
     md = (res / "leaderboard.md").read_text()
     assert all(f"| {m} |" in md for m in methods) and md.count("| quoted from the paper |") == 3
     assert out.markdown.startswith(md)
+    # the floor per region, after the leaderboard: the floor's row, then every method in the leaderboard's order
+    floors = floor_region_table(read_results(res), read_regions(res), list(board.loc[board["source"] == "tri360",
+                                                                                          "method"]))
+    section = md.split("## The floor and the MAE as a multiple of it, per region")[1]
+    body = [line for line in section.splitlines() if line.startswith("| ") and not line.startswith("| method")]
+    assert [line.split(" | ")[0][2:] for line in body] == [FLOOR_ROW, *board.loc[board["source"] == "tri360",
+                                                                                     "method"]]
+    assert body[0].split(" | ")[1] == f"{floors['all'].iloc[0]:.5f}"
+    ours_by_label = board[board["source"] == "tri360"].set_index("method")
+    by_label = floors.set_index("method")
+    for region in ("all", "pole", "d<2m"):  # the multiple per region is the region's pooled MAE over its floor
+        mae = ours_by_label["mae_m" if region == "all" else f"mae_{region}"]
+        assert mae.notna().all(), region
+        np.testing.assert_allclose(by_label.loc[mae.index, region] * by_label.loc[FLOOR_ROW, region], mae,
+                                   rtol=1e-9, err_msg=region)  # every method has both frames: the same floor
+    page = (res / "report.html").read_text()
+    assert "<h3>The floor and the MAE as a multiple of it, per region</h3>" in page
+    assert '<tr class="reference"><td class="text">floor (m)</td>' in page
 
     parser = _Table()
     parser.feed((res / "report.html").read_text())
@@ -168,11 +232,15 @@ def test_leaderboard_files_and_html(mixed):
     assert keys[:4] == ["method", "kind", "frames", "mae_m"]
     better = {h["data-key"]: h["data-better"] for h in parser.heads}
     assert better["mae_m"] == "low" and better["delta110"] == "high" and better["coverage"] == "high"
-    assert better["method"] == ""
+    assert better["method"] == "" and better["mae_x_floor"] == "low" and better["floor_m"] == "ref"
+    # the floor is a reference: sorted as a number, never highlighted
+    j_floor = keys.index("floor_m")
+    assert not any("best" in r[j_floor][1] for r in parser.rows)
+    assert next(h for h in parser.heads if h["data-key"] == "floor_m")["data-type"] == "num"
     # the best cell of every numeric column is the best tri360 value (ties included), never a paper row
     ours = board[board["source"] == "tri360"].reset_index(drop=True)
     for j, key in enumerate(keys):
-        if not better[key]:
+        if better[key] not in ("low", "high"):
             continue
         marked = [r[0][0] for r in parser.rows if "best" in r[j][1]]
         values = ours[key].to_numpy(dtype=float)

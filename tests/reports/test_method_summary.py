@@ -37,3 +37,15 @@ def test_an_older_results_table_without_delta110_reads_nan():
     t = pd.DataFrame([_row("m", "vp0", 0.1)]).drop(columns="delta110")
     s = method_summary(t)
     assert math.isnan(s.delta110[0]) and s.mae_m[0] == 0.1
+
+
+def test_times_floor_is_the_mean_over_frames_of_the_per_frame_ratios():
+    """Like the MAE column (the mean of the per-frame MAEs), ``mae_x_floor`` is the mean of the per-frame ratios:
+    frames of MAE 0.2 / floor 0.1 and 0.4 / 0.05 give (2 + 8) / 2 = 5, not 0.3 / 0.075 = 4."""
+    t = pd.DataFrame([_row("m", "vp0", 0.2, floor_m=0.1, mae_x_floor=2.0),
+                      _row("m", "vp1", 0.4, floor_m=0.05, mae_x_floor=8.0)])
+    s = method_summary(t).set_index("method")
+    assert math.isclose(s.loc["m", "mae_x_floor"], 5.0, abs_tol=1e-12)
+    assert math.isclose(s.loc["m", "mae_m"], 0.3, abs_tol=1e-12)
+    older = method_summary(pd.DataFrame([_row("m", "vp0", 0.1)]))  # results without the floor: NaN, never made up
+    assert math.isnan(older.mae_x_floor[0])

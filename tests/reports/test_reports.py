@@ -22,6 +22,7 @@ from harness.data.frame import Frame, write_frame
 from harness.data.results import map_paths, read_results, write_results
 from reconstruction.camera.equirect import bearing_grid
 from reconstruction.camera.rig import Rig
+from reports.floor import floor_fields, frame_floor_sigma, region_floors
 from reports.metrics import breakdown, summary
 from reports.pointcloud import parse_ply, ply_bytes, point_grid
 from reports.regions import region_summaries, regions
@@ -65,8 +66,8 @@ def make_frame(root: Path, scene: str = "room", viewpoint: str = "v0", sky_px: i
 
 
 def make_results(tmp_path: Path, scenes=("room",), flow: bool = True, others: bool = False) -> Path:
-    """A results directory like `tri360 evaluate` writes (results, regions, breakdown, frames.json, config.json,
-    maps), one frame per scene: the flow pipeline's CONFIGS x VARIANTS (``flow``) and/or the OTHERS methods
+    """A results directory like `tri360 evaluate` writes (results with the floor, regions, breakdown, frames.json,
+    config.json, maps), one frame per scene: the flow pipeline's CONFIGS x VARIANTS (``flow``) and/or the OTHERS methods
     (``others``; ``matcher`` writes a confidence that ranks its errors, ``outside`` none and a few NaN)."""
     res = tmp_path / "results"
     rows, bd_rows, region_rows, frames, kinds = [], [], [], [], {}
@@ -76,6 +77,7 @@ def make_results(tmp_path: Path, scenes=("room",), flow: bool = True, others: bo
         frames.append({"scene": scene, "viewpoint": "v0", "path": str(frame.path.resolve())})
         gt = frame.distance["C"]
         masks = regions(frame)
+        floors = region_floors(frame_floor_sigma(frame), masks)  # as evaluate scores them
         methods = []  # (label, key fields, map path, prediction, confidence)
         for flow_name, rect in CONFIGS if flow else []:
             for variant, noise in VARIANTS.items():
@@ -101,9 +103,12 @@ def make_results(tmp_path: Path, scenes=("room",), flow: bool = True, others: bo
             if conf is not None:
                 write_float_map(path.with_name(path.name.replace("distance", "confidence")), conf, CONFIDENCE_CHANNEL)
             key = {"scene": scene, "viewpoint": "v0", "method": label, **fields}
-            rows.append({**key, "width": W, "height": H, **summary(pred, gt, conf), "seconds": 0.5})
+            overall = summary(pred, gt, conf)
+            rows.append({**key, "width": W, "height": H, **overall, **floor_fields(overall["mae_m"], floors["all"]),
+                         "seconds": 0.5})
             bd_rows.extend({**key, **b} for b in breakdown(frame, pred))
-            region_rows.extend({**key, **r} for r in region_summaries(frame, pred, conf, masks=masks))
+            region_rows.extend({**key, **r, **floor_fields(r["mae_m"], floors[r["region"]])}
+                               for r in region_summaries(frame, pred, conf, masks=masks))
     write_results(res, results_table(rows), breakdown_table(bd_rows), regions_table(region_rows), frames=frames,
                   config={"methods": {k: {"kind": v} for k, v in kinds.items()}})
     return res

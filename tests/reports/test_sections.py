@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from reports.floor import frame_floor_sigma, region_floors
 from reports.metrics import breakdown, pooled_sparsification_curves, summary
 from reports.pointcloud import parse_ply
 from reports.regions import region_summaries, regions
@@ -118,6 +119,25 @@ def test_summary_parts_from_dataframes(frame):
     assert list(plots.files) == ["error_vs_angle.png", "error_by_distance_texture.png"]
     assert breakdown_part(None).files == {} and "No breakdown.csv" in breakdown_part(None).html
     assert sparsification_part({}).files == {}
+
+
+def test_leaderboard_part_shows_the_floor_or_says_there_is_none(frame):
+    rows, preds, confs = _methods(frame)
+    results, region_table, _ = _results(frame, rows, preds, confs)  # no floor columns: an older results set
+    older = leaderboard_part(results, region_table)
+    assert "These results carry no floor" in older.html and older.table["floor_m"].isna().all()
+    floors = region_floors(frame_floor_sigma(frame), regions(frame))
+    results["floor_m"] = floors["all"]
+    results["mae_x_floor"] = results["mae_m"] / floors["all"]
+    region_table["floor_m"] = region_table["region"].map(floors)
+    part = leaderboard_part(results, region_table)
+    assert "These results carry no floor" not in part.html
+    assert f'<td class="text">floor (m)</td><td class="">{floors["all"]:.5f}</td>' in part.html
+    board = part.table.set_index("method")
+    assert board.loc["matcher", "floor_m"] == pytest.approx(floors["all"], rel=1e-12)  # one frame: its floor
+    ratio = board.loc["matcher", "mae_m"] / floors["all"]
+    assert board.loc["matcher", "mae_x_floor"] == pytest.approx(ratio, rel=1e-12)
+    assert f"| matcher | — | 1 | {board.loc['matcher', 'mae_m']:.5f} | {ratio:.2f} |" in part.markdown
     curves = {"matcher": pooled_sparsification_curves([frame_part(frame, rows, preds, confs, ply="none",
                                                                    cloud_points=50).curves["matcher"]])}
     spars = sparsification_part(curves)
