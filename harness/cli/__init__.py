@@ -20,7 +20,7 @@ import os
 import sys
 
 from harness import __version__
-from harness.cli import evaluate, import_, list_methods, perturb, reconstruct, render, report, score, study
+from harness.cli import evaluate, export, import_, list_methods, perturb, reconstruct, render, report, score, study
 from harness.cli import scenes as scenes_cmd
 from harness.data.errors import UserError
 from harness.runtime.arguments import EXIT_USAGE
@@ -33,7 +33,8 @@ commands that die of SIGPIPE have; nothing is printed."""
 
 COMMANDS = {"render": render, "scenes": scenes_cmd, "methods": list_methods, "reconstruct": reconstruct,
             "evaluate": evaluate,
-            "score": score, "report": report, "study": study, "perturb": perturb, "import": import_}
+            "score": score, "report": report, "study": study, "perturb": perturb, "import": import_,
+            "export": export}
 
 
 class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):

@@ -8,19 +8,25 @@ files, config.json and report.
 
 from __future__ import annotations
 
+import json
+import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
 from harness.commands.evaluate import evaluate, select_frames
 from harness.data.errors import UserError
+from harness.data.layouts import LAYOUTS, MANIFEST, MANIFEST_FORMAT, from_layout, prediction_candidates, read_map, turn
 from harness.data.names import check_name
-from harness.data.predictions import PredictionMethod, prediction_dir, read_method_info
+from harness.data.outputs import check_output
+from harness.data.predictions import PredictionMethod, prediction_dir, read_method_info, write_prediction
 from harness.runtime.context import IN_PROCESS, RunContext
 from reconstruction.methods.registry import builtin_methods
 
-__all__ = ["PredictionMethod", "prediction_methods", "score"]  # PredictionMethod: harness.data.predictions
+# PredictionMethod: harness.data.predictions
+__all__ = ["PredictionMethod", "prediction_methods", "score", "score_export", "read_manifest", "import_predictions"]
 
 
 def prediction_methods(pred_roots: Sequence[Path], names: Sequence[str] | None = None) -> list[PredictionMethod]:
@@ -101,3 +107,85 @@ def score(pred_roots: Sequence[Path], data_root: Path, out: Path, names: Sequenc
     _check_complete(methods, data_root, scenes)
     return evaluate(data_root, out, methods, scenes, report=report, ctx=ctx,
                     inputs=[Path(r) for r in pred_roots], suite=suite)
+
+
+# ------------------------------------------------------------------------------ predictions in an export's layout
+
+
+def read_manifest(export_dir: Path) -> dict:
+    """``<export_dir>/manifest.json`` (``tri360-export/1``, written by ``tri360 export``).
+
+    Raises:
+        UserError: naming the file: missing, not JSON, another format, an unknown layout.
+    """
+    path = Path(export_dir) / MANIFEST
+    try:
+        raw = json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise UserError(f"{path}: file is missing (--export must be a directory written by tri360 export)") from None
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise UserError(f"{path}: not a readable export manifest ({exc})") from None
+    if not isinstance(raw, dict) or raw.get("format") != MANIFEST_FORMAT or raw.get("layout") not in LAYOUTS \
+            or not isinstance(raw.get("frames"), list):
+        raise UserError(f"{path}: not a {MANIFEST_FORMAT} manifest of a known layout ({', '.join(LAYOUTS)})")
+    return raw
+
+
+def import_predictions(preds: Path, manifest: dict, refs: Sequence, pred_root: Path) -> None:
+    """Convert a method's outputs in the exported layout (``preds``, files named after the exported maps of C:
+    :func:`harness.data.layouts.prediction_candidates`) into ``tri360-pred/1`` under ``pred_root``, one frame per
+    ``refs`` entry (``scene``, ``viewpoint``).  Everything is read and checked before anything is written.
+
+    Raises:
+        UserError: one line naming the culprit: a frame not in the manifest, a missing prediction (the first path
+            looked for), an unreadable file or one of another size than the frame.
+    """
+    layout = LAYOUTS[manifest["layout"]]
+    entries = {(e.get("scene"), e.get("viewpoint")): e for e in manifest["frames"] if isinstance(e, dict)}
+    converted = []
+    for r in refs:
+        e = entries.get((r.scene, r.viewpoint))
+        if e is None:
+            raise UserError(f"{r.path}: frame {r.scene}/{r.viewpoint} is not in the export's manifest")
+        fields = {k: str(v) for k, v in e["fields"].items()}
+        for k in ("scene", "viewpoint", "split"):  # outside names: checked before they become part of a path
+            check_name(fields[k], f"{MANIFEST} ({k})")
+        candidates = prediction_candidates(layout, fields)
+        found = next(((rel, m, enc) for rel, m, enc in candidates if (Path(preds) / rel).is_file()), None)
+        if found is None:
+            raise UserError(f"{Path(preds) / candidates[0][0]}: file is missing: no prediction for frame "
+                            f"{r.scene}/{r.viewpoint} (looked for {', '.join(c[0] for c in candidates)} under {preds})")
+        rel, m, enc = found
+        values = turn(read_map(Path(preds) / rel, enc, int(e["width"]), int(e["height"])), layout.turned)
+        distance = from_layout(m.quantity, values, float(e["baseline_u_m"]))
+        if not np.isfinite(distance).any():
+            raise UserError(f"{Path(preds) / rel}: no pixel holds a valid prediction (all 0, negative or not finite)")
+        converted.append((r, distance))
+    for r, distance in converted:
+        write_prediction(pred_root, r.scene, r.viewpoint, distance)
+
+
+def score_export(preds: Path, export_dir: Path, data_root: Path, out: Path, name: str | None = None,
+                 report: bool = True, ctx: RunContext = IN_PROCESS) -> pd.DataFrame:
+    """Score a method's outputs written in an export's layout (``tri360 score PREDS --export DIR``).
+
+    The outputs are converted to camera C's distance (:func:`import_predictions`) into a temporary
+    ``tri360-pred/1`` root, scored by :func:`score` under the label ``name`` (default: ``preds``' folder name)
+    and the temporary root removed.  ``out`` is checked first (never ``preds``, the export or the data root).
+
+    Raises:
+        UserError: see :func:`read_manifest`, :func:`import_predictions`, :func:`score`.
+    """
+    preds, export_dir, data_root = Path(preds), Path(export_dir), Path(data_root)
+    if not preds.is_dir():
+        raise UserError(f"{preds}: predictions folder does not exist" if not preds.exists()
+                        else f"{preds}: predictions folder is not a directory")
+    manifest = read_manifest(export_dir)
+    label = check_name(name if name is not None else preds.resolve().name,
+                       "--method" if name is not None else f"{preds} (the folder's name; see --method)")
+    check_output(out, "results", [preds, export_dir, data_root])
+    refs = select_frames(data_root)
+    with tempfile.TemporaryDirectory(prefix="tri360-import-") as tmp:
+        root = Path(tmp) / label
+        import_predictions(preds, manifest, refs, root)
+        return score([root], data_root, out, [label], report=report, ctx=ctx)

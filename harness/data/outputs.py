@@ -1,11 +1,12 @@
 """Output locations: what a command may write into, checked before any work; result sets swapped in whole.
 
 **Only what tri360 wrote is ever replaced.**  Every output directory carries a marker, ``.tri360-output.json`` =
-``{"format": "tri360-output/1", "kind": KIND, "entries": [top-level names tri360 wrote]}``, of one of six kinds
-(:data:`KINDS`): ``data`` (a data root of frames: ``render``, ``perturb``, ``import``), ``predictions`` (a
-``tri360-pred/1`` root: ``reconstruct``), ``results`` (a results set: ``evaluate``, ``score``, ``report``),
-``study`` (a grid study: ``study``), ``robustness`` (a robustness study: ``study`` with a robustness study file)
-and ``validation`` (``validate_quality``).  No command replaces another kind's output: a validation is not a
+``{"format": "tri360-output/1", "kind": KIND, "entries": [top-level names tri360 wrote]}``, of one of seven kinds
+(:data:`KINDS`): ``export`` (frames in a learned method's layout: ``export``; only the marker's entries and
+``manifest.json`` are its own), ``data`` (a data root of frames: ``render``, ``perturb``, ``import``),
+``predictions`` (a ``tri360-pred/1`` root: ``reconstruct``), ``results`` (a results set: ``evaluate``, ``score``,
+``report``), ``study`` (a grid study: ``study``), ``robustness`` (a robustness study: ``study`` with a robustness
+study file) and ``validation`` (``validate_quality``).  No command replaces another kind's output: a validation is not a
 study, a grid study not a robustness study.  A marker written when the three shared the kind ``study`` is read by
 content (``robustness.csv`` or robustness points: a robustness study; ``validation.json``/``validation.csv``: a
 validation).
@@ -49,7 +50,7 @@ MARKER = ".tri360-output.json"
 MARKER_FORMAT = "tri360-output/1"
 KINDS = {"data": "data root", "predictions": "predictions root", "results": "results set",
          "study": "grid study directory", "robustness": "robustness study directory",
-         "validation": "quality validation directory"}
+         "validation": "quality validation directory", "export": "export directory"}
 """The kinds of output directory -> what the messages call them."""
 
 #: what ``evaluate``/``score`` and ``report`` write at the top of a results set (directories: not looked into)
@@ -68,6 +69,8 @@ VALIDATION_FILES = frozenset({"validation.csv", "calibration.csv", "validation.j
 OS_LITTER = frozenset({".DS_Store", "Thumbs.db", "desktop.ini"})
 """Folder-view files of macOS / Windows: nobody's data, so they neither make a directory foreign nor non-empty."""
 RESULTS_FORMAT = "tri360-results/1"
+EXPORT_FORMAT = "tri360-export/1"
+"""The ``format`` of an export's ``manifest.json`` (:mod:`harness.data.layouts`)."""
 """The ``format`` of a results set's ``config.json``."""
 
 
@@ -187,6 +190,8 @@ def foreign_entries(path: Path, kind: str, listed: Iterable[str] = ()) -> list[s
                 and not (n in STUDY_DIRS and (path / n).is_dir())]
     if kind == "validation":
         return [n for n in top if n not in listed and not (n in VALIDATION_FILES and (path / n).is_file())]
+    if kind == "export":
+        return [n for n in top if n not in listed and not (n == "manifest.json" and (path / n).is_file())]
     raise ValueError(f"unknown output kind {kind!r}")
 
 
@@ -207,6 +212,8 @@ def output_kind(path: Path) -> str | None:
                                              or (path / "study.csv").is_file()
                                              or (path / "robustness.csv").is_file()):
         return _study_kind(path)
+    if _json_format(path / "manifest.json") == EXPORT_FORMAT:
+        return "export"
     if _json_format(path / "method.json") == PRED_FORMAT:
         return "predictions"
     for a in _entries(path):

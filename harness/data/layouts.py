@@ -1,0 +1,333 @@
+"""The dataset layouts that learned 360-degree stereo methods read, and the conversions to and from tri360's frames.
+
+``tri360 export`` writes frames in these layouts, and ``tri360 score --export`` reads a method's predictions back
+from them.  Each layout is data (:data:`LAYOUTS`: the files per frame, the camera each holds, the quantity and its
+encoding) plus the small functions below; no command logic.  Cameras: C (the reference, whose distance tri360
+scores), U = C + b up, R = C + b right.  The layouts assume parallel cameras (checked by :func:`rig_problem`).
+
+Quantities (each an (H, W) float32 map of camera C unless said otherwise):
+
+- ``distance``: the Euclidean distance along the pixel's ray, metres; what these datasets call "depth" for
+  equirect images (each peer's own code below treats it as the ray distance).  No surface (+inf) is written as 0.
+- ``disparity``: the angular disparity of C's pixel with respect to U, in degrees: the angle at the scene point
+  between the rays from C and from U.  With ``alpha`` the angle of C's ray from the direction to U (the zenith in
+  a vertical pair) and ``b = |U - C|``: ``d = atan2(b sin(alpha), r - b cos(alpha))`` and back
+  ``r = b sin(alpha + d) / sin(d)``.  No surface gives 0, the peers' "invalid".
+
+Layouts, each checked against the peer's own loader (read, not copied):
+
+- ``3d60``: ``Center_Left_Down/<scene>/<viewpoint>_color_0_Left_Down_0.0.png`` (C), ``Right/...Right_0.0.png`` (R),
+  ``Up/...Up_0.0.png`` (U), and ``..._depth_0_<Left_Down|Right|Up>_0.0.exr`` (each camera's distance, float32
+  EXR, one channel ``Y``: OpenCV's ``imread(path, IMREAD_ANYDEPTH)`` returns it exactly, checked), and a file list
+  ``3d60_<split>.txt`` with the six paths per line (``./<scene>/<file>``, colour C R U then depth C R U).  Verified:
+  VCL3D/3D60 ``ThreeD60/common.py`` (placements ``left_down``/``right``/``up``, column order, depth read with
+  ``IMREAD_ANYDEPTH``); Qjizhi/MCPDepth ``dataloader/dataset3D60Loader.py`` (``Center_Left_Down/``, ``Right/``,
+  ``Up/`` prefixes, list entries with a leading ``./``, depth used as the ray distance in its disparity formula,
+  0 = invalid).
+- ``helvipad``: ``<split>/images_bottom/<scene>_IN/<viewpoint>.png`` (C), ``images_top`` (U), ``depth_maps`` (C's
+  distance, 16-bit PNG, metres x 256) and ``disparity_maps`` (C's disparity w.r.t. U, 16-bit PNG, degrees x 2048);
+  0 = invalid, and a value above the 16-bit range (distance >= 256 m, disparity >= 32 degrees) is written as 0.
+  Verified: vita-epfl/Helvipad ``360_igev_stereo/general/stereo_datasets.py`` (folders, ``/256`` and ``/2048``,
+  ``valid = value > 0``, bottom image first, its maps on the bottom image) and ``general/conversion.py`` (depth
+  ``B (sin(theta) / tan(d) - cos(theta))`` with theta from the nadir: the ray distance from the bottom camera, as
+  above).  ``_IN`` makes the sequence filter ``IN`` find the rooms.
+- ``360sd``: ``<split>/image_up/<id>.png``, ``image_down/<id>.png`` and ``disp_up/<id>.npy`` (float32 degrees,
+  0 = invalid).  360SD-Net's disparity lives on the *up* image, whose camera is the one above; tri360 scores C,
+  which is below U.  So both images and the map are turned 180 degrees about the forward axis (rows and columns
+  reversed, an exact permutation of pixel centres): in the turned frame U is straight below C, ``image_up`` is
+  C turned and ``image_down`` U turned.  Verified: albert100121/360SD-Net ``dataloader/filename_loader.py``
+  (folders, ``.npy`` named after the image) and ``utils/disp2de.py`` (depth ``b (sin(theta) / tan(d) +
+  cos(theta))``, theta from the nadir of the up image, d in degrees: the up camera's ray distance).
+
+Left out: Deep360 (its pairs are Cassini-rectified and its stage-2 lists assume four cameras, six pairs).
+
+Assumed, not verified: that a model trained on upright 360SD images does well on turned ones (the turn is exact
+geometry; a model may still prefer upright rooms); the peers' hard-coded sizes (Helvipad's conversion assumes a
+960-row sphere, 360SD-Net's ``disp2de`` 1024 x 512): the layouts hold any W x W/2 frame, and angular disparity
+does not depend on the size.
+"""
+
+from __future__ import annotations
+
+import io
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from harness.data.atomic import atomic_write_bytes
+from harness.data.errors import FrameError, UserError
+from harness.data.exr import read_exr_channels, write_exr_channels
+from harness.data.outputs import EXPORT_FORMAT as MANIFEST_FORMAT
+
+__all__ = ["LAYOUTS", "Layout", "MapFile", "Encoding", "ENCODINGS", "MANIFEST", "MANIFEST_FORMAT", "PARALLEL_TOL_DEG",
+           "zenith_angle", "disparity_from_distance", "distance_from_disparity", "rig_problem", "frame_paths",
+           "read_map", "prediction_candidates", "turn", "to_layout", "from_layout"]
+
+MANIFEST = "manifest.json"
+PARALLEL_TOL_DEG = 0.1
+"""How far (degrees) U - C may be from C's up axis, R - C from its right axis, and U's or R's orientation from C's."""
+
+
+# ------------------------------------------------------------------------------------------------ geometry
+
+
+def zenith_angle(height: int) -> np.ndarray:
+    """(H, 1) float64 radians: each row's angle from the camera's up axis, ``pi (v + 0.5) / H``."""
+    return (math.pi * (np.arange(height, dtype=np.float64) + 0.5) / height)[:, None]
+
+
+def disparity_from_distance(distance: np.ndarray, alpha: np.ndarray, baseline_m: float) -> np.ndarray:
+    """Angular disparity, degrees (H, W) float32, of a reference camera's ray distance ``distance`` (H, W) metres
+    with respect to a second camera ``baseline_m`` away; ``alpha`` (H, 1) or (H, W): each ray's angle (radians)
+    from the direction to that camera.  No surface (+inf), NaN or a distance <= 0 give 0 (invalid)."""
+    r = np.asarray(distance, dtype=np.float64)
+    with np.errstate(invalid="ignore"):
+        good = np.isfinite(r) & (r > 0)
+        d = np.degrees(np.arctan2(baseline_m * np.sin(alpha), np.where(good, r, 1.0) - baseline_m * np.cos(alpha)))
+    return np.where(good, d, 0.0).astype(np.float32)
+
+
+def distance_from_disparity(disparity_deg: np.ndarray, alpha: np.ndarray, baseline_m: float) -> np.ndarray:
+    """Back from :func:`disparity_from_distance`: (H, W) float32 metres; a disparity <= 0, >= 180 or not finite
+    gives NaN (no prediction)."""
+    d = np.radians(np.asarray(disparity_deg, dtype=np.float64))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        good = np.isfinite(d) & (d > 0) & (d < math.pi)
+        r = baseline_m * np.sin(alpha + d) / np.sin(np.where(good, d, 1.0))
+    return np.where(good & (r > 0), r, np.nan).astype(np.float32)
+
+
+def _angle_deg(a: np.ndarray, b: np.ndarray) -> float:
+    cos = float(np.dot(a, b) / (np.linalg.norm(a) * np.linalg.norm(b)))
+    return math.degrees(math.acos(min(1.0, max(-1.0, cos))))
+
+
+def _rotation_deg(a: np.ndarray, b: np.ndarray) -> float:
+    return math.degrees(math.acos(min(1.0, max(-1.0, (float(np.trace(a.T @ b)) - 1.0) / 2.0))))
+
+
+# ------------------------------------------------------------------------------------------------ encodings
+
+
+@dataclass(frozen=True)
+class Encoding:
+    """How a map is stored: file suffix, a writer ``(path, (H, W) float32 in layout units)`` and a reader
+    ``path -> (H, W) float32`` in layout units (0 = invalid as the peers have it)."""
+
+    suffix: str
+    write: Callable[[Path, np.ndarray], None]
+    read: Callable[[Path], np.ndarray]
+
+
+def _write_exr(path: Path, values: np.ndarray) -> None:
+    write_exr_channels(path, {"Y": np.ascontiguousarray(values, dtype=np.float32)})
+
+
+def _read_exr(path: Path) -> np.ndarray:
+    channels = read_exr_channels(path)
+    name = next((c for c in ("Y", "R", "distance", "depth") if c in channels), None)
+    if name is None and len(channels) == 1:
+        name = next(iter(channels))
+    if name is None or channels[name].dtype.kind != "f":
+        raise FrameError(f"{path}: expected one float channel (Y, R, distance or depth), found {sorted(channels)}")
+    return channels[name].astype(np.float32)
+
+
+def _write_npy(path: Path, values: np.ndarray) -> None:
+    buf = io.BytesIO()
+    np.save(buf, np.ascontiguousarray(values, dtype=np.float32), allow_pickle=False)
+    atomic_write_bytes(path, buf.getvalue())
+
+
+def _read_npy(path: Path) -> np.ndarray:
+    try:
+        a = np.load(path, allow_pickle=False)
+    except (OSError, ValueError) as exc:
+        raise FrameError(f"{path}: not a readable .npy array ({exc})") from None
+    a = np.squeeze(np.asarray(a))
+    if a.ndim != 2 or a.dtype.kind not in "fiu":
+        raise FrameError(f"{path}: expected a numeric (H, W) array, got shape {a.shape} {a.dtype}")
+    return a.astype(np.float32)
+
+
+def _png16(scale: float) -> Encoding:
+    """A 16-bit grey PNG holding ``round(value * scale)``; 0 and values beyond 65535 / scale are invalid (0)."""
+
+    def write(path: Path, values: np.ndarray) -> None:
+        v = np.asarray(values, dtype=np.float64) * scale
+        with np.errstate(invalid="ignore"):
+            ok = np.isfinite(v) & (v > 0) & (np.round(v) <= 65535)
+        done, buf = cv2.imencode(".png", np.where(ok, np.round(np.where(ok, v, 0)), 0).astype(np.uint16))
+        if not done:
+            raise FrameError(f"{path}: PNG encoding failed")
+        atomic_write_bytes(path, buf.tobytes())
+
+    def read(path: Path) -> np.ndarray:
+        raw = cv2.imread(str(path), cv2.IMREAD_ANYDEPTH) if path.is_file() else None
+        if raw is None or raw.ndim != 2:
+            raise FrameError(f"{path}: not a readable single-channel PNG")
+        return (raw.astype(np.float64) / scale).astype(np.float32)
+
+    return Encoding(".png", write, read)
+
+
+ENCODINGS = {"exr": Encoding(".exr", _write_exr, _read_exr), "npy": Encoding(".npy", _write_npy, _read_npy),
+             "png-m256": _png16(256.0), "png-deg2048": _png16(2048.0)}
+"""Encoding name -> :class:`Encoding`."""
+_RAW = {".npy": ENCODINGS["npy"], ".exr": ENCODINGS["exr"]}
+"""What a method may write in place of an exported map, besides the map's own encoding (layout units, float)."""
+
+
+# -------------------------------------------------------------------------------------------------- layouts
+
+
+@dataclass(frozen=True)
+class MapFile:
+    """One exported map: ``camera``'s ``quantity`` (``distance`` or ``disparity``), at ``path`` (a template with
+    ``{split}``, ``{scene}``, ``{viewpoint}``, ``{id}``, no suffix) in ``encoding`` (:data:`ENCODINGS`)."""
+
+    camera: str
+    quantity: str
+    path: str
+    encoding: str
+
+
+@dataclass(frozen=True)
+class Layout:
+    """A peer's dataset layout.
+
+    Attributes:
+        name, peer: the ``--format`` value and whose loader reads it.
+        images: camera name -> path template (``.png``).
+        maps: the exported maps; those of camera C are where predictions are read back from.
+        cameras: the cameras the layout uses (their rig is checked: :func:`rig_problem`).
+        turned: every image and map is turned 180 degrees about the forward axis (rows and columns reversed).
+        splits: tri360 split (None: no suite) -> the ``{split}`` folder name.
+        file_list: template of a list file with one line per frame (``line``), or None.
+        line: template of that line.
+    """
+
+    name: str
+    peer: str
+    images: dict[str, str]
+    maps: tuple[MapFile, ...]
+    cameras: tuple[str, ...]
+    turned: bool = False
+    splits: tuple[tuple[str | None, str], ...] = ((None, "test"), ("dev", "val"), ("test", "test"))
+    file_list: str | None = None
+    line: str = ""
+
+    def split_dir(self, split: str | None) -> str:
+        return dict(self.splits)[split]
+
+
+_3D60_NAME = "{viewpoint}_{kind}_0_{place}_0.0"
+_3D60_PLACES = {"C": ("Center_Left_Down", "Left_Down"), "R": ("Right", "Right"), "U": ("Up", "Up")}
+
+
+def _3d60(kind: str, camera: str) -> str:
+    folder, place = _3D60_PLACES[camera]
+    return f"{folder}/{{scene}}/" + _3D60_NAME.replace("{kind}", kind).replace("{place}", place)
+
+
+LAYOUTS = {
+    "3d60": Layout(
+        "3d60", "3D60 (VCL3D/3D60 ThreeD60 loaders; MODE, MCPDepth)",
+        images={c: _3d60("color", c) + ".png" for c in ("C", "R", "U")},
+        maps=tuple(MapFile(c, "distance", _3d60("depth", c), "exr") for c in ("C", "R", "U")),
+        cameras=("C", "U", "R"), file_list="3d60_{split}.txt",
+        line=" ".join([f"./{{scene}}/{_3D60_NAME.format(viewpoint='{viewpoint}', kind=k, place=_3D60_PLACES[c][1])}"
+                       f"{s}" for k, s in (("color", ".png"), ("depth", ".exr")) for c in ("C", "R", "U")])),
+    "helvipad": Layout(
+        "helvipad", "Helvipad (vita-epfl/Helvipad 360-IGEV-Stereo StereoDataset)",
+        images={"C": "{split}/images_bottom/{scene}_IN/{viewpoint}.png",
+                "U": "{split}/images_top/{scene}_IN/{viewpoint}.png"},
+        maps=(MapFile("C", "distance", "{split}/depth_maps/{scene}_IN/{viewpoint}", "png-m256"),
+              MapFile("C", "disparity", "{split}/disparity_maps/{scene}_IN/{viewpoint}", "png-deg2048")),
+        cameras=("C", "U")),
+    "360sd": Layout(
+        "360sd", "360SD-Net (albert100121/360SD-Net filename_loader)",
+        images={"C": "{split}/image_up/{id}.png", "U": "{split}/image_down/{id}.png"},
+        maps=(MapFile("C", "disparity", "{split}/disp_up/{id}", "npy"),),
+        cameras=("C", "U"), turned=True),
+}
+"""``--format`` name -> :class:`Layout`."""
+
+
+def frame_paths(layout: Layout, split: str | None, scene: str, viewpoint: str, index: int) -> dict[str, str]:
+    """The fields of the path templates for one frame: ``split``, ``scene``, ``viewpoint`` and ``id``
+    (``<index:05d>_<scene>_<viewpoint>``, unique in a flat folder)."""
+    return {"split": layout.split_dir(split), "scene": scene, "viewpoint": viewpoint,
+            "id": f"{index:05d}_{scene}_{viewpoint}"}
+
+
+def rig_problem(layout: Layout, cameras: dict, tol_deg: float = PARALLEL_TOL_DEG) -> str | None:
+    """Why ``cameras`` (name -> ``CameraPose``) cannot be written in ``layout``, or None: U not straight above C
+    along C's up axis, R not straight right of C along its right axis (for layouts that use R), or U's or R's
+    orientation not C's, each within ``tol_deg`` degrees."""
+    c = cameras["C"]
+    axes = {"U": (2, "above"), "R": (0, "right of")}
+    for name in layout.cameras:
+        if name == "C":
+            continue
+        axis, where = axes[name]
+        off = _angle_deg(cameras[name].position - c.position, c.rotation[:, axis])
+        if off > tol_deg:
+            return f"{name} is not straight {where} C ({off:.3g} degrees off C's axis, tolerance {tol_deg:g})"
+        turned = _rotation_deg(cameras[name].rotation, c.rotation)
+        if turned > tol_deg:
+            return (f"{name} is turned {turned:.3g} degrees from C (the layout assumes parallel cameras, tolerance "
+                    f"{tol_deg:g})")
+    return None
+
+
+def turn(a: np.ndarray, turned: bool) -> np.ndarray:
+    """``a`` (H, W, ...) turned 180 degrees about the forward axis (rows and columns reversed) if ``turned``."""
+    return np.ascontiguousarray(a[::-1, ::-1]) if turned else a
+
+
+def to_layout(quantity: str, distance: np.ndarray, baseline_u: float) -> np.ndarray:
+    """C's (or any camera's) distance (H, W) metres -> the layout's map of ``quantity`` (0 = invalid)."""
+    if quantity == "distance":
+        d = np.asarray(distance, dtype=np.float32)
+        return np.where(np.isfinite(d) & (d > 0), d, 0).astype(np.float32)
+    return disparity_from_distance(distance, zenith_angle(distance.shape[0]), baseline_u)
+
+
+def from_layout(quantity: str, values: np.ndarray, baseline_u: float) -> np.ndarray:
+    """A layout's map of ``quantity`` -> distance (H, W) float32 metres, NaN where invalid (<= 0, not finite)."""
+    if quantity == "distance":
+        v = np.asarray(values, dtype=np.float32)
+        with np.errstate(invalid="ignore"):
+            return np.where(np.isfinite(v) & (v > 0), v, np.nan).astype(np.float32)
+    return distance_from_disparity(values, zenith_angle(values.shape[0]), baseline_u)
+
+
+def prediction_candidates(layout: Layout, fields: dict[str, str]) -> list[tuple[str, MapFile, Encoding]]:
+    """Where a method's prediction for one frame may be, in order: for each map of C, its own encoding, then
+    ``.npy`` and ``.exr`` (float, layout units).  -> ``[(relative path, map, encoding)]``."""
+    out = []
+    for m in layout.maps:
+        if m.camera != "C":
+            continue
+        base = m.path.format(**fields)
+        own = ENCODINGS[m.encoding]
+        for enc in (own, *(e for s, e in _RAW.items() if s != own.suffix)):
+            out.append((base + enc.suffix, m, enc))
+    return out
+
+
+def read_map(path: Path, encoding: Encoding, width: int, height: int) -> np.ndarray:
+    """One map in layout units -> (H, W) float32.
+
+    Raises:
+        UserError: naming ``path``: unreadable, or not ``width`` x ``height``.
+    """
+    values = encoding.read(path)
+    if values.shape != (height, width):
+        raise UserError(f"{path}: size {values.shape[1]}x{values.shape[0]} != the frame's {width}x{height}")
+    return values
