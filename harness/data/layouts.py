@@ -21,16 +21,19 @@ Layouts, each checked against the peer's own loader (read, not copied):
   EXR, one channel ``Y``: OpenCV's ``imread(path, IMREAD_ANYDEPTH)`` returns it exactly, checked), and a file list
   ``3d60_<split>.txt`` with the six paths per line (``./<scene>/<file>``, colour C R U then depth C R U).  Verified:
   VCL3D/3D60 ``ThreeD60/common.py`` (placements ``left_down``/``right``/``up``, column order, depth read with
-  ``IMREAD_ANYDEPTH``); Qjizhi/MCPDepth ``dataloader/dataset3D60Loader.py`` (``Center_Left_Down/``, ``Right/``,
+  ``IMREAD_ANYDEPTH``; its loader reads only lists whose paths name one of its three source datasets, so it
+  reads an export through a rewritten list); Qjizhi/MCPDepth ``dataloader/dataset3D60Loader.py`` (``Center_Left_Down/``, ``Right/``,
   ``Up/`` prefixes, list entries with a leading ``./``, depth used as the ray distance in its disparity formula,
   0 = invalid).
-- ``helvipad``: ``<split>/images_bottom/<scene>_IN/<viewpoint>.png`` (C), ``images_top`` (U), ``depth_maps`` (C's
+- ``helvipad``: ``<split>/images_bottom/<scene>_IN/<viewpoint>.jpg`` (C; PNG-encoded, lossless, under the ``.jpg``
+  name Helvipad's loader opens), ``images_top`` (U), ``depth_maps`` (C's
   distance, 16-bit PNG, metres x 256) and ``disparity_maps`` (C's disparity w.r.t. U, 16-bit PNG, degrees x 2048);
   0 = invalid, and a value above the 16-bit range (distance >= 256 m, disparity >= 32 degrees) is written as 0.
   Verified: vita-epfl/Helvipad ``360_igev_stereo/general/stereo_datasets.py`` (folders, ``/256`` and ``/2048``,
-  ``valid = value > 0``, bottom image first, its maps on the bottom image) and ``general/conversion.py`` (depth
-  ``B (sin(theta) / tan(d) - cos(theta))`` with theta from the nadir: the ray distance from the bottom camera, as
-  above).  ``_IN`` makes the sequence filter ``IN`` find the rooms.
+  ``valid = value > 0``, bottom image first, its maps on the bottom image, image names ``.jpg``) and
+  ``general/conversion.py`` (the ray distance from the bottom camera, theta from the nadir: its docstring's corrected
+  ``B (sin(theta) / tan(d) - cos(theta))``, which the exported disparity follows; the code at commit 284fc1c still
+  has ``+ cos(theta)``).  ``_IN`` makes the sequence filter ``IN`` find the rooms.
 - ``360sd``: ``<split>/image_up/<id>.png``, ``image_down/<id>.png`` and ``disp_up/<id>.npy`` (float32 degrees,
   0 = invalid).  360SD-Net's disparity lives on the *up* image, whose camera is the one above; tri360 scores C,
   which is below U.  So both images and the map are turned 180 degrees about the forward axis (rows and columns
@@ -244,8 +247,10 @@ LAYOUTS = {
                        f"{s}" for k, s in (("color", ".png"), ("depth", ".exr")) for c in ("C", "R", "U")])),
     "helvipad": Layout(
         "helvipad", "Helvipad (vita-epfl/Helvipad 360-IGEV-Stereo StereoDataset)",
-        images={"C": "{split}/images_bottom/{scene}_IN/{viewpoint}.png",
-                "U": "{split}/images_top/{scene}_IN/{viewpoint}.png"},
+        # Helvipad's loader opens <viewpoint>.jpg (it derives the image names from the maps' .png names); the images
+        # are written losslessly, PNG-encoded under that name (PIL and OpenCV read by content, not by name)
+        images={"C": "{split}/images_bottom/{scene}_IN/{viewpoint}.jpg",
+                "U": "{split}/images_top/{scene}_IN/{viewpoint}.jpg"},
         maps=(MapFile("C", "distance", "{split}/depth_maps/{scene}_IN/{viewpoint}", "png-m256"),
               MapFile("C", "disparity", "{split}/disparity_maps/{scene}_IN/{viewpoint}", "png-deg2048")),
         cameras=("C", "U")),

@@ -45,7 +45,7 @@ EXPECTED = {  # format -> the files of frame synthetic_box/vp000 (index 0), rela
              "Center_Left_Down/synthetic_box/vp000_depth_0_Left_Down_0.0.exr",
              "Right/synthetic_box/vp000_color_0_Right_0.0.png", "Right/synthetic_box/vp000_depth_0_Right_0.0.exr",
              "Up/synthetic_box/vp000_color_0_Up_0.0.png", "Up/synthetic_box/vp000_depth_0_Up_0.0.exr"],
-    "helvipad": ["test/images_bottom/synthetic_box_IN/vp000.png", "test/images_top/synthetic_box_IN/vp000.png",
+    "helvipad": ["test/images_bottom/synthetic_box_IN/vp000.jpg", "test/images_top/synthetic_box_IN/vp000.jpg",
                  "test/depth_maps/synthetic_box_IN/vp000.png", "test/disparity_maps/synthetic_box_IN/vp000.png"],
     "360sd": ["test/image_up/00000_synthetic_box_vp000.png", "test/image_down/00000_synthetic_box_vp000.png",
               "test/disp_up/00000_synthetic_box_vp000.npy"],
@@ -169,3 +169,15 @@ def test_bad_inputs_are_one_line(data, tmp_path, capsys):
     err = _one_line_exit2(capsys, ["score", tmp_path / "small", "--export", tmp_path / "nothing", "--data", root,
                                    "--out", tmp_path / "r3"])
     assert "manifest.json" in err
+
+
+@pytest.mark.parametrize("fmt", sorted(LAYOUTS))
+def test_images_are_written_losslessly_under_the_names_the_peer_opens(data, tmp_path, fmt):
+    root, frame = data
+    assert main([*map(str, ["export", root, "--format", fmt, "--out", tmp_path / "x"])]) == 0
+    for cam, template in LAYOUTS[fmt].images.items():
+        rel = template.format(split="test", scene=frame.scene, viewpoint=frame.viewpoint,
+                              id=f"00000_{frame.scene}_{frame.viewpoint}")
+        img = cv2.cvtColor(cv2.imread(str(tmp_path / "x" / rel), cv2.IMREAD_COLOR), cv2.COLOR_BGR2RGB)
+        want = frame.images[cam][::-1, ::-1] if LAYOUTS[fmt].turned else frame.images[cam]
+        np.testing.assert_array_equal(img, want)  # uint8: lossless means equal
