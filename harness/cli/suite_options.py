@@ -26,7 +26,7 @@ def suite_choice(args) -> tuple[Path, str] | None:
             raise UserError("--split needs --suite FILE")
         return None
     if args.split is None:
-        raise UserError(f"--suite {args.suite} needs --split ({' or '.join(SPLITS)})")
+        raise UserError(f"--suite {args.suite} needs --split ({', '.join(SPLITS[:-1])} or {SPLITS[-1]})")
     return args.suite, args.split
 
 

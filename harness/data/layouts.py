@@ -22,9 +22,9 @@ Layouts, each checked against the peer's own loader (read, not copied):
   ``3d60_<split>.txt`` with the six paths per line (``./<scene>/<file>``, colour C R U then depth C R U).  Verified:
   VCL3D/3D60 ``ThreeD60/common.py`` (placements ``left_down``/``right``/``up``, column order, depth read with
   ``IMREAD_ANYDEPTH``; its loader reads only lists whose paths name one of its three source datasets, so it
-  reads an export through a rewritten list); Qjizhi/MCPDepth ``dataloader/dataset3D60Loader.py`` (``Center_Left_Down/``, ``Right/``,
-  ``Up/`` prefixes, list entries with a leading ``./``, depth used as the ray distance in its disparity formula,
-  0 = invalid).
+  reads an export through a rewritten list); Qjizhi/MCPDepth ``dataloader/dataset3D60Loader.py``
+  (``Center_Left_Down/``, ``Right/``, ``Up/`` prefixes, list entries with a leading ``./``, depth used as the ray
+  distance in its disparity formula, 0 = invalid).
 - ``helvipad``: ``<split>/images_bottom/<scene>_IN/<viewpoint>.jpg`` (C; PNG-encoded, lossless, under the ``.jpg``
   name Helvipad's loader opens), ``images_top`` (U), ``depth_maps`` (C's
   distance, 16-bit PNG, metres x 256) and ``disparity_maps`` (C's disparity w.r.t. U, 16-bit PNG, degrees x 2048);
@@ -220,7 +220,8 @@ class Layout:
     maps: tuple[MapFile, ...]
     cameras: tuple[str, ...]
     turned: bool = False
-    splits: tuple[tuple[str | None, str], ...] = ((None, "test"), ("dev", "val"), ("test", "test"))
+    splits: tuple[tuple[str | None, str], ...] = ((None, "test"), ("dev", "val"), ("test", "test"),
+                                                  ("train", "train"))
     file_list: str | None = None
     line: str = ""
 

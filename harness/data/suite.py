@@ -1,4 +1,5 @@
-"""Benchmark suites (``tri360-suite/1``): a versioned TOML file that lists frames by recipe, split into dev/test.
+"""Benchmark suites (``tri360-suite/1``): a versioned TOML file that lists frames by recipe, split into dev, test
+and train.
 
 A suite file ``suites/<name>.toml`` (format and rationale: ``docs/suites.md``)::
 
@@ -15,7 +16,7 @@ A suite file ``suites/<name>.toml`` (format and rationale: ``docs/suites.md``)::
     preset = "lecture"          # optional: the family's default preset
     seed = 101                  # scene layout, viewpoint draw and render noise (as `tri360 render --seed`)
     viewpoints = 2
-    split = "dev"               # "dev" or "test"
+    split = "dev"               # "dev", "test" or "train" (:data:`SPLITS`)
     name = "classroom-lecture-s101"   # optional: the scene directory of its frames (default shown)
     params = { rows = 5 }       # optional: scene parameter overrides (the family's declared parameters, of their types)
     renderer = "cycles"         # optional: the family's default renderer
@@ -42,6 +43,7 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
+import itertools
 import json
 import math
 import tomllib
@@ -64,7 +66,9 @@ __all__ = ["FORMAT", "SPLITS", "IDEAL", "SuiteRig", "SuiteEntry", "SuiteFrame", 
            "told_rig_problem"]
 
 FORMAT = "tri360-suite/1"
-SPLITS = ("dev", "test")
+SPLITS = ("dev", "test", "train")
+"""dev: choose defaults; test: report once; train: train learned methods (``suites/tri360-train-v1.toml``).
+No two splits of a suite share a seed."""
 TOP_KEYS = ("format", "name", "description", "render", "frames", "conditions")
 IDEAL = "ideal"
 """The condition of the rendered frames themselves: three identical, perfectly exposed cameras."""
@@ -450,7 +454,7 @@ def load_suite(path: Path, render_defaults: Mapping, scenes: dict[str, SceneEntr
     Raises:
         UserError: one line naming the file and the key: unreadable file, bad TOML, wrong format, unknown key,
             wrong type, unknown family/preset/parameter, a scene parameter of the wrong type or out of range,
-            duplicate frame names, a group named like another group's twin directory, a seed used by both splits,
+            duplicate frame names, a group named like another group's twin directory, a seed used by two splits,
             or a condition whose calibration error could make an impossible told rig (:func:`told_rig_problem`).
     """
     path = Path(path)
@@ -490,11 +494,13 @@ def load_suite(path: Path, render_defaults: Mapping, scenes: dict[str, SceneEntr
                                              "would share a directory); give one a distinct name")
         seen[e.name] = i
     seeds = {s: {e.seed for e in entries if e.split == s} for s in SPLITS}
-    shared = sorted(seeds["dev"] & seeds["test"])
-    if shared:
-        i = next(i for i, e in enumerate(entries) if e.split == "test" and e.seed == shared[0])
-        _fail(path, f"frames[{i}] seed", f"seed {shared[0]} is used by both splits (dev and test must share no "
-                                         f"seed{'; also ' + ', '.join(map(str, shared[1:])) if shared[1:] else ''})")
+    for a, b in itertools.combinations(SPLITS, 2):
+        shared = sorted(seeds[a] & seeds[b])
+        if shared:
+            i = next(i for i, e in enumerate(entries) if e.split == b and e.seed == shared[0])
+            also = f"; also {', '.join(map(str, shared[1:]))}" if shared[1:] else ""
+            _fail(path, f"frames[{i}] seed", f"seed {shared[0]} is used by both splits {a} and {b} (no two splits "
+                                             f"may share a seed{also})")
     raw_conditions = raw.get("conditions", {})
     if not isinstance(raw_conditions, dict):
         _fail(path, "conditions", "must be a table of [conditions.<name>] tables")

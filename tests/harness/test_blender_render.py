@@ -235,7 +235,7 @@ def test_cli_unwritable_output_and_failing_scene(tmp_path, capsys, monkeypatch):
         raise ZeroDivisionError("bad layout")
 
     fake = {"broken": SceneEntry(name="broken", build=broken, source="scenes/broken.py")}
-    monkeypatch.setattr("scenes.registry._registry", lambda: Registry(entries=fake))
+    monkeypatch.setattr("scenes.registry.scene_registry", lambda: Registry(entries=fake))
     assert main(["render", "--scene", "broken", "--out", str(tmp_path), "--quiet"]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "scene 'broken' (scenes/broken.py) failed to build" in err

@@ -106,7 +106,7 @@ def test_load_a_suite(mini):
     (lambda t: t.replace('family = "box_room"', 'family = "box_room"\npreset = "huge"'),
      r"frames\[1\] \(box_room\) preset: unknown preset 'huge'"),
     (lambda t: t.replace('seed = 21', 'seed = 12'), r"frames\[2\] seed: seed 12 is used by both"),
-    (lambda t: t.replace('split = "test"', 'split = "train"'), r"split: must be one of dev, test, got 'train'"),
+    (lambda t: t.replace('split = "test"', 'split = "val"'), r"split: must be one of dev, test, train, got 'val'"),
     (lambda t: t.replace('seed = 21', 'seed = 11\nname = "synthetic_box-s11"').replace('split = "test"',
                                                                                        'split = "dev"'),
      r"frames\[2\] name: 'synthetic_box-s11' is also the name of frames\[0\]"),
@@ -452,3 +452,92 @@ def test_score_suite_scores_predictions_on_the_split(rendered, tmp_path, capsys)
     assert results["mae_m"].to_numpy() == pytest.approx(0.1, abs=1e-5)  # float32 maps
     assert results["mae_sw_m"].to_numpy() == pytest.approx(0.1, abs=1e-5)
     assert json.loads((out / "config.json").read_text())["suite"]["name"] == "mini"
+
+
+SUITES = Path(__file__).resolve().parents[2] / "suites"
+TRAIN = SUITES / "tri360-train-v1.toml"
+V1_DEV_FAMILIES = {"classroom", "seminar", "lab", "corridor", "office", "library", "lecture_hall"}
+
+
+def test_the_training_suite_is_well_formed_and_its_id_stable():
+    """suites/tri360-train-v1.toml: only a train split of 2816 frames (352 groups of 8 viewpoints), tri360-v1's seven
+    dev families and no living_room, every preset of each under 4 rigs and 4 seeds, 512x256 at 12 samples."""
+    scenes = discover()[0]
+    suite = load_suite(TRAIN, DEFAULTS_DICT, scenes)
+    assert suite.name == "tri360-train-v1" and suite.splits() == ["train"] and not suite.conditions
+    frames = suite.frames("train")
+    assert len(frames) == 2816 and len(suite.entries) == 352 and {e.viewpoints for e in suite.entries} == {8}
+    assert {e.family for e in suite.entries} == V1_DEV_FAMILIES
+    for family in V1_DEV_FAMILIES:
+        groups = [e for e in suite.entries if e.family == family]
+        assert {e.preset for e in groups} == set(scenes[family].presets), family
+        for preset in scenes[family].presets:
+            rigs = [e.rig for e in groups if e.preset == preset]
+            assert len(rigs) == 16 and len(set(rigs)) == 4, (family, preset)  # 4 rigs x 4 seeds
+    assert len({e.seed for e in suite.entries}) == 352
+    assert suite.render["width"] == 512 and suite.render["samples"] == 12 and suite.render["denoise"]
+    # stable: the same id from a second load, and it is the hash of the file, the code versions and the settings
+    assert suite.id == load(TRAIN).id == suite_id(TRAIN.read_bytes(), suite.code_versions, suite.render)
+    with pytest.raises(UserError, match=r"split 'dev' has no frames"):
+        suite.frames("dev")
+
+
+def test_no_training_seed_is_a_dev_or_test_seed_of_any_published_suite():
+    """Every suite file under suites/ (read as TOML: no registry needed): the seeds of every train group are none of
+    the seeds of any dev or test group of any suite file."""
+    files = sorted(SUITES.glob("*.toml"))
+    groups = [(f.name, g) for f in files for g in tomllib.loads(f.read_text(encoding="utf-8"))["frames"]]
+    train = {(name, g["seed"]) for name, g in groups if g["split"] == "train"}
+    held_out = {(name, g["seed"]) for name, g in groups if g["split"] in ("dev", "test")}
+    assert TRAIN.name in {name for name, _ in train} and {"tri360-v1.toml", "tri360-v2.toml"} <= {
+        name for name, _ in held_out}
+    clashes = sorted((a, b, s) for a, s in train for b, t in held_out if s == t)
+    assert not clashes, f"train seeds that are dev or test seeds: {clashes[:5]}"
+
+
+def test_the_training_suite_plans_its_first_group():
+    """Its first group builds and places its 8 rigs (the whole split plans too: 2816 frames, about 6 minutes)."""
+    suite = load(TRAIN)
+    first = dataclasses.replace(suite, entries=suite.entries[:1])
+    planned = plan(first, "train")
+    assert [p.frame.label for p in planned] == [f"classroom-s30000/vp{i:03d}" for i in range(8)]
+    assert {(p.settings.width, p.settings.samples, p.settings.seed) for p in planned} == {(512, 12, 30000)}
+    assert len({tuple(p.rig.position) for p in planned}) == 8
+
+
+TRAIN_GROUP = """
+[[frames]]
+family = "box_room"
+renderer = "raycast"
+seed = {seed}
+viewpoints = 2
+split = "train"
+"""
+
+
+def test_a_train_split_renders_resumably_and_shares_no_seed(tmp_path, mini, capsys):
+    """`render --suite --split train` on a train group (ray-cast): rendered, then a rerun renders nothing; a train
+    seed that is also a dev seed is refused; a suite without train frames refuses --split train in one line; the split
+    exports into a layout's train folder."""
+    path = write(tmp_path, MINI.format(width=64) + TRAIN_GROUP.format(seed=31), "train.toml")
+    assert load(path).splits() == ["dev", "test", "train"]
+    root = tmp_path / "data"
+    assert main(["render", "--suite", str(path), "--split", "train", "--out", str(root), "--quiet"]) == 0
+    assert sorted(p.parent.relative_to(root).as_posix() for p in root.rglob("frame.json")) == [
+        "box_room-s31/vp000", "box_room-s31/vp001"]
+    first = _frame_files(root)
+    assert main(["render", "--suite", str(path), "--split", "train", "--out", str(root), "--quiet"]) == 0
+    assert _frame_files(root) == first
+    assert [r.scene for r in check_suite_data(load(path), "train", root)] == ["box_room-s31"] * 2
+    capsys.readouterr()
+    shared = write(tmp_path, MINI.format(width=64) + TRAIN_GROUP.format(seed=11), "shared.toml")
+    err = _refused(capsys, ["render", "--suite", str(shared), "--split", "train", "--out", str(tmp_path / "x")])
+    assert "frames[3] seed: seed 11 is used by both splits dev and train" in err and str(shared) in err
+    err = _refused(capsys, ["render", "--suite", str(mini), "--split", "train", "--out", str(tmp_path / "x")])
+    assert f"{mini}: split 'train' has no frames" in err
+    assert not (tmp_path / "x").exists()
+    # what the training split is for: a learned method's layout, in its train folder
+    assert main(["export", str(root), "--suite", str(path), "--split", "train", "--format", "helvipad", "--out",
+                 str(tmp_path / "exp")]) == 0
+    assert sorted(p.name for p in (tmp_path / "exp" / "train" / "images_bottom").rglob("*.jpg")) == [
+        "vp000.jpg", "vp001.jpg"]

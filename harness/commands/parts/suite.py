@@ -243,7 +243,7 @@ def render_suite(path: Path, split: str, out_root: Path, threads: int = DEFAULTS
     suite file before any scene is built.
 
     Args:
-        path: the suite file.  split: ``"dev"`` or ``"test"``.
+        path: the suite file.  split: ``"dev"``, ``"test"`` or ``"train"`` (:data:`harness.data.suite.SPLITS`).
         out_root: the data root (one per split: ``evaluate --suite`` wants exactly the split's frames in it).
         threads: Cycles threads, 0 = all (a machine setting, not part of the suite).
         force: re-render complete frames whatever they were rendered with.
