@@ -91,4 +91,6 @@ def test_example_never_reads_ground_truth(data_root, tmp_path):
             rel = Path("synthetic_box") / f"vp{vp:03d}" / f"{name}.exr"
             a = read_exr_channels(tmp_path / "with_gt" / rel)[name]
             b = read_exr_channels(tmp_path / "without_gt" / rel)[name]
-            np.testing.assert_array_equal(a, b)
+            # two processes: float32 metres / confidence in [0, 1] to ~8 float32 ulps, not bit for bit (another
+            # process may round otherwise, e.g. with other thread counts); reading the ground truth changes regions
+            np.testing.assert_allclose(b, a, rtol=1e-6, atol=0, err_msg=f"{rel}")

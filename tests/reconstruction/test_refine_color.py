@@ -85,12 +85,15 @@ def test_colour_jacobian_matches_finite_differences():
 
 
 def test_all_pixels_and_an_index_give_the_same_rows():
+    """The rows of an indexed call are those of the call over all pixels, to a few ulps: numpy's vectorised
+    trigonometry (the projection) may take another SIMD path for 4 elements than for 200, so the last bits may
+    differ (by 1.5e-15 on an Intel Xeon); a wrong or shifted row differs by O(0.1) or more."""
     problem, d_true = _problem(1, 3, seed=2)
     r_all, j_all = problem.residuals(d_true)
     idx = np.array([7, 3, 150, 21])
     r_idx, j_idx = problem.residuals(d_true[idx], idx)
-    np.testing.assert_array_equal(r_idx, r_all[idx])
-    np.testing.assert_array_equal(j_idx, j_all[idx])
+    np.testing.assert_allclose(r_idx, r_all[idx], rtol=0, atol=1e-12)  # pixel equivalents, values O(1)
+    np.testing.assert_allclose(j_idx, j_all[idx], rtol=1e-12, atol=1e-9)  # per metre, values up to ~1e2
 
 
 def test_a_nan_distance_gives_nan_residuals_not_a_crash():
@@ -103,6 +106,8 @@ def test_a_nan_distance_gives_nan_residuals_not_a_crash():
     r_ok, _ = problem.residuals(d_true)
     n_geo = len(problem.pairs)
     assert np.isnan(r[4, n_geo:]).all() and np.isnan(j[4, n_geo:]).all()
-    np.testing.assert_array_equal(np.delete(r, 4, axis=0), np.delete(r_ok, 4, axis=0))
+    # the others to a few ulps (pixel equivalents, values O(1)): a NaN may send its SIMD block of numpy's
+    # trigonometry down another path; a pixel corrupted by the NaN would be NaN or off by O(0.1)
+    np.testing.assert_allclose(np.delete(r, 4, axis=0), np.delete(r_ok, 4, axis=0), rtol=0, atol=1e-12)
     cost, _, _ = problem.normal_terms(d)
     assert np.isnan(cost[4]) and np.isfinite(np.delete(cost, 4)).all()
