@@ -10,7 +10,7 @@ from harness.commands.export import export
 from harness.commands.parts.suite import check_suite_data, load
 from harness.data.layouts import LAYOUTS
 
-HELP = "write frames in the dataset layout a learned 360 stereo method reads (3D60, Helvipad, 360SD-Net)"
+HELP = "write frames in the dataset layout a learned 360 stereo method reads (3D60, Helvipad, 360SD-Net, Deep360)"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

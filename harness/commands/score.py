@@ -18,7 +18,16 @@ import pandas as pd
 
 from harness.commands.evaluate import evaluate, select_frames
 from harness.data.errors import UserError
-from harness.data.layouts import LAYOUTS, MANIFEST, MANIFEST_FORMAT, from_layout, prediction_candidates, read_map, turn
+from harness.data.layouts import (
+    LAYOUTS,
+    MANIFEST,
+    MANIFEST_FORMAT,
+    from_layout,
+    from_rectified,
+    prediction_candidates,
+    read_map,
+    turn,
+)
 from harness.data.names import check_name
 from harness.data.outputs import check_output
 from harness.data.predictions import PredictionMethod, prediction_dir, read_method_info, write_prediction
@@ -156,8 +165,12 @@ def import_predictions(preds: Path, manifest: dict, refs: Sequence, pred_root: P
             raise UserError(f"{Path(preds) / candidates[0][0]}: file is missing: no prediction for frame "
                             f"{r.scene}/{r.viewpoint} (looked for {', '.join(c[0] for c in candidates)} under {preds})")
         rel, m, enc = found
-        values = turn(read_map(Path(preds) / rel, enc, int(e["width"]), int(e["height"])), layout.turned)
-        distance = from_layout(m.quantity, values, float(e["baseline_u_m"]))
+        if m.partner:  # a Cassini map of C's pair with m.partner: W rows x H columns, resampled back to C's grid
+            values = read_map(Path(preds) / rel, enc, int(e["height"]), int(e["width"]))
+            distance = from_rectified(m.quantity, values, m.partner, float(e[f"baseline_{m.partner.lower()}_m"]))
+        else:
+            values = turn(read_map(Path(preds) / rel, enc, int(e["width"]), int(e["height"])), layout.turned)
+            distance = from_layout(m.quantity, values, float(e["baseline_u_m"]))
         if not np.isfinite(distance).any():
             raise UserError(f"{Path(preds) / rel}: no pixel holds a valid prediction (all 0, negative or not finite)")
         converted.append((r, distance))

@@ -42,7 +42,21 @@ Layouts, each checked against the peer's own loader (read, not copied):
   (folders, ``.npy`` named after the image) and ``utils/disp2de.py`` (depth ``b (sin(theta) / tan(d) +
   cos(theta))``, theta from the nadir of the up image, d in degrees: the up camera's ray distance).
 
-Left out: Deep360 (its pairs are Cassini-rectified and its stage-2 lists assume four cameras, six pairs).
+- ``deep360``: MODE's stage 1 (stereo matching on Cassini-rectified pairs), two pairs per frame:
+  ``ep1_500frames/<split>/rgb/<id>_12_rgb1.png`` (C) and ``_12_rgb2.png`` (R): the pair C-R; ``_13_rgb1.png`` (C)
+  and ``_13_rgb3.png`` (U): the pair C-U; ``disp/<id>_12_disp.npz``, ``disp/<id>_13_disp.npz`` (C's disparity in
+  Cassini pixels w.r.t. R, U; ``np.savez``, key ``arr_0``) and ``depth/<id>_depth.npz`` (C's distance in the C-R
+  pair's Cassini frame).  A Cassini image of an H-row frame is W = 2H rows (angle about the baseline, theta = pi -
+  2 pi (i + 0.5) / W) by H columns (phi = pi/2 - pi (j + 0.5) / H from the plane normal to the baseline); the
+  bearing is ``(sin phi, cos phi sin theta, cos phi cos theta)``, the partner camera at -x.  Disparity ``d`` px:
+  the partner sees the point at ``phi + d pi / H``, distance ``b cos(phi + d pi / H) / sin(d pi / H)``; 0 = no
+  surface (far), NaN = no ground truth.  Verified: nju-ee/MODE-2022 ``dataloader/list_file.py`` (folders
+  ``ep1..ep6_500frames/<training|validation|testing>/<rgb|disp|depth>``, pairs found by sorting names: left =
+  name ``2i``, right ``2i + 1``, disparity ``i``), ``dataloader/deep360_loader.py`` (npz ``arr_0``, resize to 512 x
+  1024 with the disparity scaled by the width ratio) and ``save_output_disparity_stage.py`` ``disp2depth`` (the
+  Cassini angles, the distance formula, the pair from the disparity file's name).  The images and maps are
+  resampled from C's, R's and U's equirect frames (bilinear; nearest where a neighbour has no value), so they are
+  not exact: see docs/learned.md.  Stage 2 (fusion) needs four cameras and six pairs: not exported.
 
 Assumed, not verified: that a model trained on upright 360SD images does well on turned ones (the turn is exact
 geometry; a model may still prefer upright rooms); the peers' hard-coded sizes (Helvipad's conversion assumes a
@@ -65,10 +79,13 @@ from harness.data.atomic import atomic_write_bytes
 from harness.data.errors import FrameError, UserError
 from harness.data.exr import read_exr_channels, write_exr_channels
 from harness.data.outputs import EXPORT_FORMAT as MANIFEST_FORMAT
+from reconstruction.camera.equirect import bearing_grid, bearing_to_pixel
+from reconstruction.camera.resample import sample_equirect
 
 __all__ = ["LAYOUTS", "Layout", "MapFile", "Encoding", "ENCODINGS", "MANIFEST", "MANIFEST_FORMAT", "PARALLEL_TOL_DEG",
            "zenith_angle", "disparity_from_distance", "distance_from_disparity", "rig_problem", "frame_paths",
-           "read_map", "prediction_candidates", "turn", "to_layout", "from_layout"]
+           "read_map", "prediction_candidates", "turn", "to_layout", "from_layout", "RectifiedImage",
+           "CASSINI_FROM_CAMERA", "cassini_bearings", "to_cassini", "from_cassini", "to_rectified", "from_rectified"]
 
 MANIFEST = "manifest.json"
 PARALLEL_TOL_DEG = 0.1
@@ -111,6 +128,84 @@ def _angle_deg(a: np.ndarray, b: np.ndarray) -> float:
 
 def _rotation_deg(a: np.ndarray, b: np.ndarray) -> float:
     return math.degrees(math.acos(min(1.0, max(-1.0, (float(np.trace(a.T @ b)) - 1.0) / 2.0))))
+
+
+CASSINI_FROM_CAMERA = {
+    "R": np.array([[-1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, 1.0, 0.0]]),
+    "U": np.array([[0.0, -1.0, 0.0], [0.0, 0.0, 1.0], [-1.0, 0.0, 0.0]]),
+}
+"""Partner -> (3, 3) camera-from-Cassini rotation of C's pair with that partner (columns: the Cassini x, y, z axes in
+C's camera frame, X right, Y forward, Z up).  The partner is at -x (MODE's ``disp2depth``), z is forward; C-R:
+x left, y up; C-U: x down, y left."""
+
+
+def cassini_bearings(width: int) -> tuple[np.ndarray, np.ndarray]:
+    """The Cassini grid of a W x W/2 equirect frame: W rows, W/2 columns.  -> (bearings (W, W/2, 3) in the Cassini
+    frame, phi (1, W/2) radians: each column's angle from the plane normal to the baseline, + toward x)."""
+    h = width // 2
+    theta = (math.pi - 2.0 * math.pi * (np.arange(width, dtype=np.float64) + 0.5) / width)[:, None]
+    phi = (0.5 * math.pi - math.pi * (np.arange(h, dtype=np.float64) + 0.5) / h)[None, :]
+    return np.stack(np.broadcast_arrays(np.sin(phi), np.cos(phi) * np.sin(theta), np.cos(phi) * np.cos(theta)),
+                    axis=-1), phi
+
+
+def _sample(image: np.ndarray, u: np.ndarray, v: np.ndarray, values: bool) -> np.ndarray:
+    """Bilinear samples of an equirect-like ``image`` (columns wrap, rows clamp); for ``values`` (a float map with
+    inf/NaN), nearest where a bilinear neighbour is not finite."""
+    if not values:
+        return sample_equirect(image, u, v, cv2.INTER_LINEAR)
+    lin = sample_equirect(image.astype(np.float32), u, v, cv2.INTER_LINEAR)
+    near = sample_equirect(image.astype(np.float32), u, v, cv2.INTER_NEAREST)
+    return np.where(np.isfinite(lin), lin, near).astype(np.float32)
+
+
+def to_cassini(image: np.ndarray, partner: str, values: bool = False) -> np.ndarray:
+    """An equirect image or map (H, W[, C]) of C (or of a camera parallel to it) -> the Cassini image (W, H[, C])
+    of C's pair with ``partner`` (:data:`CASSINI_FROM_CAMERA`), same dtype; ``values``: a float map (metres)."""
+    h, w = image.shape[:2]
+    b, _ = cassini_bearings(w)
+    u, v = bearing_to_pixel(b @ CASSINI_FROM_CAMERA[partner].T, w, h)
+    return _sample(image, u, v, values)
+
+
+def from_cassini(values: np.ndarray, partner: str) -> np.ndarray:
+    """Back from :func:`to_cassini`: a float map (W, H) in the pair's Cassini frame -> C's equirect map (H, W)
+    float32 (bilinear, nearest where a neighbour is not finite).  The Cassini map transposed is equirect-like
+    (rows: phi, columns: theta, wrapping), so it is sampled as one."""
+    w, h = values.shape
+    b = bearing_grid(w, h) @ CASSINI_FROM_CAMERA[partner]  # C's bearings in the Cassini frame
+    phi = np.arcsin(np.clip(b[..., 0], -1.0, 1.0))
+    theta = np.arctan2(b[..., 1], b[..., 2])
+    col = (0.5 * math.pi - phi) * h / math.pi - 0.5
+    row = (math.pi - theta) * w / (2.0 * math.pi) - 0.5
+    return _sample(np.ascontiguousarray(np.asarray(values, dtype=np.float32).T), row, col, True)
+
+
+def to_rectified(quantity: str, distance: np.ndarray, partner: str, baseline_m: float) -> np.ndarray:
+    """C's distance (H, W) metres -> the pair's Cassini map (W, H) float32 of ``quantity``: ``distance`` (metres,
+    no surface 0) or ``disparity_px`` (Cassini pixels w.r.t. ``partner``, ``baseline_m`` away; no surface 0).
+    NaN (no ground truth) stays NaN (MODE's training mask drops NaN and keeps 0 as far)."""
+    r = to_cassini(np.asarray(distance, dtype=np.float32), partner, values=True)
+    nan = np.isnan(r)
+    if quantity == "distance":
+        out = np.where(np.isfinite(r) & (r > 0), r, 0.0)
+    else:
+        _, phi = cassini_bearings(distance.shape[1])
+        out = disparity_from_distance(r, 0.5 * math.pi + phi, baseline_m) * (r.shape[1] / 180.0)
+    return np.where(nan, np.nan, out).astype(np.float32)
+
+
+def from_rectified(quantity: str, values: np.ndarray, partner: str, baseline_m: float) -> np.ndarray:
+    """Back from :func:`to_rectified`: a Cassini map (W, H) -> C's distance (H, W) float32 metres, NaN where
+    invalid (<= 0, not finite)."""
+    v = np.asarray(values, dtype=np.float32)
+    if quantity == "distance":
+        with np.errstate(invalid="ignore"):
+            r = np.where(np.isfinite(v) & (v > 0), v, np.nan).astype(np.float32)
+    else:
+        _, phi = cassini_bearings(v.shape[0])
+        r = distance_from_disparity(v * (180.0 / v.shape[1]), 0.5 * math.pi + phi, baseline_m)
+    return from_cassini(r, partner)
 
 
 # ------------------------------------------------------------------------------------------------ encodings
@@ -157,6 +252,24 @@ def _read_npy(path: Path) -> np.ndarray:
     return a.astype(np.float32)
 
 
+def _write_npz(path: Path, values: np.ndarray) -> None:
+    buf = io.BytesIO()
+    np.savez(buf, np.ascontiguousarray(values, dtype=np.float32))  # key arr_0, as MODE's loader reads it
+    atomic_write_bytes(path, buf.getvalue())
+
+
+def _read_npz(path: Path) -> np.ndarray:
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            a = z["arr_0"] if "arr_0" in z.files else z[z.files[0]]
+    except (OSError, ValueError, IndexError, KeyError) as exc:
+        raise FrameError(f"{path}: not a readable .npz array ({exc})") from None
+    a = np.squeeze(np.asarray(a))
+    if a.ndim != 2 or a.dtype.kind not in "fiu":
+        raise FrameError(f"{path}: expected a numeric (H, W) array, got shape {a.shape} {a.dtype}")
+    return a.astype(np.float32)
+
+
 def _png16(scale: float) -> Encoding:
     """A 16-bit grey PNG holding ``round(value * scale)``; 0 and values beyond 65535 / scale are invalid (0)."""
 
@@ -179,6 +292,7 @@ def _png16(scale: float) -> Encoding:
 
 
 ENCODINGS = {"exr": Encoding(".exr", _write_exr, _read_exr), "npy": Encoding(".npy", _write_npy, _read_npy),
+             "npz": Encoding(".npz", _write_npz, _read_npz),
              "png-m256": _png16(256.0), "png-deg2048": _png16(2048.0)}
 """Encoding name -> :class:`Encoding`."""
 _RAW = {".npy": ENCODINGS["npy"], ".exr": ENCODINGS["exr"]}
@@ -190,13 +304,26 @@ _RAW = {".npy": ENCODINGS["npy"], ".exr": ENCODINGS["exr"]}
 
 @dataclass(frozen=True)
 class MapFile:
-    """One exported map: ``camera``'s ``quantity`` (``distance`` or ``disparity``), at ``path`` (a template with
-    ``{split}``, ``{scene}``, ``{viewpoint}``, ``{id}``, no suffix) in ``encoding`` (:data:`ENCODINGS`)."""
+    """One exported map: ``camera``'s ``quantity`` (``distance``, ``disparity`` or, with ``partner``,
+    ``disparity_px``), at ``path`` (a template with ``{split}``, ``{scene}``, ``{viewpoint}``, ``{id}``, no suffix) in
+    ``encoding`` (:data:`ENCODINGS`).  ``partner``: the map is in the Cassini frame of C's pair with that camera
+    (:func:`to_rectified`), W rows x H columns; None: C's equirect frame."""
 
     camera: str
     quantity: str
     path: str
     encoding: str
+    partner: str | None = None
+
+
+@dataclass(frozen=True)
+class RectifiedImage:
+    """One Cassini-rectified image (:func:`to_cassini`): ``camera``'s image in the frame of C's pair with
+    ``partner``, at ``path`` (a template, ``.png``)."""
+
+    camera: str
+    partner: str
+    path: str
 
 
 @dataclass(frozen=True)
@@ -212,6 +339,8 @@ class Layout:
         splits: tri360 split (None: no suite) -> the ``{split}`` folder name.
         file_list: template of a list file with one line per frame (``line``), or None.
         line: template of that line.
+        rectified: Cassini-rectified images (written besides ``images``).
+        folders: folder templates (``{split}``) created even when empty (the peer lists them).
     """
 
     name: str
@@ -224,6 +353,8 @@ class Layout:
                                                   ("train", "train"))
     file_list: str | None = None
     line: str = ""
+    rectified: tuple[RectifiedImage, ...] = ()
+    folders: tuple[str, ...] = ()
 
     def split_dir(self, split: str | None) -> str:
         return dict(self.splits)[split]
@@ -237,6 +368,8 @@ def _3d60(kind: str, camera: str) -> str:
     folder, place = _3D60_PLACES[camera]
     return f"{folder}/{{scene}}/" + _3D60_NAME.replace("{kind}", kind).replace("{place}", place)
 
+
+_DEEP360 = "ep1_500frames/{split}/"
 
 LAYOUTS = {
     "3d60": Layout(
@@ -260,6 +393,21 @@ LAYOUTS = {
         images={"C": "{split}/image_up/{id}.png", "U": "{split}/image_down/{id}.png"},
         maps=(MapFile("C", "disparity", "{split}/disp_up/{id}", "npy"),),
         cameras=("C", "U"), turned=True),
+    "deep360": Layout(
+        "deep360", "Deep360 stage 1, two pairs (nju-ee/MODE-2022 list_deep360_disparity_*, Deep360DatasetDisparity)",
+        images={},
+        rectified=(RectifiedImage("C", "R", _DEEP360 + "rgb/{id}_12_rgb1.png"),
+                   RectifiedImage("R", "R", _DEEP360 + "rgb/{id}_12_rgb2.png"),
+                   RectifiedImage("C", "U", _DEEP360 + "rgb/{id}_13_rgb1.png"),
+                   RectifiedImage("U", "U", _DEEP360 + "rgb/{id}_13_rgb3.png")),
+        maps=(MapFile("C", "disparity_px", _DEEP360 + "disp/{id}_12_disp", "npz", "R"),
+              MapFile("C", "disparity_px", _DEEP360 + "disp/{id}_13_disp", "npz", "U"),
+              MapFile("C", "distance", _DEEP360 + "depth/{id}_depth", "npz", "R")),
+        cameras=("C", "U", "R"),
+        splits=((None, "testing"), ("dev", "validation"), ("test", "testing"), ("train", "training")),
+        # MODE's lists open every episode's training, validation and testing folders (os.listdir)
+        folders=tuple(f"ep{e}_500frames/{s}/{k}" for e in range(1, 7) for s in ("training", "validation", "testing")
+                      for k in ("rgb", "disp", "depth"))),
 }
 """``--format`` name -> :class:`Layout`."""
 

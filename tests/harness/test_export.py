@@ -13,7 +13,15 @@ from harness.cli import main
 from harness.commands.export import export
 from harness.commands.score import score, score_export
 from harness.data.frame import Frame, write_frame
-from harness.data.layouts import ENCODINGS, LAYOUTS, disparity_from_distance, distance_from_disparity, zenith_angle
+from harness.data.layouts import (
+    ENCODINGS,
+    LAYOUTS,
+    cassini_bearings,
+    disparity_from_distance,
+    distance_from_disparity,
+    to_rectified,
+    zenith_angle,
+)
 from harness.data.predictions import write_prediction
 from reconstruction.camera.rig import CameraPose
 from tests.helpers import make_synthetic_frame
@@ -49,6 +57,9 @@ EXPECTED = {  # format -> the files of frame synthetic_box/vp000 (index 0), rela
                  "test/depth_maps/synthetic_box_IN/vp000.png", "test/disparity_maps/synthetic_box_IN/vp000.png"],
     "360sd": ["test/image_up/00000_synthetic_box_vp000.png", "test/image_down/00000_synthetic_box_vp000.png",
               "test/disp_up/00000_synthetic_box_vp000.npy"],
+    "deep360": [f"ep1_500frames/testing/{k}/00000_synthetic_box_vp000_{n}" for k, n in (
+        ("rgb", "12_rgb1.png"), ("rgb", "12_rgb2.png"), ("rgb", "13_rgb1.png"), ("rgb", "13_rgb3.png"),
+        ("disp", "12_disp.npz"), ("disp", "13_disp.npz"), ("depth", "depth.npz"))],
 }
 
 
@@ -92,11 +103,12 @@ def test_disparity_formula_round_trip_and_known_value():
 
 
 def _stand_in(export_dir, preds, holds, suffix=None):
-    """A 'method' that reads only the exported layout: it copies C's exported map of ``holds`` into its output
-    folder under the same name (or re-encodes it as float .npy)."""
+    """A 'method' that reads only the exported layout: it copies C's exported map of ``holds`` (``quantity`` or
+    ``quantity:part-of-the-name``) into its output folder under the same name (or re-encodes it as float .npy)."""
     manifest = json.loads((export_dir / "manifest.json").read_text())
+    holds, _, part = holds.partition(":")
     for entry in manifest["frames"]:
-        (f,) = [f for f in entry["files"] if f["camera"] == "C" and f["holds"] == holds]
+        (f,) = [f for f in entry["files"] if f["camera"] == "C" and f["holds"] == holds and part in f["path"]]
         src, dst = export_dir / f["path"], preds / f["path"]
         dst.parent.mkdir(parents=True, exist_ok=True)
         if suffix is None:
@@ -111,6 +123,12 @@ CASES = [  # format, map copied, re-encoded as, tolerance on the MAE (m): the en
     ("helvipad", "disparity", None, 2e-3),  # 16-bit PNG, 1/2048 degree steps
     ("helvipad", "disparity", ".npy", 2e-3),  # the same values as float degrees
     ("360sd", "disparity", None, 1e-4),  # float32 degrees, turned and back
+    # Cassini pairs: C-U's Cassini grid is C's equirect grid permuted (exact); C-R's is resampled there and back
+    # (bilinear twice: 0.018 m at 64 x 32, 0.0027 m at 256 x 128, larger at occlusion edges)
+    ("deep360", "disparity_px:_13_", None, 1e-4),
+    ("deep360", "disparity_px:_12_", None, 0.03),
+    ("deep360", "disparity_px:_12_", ".npy", 0.03),
+    ("deep360", "distance", None, 0.03),
 ]
 
 
@@ -181,3 +199,28 @@ def test_images_are_written_losslessly_under_the_names_the_peer_opens(data, tmp_
         img = cv2.cvtColor(cv2.imread(str(tmp_path / "x" / rel), cv2.IMREAD_COLOR), cv2.COLOR_BGR2RGB)
         want = frame.images[cam][::-1, ::-1] if LAYOUTS[fmt].turned else frame.images[cam]
         np.testing.assert_array_equal(img, want)  # uint8: lossless means equal
+
+
+def test_deep360_pairs_follow_mode_geometry(data, tmp_path):
+    """The C-U Cassini image is C's equirect image permuted; the disparity is what the partner sees (the scene point
+    projected into it), in MODE's ``disp2depth`` convention; MODE's lists find every episode folder."""
+    root, frame = data
+    export(root, "deep360", tmp_path / "x")
+    rgb = tmp_path / "x/ep1_500frames/testing/rgb"
+    img = cv2.cvtColor(cv2.imread(str(rgb / "00000_synthetic_box_vp000_13_rgb1.png")), cv2.COLOR_BGR2RGB)
+    np.testing.assert_array_equal(img, frame.images["C"][::-1].transpose(1, 0, 2))  # W rows x H columns
+    assert cv2.imread(str(rgb / "00000_synthetic_box_vp000_12_rgb2.png")).shape == (W, W // 2, 3)
+    assert all((tmp_path / f"x/ep{e}_500frames/{s}/{k}").is_dir() for e in range(1, 7)
+               for s in ("training", "validation", "testing") for k in ("rgb", "disp", "depth"))
+    names = sorted(p.name for p in rgb.iterdir())  # MODE pairs sorted names: left 2i, right 2i + 1, disparity i
+    assert [n[-8:] for n in names] == ["rgb1.png", "rgb2.png", "rgb1.png", "rgb3.png"]
+    with np.load(tmp_path / "x/ep1_500frames/testing/disp/00000_synthetic_box_vp000_12_disp.npz") as z:
+        disp = z["arr_0"]
+    b = float(np.linalg.norm(frame.cameras["R"].position - frame.cameras["C"].position))
+    r = to_rectified("distance", frame.distance["C"], "R", b)
+    bearings, phi = cassini_bearings(W)
+    p = bearings * r[..., None] + np.array([b, 0.0, 0.0])  # seen from the partner, which is at -x
+    phi_partner = np.arcsin(p[..., 0] / np.linalg.norm(p, axis=-1))
+    np.testing.assert_allclose(disp, (phi_partner - phi) * (W // 2) / np.pi, atol=1e-4)
+    depth = b * np.cos(phi + disp * np.pi / (W // 2)) / np.sin(disp * np.pi / (W // 2))  # MODE's disp2depth
+    np.testing.assert_allclose(depth, r, rtol=1e-4)
