@@ -83,20 +83,26 @@ def staging_leftovers(root: Path) -> list[str]:
     return [str(p.relative_to(root)) for p in root.rglob(".*") if parse_staging_name(p.name) is not None]
 
 
-def expect_refusal(argv: list, capfd, tree: Path, *culprits: str) -> str:
-    """Run ``tri360 argv``: status 2, one error line naming every culprit, nothing under ``tree`` changed."""
+def _expect_one_line(run, capfd, tree: Path, prefix: str, culprits) -> str:
+    """``run()`` -> exit status 2, exactly one line starting with ``prefix`` and naming every culprit, nothing under
+    ``tree`` changed, no staging directory left."""
     capfd.readouterr()
     before = snapshot(tree)
-    code = run_cli(argv)
+    code = run()
     out, err = capfd.readouterr()
     lines = [line for line in (out + err).splitlines() if line.strip()]
     assert code == 2, f"exit status {code}; output: {lines}"
-    assert len(lines) == 1 and lines[0].startswith(f"tri360 {argv[0]}: error: "), lines
+    assert len(lines) == 1 and lines[0].startswith(prefix), lines
     for c in culprits:
         assert str(c) in lines[0], f"{c!r} not named in {lines[0]!r}"
     assert snapshot(tree) == before, "a refused command wrote or changed files"
     assert staging_leftovers(tree) == []
     return lines[0]
+
+
+def expect_refusal(argv: list, capfd, tree: Path, *culprits: str) -> str:
+    """Run ``tri360 argv``: status 2, one error line naming every culprit, nothing under ``tree`` changed."""
+    return _expect_one_line(lambda: run_cli(argv), capfd, tree, f"tri360 {argv[0]}: error: ", culprits)
 
 
 class FakeEntryPoint:
@@ -863,21 +869,12 @@ class TestRerunRemovesPartials:
 def expect_tool_refusal(tool_main, argv: list, capfd, tree: Path, prog: str, *culprits: str) -> str:
     """Run a tool's ``main(argv)``: status 2, one line ``<prog>: ...`` naming every culprit, nothing under ``tree``
     changed."""
-    capfd.readouterr()
-    before = snapshot(tree)
-    try:
-        code = tool_main([str(a) for a in argv])
-    except SystemExit as exc:
-        code = exc.code
-    out, err = capfd.readouterr()
-    lines = [line for line in (out + err).splitlines() if line.strip()]
-    assert code == 2, f"exit status {code}; output: {lines}"
-    assert len(lines) == 1 and lines[0].startswith(f"{prog}: "), lines
-    for c in culprits:
-        assert str(c) in lines[0], f"{c!r} not named in {lines[0]!r}"
-    assert snapshot(tree) == before, "a refused tool wrote or changed files"
-    assert staging_leftovers(tree) == []
-    return lines[0]
+    def run() -> int:
+        try:
+            return tool_main([str(a) for a in argv])
+        except SystemExit as exc:
+            return exc.code
+    return _expect_one_line(run, capfd, tree, f"{prog}: ", culprits)
 
 
 OVERVIEW = "python -m tools.overview"

@@ -6,6 +6,7 @@ cluster and output of the selection scripts (``select_matching``, ``select_photo
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import multiprocessing as mp
 import sys
@@ -26,7 +27,7 @@ from harness.runtime.context import RunContext
 from scenes.model import choose_viewpoints
 from scenes.registry import get_scene
 
-__all__ = ["EXIT_USAGE", "ArgumentParser", "SCENE", "cell", "user_error", "goal_line", "goals_status",
+__all__ = ["EXIT_USAGE", "ArgumentParser", "SCENE", "cell", "read_json_file", "user_error", "goal_line", "goals_status",
            "report_goals", "synthetic_box_frame", "load_or_render_frame", "selection_parser", "run_selection"]
 
 # ------------------------------------------------------------------------------------------------------ goals
@@ -54,6 +55,27 @@ def report_goals(goals, out=print) -> int:
 def cell(x: float) -> str:
     """A metre or ratio figure in a tool's Markdown table: three decimals, ``-`` when not finite."""
     return f"{x:.3f}" if math.isfinite(x) else "-"
+
+
+def read_json_file(path: Path, what: str, missing: str) -> dict:
+    """The JSON object in ``path``, a file of the kind ``what`` (e.g. ``"regression bounds file"``).
+
+    Raises:
+        FileNotFoundError: ``path`` is missing: ``<path>: <missing>``.
+        ValueError: one line naming ``path``: a directory, not JSON, or not a JSON object.
+    """
+    path = Path(path)
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise FileNotFoundError(f"{path}: {missing}") from None
+    except IsADirectoryError:
+        raise ValueError(f"{path}: is a directory, not a {what}") from None
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise ValueError(f"{path}: not a {what} (not JSON: {exc})") from None
+    if not isinstance(data, dict):
+        raise ValueError(f"{path}: not a {what} (not a JSON object)")
+    return data
 
 
 def user_error(prog: str, exc: Exception) -> int:

@@ -45,7 +45,7 @@ from harness.render.base import RenderSettings
 from harness.runtime.context import QUIET, RunContext
 from reconstruction.methods.flow_pipeline import DEFAULT_FLOW
 from reconstruction.methods.registry import DEFAULT_METHOD, DEFAULT_VARIANTS, flow_methods, get_methods
-from tools.common import ArgumentParser, user_error
+from tools.common import ArgumentParser, read_json_file, user_error
 
 PROG = "python -m tools.regression"
 
@@ -243,15 +243,9 @@ def make_bounds(table: pd.DataFrame, margin: float = DEFAULT_MARGIN, samples: in
 def load_bounds(path: Path | str) -> dict:
     """Read a bounds file (see :func:`make_bounds`)."""
     path = Path(path)
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise FileNotFoundError(f"{path}: no regression bounds (generate them with `make regress-update`)") from None
-    except IsADirectoryError:
-        raise ValueError(f"{path}: is a directory, not a regression bounds file") from None
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise ValueError(f"{path}: not a regression bounds file (not JSON: {exc})") from None
-    if not isinstance(data, dict) or not isinstance(data.get("bounds"), dict):
+    data = read_json_file(path, "regression bounds file", "no regression bounds (generate them with `make "
+                                                          "regress-update`)")
+    if not isinstance(data.get("bounds"), dict):
         raise ValueError(f"{path}: not a regression bounds file (no \"bounds\" mapping)")
     return data
 

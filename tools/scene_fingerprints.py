@@ -42,7 +42,7 @@ import numpy as np
 from harness.data.atomic import atomic_write_text
 from scenes.model import SceneEntry, SceneSpec, choose_viewpoints
 from scenes.registry import discover
-from tools.common import ArgumentParser, user_error
+from tools.common import ArgumentParser, read_json_file, user_error
 
 FILE = Path(__file__).resolve().parents[1] / "tests" / "scenes" / "scene_fingerprints.json"
 """The repository's fingerprints (``--file`` picks another)."""
@@ -134,17 +134,11 @@ def _read(path: Path) -> dict:
     """A fingerprint file's JSON, of any recipe.
 
     Raises:
-        ValueError: one line naming ``path``: missing, a directory, not JSON, or not a fingerprint file.
+        FileNotFoundError: ``path`` is missing.
+        ValueError: one line naming ``path``: a directory, not JSON, or not a fingerprint file.
     """
-    try:
-        data = json.loads(Path(path).read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise ValueError(f"{path}: no fingerprint file (write it with `{UPDATE_COMMAND}`)") from None
-    except IsADirectoryError:
-        raise ValueError(f"{path}: is a directory, not a fingerprint file") from None
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise ValueError(f"{path}: not a fingerprint file (not JSON: {exc})") from None
-    if not isinstance(data, dict) or "format" not in data or not isinstance(data.get("families"), dict):
+    data = read_json_file(path, "fingerprint file", f"no fingerprint file (write it with `{UPDATE_COMMAND}`)")
+    if "format" not in data or not isinstance(data.get("families"), dict):
         raise ValueError(f"{path}: not a fingerprint file (no \"format\" and \"families\")")
     return data
 
