@@ -612,7 +612,7 @@ class TestArgumentErrors:
     @pytest.mark.parametrize("argv, culprit", [
         (["render", "--bogus"], "--bogus"),
         (["render", "--viewpoints", "two"], "--viewpoints"),
-        (["evaluate", "--split", "train"], "--split"),
+        (["evaluate", "--split", "val"], "--split"),
         (["score"], "required"),
         (["perturb", "data", "--out", "o", "--nonsense", "1"], "--nonsense"),
     ])
