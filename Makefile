@@ -41,13 +41,8 @@ test: $(STAMP) browser ## run the whole test suite (fast tests, Blender renders,
 test-fast: $(STAMP) ## the tests that need no Blender render, browser or Dask cluster
 	$(PY) -m pytest -q -m "not blender and not browser and not cluster"
 
-bench: $(STAMP) ## timings and peak memory: flow pipeline stages (+ LM vs scipy), the default method (fused-mirror) at 1000x500 and 4000x2000 beside fused, the default classroom render (3 times), Dask render speed-up, suite frame render time vs the default frame
-	$(PY) -m tools.bench.pipeline
-	$(PY) -m tools.bench.sweep
-	$(PY) -m tools.bench.render
-	$(PY) -m tools.bench.dask_speedup
-	$(PY) -m tools.bench.suite
-	$(PY) -m tools.bench.flow
+bench: $(STAMP) ## timings and peak memory: flow pipeline stages (+ LM vs scipy), the default method (fused-mirror) at 1000x500 and 4000x2000 beside fused-mirror-raw, the default classroom render (3 times, against a reference render), Dask render speed-up, suite frame render time vs the default frame, DeepMatching/DeepFlow; every benchmark runs whatever the others' outcome, then one table lists every goal with its figure and PASS/FAIL, and the status is non-zero if any failed (python -m tools.bench)
+	$(PY) -m tools.bench
 
 regress-update: $(STAMP) ## rewrite the CI regression bounds (tests/regression_bounds.json) from a fresh run
 	$(PY) -m tools.regression --bounds tests/regression_bounds.json --update

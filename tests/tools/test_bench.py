@@ -62,15 +62,26 @@ def test_main_prints_the_summary_line_last(tmp_path, capsys):
     assert any("goals vs measured" in line for line in lines)
 
 
-def test_render_bench_times_the_render_command_end_to_end(capsys):
-    """``bench_render`` runs ``tri360 render`` in new processes (here a tiny ray-cast frame) and prints the range."""
-    status = bench_render.main(["--repeats", "2", "--scene", "box_room", "--renderer", "raycast", "--width", "64"])
+def test_render_bench_times_the_render_command_end_to_end_against_the_reference(capsys):
+    """``bench_render`` runs ``tri360 render`` in new processes, the reference and the frame in turn (here both tiny
+    ray-cast frames), and prints each time, the goal on the ratio of their medians and the range."""
+    tiny = ["--scene", "box_room", "--renderer", "raycast", "--width", "64"]
+    status = bench_render.main(["--repeats", "2", "--reference", " ".join(tiny), *tiny])
     lines = capsys.readouterr().out.strip().splitlines()
-    assert status == (0 if "[ok: goal <= 60 s]" in lines[-1] else 1)  # a missed goal fails `make bench`
-    assert lines[0].startswith("render bench: `tri360 render --scene box_room --renderer raycast --width 64`, 2 times")
-    assert [x.split(":")[0].strip() for x in lines[1:3]] == ["render 1", "render 2"]
-    assert "renderer s per camera: C " in lines[1]  # the frame's render_log.json was read
-    assert lines[-1].startswith("render frame: ") and "over 2 renders [" in lines[-1]
+    assert lines[0].startswith(f"render bench: `tri360 render {' '.join(tiny)}` against `tri360 render "
+                               f"{' '.join(tiny)}`, 2 times each")
+    assert [x.split(":")[0].strip() for x in lines[1:5]] == ["reference 1", "render 1", "reference 2", "render 2"]
+    assert all("renderer s per camera: C " in x for x in lines[1:5])  # each frame's render_log.json was read
+    (goal,) = [x for x in lines if "[PASS]" in x or "[FAIL]" in x]
+    assert f"at most {bench_render.GOAL_RATIO:g} x the reference render's CPU time (medians, same run)" in goal
+    assert status == (0 if "[PASS]" in goal else 1)  # a missed goal fails `make bench`
+    assert lines[-1].startswith("render frame: ") and "over 2 renders (reference " in lines[-1]
+
+
+def test_the_render_reference_pins_what_sets_cycles_cost():
+    """The reference render's cost must not follow the render defaults: every setting that sets it is explicit."""
+    args = bench_render.REFERENCE_ARGS
+    assert all(option in args for option in ("--scene", "--width", "--samples", "--max-bounces", "--no-light-tree"))
 
 
 def test_goals_status_fails_on_any_missed_goal():

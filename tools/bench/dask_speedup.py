@@ -4,10 +4,17 @@ Run as ``python -m tools.bench.dask_speedup`` (part of ``make bench``).  It star
 then one of 2 workers (127.0.0.1 only, 1 thread each, Cycles with ``--threads`` = that one thread, so both runs
 give each worker the same threads), renders ``--frames`` viewpoints of ``--scene`` on each (one Dask task per
 frame, scene built by each task, as ``tri360 render --workers N`` does) into a temporary data root, and prints the
-wall time of each run (cluster start-up excluded), the speed-up and whether both runs gave byte-identical frames.
-The last line is ``dask speedup 2 vs 1 workers: N x`` (goal: >= 1.6 x on 2 cores; exit status 1 when it is missed
-or the frames differ).  The result is only
-meaningful on an otherwise idle machine: the load average before each run is printed beside it.
+wall time of each run (cluster start-up excluded), then its goals as ``[PASS]`` / ``[FAIL]`` lines (exit status 1
+when one is missed) and, last, ``dask speedup 2 vs 1 workers: N x``.  Goals:
+
+- the frames of both runs are byte-identical: where a frame is rendered does not change it (Cycles with a fixed
+  seed and one thread per render);
+- 2 workers at least :data:`GOAL_SPEEDUP` x faster than 1 on 2 cores: the executor's overheads (scheduling, each
+  task's scene build, writing) leave most of the second core to the renders (measured 1.86-1.93 x,
+  docs/studies.md).  Both runs are timed in the same process one after the other, so the goal is a ratio that holds
+  on any 2-core machine, but only an otherwise idle one: other jobs move it either way (they take the core the
+  second worker needs, 1.14 x at load 4-6, or a larger share of one worker than of two, 1.93 x at load 6-7), so
+  the load average before each run is printed beside it.
 """
 
 from __future__ import annotations
@@ -17,7 +24,6 @@ from harness.runtime import startup
 if __name__ == "__main__":  # run as a script: Ctrl-C during the imports below is one line and 130
     startup.guard("bench_dask")
 
-import argparse
 import os
 import sys
 import tempfile
@@ -29,7 +35,7 @@ from harness.render.base import RenderSettings
 from harness.runtime.cluster import ClusterOptions
 from harness.runtime.context import RunContext
 from harness.runtime.executor import DaskExecutor
-from tools.common import goals_status
+from tools.common import ArgumentParser, report_goals
 
 __all__ = ["GOAL_SPEEDUP", "time_render", "main"]
 
@@ -52,7 +58,7 @@ def _files(root: Path) -> dict[str, bytes]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m tools.bench.dask_speedup", description=__doc__.splitlines()[0])
+    ap = ArgumentParser(prog="python -m tools.bench.dask_speedup", description=__doc__.splitlines()[0])
     ap.add_argument("--scene", default="classroom", help="scene to render (Cycles by default for classroom)")
     ap.add_argument("--frames", type=int, default=4, help="viewpoints rendered by each run")
     ap.add_argument("--width", type=int, default=400, help="panorama width, pixels")
@@ -72,10 +78,11 @@ def main(argv: list[str] | None = None) -> int:
                   f"load average before: {load:.2f})", flush=True)
         same = _files(Path(tmp) / "w1") == _files(Path(tmp) / "w2")
     speedup = seconds[1] / seconds[2]
-    print(f"  frames byte-identical between the runs: {'yes' if same else 'NO'}")
-    print(f"  goal >= {GOAL_SPEEDUP} x: {'met' if speedup >= GOAL_SPEEDUP else 'NOT met'}")
-    print(f"dask speedup 2 vs 1 workers: {speedup:.2f} x")
-    return goals_status([same, speedup >= GOAL_SPEEDUP])
+    status = report_goals([(same, f"frames byte-identical between the runs: {'yes' if same else 'NO'}"),
+                           (speedup >= GOAL_SPEEDUP, f"2 workers >= {GOAL_SPEEDUP:g} x faster than 1: "
+                                                    f"{seconds[1]:.1f} s / {seconds[2]:.1f} s = {speedup:.2f} x")])
+    print(f"dask speedup 2 vs 1 workers: {speedup:.2f} x", flush=True)
+    return status
 
 
 if __name__ == "__main__":

@@ -15,12 +15,22 @@ frame rendered by the numpy ray-caster) it runs, each in a fresh child process s
    in the same child (the first compiles or loads every kernel).
 
 It prints each figure (wall and CPU seconds: on a shared machine the CPU time over the core count is the better
-estimate of the time on free cores) and the goals -- a frame's ``deepflow`` flow stage within
-``--max-seconds`` (60), ``deepflow-rect:gradient``'s seconds within ``--max-ratio`` (8) times
-``dis-rect:gradient``'s in the same run, and the flow stage's peak memory within ``--max-gb`` (4 GB) -- and exits
-with status 1 when a goal fails.  Times are wall-clock on a possibly shared machine: upper bounds.  The first run
-also compiles the numba kernels (cached on disk afterwards); a warm-up on a small frame in each child keeps
-compilation out of the figures.
+estimate of the time on free cores), the goals as ``[PASS]`` / ``[FAIL]`` lines, and exits with status 1 when a goal
+fails.  The first run also compiles the numba kernels (cached on disk afterwards); a warm-up on a small frame in each
+child keeps compilation out of the figures.  Goals, each with what it protects:
+
+- a frame's ``deepflow`` flow stage (3.) within ``--max-reference-ratio`` (:data:`GOAL_REFERENCE_RATIO`) x the
+  reference computation timed in the same child just before and after it (the mean of the two;
+  :func:`tools.bench.pipeline.reference_seconds`: OpenCV's DIS optical flow on the same frame, once on one thread and
+  once on all): DeepFlow as published stays usable on a full frame.  It replaces "at most 60 s", which was met by
+  8 % on an idle 2-core machine (55.6 s) and missed on a busier day (67.7 s): against a reference timed on the same
+  machine in the same minute, the machine's speed and most of its load cancel.  On the 2-core AMD EPYC where 60 s
+  was set the reference takes about 0.76 s idle, so the goal is 60 s / 0.76 s; today's code measured 19 x there
+  (28.4 s against 1.48 s, 2026-12-04, load about 3 from other jobs);
+- ``deepflow-rect:gradient``'s seconds within ``--max-ratio`` (8) x ``dis-rect:gradient``'s in the same run: the
+  paper's set-up costs at most 8 x tri360's flow pipeline per frame (a ratio already);
+- the ``deepflow`` flow stage's peak memory within ``--max-gb`` (4 GB; measured 1.07-1.19 GB): memory does not depend
+  on the machine's speed, so this stays absolute.
 """
 
 from __future__ import annotations
@@ -44,10 +54,12 @@ from reconstruction.flow.deepmatching import DeepMatchingParams, deep_matching_b
 from reconstruction.flow.matching import match_pair
 from reconstruction.methods.base import run_methods
 from reconstruction.methods.registry import get_methods
-from tools.common import load_or_render_frame, report_goals
+from tools.bench.pipeline import reference_seconds
+from tools.common import ArgumentParser, load_or_render_frame, report_goals
 
 PAIRS = ("U", "R")
 METHODS = ("deepflow-rect:gradient", "dis-rect:gradient")
+GOAL_REFERENCE_RATIO = 79.0  # a frame's deepflow flow stage over the reference computation (module docstring)
 
 
 def _child(stage: str, frame_dir: str, width: int, queue) -> None:
@@ -73,10 +85,15 @@ def _child(stage: str, frame_dir: str, width: int, queue) -> None:
         deep_flow_both(a, b, DeepFlowParams(), matches=m)
         info = {}
     else:  # "frame" (deepflow) or "dis": a frame's flow stage
+        if stage == "frame":  # between two timings of the reference computation
+            before = reference_seconds(frame)
+            start, cpu = time.perf_counter(), time.process_time()
         flow = "dis" if stage == "dis" else "deepflow"
         info = {k: match_pair(frame, k, flow, rectify=True).seconds for k in PAIRS}
     seconds, cpu_s = time.perf_counter() - start, time.process_time() - cpu
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024 ** 2  # KiB on Linux -> GB
+    if stage == "frame":
+        info["reference_s"] = (before + reference_seconds(frame)) / 2
     queue.put({"seconds": seconds, "cpu_s": cpu_s, "peak_gb": peak, "warmup_peak_gb": base, **info})
 
 
@@ -94,12 +111,15 @@ def run_stage(stage: str, frame_dir: Path, width: int) -> dict:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = ArgumentParser(prog="python -m tools.bench.flow", description=__doc__,
+                        formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--frame", type=Path, default=None,
                     help="a frame directory or a cache root holding one of --width (default: render a synthetic_box "
                          "frame into a temporary directory)")
     ap.add_argument("--width", type=int, default=1000, help="frame width, pixels (default 1000)")
-    ap.add_argument("--max-seconds", type=float, default=60.0, help="goal: a frame's deepflow flow stage, s (60)")
+    ap.add_argument("--max-reference-ratio", type=float, default=GOAL_REFERENCE_RATIO,
+                    help="goal: a frame's deepflow flow stage over the reference computation timed beside it "
+                         "(%(default)g)")
     ap.add_argument("--max-ratio", type=float, default=8.0,
                     help=f"goal: {METHODS[0]}'s seconds per frame over {METHODS[1]}'s in the same run (8)")
     ap.add_argument("--max-gb", type=float, default=4.0, help="goal: the deepflow flow stage's peak memory, GB (4)")
@@ -123,8 +143,10 @@ def _run(args, root: Path) -> int:
     print(f"  flow stages: deepflow / dis = {fr['seconds'] / max(dis['seconds'], 1e-9):.1f} x", flush=True)
     slow, fast = (res[m]["method_seconds"] for m in METHODS)
     ratio = slow / max(fast, 1e-9)
-    goals = [(fr["seconds"] <= args.max_seconds, f"frame deepflow flow (2 pairs, both ways) {fr['seconds']:.1f} s "
-                                                 f"<= {args.max_seconds:g} s"),
+    ref_ratio = fr["seconds"] / fr["reference_s"]
+    goals = [(ref_ratio <= args.max_reference_ratio,
+              f"frame deepflow flow (2 pairs, both ways) {fr['seconds']:.1f} s / reference {fr['reference_s']:.2f} s "
+              f"= {ref_ratio:.0f} x <= {args.max_reference_ratio:g} x"),
              (ratio <= args.max_ratio, f"{METHODS[0]} {slow:.1f} s / {METHODS[1]} {fast:.1f} s per frame "
                                        f"= {ratio:.1f} x <= {args.max_ratio:g} x"),
              (fr["peak_gb"] <= args.max_gb,

@@ -7,9 +7,15 @@ time, and peak memory (RSS) at 1000x500 and 4000x2000, each run in a child proce
 ``--method`` is any registered label (default: the default method) or a fused method's label with ``-raw``
 (:func:`reconstruction.methods.registry.uncalibrated`: no photometric self-calibration); ``--compare-with`` (default
 ``fused-mirror-raw``, the default's matching without self-calibration) is timed in the same run, one run of each
-in turn, so that both see the same load.  Goals (exit status 1 when one is missed, so ``make bench`` fails): the
-method's median wall time at 1000x500 at most :data:`GOAL_TIME_FACTOR` times the comparison method's, and its peak
-RSS at 1000x500 at most :data:`GOAL_PEAK_GB`.
+in turn, so that both see the same load.  Goals, printed as ``[PASS]`` / ``[FAIL]`` lines (exit status 1 when one
+is missed):
+
+- the method's median wall time at 1000x500 at most :data:`GOAL_TIME_FACTOR` x the comparison method's in the same
+  run: what the default adds to its matching (the photometric and rig self-calibration) costs at most a fifth of
+  it (measured 1.08-1.12 x).  Both are timed on the same machine in the same minutes, so no absolute time is needed;
+- its peak RSS at 1000x500 at most :data:`GOAL_PEAK_GB`: a frame of the default size fits in the memory a
+  ``--workers`` task is given (``harness.runtime.cluster.BASE_BYTES``, 1 GiB); measured 0.78-0.86 GB.  Memory does
+  not depend on the machine's speed, so this stays absolute.
 
 Each stage is reported as wall seconds and process CPU seconds (all threads): on a shared machine the wall time
 is inflated by other jobs, the CPU time much less.
@@ -38,7 +44,7 @@ import numpy as np
 
 from reconstruction.methods.prior_sweep import PriorSweepMethod
 from reconstruction.methods.registry import DEFAULT_METHOD, get_methods, uncalibrated
-from tools.common import report_goals, synthetic_box_frame
+from tools.common import ArgumentParser, report_goals, synthetic_box_frame, user_error
 
 BASE_WIDTH = 1000
 GOAL_PEAK_GB = 1.0  # peak RSS of the method at 1000x500, GB
@@ -96,7 +102,8 @@ def run_child(width: int, runs: int, method_name: str = DEFAULT_METHOD) -> tuple
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = ArgumentParser(prog="python -m tools.bench.sweep", description=__doc__,
+                        formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--runs", type=int, default=3, help="timed runs at 1000x500 (the median is reported)")
     ap.add_argument("--big-width", type=int, default=4000, help="width of the memory run (0 = skip)")
     ap.add_argument("--method", default=DEFAULT_METHOD,
@@ -114,8 +121,7 @@ def main(argv=None) -> int:
         for label in [args.method] + ([args.compare_with] if args.compare_with != "none" else []):
             bench_method(label)
     except ValueError as exc:
-        print(f"bench_sweep: {exc}", file=sys.stderr)
-        return 2
+        return user_error("bench_sweep", exc)
     labels = [args.method] + ([args.compare_with] if args.compare_with not in ("none", args.method) else [])
     for label in labels:  # warm-up children: numba compiles (cache=True) once, so timed children measure steady state
         run_child(320, 1, label)
