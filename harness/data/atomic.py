@@ -308,24 +308,27 @@ def atomic_directory(target: Path) -> Iterator[Path]:
     _make_parent(target)
     if target.exists() and not target.is_dir():
         raise NotADirectoryError(errno.ENOTDIR, "exists and is not a directory", os.fspath(target))
-    staging = None
-    for _ in range(16):
-        candidate = staging_path(target, "partial")
-        try:
-            os.mkdir(candidate, DIR_MODE)
-            staging = candidate
-            break
-        except FileExistsError:
-            continue
-        except OSError as exc:
-            raise _named_error(exc, target.parent) from None
-    if staging is None:
-        raise FileExistsError(errno.EEXIST, "could not create a unique staging directory", os.fspath(target))
+    staging = None  # ours once os.mkdir has made it: removed on any exception, one raised by a signal handler
+    # between the mkdir and the next statement included (Ctrl-C, SIGTERM)
     try:
+        for _ in range(16):
+            staging = staging_path(target, "partial")
+            try:
+                os.mkdir(staging, DIR_MODE)
+                break
+            except FileExistsError:  # someone else's: never ours to remove
+                staging = None
+                continue
+            except OSError as exc:
+                staging = None
+                raise _named_error(exc, target.parent) from None
+        if staging is None:
+            raise FileExistsError(errno.EEXIST, "could not create a unique staging directory", os.fspath(target))
         yield staging
         replace_directory(staging, target)
     except BaseException:
-        shutil.rmtree(staging, ignore_errors=True)
+        if staging is not None:
+            shutil.rmtree(staging, ignore_errors=True)
         raise
 
 
