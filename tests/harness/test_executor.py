@@ -181,27 +181,30 @@ def test_a_worker_killed_mid_run_costs_only_a_retry(cluster, sequential, tmp_pat
     marker = tmp_path / "killed"
     opts = ClusterOptions(scheduler=address)
     data = tmp_path / "data" if job == "render" else sequential / "data"
+    # the plugin lives on the scheduler; this client is closed before the job's own client runs, so that two clients
+    # never share this process (their event loops then clashed now and then: "bound to a different event loop")
     with Client(address, timeout=30) as c:
         c.register_plugin(KillOnce(str(marker), f"tri360_{job}-"), name="kill-once")
-        try:
-            if job == "render":
-                dirs = render_scene("synthetic_box", out_root=data, ctx=RunContext(opts, progress=False),
-                                    **{**SYNTH, "viewpoints": 4})
-                assert len(dirs) == 4 and len(set(dirs)) == 4
-                assert frame_files(data) == frame_files(sequential / "data")  # all frames, each complete once
-                assert hidden_entries(data) == []  # the killed worker's half-written frame was cleaned up
-            else:
-                evaluate(data, tmp_path / "results", get_methods(METHODS), report=False,
-                         ctx=RunContext(opts, progress=False))
-                got = results_without_seconds(tmp_path / "results")
-                assert len(got) == 4 * len(METHODS)
-                assert not got.duplicated(["scene", "viewpoint", "method"]).any()
-                assert_tables_match(got, results_without_seconds(sequential / "results"))
-        finally:
+    try:
+        if job == "render":
+            dirs = render_scene("synthetic_box", out_root=data, ctx=RunContext(opts, progress=False),
+                                **{**SYNTH, "viewpoints": 4})
+            assert len(dirs) == 4 and len(set(dirs)) == 4
+            assert frame_files(data) == frame_files(sequential / "data")  # all frames, each complete once
+            assert hidden_entries(data) == []  # the killed worker's half-written frame was cleaned up
+        else:
+            evaluate(data, tmp_path / "results", get_methods(METHODS), report=False,
+                     ctx=RunContext(opts, progress=False))
+            got = results_without_seconds(tmp_path / "results")
+            assert len(got) == 4 * len(METHODS)
+            assert not got.duplicated(["scene", "viewpoint", "method"]).any()
+            assert_tables_match(got, results_without_seconds(sequential / "results"))
+    finally:
+        with Client(address, timeout=30) as c:
             c.unregister_worker_plugin("kill-once")
-        assert marker.is_file(), "no worker was killed: the test proved nothing"
-        killed_pid = int(marker.read_text().split()[0])
-        assert not psutil.pid_exists(killed_pid) or psutil.Process(killed_pid).status() == psutil.STATUS_ZOMBIE
+    assert marker.is_file(), "no worker was killed: the test proved nothing"
+    killed_pid = int(marker.read_text().split()[0])
+    assert not psutil.pid_exists(killed_pid) or psutil.Process(killed_pid).status() == psutil.STATUS_ZOMBIE
 
 
 @pytest.mark.cluster

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import pytest
 
+from tests.helpers import sigint_default
 from tools.bench import __main__ as runner
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -85,8 +86,9 @@ def test_ctrl_c_stops_the_running_benchmark_and_the_rest_at_once_with_130():
             "from tools.bench import __main__ as runner\n"
             f"runner.command = lambda name: [sys.executable, '-c', \"{slow}\"]\n"
             "sys.exit(startup.run_main(runner.main, 'bench'))\n")
+    # SIGINT back to its default action: started from a background job (CI) it is inherited as ignored
     proc = subprocess.Popen([sys.executable, "-c", code], cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True, start_new_session=True)
+                            text=True, start_new_session=True, preexec_fn=sigint_default)
     try:
         assert proc.stdout.readline().startswith("==> python -m tools.bench.pipeline")
         assert proc.stdout.readline() == "  [PASS] started: 1\n"  # the first benchmark is running
