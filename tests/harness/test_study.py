@@ -83,11 +83,14 @@ def test_study_on_a_scheduler_writes_csv_plot_and_summary(scheduler, tmp_path, c
     out = tmp_path / "study"
     barrier = tmp_path / "barrier"
     barrier.mkdir()
+    # the plugin lives on the scheduler; this client is closed before the study's own client runs (two clients in one
+    # process clashed now and then: "bound to a different event loop")
     with Client(scheduler, timeout=30) as c:
         c.register_plugin(Barrier(str(barrier), "tri360_render-", n=2), name="barrier")
-        try:
-            assert main(["study", str(study), "--out", str(out), "--scheduler", scheduler, "--quiet"]) == 0
-        finally:
+    try:
+        assert main(["study", str(study), "--out", str(out), "--scheduler", scheduler, "--quiet"]) == 0
+    finally:
+        with Client(scheduler, timeout=30) as c:
             c.unregister_worker_plugin("barrier")
     # the two points (one frame each) were rendered at the same time, by both workers: each render waited at
     # its start for the other's
