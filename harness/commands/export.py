@@ -38,21 +38,21 @@ from harness.data.layouts import (
 )
 from harness.data.outputs import check_output, mark_output, staged_directory
 from harness.data.provenance import software
+from reconstruction.camera.rig import CAMERA_NAMES
 
 __all__ = ["export", "export_frames"]
 
 
-def _check(layout_name: str, frames: list[Frame]) -> None:
+def _check(layout_name: str, frame: Frame, has_ground_truth: bool) -> None:
     """Refuse (UserError, one line naming the frame) what the layout cannot hold."""
     layout = LAYOUTS[layout_name]
-    for f in frames:
-        where = f.path / "frame.json" if f.path else f"{f.scene}/{f.viewpoint}"
-        why = rig_problem(layout, f.cameras)
-        if why:
-            raise UserError(f"{where}: the {layout_name} layout cannot hold this rig: {why}")
-        if not f.has_ground_truth:
-            raise UserError(f"{where}: no ground truth (no C.distance.exr): the {layout_name} loaders find frames "
-                            "through their depth or disparity files, so tri360 exports only frames with ground truth")
+    where = frame.path / "frame.json" if frame.path else f"{frame.scene}/{frame.viewpoint}"
+    why = rig_problem(layout, frame.cameras)
+    if why:
+        raise UserError(f"{where}: the {layout_name} layout cannot hold this rig: {why}")
+    if not has_ground_truth:
+        raise UserError(f"{where}: no ground truth (no C.distance.exr): the {layout_name} loaders find frames "
+                        "through their depth or disparity files, so tri360 exports only frames with ground truth")
 
 
 def _write_frame(stage: Path, layout_name: str, frame: Frame, split: str | None, index: int) -> dict:
@@ -100,12 +100,13 @@ def export_frames(dirs: list[Path], layout_name: str, out: Path, split: str | No
     if layout_name not in LAYOUTS:
         raise UserError(f"--format {layout_name}: unknown layout (known: {', '.join(LAYOUTS)})")
     layout = LAYOUTS[layout_name]
-    frames = [read_frame(d) for d in dirs]
-    _check(layout_name, frames)
+    for d in dirs:  # every frame checked before anything is written; none is kept (a split holds thousands)
+        _check(layout_name, read_frame(d, load_distance=False),
+               all((Path(d) / f"{k}.distance.exr").is_file() for k in CAMERA_NAMES))
     entries = []
     with staged_directory(out) as stage:
-        for i, f in enumerate(frames):
-            entries.append(_write_frame(stage, layout_name, f, split, i))
+        for i, d in enumerate(dirs):
+            entries.append(_write_frame(stage, layout_name, read_frame(d), split, i))
         for folder in layout.folders:
             (stage / folder.format(split=layout.split_dir(split))).mkdir(parents=True, exist_ok=True)
         if layout.file_list:
