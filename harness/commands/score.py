@@ -143,7 +143,8 @@ def read_manifest(export_dir: Path) -> dict:
 def import_predictions(preds: Path, manifest: dict, refs: Sequence, pred_root: Path) -> None:
     """Convert a method's outputs in the exported layout (``preds``, files named after the exported maps of C:
     :func:`harness.data.layouts.prediction_candidates`) into ``tri360-pred/1`` under ``pred_root``, one frame per
-    ``refs`` entry (``scene``, ``viewpoint``).  Everything is read and checked before anything is written.
+    ``refs`` entry (``scene``, ``viewpoint``), one frame at a time (``pred_root`` is a temporary folder of
+    :func:`score_export`, dropped whole on an error).
 
     Raises:
         UserError: one line naming the culprit: a frame not in the manifest, a missing prediction (the first path
@@ -151,7 +152,6 @@ def import_predictions(preds: Path, manifest: dict, refs: Sequence, pred_root: P
     """
     layout = LAYOUTS[manifest["layout"]]
     entries = {(e.get("scene"), e.get("viewpoint")): e for e in manifest["frames"] if isinstance(e, dict)}
-    converted = []
     for r in refs:
         e = entries.get((r.scene, r.viewpoint))
         if e is None:
@@ -173,8 +173,6 @@ def import_predictions(preds: Path, manifest: dict, refs: Sequence, pred_root: P
             distance = from_layout(m.quantity, values, float(e["baseline_u_m"]))
         if not np.isfinite(distance).any():
             raise UserError(f"{Path(preds) / rel}: no pixel holds a valid prediction (all 0, negative or not finite)")
-        converted.append((r, distance))
-    for r, distance in converted:
         write_prediction(pred_root, r.scene, r.viewpoint, distance)
 
 
