@@ -8,10 +8,19 @@ ideal image into that camera's image, in linear light, in this order: vignetting
 ``+-axis``), exposure (``2 ** exposure_stops``), white balance (R, G, B gains), noise (variance
 ``shot * x + read`` at linear level ``x``, seeded with ``seed``), the response curve (``"srgb"`` or ``"gamma-G"``),
 JPEG at ``jpeg_quality`` (0 = none).  A record in a file has every key of :data:`KEYS` (none takes a default).
+
+Three optional keys (:data:`OPTIONAL_KEYS`, written only when set, so a record without them reads and applies as
+before) model what the quadratic fall-off about a camera-frame axis leaves out: ``falloff``, a ``cos^4`` fall-off
+about two back-to-back lens axes ``+-direction`` (any unit camera-frame vector: a decentred lens or stitch), gain
+``1 - edge_loss * (1 - cos(theta') ** 4)``; ``seam``, the two lenses' own gains ``[front, back]`` (front = the lens
+looking along ``+direction``) cross-faded linearly over a band ``blend_deg`` wide about the seam plane; and
+``chromatic``, factors ``[kR, kG, kB]`` of both fall-offs' losses per channel.  The response may also be
+``"s-curve-K"``: sRGB, then an S-shaped tone curve of contrast ``K`` (:func:`contrast_of`).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import asdict, dataclass, field
 
@@ -19,10 +28,17 @@ import numpy as np
 
 from reconstruction.photometry import srgb_to_linear
 
-__all__ = ["Photometric", "AXES", "KEYS", "gamma_of", "CameraDistribution", "noise_parameters", "SHOT_FRACTION"]
+__all__ = ["Photometric", "AXES", "KEYS", "OPTIONAL_KEYS", "gamma_of", "contrast_of", "is_response", "RESPONSES",
+           "CameraDistribution", "LATER_FIELDS", "noise_parameters", "SHOT_FRACTION", "lens_direction"]
 
 AXES = ("x", "y", "z")
 KEYS = ("exposure_stops", "white_balance", "vignetting", "noise", "response", "jpeg_quality", "seed")
+OPTIONAL_KEYS = ("falloff", "seam", "chromatic")
+"""Keys a record may leave out (absent = that effect is off); :meth:`Photometric.to_json` writes them only when set."""
+RESPONSES = "'srgb', 'gamma-G' with G in [1, 4] or 's-curve-K' with K in [1, 4]"
+"""The response curves a record or a suite may name (for error messages)."""
+UNIT_TOLERANCE = 1e-6
+"""How far from 1 the length of a recorded lens ``direction`` may be."""
 
 
 @dataclass(frozen=True)
@@ -35,9 +51,17 @@ class Photometric:
         vignetting: ``{"axis": "y", "edge_loss": 0.25}``: the lens axis in the camera frame and the fraction of
             light lost at the lenses' seam; ``edge_loss`` 0 = none.
         noise: ``{"shot": a, "read": b}``: the noise variance ``a * x + b`` at linear level ``x`` (0, 0 = none).
-        response: ``"srgb"`` or ``"gamma-G"`` with G in [1, 4].
+        response: ``"srgb"``, ``"gamma-G"`` or ``"s-curve-K"`` with G, K in [1, 4] (:func:`contrast_of`).
         jpeg_quality: 1-100, or 0 for no compression.
         seed: the noise generator's seed.
+        falloff: None (off) or ``{"direction": [x, y, z], "edge_loss": L}``: a ``cos^4`` fall-off about the lens
+            axes ``+-direction`` (unit camera-frame vector), gain ``1 - L * (1 - cos(theta') ** 4)``, ``theta'``
+            the angle from the nearer axis; the seam (90 degrees from both) loses ``L`` (fraction).
+        seam: None (off) or ``{"direction": [x, y, z], "gains": [front, back], "blend_deg": w}``: the lens
+            looking along ``+direction`` has gain ``front``, the other ``back``; across the band ``|phi| <= w / 2``
+            degrees about the seam plane (``phi = asin(bearing . direction)``) the gain is cross-faded linearly.
+        chromatic: None (off) or ``(kR, kG, kB)``: channel ``c`` loses ``k_c`` times the light ``vignetting`` and
+            ``falloff`` lose (``k_c * edge_loss`` at the seam, at most 0.999).
     """
 
     exposure_stops: float = 0.0
@@ -47,10 +71,19 @@ class Photometric:
     response: str = "srgb"
     jpeg_quality: int = 0
     seed: int = 0
+    falloff: dict | None = None
+    seam: dict | None = None
+    chromatic: tuple[float, float, float] | None = None
 
     def to_json(self) -> dict:
+        """The ``frame.json`` object: every key of :data:`KEYS`, and those of :data:`OPTIONAL_KEYS` that are set."""
         out = asdict(self)
         out["white_balance"] = [float(g) for g in self.white_balance]
+        for k in OPTIONAL_KEYS:
+            if out[k] is None:
+                del out[k]
+        if self.chromatic is not None:
+            out["chromatic"] = [float(k) for k in self.chromatic]
         return out
 
     @classmethod
@@ -58,14 +91,17 @@ class Photometric:
         """Read and check a record: every key of :data:`KEYS`, each valid, and no other (the keys present are
         checked first, then that none is missing).
 
+        The keys of :data:`OPTIONAL_KEYS` may be left out.
+
         Raises:
             ValueError: one line naming ``where`` and the bad, unknown or missing key(s).
         """
         if not isinstance(raw, dict):
             raise ValueError(f"{where} must be an object, got {type(raw).__name__}")
-        unknown = sorted(set(raw) - set(KEYS))
+        unknown = sorted(set(raw) - set(KEYS) - set(OPTIONAL_KEYS))
         if unknown:
-            raise ValueError(f"{where}: unknown key(s) {', '.join(unknown)} (known: {', '.join(KEYS)})")
+            raise ValueError(f"{where}: unknown key(s) {', '.join(unknown)} (known: "
+                             f"{', '.join(KEYS + OPTIONAL_KEYS)})")
 
         def number(key, value, lo, hi):
             if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value) \
@@ -89,26 +125,62 @@ class Photometric:
             raise ValueError(f"{where}.noise must be {{\"shot\": number, \"read\": number}}, got {noise!r}")
         noise = {k: number(f"noise.{k}", noise[k], 0.0, 1.0) for k in ("shot", "read")}
         response = raw.get("response", d.response)
-        if not isinstance(response, str) or not (response == "srgb" or gamma_of(response) is not None):
-            raise ValueError(f"{where}.response must be 'srgb' or 'gamma-G' with G in [1, 4], got {response!r}")
+        if not is_response(response):
+            raise ValueError(f"{where}.response must be {RESPONSES}, got {response!r}")
         q = raw.get("jpeg_quality", d.jpeg_quality)
         if isinstance(q, bool) or not isinstance(q, int) or not 0 <= q <= 100:
             raise ValueError(f"{where}.jpeg_quality must be an integer 0-100 (0 = none), got {q!r}")
         seed = raw.get("seed", d.seed)
         if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2 ** 63:
             raise ValueError(f"{where}.seed must be a non-negative integer, got {seed!r}")
+        def direction(key, value):
+            ok = isinstance(value, list | tuple) and len(value) == 3 and all(
+                not isinstance(x, bool) and isinstance(x, int | float) and math.isfinite(x) for x in value)
+            if not ok or abs(math.sqrt(sum(float(x) ** 2 for x in value)) - 1.0) > UNIT_TOLERANCE:
+                raise ValueError(f"{where}.{key} must be a unit vector [x, y, z] in the camera frame, got {value!r}")
+            return [float(x) for x in value]
+
+        falloff = raw.get("falloff")
+        if falloff is not None:
+            if not isinstance(falloff, dict) or set(falloff) != {"direction", "edge_loss"}:
+                raise ValueError(f"{where}.falloff must be {{\"direction\": [x, y, z], \"edge_loss\": number}}, "
+                                 f"got {falloff!r}")
+            falloff = {"direction": direction("falloff.direction", falloff["direction"]),
+                       "edge_loss": number("falloff.edge_loss", falloff["edge_loss"], 0.0, 0.999)}
+        seam = raw.get("seam")
+        if seam is not None:
+            if not isinstance(seam, dict) or set(seam) != {"direction", "gains", "blend_deg"} \
+                    or not isinstance(seam["gains"], list | tuple) or len(seam["gains"]) != 2:
+                raise ValueError(f"{where}.seam must be {{\"direction\": [x, y, z], \"gains\": [front, back], "
+                                 f"\"blend_deg\": number}}, got {seam!r}")
+            blend = number("seam.blend_deg", seam["blend_deg"], 0.0, 90.0)
+            if blend <= 0.0:
+                raise ValueError(f"{where}.seam.blend_deg must be a number in (0, 90] degrees, got {blend!r}")
+            seam = {"direction": direction("seam.direction", seam["direction"]),
+                    "gains": [number("seam.gains", g, 0.05, 20.0) for g in seam["gains"]], "blend_deg": blend}
+        chromatic = raw.get("chromatic")
+        if chromatic is not None:
+            if not isinstance(chromatic, list | tuple) or len(chromatic) != 3:
+                raise ValueError(f"{where}.chromatic must be three loss factors [R, G, B], got {chromatic!r}")
+            chromatic = tuple(number("chromatic", k, 0.0, 4.0) for k in chromatic)
+            losses = [vig["edge_loss"]] + ([falloff["edge_loss"]] if falloff else [])
+            if max(chromatic) * max(losses) > 0.999:
+                raise ValueError(f"{where}.chromatic: a factor of {max(chromatic):g} times an edge_loss of "
+                                 f"{max(losses):g} loses more than 0.999 of a channel's light")
         missing = [k for k in KEYS if k not in raw]
         if missing:
             raise ValueError(f"{where}: missing key(s) {', '.join(missing)} (a photometric record needs every key: "
                              f"{', '.join(KEYS)})")
-        return cls(e, wb, vig, noise, response, q, seed)
+        return cls(e, wb, vig, noise, response, q, seed, falloff, seam, chromatic)
 
     @property
     def is_ideal(self) -> bool:
         """Whether :func:`apply` leaves an image unchanged."""
         return (self.exposure_stops == 0.0 and tuple(self.white_balance) == (1.0, 1.0, 1.0)
                 and self.vignetting["edge_loss"] == 0.0 and self.noise["shot"] == 0.0 and self.noise["read"] == 0.0
-                and self.response == "srgb" and self.jpeg_quality == 0)
+                and self.response == "srgb" and self.jpeg_quality == 0
+                and (self.falloff is None or self.falloff["edge_loss"] == 0.0)
+                and (self.seam is None or tuple(self.seam["gains"]) == (1.0, 1.0)))
 
 
 def gamma_of(response: str) -> float | None:
@@ -120,6 +192,39 @@ def gamma_of(response: str) -> float | None:
     except ValueError:
         return None
     return g if math.isfinite(g) and 1.0 <= g <= 4.0 else None
+
+
+def contrast_of(response: str) -> float | None:
+    """K of an ``"s-curve-K"`` response with K in [1, 4], else None.
+
+    The response is sRGB encoding followed by the S curve ``s ** K / (s ** K + (1 - s) ** K)`` on the encoded value
+    ``s`` in [0, 1]: smooth, increasing, fixed points 0, 1/2 and 1, slope ``K`` at mid-grey (1 = plain sRGB): a
+    camera's "vivid" tone curve, darker shadows and brighter highlights than sRGB.
+    """
+    if not response.startswith("s-curve-"):
+        return None
+    try:
+        k = float(response[len("s-curve-"):])
+    except ValueError:
+        return None
+    return k if math.isfinite(k) and 1.0 <= k <= 4.0 else None
+
+
+def is_response(response) -> bool:
+    """Whether ``response`` names a response curve (:data:`RESPONSES`)."""
+    return isinstance(response, str) and (
+        response == "srgb" or gamma_of(response) is not None or contrast_of(response) is not None)
+
+
+def lens_direction(axis: str, tilt_deg: float, azimuth_rad: float) -> list[float]:
+    """The unit camera-frame vector ``tilt_deg`` degrees from the camera-frame ``axis``, towards azimuth
+    ``azimuth_rad`` about it (0: towards the next axis, x -> y -> z -> x; pi / 2: towards ``axis`` x that one)."""
+    a = np.eye(3)[AXES.index(axis)]
+    u = np.eye(3)[(AXES.index(axis) + 1) % 3]
+    v = np.cross(a, u)
+    t = math.radians(tilt_deg)
+    d = math.cos(t) * a + math.sin(t) * (math.cos(azimuth_rad) * u + math.sin(azimuth_rad) * v)
+    return [float(x) for x in d / np.linalg.norm(d)]
 
 
 SHOT_FRACTION = 0.8
@@ -145,10 +250,27 @@ class CameraDistribution:
         vignetting: ``[lo, hi]`` light lost at the lenses' seam (fraction).
         vignetting_axis: the lenses' axis in the camera frame (``"y"``: front and back).
         noise_grey_levels: ``[lo, hi]`` noise standard deviation at mid-grey, 8-bit levels.
-        response: the response curve (``"srgb"`` or ``"gamma-G"``).
+        response: every camera's response curve (:data:`RESPONSES`), unless ``responses`` is given.
         jpeg_quality: ``[lo, hi]`` JPEG quality (integers; 0 0 = none).
         rotation_deg: ``[lo, hi]`` calibration error of U's and R's told orientation, degrees (0 0 = none).
         translation_mm: ``[lo, hi]`` calibration error of U's and R's told position, millimetres (0 0 = none).
+
+    The keys below came after ``tri360-v2``; each is off at its default, and :meth:`to_json` leaves it out then (so
+    the record of a distribution without them is what it was):
+
+    Attributes (after tri360-v2):
+        falloff: ``[lo, hi]`` light the ``cos^4`` fall-off (``Photometric.falloff``) loses at the seam (0 0 = none).
+        lens_tilt_deg: ``[lo, hi]`` angle between the lens axis of ``falloff`` and ``seam`` and
+            ``vignetting_axis``, degrees, towards a uniform azimuth (0 0 = the lenses look along the axis).
+        lens_mismatch: ``[lo, hi]`` relative gain difference ``delta`` of the two lenses: gains ``(1 + delta) **
+            (+-1/2)``, the brighter lens front or back with equal odds (0 0 = none).
+        seam_blend_deg: ``[lo, hi]`` width of the band over which the stitch cross-fades the two lenses, degrees
+            (with ``lens_mismatch`` only).
+        chromatic: ``[lo, hi]``: the fall-offs' losses scaled by ``(1 + c, 1, 1 - c)`` in (R, G, B), ``c`` drawn
+            (0 0 = none).
+        responses: each camera's response curve drawn uniformly from these (empty: every camera ``response``).
+        held_out: no selection may use the condition; results report it only (not a property of the cameras: the
+            draw ignores it).
     """
 
     exposure_stops: float = 0.5
@@ -160,9 +282,30 @@ class CameraDistribution:
     jpeg_quality: tuple[int, int] = (85, 95)
     rotation_deg: tuple[float, float] = (0.1, 0.3)
     translation_mm: tuple[float, float] = (1.0, 2.0)
+    falloff: tuple[float, float] = (0.0, 0.0)
+    lens_tilt_deg: tuple[float, float] = (0.0, 0.0)
+    lens_mismatch: tuple[float, float] = (0.0, 0.0)
+    seam_blend_deg: tuple[float, float] = (0.0, 0.0)
+    chromatic: tuple[float, float] = (0.0, 0.0)
+    responses: tuple[str, ...] = ()
+    held_out: bool = False
+
+    def to_json(self) -> dict:
+        """The distribution as recorded (a twin's ``renderer.condition.distribution``, results' suite record):
+        every field, but those of :data:`LATER_FIELDS` only when not at their default."""
+        out = dataclasses.asdict(self)
+        for k in LATER_FIELDS:
+            if out[k] == _OFF[k]:
+                del out[k]
+        return out
 
     def draw(self, rng: np.random.Generator) -> Photometric:
-        """One camera's :class:`Photometric` (its noise seed drawn from ``rng`` too)."""
+        """One camera's :class:`Photometric` (its noise seed drawn from ``rng`` too).
+
+        The keys of ``tri360-v2`` are drawn first, in their order; then, only for the keys that are on: the lens
+        axis (tilt, azimuth), ``falloff``, ``lens_mismatch`` (size, sign, blend width), ``chromatic``, the response
+        (so a distribution without them draws what it always drew).
+        """
         e = float(rng.uniform(-self.exposure_stops, self.exposure_stops))
         g = rng.uniform(-1.0, 1.0, size=2)
         wb = (float((1.0 + self.white_balance) ** g[0]), 1.0, float((1.0 + self.white_balance) ** g[1]))
@@ -171,5 +314,27 @@ class CameraDistribution:
         lo, hi = self.jpeg_quality
         q = int(rng.integers(lo, hi + 1))
         seed = int(rng.integers(0, 2 ** 62))
+        falloff = seam = chromatic = None
+        response = self.response
+        if self.falloff[1] > 0 or self.lens_mismatch[1] > 0:
+            tilt = float(rng.uniform(*self.lens_tilt_deg))
+            d = lens_direction(self.vignetting_axis, tilt, float(rng.uniform(0.0, 2.0 * math.pi)))
+            if self.falloff[1] > 0:
+                falloff = {"direction": list(d), "edge_loss": float(rng.uniform(*self.falloff))}
+            if self.lens_mismatch[1] > 0:
+                delta = float(rng.uniform(*self.lens_mismatch))
+                sign = 1.0 if rng.integers(0, 2) else -1.0
+                gains = [float((1.0 + delta) ** (0.5 * sign)), float((1.0 + delta) ** (-0.5 * sign))]
+                seam = {"direction": list(d), "gains": gains, "blend_deg": float(rng.uniform(*self.seam_blend_deg))}
+        if self.chromatic[1] > 0:
+            c = float(rng.uniform(*self.chromatic))
+            chromatic = (1.0 + c, 1.0, 1.0 - c)
+        if self.responses:
+            response = self.responses[int(rng.integers(0, len(self.responses)))]
         return Photometric(e, wb, {"axis": self.vignetting_axis, "edge_loss": loss}, {"shot": shot, "read": read},
-                           self.response, q, seed)
+                           response, q, seed, falloff, seam, chromatic)
+
+
+LATER_FIELDS = ("falloff", "lens_tilt_deg", "lens_mismatch", "seam_blend_deg", "chromatic", "responses", "held_out")
+"""The :class:`CameraDistribution` fields added after ``tri360-v2`` (recorded only when not at their default)."""
+_OFF = {k: v for k, v in dataclasses.asdict(CameraDistribution()).items() if k in LATER_FIELDS}

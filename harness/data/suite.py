@@ -30,9 +30,11 @@ family it uses and the complete render settings (with tri360's defaults for what
 with the same suite id and split were measured on the same frames.
 
 Twins under a condition live in ``<data root>/<name>.<condition>/vp000 ...``: no group may be named like another
-group's twin directory.  A condition's calibration error is checked against every group's rig when the file is
-read (:func:`told_rig_problem`): the largest error the condition can draw, in the worst direction, must leave a
-told rig that frame validation (``harness.data.frame``) accepts.
+group's twin directory.  A condition with ``held_out = true`` is rendered, checked and reported like any other, but
+no selection (of defaults, parameters or methods) may use its frames: :meth:`Suite.selectable_conditions`.  A
+condition's calibration error is checked against every group's rig when the file is read
+(:func:`told_rig_problem`): the largest error the condition can draw, in the worst direction, must leave a told rig
+that frame validation (``harness.data.frame``) accepts.
 
 Every problem is one :class:`UserError` line naming the file and the key.  This module reads and checks only; the
 render settings' names and defaults come from the caller (``harness.commands.parts.suite``, which owns
@@ -57,7 +59,7 @@ from harness.data.errors import FrameError, UserError
 from harness.data.frame import FORMAT as FRAME_FORMAT
 from harness.data.frame import baseline_tolerance_m, validate_metadata
 from harness.data.names import check_name
-from harness.data.photometric import AXES, CameraDistribution, gamma_of
+from harness.data.photometric import AXES, RESPONSES, CameraDistribution, is_response
 from reconstruction.camera.rig import CameraPose, Rig, yaw_rotation
 from scenes.model import DIFFICULTY_TAGS, RENDERERS, ParameterError, SceneEntry
 from scenes.registry import discover
@@ -152,7 +154,8 @@ class Suite:
         path: the file.  name, description: from the file.  render: every render setting (the file's over the
         defaults, without :data:`MACHINE_SETTINGS`).  entries: the frame groups in file order.  code_versions:
         family -> code version (``SceneEntry.code_version``).  id: :func:`suite_id`.  conditions: the conditions
-        beside ``ideal`` (name -> the distribution its cameras are drawn from), in file order.
+        beside ``ideal`` (name -> the distribution its cameras are drawn from, whose ``held_out`` says that no
+        selection may use it), in file order.
     """
 
     path: Path
@@ -167,6 +170,15 @@ class Suite:
     def condition_names(self) -> list[str]:
         """``ideal`` and the declared conditions, in that order."""
         return [IDEAL, *self.conditions]
+
+    def selectable_conditions(self) -> list[str]:
+        """``ideal`` and the declared conditions a selection may use (not ``held_out``), in that order."""
+        return [IDEAL, *(k for k, v in self.conditions.items() if not v.held_out)]
+
+    def held_out_conditions(self) -> list[str]:
+        """The conditions marked ``held_out``: results report them, no selection (of defaults, parameters, methods)
+        may use their frames."""
+        return [k for k, v in self.conditions.items() if v.held_out]
 
     def splits(self) -> list[str]:
         return [s for s in SPLITS if any(e.split == s for e in self.entries)]
@@ -186,7 +198,7 @@ class Suite:
         return {"format": FORMAT, "name": self.name, "id": self.id, "split": split,
                 "file": str(Path(self.path).resolve()), "code_versions": dict(self.code_versions),
                 "render": dict(self.render),
-                "conditions": {k: dataclasses.asdict(v) for k, v in self.conditions.items()},
+                "conditions": {k: v.to_json() for k, v in self.conditions.items()},
                 "frames": [{"scene": f.scene, "viewpoint": f.viewpoint, "family": f.entry.family,
                             "preset": f.entry.preset, "seed": f.entry.seed, "tags": list(f.entry.tags),
                             "condition": f.condition}
@@ -332,7 +344,8 @@ def _condition(path: Path, name, raw) -> CameraDistribution:
             _fail(path, f"{where} {key}", f"must be a number in [0, {hi:g}], got {v!r}")
         values[key] = float(v)
     for key, hi in (("vignetting", 0.999), ("noise_grey_levels", 128.0), ("rotation_deg", 45.0),
-                    ("translation_mm", 1000.0)):
+                    ("translation_mm", 1000.0), ("falloff", 0.999), ("lens_tilt_deg", 90.0), ("lens_mismatch", 1.0),
+                    ("seam_blend_deg", 90.0), ("chromatic", 0.9)):
         values[key] = _pair(path, f"{where} {key}", table.get(key, list(getattr(d, key))), 0.0, hi)
     q = _pair(path, f"{where} jpeg_quality", table.get("jpeg_quality", list(d.jpeg_quality)), 0, 100, integer=True)
     if q[0] == 0 and q[1] != 0:
@@ -343,9 +356,32 @@ def _condition(path: Path, name, raw) -> CameraDistribution:
         _fail(path, f"{where} vignetting_axis", f"must be one of {', '.join(AXES)}, got {axis!r}")
     values["vignetting_axis"] = axis
     response = table.get("response", d.response)
-    if not isinstance(response, str) or not (response == "srgb" or gamma_of(response) is not None):
-        _fail(path, f"{where} response", f"must be 'srgb' or 'gamma-G' with G in [1, 4], got {response!r}")
+    if not is_response(response):
+        _fail(path, f"{where} response", f"must be {RESPONSES}, got {response!r}")
     values["response"] = response
+    responses = table.get("responses", list(d.responses))
+    if "responses" in table and not (isinstance(responses, list) and responses and all(map(is_response, responses))):
+        _fail(path, f"{where} responses", f"must be a non-empty list of {RESPONSES}, got {responses!r}")
+    if "responses" in table and "response" in table:
+        _fail(path, f"{where} responses", "each camera's response is drawn from responses: leave response out")
+    values["responses"] = tuple(responses)
+    held_out = table.get("held_out", d.held_out)
+    if not isinstance(held_out, bool):
+        _fail(path, f"{where} held_out", f"must be true or false, got {held_out!r}")
+    values["held_out"] = held_out
+    lenses = values["falloff"][1] > 0 or values["lens_mismatch"][1] > 0
+    if values["lens_tilt_deg"][1] > 0 and not lenses:
+        _fail(path, f"{where} lens_tilt_deg", "tilts the lens axis of falloff and lens_mismatch: give one of them")
+    if values["lens_mismatch"][1] > 0 and values["seam_blend_deg"][0] <= 0:
+        _fail(path, f"{where} seam_blend_deg", f"must be [low, high] degrees with 0 < low (the stitch cross-fades the "
+                                               f"lenses over a band), got {list(values['seam_blend_deg'])}")
+    if values["lens_mismatch"][1] == 0 and values["seam_blend_deg"][1] > 0:
+        _fail(path, f"{where} seam_blend_deg", "is the width of the cross-fade of lens_mismatch: give lens_mismatch")
+    worst = (1.0 + values["chromatic"][1]) * max(values["vignetting"][1], values["falloff"][1])
+    if worst > 0.999:
+        _fail(path, f"{where} chromatic", f"red's loss (1 + {values['chromatic'][1]:g}) x the largest edge loss "
+                                          f"({max(values['vignetting'][1], values['falloff'][1]):g}) is {worst:g}, "
+                                          "more than 0.999")
     return CameraDistribution(**values)
 
 

@@ -3,22 +3,22 @@
 From an ideal frame (rendered with identical, perfectly exposed cameras), :func:`captured_twin` derives the same
 scene and viewpoint seen through three cameras that each meter their own exposure and white balance, whose lenses
 darken towards their edges, whose sensors add noise and whose encoders compress (each camera's
-:class:`harness.data.photometric.Photometric`, drawn from a :class:`harness.render.camera.CameraDistribution`),
+:class:`harness.data.photometric.Photometric`, drawn from a :class:`harness.data.photometric.CameraDistribution`),
 and whose calibration is slightly off (U's and R's told orientation and position; C's is exact, so C's ground
 truth stays exact).  No second render: the ideal images are transformed in linear light
 (:func:`harness.render.camera.apply`).
 
 The twin records each camera's ``photometric`` in ``frame.json`` and, in ``renderer.condition``, the condition's
-name, the distribution, the seed, the calibration error drawn, the true poses of U and R (``true_cameras``,
-``true_baseline_m``: U's and R's distance maps are those of their true poses) and its source frame (``source``: its
-path and the SHA-256 over its files, :func:`harness.commands.perturb.source_record`, as ``tri360 perturb``
-records).  Deterministic: the same frame, distribution, seed and source record give byte-identical twins, and
-:func:`calibration_error` redraws the told poses from the true ones without the images.
+name, the distribution (:meth:`CameraDistribution.to_json`: a ``tri360-v2`` condition's record is what it always
+was), the seed, the calibration error drawn, the true poses of U and R (``true_cameras``, ``true_baseline_m``: U's
+and R's distance maps are those of their true poses) and its source frame (``source``: its path and the SHA-256 over
+its files, :func:`harness.commands.perturb.source_record`, as ``tri360 perturb`` records).  Deterministic: the same
+frame, distribution, seed and source record give byte-identical twins, and :func:`calibration_error` redraws the
+told poses from the true ones without the images.
 """
 
 from __future__ import annotations
 
-import dataclasses
 import zlib
 
 import numpy as np
@@ -32,7 +32,8 @@ from reconstruction.camera.rig import CAMERA_NAMES, CameraPose
 __all__ = ["CONDITIONS", "captured_twin", "calibration_error", "twin_generator"]
 
 CONDITIONS = ("ideal", "captured")
-"""The conditions of a suite split: the rendered frames and their captured twins."""
+"""The conditions of ``tri360-v2``'s splits: the rendered frames and their captured twins (a suite may declare more,
+``tri360-v3``: each is a :class:`CameraDistribution` and its twins are derived here alike)."""
 
 
 def twin_generator(seed: int, part: str, camera: str) -> np.random.Generator:
@@ -93,7 +94,7 @@ def captured_twin(frame: Frame, dist: CameraDistribution, seed: int, name: str =
     cameras, drawn = calibration_error(dict(frame.cameras), dist, seed)
     told = [float(np.linalg.norm(cameras[k].position - cameras["C"].position)) for k in ("U", "R")]
     baseline = float(np.mean(told))
-    record = {"name": name, "seed": int(seed), "distribution": dataclasses.asdict(dist), "calibration_error": drawn,
+    record = {"name": name, "seed": int(seed), "distribution": dist.to_json(), "calibration_error": drawn,
               "true_cameras": {k: frame.cameras[k].to_json() for k in ("U", "R")},
               "true_baseline_m": float(frame.baseline_m)}
     if source is not None:

@@ -140,7 +140,7 @@ def _stored_differences(meta: dict, p: PlannedFrame, suite: Suite) -> list[str]:
             return [f"condition {record.get('name') if isinstance(record, dict) else record!r} (now ideal)"]
         return differences(meta, p.identity, p.rig)
     want = {"name": condition, "seed": p.frame.twin_seed,
-            "distribution": json.loads(json.dumps(dataclasses.asdict(suite.conditions[condition])))}
+            "distribution": json.loads(json.dumps(suite.conditions[condition].to_json()))}
     if not isinstance(record, dict):
         return [f"no {condition} condition recorded (now {condition})"]
     out = [f"condition {k} {record.get(k)!r} (now {v!r})" for k, v in want.items() if record.get(k) != v]
@@ -312,7 +312,7 @@ def render_suite(path: Path, split: str, out_root: Path, threads: int = DEFAULTS
 
 def _derive_twins(suite: Suite, split: str, todo: list[PlannedFrame], out_root: Path, ctx: RunContext) -> None:
     """Write each twin (:func:`harness.commands.parts.captured.captured_twin`) of a rendered frame of ``out_root``."""
-    with progress_bar(len(todo), f"{suite.name} {split}: captured twins", enabled=ctx.progress) as bar:
+    with progress_bar(len(todo), f"{suite.name} {split}: twins", enabled=ctx.progress) as bar:
         for p in todo:
             src = frame_dir(out_root, p.frame.source.scene, p.frame.viewpoint)
             frame = read_frame(src)
