@@ -30,12 +30,13 @@ import cv2
 import numpy as np
 
 from reconstruction.camera.equirect import bearing_grid
+from reconstruction.evidence import ALPHA, Evidence, hotelling, jackknife_linear, sphere_blocks
 
 MAX_FIT_PIXELS = 15000
 """The fit uses at most this many pixels (evenly strided): the field of degree 2 has 11 coefficients."""
 
 __all__ = ["NO_CALIBRATION", "PhotometricParams", "srgb_to_linear", "linear_to_srgb", "basis", "fit_gain",
-           "align_images",
+           "align_images", "PhotometricModel", "IDENTITY", "fit_photometric", "apply_photometric",
            "aligned_frame", "FrameView"]
 
 
@@ -64,6 +65,19 @@ class PhotometricParams:
             symmetric about the camera's axes, as two like back-to-back lenses give, which a brightness
             difference between one side of the room and the other (a glossy floor's view-dependent reflection)
             cannot move.
+        common_field: :func:`fit_photometric` also fits the fall-off all three cameras share (from the parallax:
+            the same point is seen at different bearings) and removes it from all three images, C's included.  Off
+            by default: through a 0.3-0.4 m rig's parallax it cannot be told from view-dependent reflection (on
+            ideal rendered frames it finds "significant" fall-offs of 15-45 %).
+        min_gain, min_field: the smallest corrections applied (natural log: a camera's largest mean channel gain,
+            a field's range over the sphere), whatever the test says.  The fit is not exact where nothing differs:
+            a surface's view-dependent reflection and the pre-pass's correspondence errors make cameras that agree
+            look different by up to 0.045 (gain) and 0.089 (field) on the ideal frames of tri360-v2 dev (docs/
+            photometry.md, ``python -m tools.research.calibration_floor``), which no test over the sphere's blocks
+            tells from a camera's (they are as consistent across the sphere).
+        flat_log_gradient: only pixels where C's log intensity changes by less than this per pixel of the reduced
+            images take part (a flat patch's ratio does not depend on a match's last pixel of accuracy).
+        alpha: the level of the test each correction must pass to be applied (:mod:`reconstruction.evidence`).
     """
 
     mode: str = "gain-field"
@@ -78,6 +92,11 @@ class PhotometricParams:
     iterations: int = 8
     max_log_gain: float = 2.0
     even: bool = False
+    common_field: bool = False
+    min_gain: float = 0.05
+    min_field: float = 0.10
+    flat_log_gradient: float = 0.1
+    alpha: float = ALPHA
 
     def __post_init__(self):
         if self.mode not in ("none", "gain-field"):
@@ -89,6 +108,12 @@ class PhotometricParams:
             raise ValueError(f"photometric ridge must be >= 0, got {self.ridge}")
         if self.prepass_factor < 1:
             raise ValueError(f"photometric prepass_factor must be >= 1, got {self.prepass_factor}")
+        if not 0.0 < self.alpha < 1.0:
+            raise ValueError(f"photometric alpha must be in (0, 1), got {self.alpha}")
+        if not (self.min_gain >= 0 and self.min_field >= 0):
+            raise ValueError(f"photometric min_gain {self.min_gain} and min_field {self.min_field} must be >= 0")
+        if not self.flat_log_gradient > 0:
+            raise ValueError(f"photometric flat_log_gradient must be > 0, got {self.flat_log_gradient}")
         if self.factor < 1:
             raise ValueError(f"photometric factor must be >= 1, got {self.factor}")
         if not 0.0 <= self.dark < self.bright <= 1.0:
@@ -189,20 +214,30 @@ def _reduce(lin: np.ndarray, factor: int) -> np.ndarray:
     return cv2.resize(lin, (w // factor, h // factor), interpolation=cv2.INTER_AREA)
 
 
-def _sample_projection(lin_k: np.ndarray, rot_k: np.ndarray, pos_k: np.ndarray, points: np.ndarray) -> np.ndarray:
-    """Bilinear samples (..., 3) of K's equirect image ``lin_k`` where world ``points`` (..., 3) project."""
-    h, w = lin_k.shape[:2]
-    v = (np.asarray(points, np.float64) - pos_k) @ rot_k  # camera frame of K (rotation: world-from-camera)
-    norm = np.linalg.norm(v, axis=-1, keepdims=True)
-    v = v / np.maximum(norm, 1e-12)
+def _project(rot_k: np.ndarray, pos_k: np.ndarray, points: np.ndarray, width: int, height: int):
+    """Where world ``points`` (..., 3) project into camera K (rotation: world-from-camera): pixel column and row
+    (..., float64) of a ``width`` x ``height`` equirect image and the unit bearing (..., 3) in K's own frame."""
+    v = (np.asarray(points, np.float64) - pos_k) @ rot_k
+    v = v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-12)
     lam = np.arctan2(v[..., 0], v[..., 1])
     phi = np.arcsin(np.clip(v[..., 2], -1.0, 1.0))
-    u = (lam + np.pi) * w / (2 * np.pi) - 0.5
-    row = (np.pi / 2 - phi) * h / np.pi - 0.5
+    return (lam + np.pi) * width / (2 * np.pi) - 0.5, (np.pi / 2 - phi) * height / np.pi - 0.5, v
+
+
+def _sample(lin_k: np.ndarray, u: np.ndarray, row: np.ndarray) -> np.ndarray:
+    """Bilinear samples (..., 3) of the equirect image ``lin_k`` at columns ``u`` and rows ``row`` (wrapping in
+    longitude)."""
     pad = 2
     padded = np.concatenate([lin_k[:, -pad:], lin_k, lin_k[:, :pad]], axis=1)
     return cv2.remap(padded, (u + pad).astype(np.float32), row.astype(np.float32), cv2.INTER_LINEAR,
                      borderMode=cv2.BORDER_REPLICATE)
+
+
+def _sample_projection(lin_k: np.ndarray, rot_k: np.ndarray, pos_k: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Bilinear samples (..., 3) of K's equirect image ``lin_k`` where world ``points`` (..., 3) project."""
+    h, w = lin_k.shape[:2]
+    u, row, _ = _project(rot_k, pos_k, points, w, h)
+    return _sample(lin_k, u, row)
 
 
 def step(n: int, most: int = MAX_FIT_PIXELS) -> int:
@@ -262,6 +297,225 @@ def align_images(images: dict, cameras: dict, params: PhotometricParams = Photom
                    "field_range": [float(np.exp(field.min() - mean_field)), float(np.exp(field.max() - mean_field))],
                    **fit}
     return out, info
+
+
+@dataclass(frozen=True)
+class PhotometricModel:
+    """The photometric corrections :func:`fit_photometric` found supported (natural-log units).
+
+    Attributes:
+        gains: per corrected camera (U, R) its (3,) log gain relative to C per channel (the field's intercept).
+        fields: per camera with a supported field of its own, the (J,) coefficients of its field over its own
+            bearings (:func:`basis` of ``degree``).
+        common: (J,) coefficients of the fall-off all three cameras share, or None.
+        degree, even: the basis.
+    """
+
+    gains: dict
+    fields: dict
+    common: np.ndarray | None
+    degree: int
+    even: bool
+
+    @property
+    def is_identity(self) -> bool:
+        """Nothing to correct."""
+        return not self.gains and not self.fields and self.common is None
+
+
+IDENTITY = PhotometricModel({}, {}, None, 0, False)
+"""The model of cameras that agree."""
+
+
+def _irls(design: np.ndarray, target: np.ndarray, coef: np.ndarray, params: PhotometricParams,
+          ridge: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """Tukey-reweighted least squares from ``coef``: ``(coef, weights, sigma)``."""
+    w = np.ones(target.size)
+    sigma = float("nan")
+    for _ in range(params.iterations):
+        res = target - design @ coef
+        sigma = 1.4826 * float(np.median(np.abs(res - np.median(res)))) + 1e-6
+        u = res / (params.tukey_c * sigma)
+        w = np.where(np.abs(u) < 1.0, (1.0 - u * u) ** 2, 0.0)
+        a = design * w[:, None]
+        coef = np.linalg.solve(a.T @ design + np.diag(ridge), a.T @ target)
+    return coef, w, sigma
+
+
+def _log_gradient(lin: np.ndarray) -> np.ndarray:
+    """(h, w) magnitude of the gradient of the log mean intensity, per pixel (wrapping in longitude)."""
+    g = np.log(np.maximum(lin.mean(axis=-1), 1e-4)).astype(np.float32)
+    padded = np.concatenate([g[:, -1:], g, g[:, :1]], axis=1)
+    gx = cv2.Sobel(padded, cv2.CV_32F, 1, 0, ksize=3, borderType=cv2.BORDER_REPLICATE)[:, 1:-1] / 8.0
+    gy = cv2.Sobel(padded, cv2.CV_32F, 0, 1, ksize=3, borderType=cv2.BORDER_REPLICATE)[:, 1:-1] / 8.0
+    return np.hypot(gx, gy)
+
+
+def fit_photometric(images: dict, cameras: dict, distance: np.ndarray,
+                    params: PhotometricParams = PhotometricParams(),
+                    others=("U", "R")) -> tuple[PhotometricModel, dict]:
+    """Fit U's and R's gains and fields relative to C and the fall-off the three share, and keep what the frame
+    supports.
+
+    Each of C's pixels is paired with where its point (``distance``) projects into U and R; over the pairs that
+    are neither dark nor near saturation and lie in flat patches (``flat_log_gradient``), one robust fit of
+
+        ln K_c(q) - ln C_c(p) = a_Kc + g_K(b_K) + f(b_K) - f(b_C)
+
+    (``g_K`` K's own field, ``f`` the shared fall-off, both over :func:`basis` of the camera-frame bearings ``b_K``,
+    ``b_C``; ``f`` is seen only through parallax, so only with ``common_field``).  Each quantity (K's mean gains,
+    K's field, the shared fall-off) is then tested (:func:`reconstruction.evidence.hotelling` over the jackknife of
+    the sphere's blocks) and kept when the test rejects "no correction" at ``params.alpha`` and the correction is
+    at least ``params.min_gain`` (the largest channel's mean log gain) or ``params.min_field`` (the field's log
+    range over the sphere); the kept ones are fitted again alone.
+
+    Args:
+        images: (H, W, 3) uint8 sRGB image per camera name; cameras: pose per camera (``position`` (3,) metres,
+            ``rotation`` (3, 3) world-from-camera); distance: (H, W) distance of C, metres (non-finite or <= 0:
+            not used).
+        params: the fit; mode ``"none"`` returns :data:`IDENTITY`.
+    Returns:
+        ``(model, record)``: the supported corrections (:class:`PhotometricModel`) and per camera (and
+        ``"common"``) what was fitted, its evidence and whether it is applied (JSON-able).
+    """
+    if params.mode == "none":
+        return IDENTITY, {}
+    f = params.factor
+    lin_c = _reduce(srgb_to_linear(images["C"]).astype(np.float32), f)
+    h, w = lin_c.shape[:2]
+    b_c = bearing_grid(w, h)
+    phi_c = basis(b_c, params.degree, params.even)
+    n_j = phi_c.shape[-1]
+    d_small = _reduce(np.asarray(distance, np.float32), f)
+    rot_c = np.asarray(cameras["C"].rotation, np.float64)
+    world = b_c @ rot_c.T * d_small[..., None] + np.asarray(cameras["C"].position, np.float64)
+    blocks_c = sphere_blocks(b_c @ rot_c.T)
+    flat = _log_gradient(lin_c) < params.flat_log_gradient
+    ok_c = np.isfinite(d_small) & (d_small > 0) & flat & np.all((lin_c > params.dark) & (lin_c < params.bright),
+                                                                 axis=-1)
+    cols_per = 3 + n_j
+    common_first = cols_per * len(others)
+    n_cols = common_first + (n_j if params.common_field else 0)
+    rows, targets, blocks = [], [], []
+    for i, k in enumerate(others):
+        lin_k = _reduce(srgb_to_linear(images[k]).astype(np.float32), f)
+        u, row, b_k = _project(np.asarray(cameras[k].rotation, np.float64),
+                               np.asarray(cameras[k].position, np.float64), world, w, h)
+        sample = _sample(lin_k, u, row)
+        usable = ok_c & np.all((sample > params.dark) & (sample < params.bright), axis=-1)
+        idx = np.flatnonzero(usable.reshape(-1))
+        idx = idx[::step(idx.size, MAX_FIT_PIXELS)]
+        ratio = (np.log(sample.reshape(-1, 3)[idx]) - np.log(lin_c.reshape(-1, 3)[idx])).astype(np.float64)
+        phi_k = basis(b_k.reshape(-1, 3)[idx], params.degree, params.even)
+        design = np.zeros((idx.size, 3, n_cols))
+        for c in range(3):
+            design[:, c, i * cols_per + c] = 1.0
+        design[:, :, i * cols_per + 3:(i + 1) * cols_per] = phi_k[:, None, :]
+        if params.common_field:
+            design[:, :, common_first:] = (phi_k - phi_c.reshape(-1, n_j)[idx])[:, None, :]
+        rows.append(design.reshape(-1, n_cols))
+        targets.append(ratio.reshape(-1))
+        blocks.append(np.repeat(blocks_c.reshape(-1)[idx], 3))
+    design, target, blocks = np.concatenate(rows), np.concatenate(targets), np.concatenate(blocks)
+    n_samples = target.size // 3
+    if n_samples < 10 * n_cols:
+        return IDENTITY, {"pixels": int(n_samples), "applied": False, "reason": "too few usable pixels"}
+    ridge = np.full(n_cols, 1e-6)
+    for i in range(len(others)):
+        ridge[i * cols_per + 3:(i + 1) * cols_per] += params.ridge * n_samples
+    coef0 = np.zeros(n_cols)
+    for i, t in enumerate(targets):
+        coef0[i * cols_per:i * cols_per + 3] = np.median(t.reshape(-1, 3), axis=0)
+    coef, weights, sigma = _irls(design, target, coef0, params, ridge)
+    theta, cov, n_blocks = jackknife_linear(design, target, weights, blocks, ridge)
+    phi_mean = phi_c.reshape(-1, n_j).mean(axis=0)
+    phi_all = phi_c.reshape(-1, n_j)
+
+    def test(lin_map: np.ndarray, size: float, floor: float) -> Evidence:
+        ev = hotelling(lin_map @ theta, lin_map @ cov @ lin_map.T, n_blocks, params.alpha)
+        ev["supported"] = bool(ev["supported"] and size >= floor)
+        return ev
+
+    def field_range(beta: np.ndarray) -> tuple[float, float]:
+        v = phi_all @ beta
+        v = v - v.mean()
+        return float(np.exp(v.min())), float(np.exp(v.max()))
+
+    record = {"pixels": int(n_samples), "sigma": sigma, "inliers": float((weights > 0).mean()),
+              "blocks": n_blocks}
+    keep = np.zeros(n_cols, bool)
+    for i, k in enumerate(others):
+        a_cols = np.arange(i * cols_per, i * cols_per + 3)
+        f_cols = np.arange(i * cols_per + 3, (i + 1) * cols_per)
+        mean_gain = np.zeros((3, n_cols))
+        mean_gain[np.arange(3), a_cols] = 1.0
+        mean_gain[:, f_cols] = phi_mean
+        gains = mean_gain @ theta
+        gain_ev = test(mean_gain, float(np.abs(gains).max()), params.min_gain)
+        lo, hi = field_range(theta[f_cols]) if n_j else (1.0, 1.0)
+        field_ev = test(np.eye(n_cols)[f_cols], float(np.log(hi / lo)), params.min_field) if n_j else \
+            Evidence(statistic=float("nan"), p_value=1.0, blocks=n_blocks, supported=False)
+        record[k] = {"gain_rgb": np.exp(gains).tolist(), "gain": {**gain_ev, "applied": gain_ev["supported"]},
+                     "field_range": [lo, hi], "field": {**field_ev, "applied": field_ev["supported"]}}
+        if gain_ev["supported"] or field_ev["supported"]:
+            keep[a_cols] = True
+        if field_ev["supported"]:
+            keep[f_cols] = True
+    common = None
+    if params.common_field and n_j:
+        c_cols = np.arange(common_first, n_cols)
+        lo, hi = field_range(theta[c_cols])
+        ev = test(np.eye(n_cols)[c_cols], float(np.log(hi / lo)), params.min_field)
+        record["common"] = {"field_range": [lo, hi], "field": {**ev, "applied": ev["supported"]}}
+        keep[c_cols] = ev["supported"]
+    if not keep.any():
+        record["applied"] = False
+        return IDENTITY, record
+    coef, weights, sigma = _irls(design[:, keep], target, np.where(keep, coef, 0.0)[keep], params, ridge[keep])
+    full = np.zeros(n_cols)
+    full[keep] = coef
+    gains, fields = {}, {}
+    for i, k in enumerate(others):
+        if keep[i * cols_per]:
+            gains[k] = full[i * cols_per:i * cols_per + 3]
+        if n_j and keep[i * cols_per + 3]:
+            fields[k] = full[i * cols_per + 3:(i + 1) * cols_per]
+    if params.common_field and n_j and keep[-1]:
+        common = full[common_first:]
+    record["applied"] = True
+    record["sigma_applied"] = sigma
+    return PhotometricModel(gains, fields, common, params.degree, params.even), record
+
+
+def apply_photometric(images: dict, model: PhotometricModel, max_log_gain: float = 2.0) -> dict:
+    """The images with ``model``'s corrections divided out in linear light (:func:`fit_photometric`).
+
+    Args:
+        images: (H, W, 3) uint8 sRGB image per camera name.
+        max_log_gain: each camera's correction field is clipped to +- this (natural log).
+    Returns:
+        A new dict; a camera with nothing to correct keeps its array (the same object).
+    """
+    out = dict(images)
+    if model.is_identity:
+        return out
+    for k, img in images.items():
+        h, w = img.shape[:2]
+        if k not in model.gains and k not in model.fields and model.common is None:
+            continue
+        small_w, small_h = max(w // 4, 8), max(h // 4, 4)
+        phi = basis(bearing_grid(small_w, small_h), model.degree, model.even)
+        field = np.zeros((small_h, small_w))
+        if model.fields.get(k) is not None:
+            field += phi @ model.fields[k]
+        if model.common is not None:  # the shared fall-off only brightens: its brightest bearing keeps its level
+            common = phi @ model.common
+            field += common - common.max()
+        field = cv2.resize(np.clip(field, -max_log_gain, max_log_gain).astype(np.float32), (w, h),
+                           interpolation=cv2.INTER_LINEAR)
+        log_gain = field[..., None] + np.asarray(model.gains.get(k, np.zeros(3)), np.float32)
+        out[k] = linear_to_srgb(srgb_to_linear(img).astype(np.float32) * np.exp(-log_gain), np.float32)
+    return out
 
 
 def aligned_frame(frame, params: PhotometricParams, distance: np.ndarray | None = None):

@@ -34,6 +34,7 @@ import cv2
 import numpy as np
 
 from reconstruction.camera.rig import CameraPose
+from reconstruction.evidence import ALPHA, hotelling, jackknife_linear, sphere_blocks
 
 __all__ = ["RigParams", "NO_RIG_CALIBRATION", "RigFit", "rotation_vector_matrix", "fit_rotation", "usable_matches",
            "corrected_pose"]
@@ -52,6 +53,10 @@ class RigParams:
         min_sin: see :func:`fit_rotation`.
         max_degrees: a fitted correction larger than this is not applied (the fit is trusted only for the small
             errors of a calibrated rig; a larger one means the matches, not the rig, are wrong).
+        alpha: the level of the test a correction must pass to be applied (:func:`fit_rotation`'s ``evidence``):
+            a told rotation the frame's matches do not contradict is kept.
+        min_degrees: a smaller correction is not applied however significant: a tenth of a pixel of the pre-pass
+            (500 px around at 1000x500), about what its flow resolves.
     """
 
     mode: str = "rotation"
@@ -59,6 +64,8 @@ class RigParams:
     texture_quantile: float = 0.7
     min_sin: float = 0.3
     max_degrees: float = 2.0
+    alpha: float = ALPHA
+    min_degrees: float = 0.072
 
     def __post_init__(self):
         if self.mode not in ("none", "rotation"):
@@ -69,6 +76,10 @@ class RigParams:
             raise ValueError(f"rig calibration texture_quantile must be in [0, 1), got {self.texture_quantile}")
         if not 0.0 <= self.min_sin < 1.0:
             raise ValueError(f"rig calibration min_sin must be in [0, 1), got {self.min_sin}")
+        if not 0.0 < self.alpha < 1.0:
+            raise ValueError(f"rig calibration alpha must be in (0, 1), got {self.alpha}")
+        if not 0 <= self.min_degrees < self.max_degrees:
+            raise ValueError(f"rig calibration min_degrees {self.min_degrees} must be in [0, max_degrees)")
         if not self.max_degrees > 0:
             raise ValueError(f"rig calibration max_degrees must be > 0, got {self.max_degrees}")
 
@@ -90,11 +101,13 @@ def rotation_vector_matrix(omega: np.ndarray) -> np.ndarray:
 
 class RigFit(dict):
     """What :func:`fit_rotation` found (a JSON-able dict): ``omega`` (3,) radians, ``degrees`` its norm,
-    ``matches`` used, ``sigma_deg`` the robust scale of the final residuals, ``iterations``."""
+    ``matches`` used, ``sigma_deg`` the robust scale of the final residuals, ``iterations``, ``evidence`` (the test
+    of ``omega`` against the told rotation, :class:`reconstruction.evidence.Evidence`)."""
 
 
 def fit_rotation(c: np.ndarray, k: np.ndarray, baseline: np.ndarray, *, min_sin: float = 0.3,
-                 iterations: int = 6, tukey_c: float = 4.685, max_matches: int = 40000) -> RigFit:
+                 iterations: int = 6, tukey_c: float = 4.685, max_matches: int = 40000,
+                 alpha: float = ALPHA) -> RigFit:
     """The rotation that puts K's matched bearings back onto C's epipolar planes (module doc).
 
     Args:
@@ -107,8 +120,12 @@ def fit_rotation(c: np.ndarray, k: np.ndarray, baseline: np.ndarray, *, min_sin:
         iterations: Gauss-Newton steps.
         tukey_c: Tukey's constant, in robust standard deviations (1.4826 MAD).
         max_matches: at most this many matches are used (an even stride over the valid ones).
+        alpha: the level of the test: ``evidence`` is Hotelling's test of ``omega`` over the delete-one-block
+            jackknife of the matches' blocks of C's sphere (:mod:`reconstruction.evidence`), the robust weights
+            and the linearisation held at the solution; ``supported`` when it rejects "the told rotation" at
+            ``alpha``.
     Returns:
-        A :class:`RigFit`; ``omega`` is zero when fewer than 100 matches are usable.
+        A :class:`RigFit`; ``omega`` is zero and nothing supported when fewer than 100 matches are usable.
     """
     c = np.asarray(c, np.float64).reshape(-1, 3)
     k = np.asarray(k, np.float64).reshape(-1, 3)
@@ -122,7 +139,8 @@ def fit_rotation(c: np.ndarray, k: np.ndarray, baseline: np.ndarray, *, min_sin:
     omega = np.zeros(3)
     if idx.size < 100:
         return RigFit(omega=omega.tolist(), degrees=0.0, matches=int(idx.size), sigma_deg=float("nan"),
-                      iterations=0)
+                      iterations=0, evidence=hotelling(omega, np.full((3, 3), np.nan), 0, alpha))
+    blocks = sphere_blocks(c[idx])
     n = n[idx] / sin[idx, None]
     k = k[idx]
     sigma = float("nan")
@@ -141,8 +159,13 @@ def fit_rotation(c: np.ndarray, k: np.ndarray, baseline: np.ndarray, *, min_sin:
         omega = _compose(step, omega)
         if np.linalg.norm(step) < 1e-7:
             break
+    kk = k @ rotation_vector_matrix(omega).T
+    r = np.einsum("ij,ij->i", n, kk)
+    u = r / (tukey_c * sigma)
+    wts = np.where(np.abs(u) < 1.0, (1.0 - u * u) ** 2, 0.0)
+    _, cov, used = jackknife_linear(np.cross(kk, n), -r, wts, blocks)
     return RigFit(omega=omega.tolist(), degrees=float(np.degrees(np.linalg.norm(omega))), matches=int(idx.size),
-                  sigma_deg=float(np.degrees(sigma)), iterations=done)
+                  sigma_deg=float(np.degrees(sigma)), iterations=done, evidence=hotelling(omega, cov, used, alpha))
 
 
 def usable_matches(image_c: np.ndarray, bearing: np.ndarray, fb_error_px: np.ndarray, valid: np.ndarray,

@@ -21,7 +21,8 @@ import pandas as pd
 
 from reports.metrics import SUMMARY_KEYS
 
-__all__ = ["KEY_COLUMNS", "FLOW_COLUMNS", "SUITE_COLUMNS", "CORE_METRIC_COLUMNS", "METRIC_COLUMNS", "RESULT_COLUMNS",
+__all__ = ["KEY_COLUMNS", "FLOW_COLUMNS", "SUITE_COLUMNS", "CALIBRATION_COLUMNS",
+           "CORE_METRIC_COLUMNS", "METRIC_COLUMNS", "RESULT_COLUMNS",
            "RESULT_REQUIRED", "REGION_COLUMNS", "REGION_REQUIRED", "BREAKDOWN_COLUMNS", "INT_COLUMNS", "TEXT_COLUMNS",
            "BOOL_COLUMNS", "QUALITY_COLUMNS", "FLOOR_COLUMNS", "unscored_rows", "results_table", "regions_table",
            "breakdown_table"]
@@ -52,8 +53,11 @@ SUITE_COLUMNS = ["family", "tags", "suite_id", "split", "condition"]
 #: truth (real captures) and empty for scored frames; older results sets lack them
 QUALITY_COLUMNS = ["photometric_residual_median", "distance_residual_m_median", "pair_agreement_median",
                    "uncertainty_median", "calibration_score"]
+#: what the method's self-calibration applied on the frame, e.g. ``U gain; U field; R rotation`` (``none``: it ran and
+#: found nothing to correct; empty: the method does not self-calibrate); older results sets lack it
+CALIBRATION_COLUMNS = ["calibrated"]
 RESULT_COLUMNS = ["scene", "viewpoint", "width", "height", "method", *FLOW_COLUMNS, *METRIC_COLUMNS, *SUITE_COLUMNS,
-                  *QUALITY_COLUMNS]
+                  *QUALITY_COLUMNS, *CALIBRATION_COLUMNS]
 #: the columns a results.csv must have (older results sets lack the later metrics)
 RESULT_REQUIRED = ["scene", "viewpoint", "width", "height", "method", *FLOW_COLUMNS, *CORE_METRIC_COLUMNS]
 REGION_COLUMNS = [*KEY_COLUMNS, *FLOW_COLUMNS, "region", *(c for c in METRIC_COLUMNS if c != "seconds")]

@@ -273,6 +273,15 @@ def checked_maps(frame, method: Method, output: MethodOutput) -> tuple[np.ndarra
     return pred, conf
 
 
+def calibrated(output: MethodOutput) -> str:
+    """The results column ``calibrated``: what the method's self-calibration applied (``info["applied"]``) joined by
+    ``; ``, ``none`` when it applied nothing, empty for a method that does not self-calibrate."""
+    applied = output.info.get("applied") if isinstance(output.info, dict) else None
+    if not isinstance(applied, list):
+        return ""
+    return "; ".join(str(x) for x in applied) or "none"
+
+
 def _unscored_row(frame, method: Method, outputs: dict[str, MethodOutput]) -> tuple[dict, dict[str, np.ndarray]]:
     """The results row of one method on a frame without ground truth (empty metrics, ``valid_px`` 0, the
     quality figures of :func:`reconstruction.quality.assess`) and its per-pixel quality maps; ``outputs``: every
@@ -282,7 +291,8 @@ def _unscored_row(frame, method: Method, outputs: dict[str, MethodOutput]) -> tu
     maps, quality = assess(frame, pred, conf, reference_distance(MethodInput.of(frame), method, outputs))
     row = {"scene": frame.scene, "viewpoint": frame.viewpoint, "method": method.label, **flow_fields(method),
            "width": frame.width, "height": frame.height, **dict.fromkeys(METRIC_COLUMNS, float("nan")),
-           "valid_px": 0, "seconds": round(output.total_seconds, 4), **{c: quality[c] for c in QUALITY_COLUMNS}}
+           "valid_px": 0, "seconds": round(output.total_seconds, 4), **{c: quality[c] for c in QUALITY_COLUMNS},
+           "calibrated": calibrated(output)}
     return row, maps
 
 
@@ -298,7 +308,7 @@ def _score_rows(frame, method: Method, output: MethodOutput, masks: dict,
     overall = next(r for r in region_rows if r["region"] == "all")
     row = {**key, "width": frame.width, "height": frame.height,
            **{k: v for k, v in overall.items() if k not in key and k != "region"},
-           "seconds": round(output.total_seconds, 4)}
+           "seconds": round(output.total_seconds, 4), "calibrated": calibrated(output)}
     return row, [{**key, **b} for b in breakdown(frame, pred)], region_rows
 
 

@@ -33,6 +33,7 @@ from reconstruction.methods.flow_pipeline import config_label
 from reports.schema import (
     BOOL_COLUMNS,
     BREAKDOWN_COLUMNS,
+    CALIBRATION_COLUMNS,
     INT_COLUMNS,
     KEY_COLUMNS,
     REGION_COLUMNS,
@@ -204,7 +205,8 @@ def _read_csv(path: Path, columns: list[str], what: str, required: list[str] | N
             if parsed is not None:
                 df[c] = df[c].astype(object)
                 df.loc[flow_row, c] = parsed
-        elif c in SUITE_COLUMNS:  # may be empty (frames of no suite, or of no known family)
+        elif c in SUITE_COLUMNS or c in CALIBRATION_COLUMNS:  # may be empty (frames of no suite, or of no known
+            # family; methods that do not self-calibrate)
             df[c] = df[c].astype(str).str.strip()
         elif c in TEXT_COLUMNS:
             df[c] = df[c].astype(str).str.strip()

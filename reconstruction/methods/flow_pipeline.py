@@ -18,7 +18,16 @@ from reconstruction.camera.equirect import bearing_grid
 from reconstruction.flow.backends import ORACLE, FlowBackend
 from reconstruction.flow.matching import PairMatch, match_pair
 from reconstruction.methods.base import MethodOutput
-from reconstruction.photometry import NO_CALIBRATION, FrameView, PhotometricParams, aligned_frame
+from reconstruction.photometry import (
+    IDENTITY,
+    NO_CALIBRATION,
+    FrameView,
+    PhotometricModel,
+    PhotometricParams,
+    align_images,
+    apply_photometric,
+    fit_photometric,
+)
 from reconstruction.refine.lm import (
     ColorTerm,
     RefineConfig,
@@ -46,7 +55,8 @@ from reconstruction.rig_calibration import (
     usable_matches,
 )
 
-__all__ = ["DEFAULT_FLOW", "PAIRS", "Reconstruction", "reconstruct", "self_calibrate", "posed", "available_variants",
+__all__ = ["DEFAULT_FLOW", "PAIRS", "Reconstruction", "Calibration", "reconstruct", "self_calibrate",
+           "available_variants",
            "fuse_average", "fill_invalid", "fill_edge_aware", "Prepared", "prepare", "variant_problem",
            "refine_variant", "FlowMethod", "config_label", "flow_confidence", "run_flow_group"]
 
@@ -73,10 +83,8 @@ class Reconstruction:
         seconds: wall time per stage (``flow_U``, ``flow_R``, ``triangulate``, ``average``, each variant).
         iterations: LM iterations per variant.
         confidence: (H, W) float32 per variant, in [0, 1] (:func:`flow_confidence`).
-        cameras: the poses the flow and triangulation used: the frame's told ones, or U's and R's
-            self-calibrated (:mod:`reconstruction.rig_calibration`).
-        rig: per corrected camera what the rig self-calibration fitted (:class:`~reconstruction.rig_calibration.
-            RigFit`, with ``applied``); empty when it did not run.
+        calibration: the self-calibration the flow matched with (:class:`Calibration`: the corrected frame and
+            the record of what was fitted and applied).
     """
 
     distance: dict[str, np.ndarray] = field(default_factory=dict)
@@ -85,8 +93,7 @@ class Reconstruction:
     seconds: dict[str, float] = field(default_factory=dict)
     iterations: dict[str, int] = field(default_factory=dict)
     confidence: dict[str, np.ndarray] = field(default_factory=dict)
-    cameras: dict = field(default_factory=dict)
-    rig: dict = field(default_factory=dict)
+    calibration: Calibration | None = None
 
 
 def fill_invalid(d: np.ndarray, valid: np.ndarray, max_sigma_px: float = 64.0) -> np.ndarray:
@@ -368,15 +375,8 @@ def reconstruct(frame, flow: str | FlowBackend = DEFAULT_FLOW, rectify: bool = T
             :class:`RefineConfig` (default: all of :func:`available_variants`).
         limits: when a pair's estimate counts as invalid, and the distance clamp.
         on_stage: optional callback called with each stage name before it runs (progress display).
-        photometric: photometric self-calibration (:mod:`reconstruction.photometry`; stage ``photometric``): U's
-            and R's per-channel gains against C from the same pixels, then (``prepass_factor`` > 1, not for the
-            oracle) the gain field from the correspondences of a :data:`PREPASS_FLOW` pass on reduced images; the
-            flow runs on the corrected images; the colour variants' LM uses images corrected again from the
-            ``average`` distance's correspondences (stage ``photometric_color``).
-        rig: rig self-calibration (:mod:`reconstruction.rig_calibration`, not for the oracle): U's and R's
-            rotations fitted to the matches of the same pre-pass (run for it alone when the photometric field does
-            not need it) before the photometric field; everything after it uses the corrected poses
-            (``Reconstruction.cameras``).
+        photometric, rig: the self-calibration (:func:`self_calibrate`; not for the oracle): the flow, the
+            triangulation and every variant use its frame (``Reconstruction.calibration``).
     Returns:
         A :class:`Reconstruction`.
     Raises:
@@ -388,13 +388,10 @@ def reconstruct(frame, flow: str | FlowBackend = DEFAULT_FLOW, rectify: bool = T
                                    for v in variants if v != "average")}
     h, w = frame.height, frame.width
     note = on_stage or (lambda _s: None)
-    raw, frame, fits, seconds = self_calibrate(frame, photometric, rig, limits, flow != ORACLE, note)
+    calibration = self_calibrate(frame, photometric, rig, limits, flow != ORACLE, note)
+    frame = calibration.frame
     prep = prepare(frame, flow, rectify, limits, note)
-    out = Reconstruction(seconds={**seconds, **prep.seconds}, cameras=dict(frame.cameras), rig=fits)
-    if photometric.mode != "none" and any(c.color_weight > 0 for c in configs.values()):
-        start = time.perf_counter()
-        frame, _ = aligned_frame(raw, photometric, distance=prep.d0.reshape(h, w))
-        out.seconds["photometric_color"] = time.perf_counter() - start
+    out = Reconstruction(seconds={**calibration.seconds, **prep.seconds}, calibration=calibration)
     for k in PAIRS:
         out.pair_distance[k] = prep.d_pair[k].reshape(h, w).astype(np.float32)
         out.pair_valid[k] = prep.valid[k].reshape(h, w)
@@ -412,68 +409,113 @@ def reconstruct(frame, flow: str | FlowBackend = DEFAULT_FLOW, rectify: bool = T
     return out
 
 
-def self_calibrate(frame, photometric: PhotometricParams, rig: RigParams, limits: TriangulationLimits,
-                   prepass: bool = True, note: Callable[[str], None] = lambda _s: None):
-    """The self-calibration before the flow (:func:`reconstruct`'s ``photometric`` and ``rig``).
+@dataclass(frozen=True, eq=False)
+class Calibration:
+    """A frame self-calibrated once, for every method that matches it (:func:`self_calibrate`).
 
-    Returns:
-        ``(raw, matched, fits, seconds)``: ``raw`` the input frame seen with the self-calibrated poses (its images
-        as they are; the input itself when nothing ran), ``matched`` the frame to match (``raw`` with U's and R's
-        images corrected), per corrected camera the rig fit, and the stages' seconds: ``photometric`` (the
-        corrections and the pre-pass) and ``rig`` (the fit; the pre-pass too when there is no photometric
-        correction).
+    Attributes:
+        frame: what to match: the input frame seen with U's and R's corrected poses and the corrected images (the
+            input itself when nothing was applied).
+        model: the photometric corrections applied (:class:`reconstruction.photometry.PhotometricModel`).
+        record: JSON-able: ``rig`` (per camera the :class:`~reconstruction.rig_calibration.RigFit` with
+            ``applied``) and ``photometric`` (:func:`reconstruction.photometry.fit_photometric`'s record), each
+            quantity with its evidence and whether it was applied; empty when nothing ran.
+        seconds: the stages' wall time: ``rig`` (the fit), ``photometric`` (the pre-pass and the photometric fit).
     """
-    seconds, fits = {}, {}
-    if photometric.mode == "none" and (rig.mode == "none" or not prepass):
-        return frame, frame, fits, seconds
+
+    frame: object
+    model: PhotometricModel = IDENTITY
+    record: dict = field(default_factory=dict)
+    seconds: dict = field(default_factory=dict)
+
+    @property
+    def corrected_images(self) -> bool:
+        """Whether any image was changed (a gain, a field or the shared fall-off applied)."""
+        return not self.model.is_identity
+
+    @property
+    def applied(self) -> list[str]:
+        """What was applied, e.g. ``["U gain", "U field", "R rotation", "common field"]`` (empty: nothing)."""
+        out = []
+        for k, fit in self.record.get("rig", {}).items():
+            if fit.get("applied"):
+                out.append(f"{k} rotation")
+        photo = self.record.get("photometric", {})
+        for k in PAIRS:
+            for what in ("gain", "field"):
+                if photo.get(k, {}).get(what, {}).get("applied"):
+                    out.append(f"{k} {what}")
+        if photo.get("common", {}).get("field", {}).get("applied"):
+            out.append("common field")
+        return out
+
+
+def self_calibrate(frame, photometric: PhotometricParams, rig: RigParams, limits: TriangulationLimits,
+                   prepass: bool = True, note: Callable[[str], None] = lambda _s: None) -> Calibration:
+    """The frame's self-calibration: U's and R's rotations and the cameras' photometric differences, each applied
+    only where the frame's own evidence supports it (:mod:`reconstruction.evidence`).
+
+    A flow pass (:data:`PREPASS_FLOW` on rectified images reduced by ``photometric.prepass_factor``, after
+    per-channel gains from the same pixels so that it matches across an exposure difference) gives the
+    correspondences; the rig fit (:func:`reconstruction.rig_calibration.fit_rotation`) runs on its matches, the
+    matches are triangulated again with the applied poses, and the photometric fit
+    (:func:`reconstruction.photometry.fit_photometric`) runs on that distance's correspondences.
+
+    Args:
+        frame: the frame (images and told poses).
+        photometric, rig: the fits (mode ``"none"``: not fitted).
+        limits: the triangulation limits of the pre-pass.
+        prepass: False (the oracle): nothing is fitted.
+        note: called with the stage name before it runs.
+    Returns:
+        A :class:`Calibration`.
+    """
+    if not prepass or (photometric.mode == "none" and rig.mode == "none"):
+        return Calibration(frame)
     h, w = frame.height, frame.width
     note("photometric" if photometric.mode != "none" else "rig")
     start = time.perf_counter()
-    raw = frame
+    seconds, record = {}, {}
+    matched = frame
+    if photometric.mode != "none":  # for the pre-pass only: gains from the same pixels
+        matched = FrameView(frame, images=align_images(frame.images, frame.cameras, photometric)[0])
+    small = reduced_frame(matched, max(photometric.prepass_factor, 1))
+    prep = prepare(small, PREPASS_FLOW, True, limits)
+    d_small = prep.d0
+    cameras = dict(frame.cameras)
+    if rig.mode != "none":
+        t_rig = time.perf_counter()
+        d_pair, valid, fits = [], [], {}
+        for k in PAIRS:
+            m = prep.matches[k]
+            fit = fit_rotation(prep.bearings, usable_matches(small.images["C"], m.bearing, m.fb_error_px,
+                                                             prep.valid[k], rig), m.baseline,
+                               min_sin=rig.min_sin, alpha=rig.alpha)
+            fit["applied"] = bool(fit["evidence"]["supported"] and rig.min_degrees <= fit["degrees"] <= rig.max_degrees
+                                  and fit["degrees"] > 0)
+            fits[k] = fit
+            omega = np.asarray(fit["omega"]) if fit["applied"] else np.zeros(3)
+            cameras[k] = corrected_pose(frame.cameras[k], omega)
+            # the pre-pass's matches seen from the applied pose, triangulated again
+            g = pair_geometry(prep.bearings, m.baseline, m.bearing.reshape(-1, 3) @ rotation_vector_matrix(omega).T)
+            d_k, v_k = triangulate_sines(g, limits)
+            d_pair.append(d_k)
+            valid.append(v_k)
+        d_small = fuse_average(d_pair, valid, (small.height, small.width))
+        record["rig"] = fits
+        seconds["rig"] = time.perf_counter() - t_rig
+    model = IDENTITY
     if photometric.mode != "none":
-        frame, _ = aligned_frame(raw, photometric)  # per-channel gains from the same pixels
-    field = photometric.mode != "none" and photometric.prepass_factor > 1
-    if prepass and (field or rig.mode != "none"):  # a reduced flow pass's matches
-        small = reduced_frame(frame, max(photometric.prepass_factor, 1))
-        prep = prepare(small, PREPASS_FLOW, True, limits)
-        d_small = prep.d0
-        if rig.mode != "none":
-            t_rig = time.perf_counter()
-            cameras = dict(raw.cameras)
-            d_pair, valid = [], []
-            for k in PAIRS:
-                m = prep.matches[k]
-                fit = fit_rotation(prep.bearings, usable_matches(small.images["C"], m.bearing, m.fb_error_px,
-                                                                 prep.valid[k], rig), m.baseline,
-                                   min_sin=rig.min_sin)
-                fit["applied"] = bool(0.0 < fit["degrees"] <= rig.max_degrees)
-                fits[k] = fit
-                omega = np.asarray(fit["omega"]) if fit["applied"] else np.zeros(3)
-                cameras[k] = corrected_pose(raw.cameras[k], omega)
-                # the pre-pass's matches seen from the corrected pose, triangulated again
-                g = pair_geometry(prep.bearings, m.baseline, m.bearing.reshape(-1, 3) @ rotation_vector_matrix(omega).T)
-                d_k, v_k = triangulate_sines(g, limits)
-                d_pair.append(d_k)
-                valid.append(v_k)
-            d_small = fuse_average(d_pair, valid, (small.height, small.width))
-            raw = FrameView(raw, cameras=cameras)
-            frame = FrameView(frame, cameras=cameras)
-            seconds["rig"] = time.perf_counter() - t_rig
-        if field:
-            d_full = cv2.resize(d_small.reshape(small.height, small.width).astype(np.float32), (w, h),
-                                interpolation=cv2.INTER_NEAREST)
-            frame, _ = aligned_frame(raw, photometric, distance=d_full)
-    if photometric.mode == "none":
-        seconds["rig"] = time.perf_counter() - start
-    else:
-        seconds["photometric"] = time.perf_counter() - start - seconds.get("rig", 0.0)
-    return raw, frame, fits, seconds
-
-
-def posed(frame, cameras: dict | None):
-    """``frame`` seen with ``cameras`` as its poses (a view; ``frame`` itself unchanged), or ``frame`` itself
-    when ``cameras`` is empty or None."""
-    return FrameView(frame, cameras=cameras) if cameras else frame
+        d_full = cv2.resize(d_small.reshape(small.height, small.width).astype(np.float32), (w, h),
+                            interpolation=cv2.INTER_NEAREST)
+        model, record["photometric"] = fit_photometric(frame.images, cameras, d_full, photometric)
+    replaced = {}
+    if any(fit["applied"] for fit in record.get("rig", {}).values()):
+        replaced["cameras"] = cameras
+    if not model.is_identity:
+        replaced["images"] = apply_photometric(frame.images, model, photometric.max_log_gain)
+    seconds["photometric"] = time.perf_counter() - start - seconds.get("rig", 0.0)
+    return Calibration(FrameView(frame, **replaced) if replaced else frame, model, record, seconds)
 
 
 # ------------------------------------------------------------------------------------------ as a Method
@@ -553,16 +595,16 @@ class FlowMethod:
         """The outputs of ``members`` (variants of this configuration) from one :func:`reconstruct` result."""
         shared = {k: result.seconds[k] for k in ("rig", "photometric", "flow_U", "flow_R", "triangulate", "average")
                   if k in result.seconds}
+        calibration = result.calibration
         outs = {}
         for m in members:
             own = {m.variant: result.seconds[m.variant]} if m.refine is not None else {}
-            if m.refine is not None and m.refine.color_weight > 0 and "photometric_color" in result.seconds:
-                own["photometric_color"] = result.seconds["photometric_color"]
             seconds = {**shared, **own}
             seconds["total"] = sum(seconds.values())
             info = {"lm_iterations": result.iterations[m.variant]} if m.refine is not None else {}
-            if result.rig:
-                info["rig_calibration"] = result.rig
+            if calibration is not None and calibration.record:
+                info["calibration"] = calibration.record
+                info["applied"] = calibration.applied
             outs[m.label] = MethodOutput(distance=result.distance[m.variant], confidence=result.confidence[m.variant],
                                          seconds=seconds, info=info)
         return outs
@@ -577,7 +619,7 @@ def run_flow_group(frame, members: Sequence,
     (their :class:`FlowMethod`), the same ``group_key`` and a
     ``run_on_flows(frame, members, flow_outputs, on_stage)`` that runs all members of their own type given the
     flow outputs by label.  The flow variants they use are computed along with the members' own, and they are
-    given the frame with the poses the flow used (self-calibrated, :func:`self_calibrate`).
+    given the flow's :class:`Calibration` (the frame they match: self-calibrated once, :func:`self_calibrate`).
 
     Returns:
         Outputs by member label.
@@ -599,7 +641,6 @@ def run_flow_group(frame, members: Sequence,
     by_type: dict[type, list] = {}
     for u in users:
         by_type.setdefault(type(u), []).append(u)
-    calibrated = posed(frame, result.cameras if result.rig else None)  # the users match with the same poses
-    for kind in by_type.values():
-        outs.update(kind[0].run_on_flows(calibrated, kind, flow_outs, on_stage))
+    for kind in by_type.values():  # they match the frame the flow matched: one self-calibration per frame
+        outs.update(kind[0].run_on_flows(result.calibration, kind, flow_outs, on_stage))
     return {m.label: outs[m.label] for m in members}

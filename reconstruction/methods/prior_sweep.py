@@ -28,7 +28,7 @@ import cv2
 import numpy as np
 
 from reconstruction.methods.base import MethodOutput
-from reconstruction.methods.flow_pipeline import FlowMethod, run_flow_group
+from reconstruction.methods.flow_pipeline import Calibration, FlowMethod, run_flow_group
 from reconstruction.methods.sweep import Prior, PriorFromSweep, SgmParams, SweepMethod, sweep_distances
 from reconstruction.sweep.cost import CostParams, gray_float
 
@@ -209,10 +209,13 @@ class PriorSweepMethod:
         """Run this method with others of its flow configuration (:func:`run_flow_group`)."""
         return run_flow_group(frame, members, on_stage)
 
-    def run_on_flows(self, frame, members: Sequence[PriorSweepMethod], flow_outputs: dict[str, MethodOutput],
+    def run_on_flows(self, calibration: Calibration, members: Sequence[PriorSweepMethod],
+                     flow_outputs: dict[str, MethodOutput],
                      on_stage: Callable[[str], None] | None = None) -> dict[str, MethodOutput]:
-        """Run flow-prior sweep ``members`` given their flows' outputs (by flow label); members of one sweep
-        configuration share the room-bound pass and the cost volume."""
+        """Run flow-prior sweep ``members`` given their flows' outputs (by flow label) on the frame their flow
+        matched (``calibration``: self-calibrated once); members of one sweep configuration share the room-bound
+        pass and the cost volume."""
+        frame = calibration.frame
         by_sweep: dict[str, list[PriorSweepMethod]] = {}
         for m in members:
             by_sweep.setdefault(repr(m.sweep), []).append(m)
@@ -230,14 +233,12 @@ class PriorSweepMethod:
                                                        m.prior.truncate_levels)))
                 else:
                     priors.append(Prior(flow.distance, weight, m.prior.truncate_levels))
-            align = flow_outputs[batch[0].flow.label].distance  # the correspondences of the self-calibration
-            results = sweep_distances(frame, batch[0].sweep, priors, align)
+            results = sweep_distances(frame, batch[0].sweep, priors, calibration)
             for m, (d, conf, seconds, info) in zip(batch, results, strict=True):
                 flow = flow_outputs[m.flow.label]
                 seconds = {"flow": flow.total_seconds, **{k: v for k, v in seconds.items() if k != "total"}}
                 seconds["total"] = sum(seconds.values())
-                rig = {"rig_calibration": flow.info["rig_calibration"]} if "rig_calibration" in flow.info else {}
                 outs[m.label] = MethodOutput(distance=d, confidence=conf, seconds=seconds,
-                                             info={**info, "flow_label": m.flow.label, **rig},
+                                             info={**info, "flow_label": m.flow.label},
                                              reference=flow.distance if m.quality_flow is None else None)
         return outs

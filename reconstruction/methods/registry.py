@@ -39,7 +39,7 @@ __all__ = ["ENTRY_POINT_GROUP", "DEFAULT_CONFIGS", "DEFAULT_METHOD", "DEFAULT_VA
            "MIRROR_PLANES", "MIRROR_INTENSITY_WEIGHT", "MIRROR_BLUR_PX",
            "flow_methods", "evaluate_default_methods", "fused_method", "adaptive_method", "gated_method",
            "mirror_method", "Preset", "PRESETS", "RETIRED_PRESETS", "former_label_note", "with_photometric",
-           "uncalibrated"]
+           "uncalibrated", "told_poses"]
 
 ENTRY_POINT_GROUP = "tri360.methods"
 #: the paper's set-up: DeepFlow as published (DeepMatching + the DeepFlow energy) on rectified pairs (the baseline
@@ -155,11 +155,14 @@ def mirror_method() -> PriorSweepMethod:
     """``fused-mirror`` (the default): ``fused-gated`` with :data:`MIRROR_PLANES`, so that the room bound holds on
     polished floors whose mirror image of the ceiling wins the coarse pass, and the sweep cost's intensity term
     weighted :data:`MIRROR_INTENSITY_WEIGHT` (what a gain difference between the cameras leaves after the
-    self-calibration weighs less against the gradients) and its images blurred by :data:`MIRROR_BLUR_PX`; chosen
+    self-calibration weighs less against the gradients) and its images blurred by :data:`MIRROR_BLUR_PX` when the
+    self-calibration changed the images (cameras that agree are matched with the sweep's own cost); chosen
     on the dev split of suites/tri360-v2.toml under both conditions (docs/photometry.md)."""
     gated = gated_method()
-    cost = dataclasses.replace(gated.sweep.cost, intensity_weight=MIRROR_INTENSITY_WEIGHT, blur_px=MIRROR_BLUR_PX)
-    return dataclasses.replace(gated, sweep=dataclasses.replace(gated.sweep, planes=MIRROR_PLANES, cost=cost),
+    corrected = dataclasses.replace(gated.sweep.cost, intensity_weight=MIRROR_INTENSITY_WEIGHT,
+                                    blur_px=MIRROR_BLUR_PX)
+    return dataclasses.replace(gated, sweep=dataclasses.replace(gated.sweep, planes=MIRROR_PLANES,
+                                                                corrected_cost=corrected),
                                label="fused-mirror")
 
 
@@ -173,6 +176,16 @@ def with_photometric(method: PriorSweepMethod, params: PhotometricParams, label:
         quality_flow=None if quality is None else dataclasses.replace(quality, photometric=params))
 
 
+def told_poses(method: PriorSweepMethod) -> PriorSweepMethod:
+    """``method`` with the told poses (no rig self-calibration; the photometric one as it is), labelled
+    ``<label>-told-poses``."""
+    quality = method.quality_flow
+    return dataclasses.replace(method, label=f"{method.label}-told-poses",
+                               flow=dataclasses.replace(method.flow, rig=NO_RIG_CALIBRATION),
+                               quality_flow=None if quality is None else dataclasses.replace(quality,
+                                                                                             rig=NO_RIG_CALIBRATION))
+
+
 def uncalibrated(method: PriorSweepMethod) -> PriorSweepMethod:
     """``method`` matching the images as they are with the told poses (no photometric or rig self-calibration) and
     the sweep cost's default intensity weight and blur, labelled ``<label>-raw``: the ablation that shows what the
@@ -182,7 +195,7 @@ def uncalibrated(method: PriorSweepMethod) -> PriorSweepMethod:
     cost = dataclasses.replace(raw.sweep.cost, intensity_weight=CostParams().intensity_weight,
                                blur_px=CostParams().blur_px)
     quality = raw.quality_flow
-    return dataclasses.replace(raw, sweep=dataclasses.replace(raw.sweep, cost=cost),
+    return dataclasses.replace(raw, sweep=dataclasses.replace(raw.sweep, cost=cost, corrected_cost=None),
                                flow=dataclasses.replace(raw.flow, rig=NO_RIG_CALIBRATION),
                                quality_flow=None if quality is None else dataclasses.replace(quality,
                                                                                              rig=NO_RIG_CALIBRATION))
@@ -210,7 +223,13 @@ PRESETS = (
            "the sweep over spheres, floor/ceiling and wall planes with the unrefined dis-rect distance as SGM prior, "
            "weighted by C's texture, the sweep's confidence and how much of the frame the two agree on; its room "
            "bound tells a polished floor's mirror image of the ceiling from the floor; its cost weighs intensity "
-           "0.25 against gradients 2 on images blurred by 0.7 px; U's and R's gains and rotations self-calibrated"),
+           "0.25 against gradients 2 on images blurred by 0.7 px when the self-calibration corrected them; the "
+           "cameras' gains, fall-off and rotations self-calibrated where the frame's evidence supports it"),
+    Preset("fused-mirror-raw", lambda: uncalibrated(mirror_method()),
+           "ablation: fused-mirror matching the images as they are with the told poses (no self-calibration, the "
+           "sweep's own cost)"),
+    Preset("fused-mirror-told-poses", lambda: told_poses(mirror_method()),
+           "ablation: fused-mirror with the told poses (its photometric self-calibration only)"),
     Preset("fused", fused_method,
            "the sweep over spheres and floor/ceiling planes (no wall planes) with the refined dis-rect:gradient "
            "distance as SGM prior at one constant weight"),

@@ -7,6 +7,7 @@ refinement, confidence), ``post`` (fill of unreliable pixels, median).  See docs
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
@@ -16,8 +17,10 @@ import numpy as np
 
 from reconstruction.camera.equirect import bearing_grid
 from reconstruction.methods.base import MethodOutput
-from reconstruction.methods.flow_pipeline import fill_edge_aware, reduced_frame
-from reconstruction.photometry import PhotometricParams, aligned_frame
+from reconstruction.methods.flow_pipeline import Calibration, fill_edge_aware, reduced_frame, self_calibrate
+from reconstruction.photometry import PhotometricParams
+from reconstruction.refine.triangulate import TriangulationLimits
+from reconstruction.rig_calibration import NO_RIG_CALIBRATION
 from reconstruction.sweep.cost import CostParams, build_cost_volume, gray_float, inverse_distances
 from reconstruction.sweep.planes import (
     PlaneParams,
@@ -253,7 +256,7 @@ def room_bounds(frame, sweep: SweepMethod, seconds):
 
 
 def sweep_distances(frame, sweep: SweepMethod, priors: Sequence[Prior | PriorFromSweep | None] = (None,),
-                    align_distance: np.ndarray | None = None):
+                    calibration: Calibration | None = None):
     """Run the sweep configured by ``sweep`` on a frame once per prior, sharing the room-bound pass and the sphere
     cost volume.
 
@@ -262,35 +265,30 @@ def sweep_distances(frame, sweep: SweepMethod, priors: Sequence[Prior | PriorFro
         priors: each None (the plain sweep), a :class:`Prior` (added to the sphere labels before aggregation; not
             used in the coarse room-bound pass) or a :class:`PriorFromSweep` (made from the coarse pass's distance
             and confidence).
-        align_distance: (H, W) metres (e.g. the flow prior's) whose correspondences the photometric
-            self-calibration of U and R against C (``sweep.photometric``, :mod:`reconstruction.photometry`;
-            stage ``photometric``) fits; None: pixel by pixel before the coarse pass and again from the coarse
-            pass's distance before the full-resolution volume.
+        calibration: the frame's self-calibration when another stage made it (a flow-prior sweep matches the
+            frame its flow matched; its seconds are the flow's); None: the sweep's own
+            (:func:`reconstruction.methods.flow_pipeline.self_calibrate` with ``sweep.photometric`` and the told
+            poses; stage ``photometric``).  When it changed the images, the sweep's cost is ``corrected_cost``.
     Returns:
         One ``(distance, confidence, seconds, info)`` per prior: (H, W) float32 metres, (H, W) float32 in [0, 1],
         wall time per stage (the shared ``coarse_*`` and ``cost`` stages in every one, as they would take alone),
         details (plane share, room bounds, ``cpu_seconds``: process CPU time per stage; ``copy_seconds``: the wall
-        time of copying the shared volume for this prior, 0 for the last, which takes the volume itself).
+        time of copying the shared volume for this prior, 0 for the last, which takes the volume itself;
+        ``calibration``: what the self-calibration applied, when it ran).
     """
-    cost_params, plane_params, post, photometric = sweep.cost, sweep.planes, sweep.post, sweep.photometric
     shared = {}
-    raw = frame
-    calibrate = photometric.mode != "none"
-    if calibrate:
-        t = _clock()
-        frame, _ = aligned_frame(raw, photometric, distance=align_distance)
-        _lap(shared, "photometric", t)
+    if calibration is None:
+        calibration = self_calibrate(frame, sweep.photometric, NO_RIG_CALIBRATION, TriangulationLimits())
+        shared.update(calibration.seconds)
+    frame = calibration.frame
+    if calibration.corrected_images and sweep.corrected_cost is not None:
+        sweep = dataclasses.replace(sweep, cost=sweep.corrected_cost)
+    cost_params, plane_params, post = sweep.cost, sweep.planes, sweep.post
     bounds, yaw, walls, coarse = (-np.inf, np.inf), None, [], None
     from_sweep = any(isinstance(p, PriorFromSweep) for p in priors)
     if (plane_params.room_bound or plane_params.wall_labels > 0 or from_sweep) and plane_params.per_side > 0:
         z_floor, z_ceil, yaw, walls, coarse = room_bounds(frame, sweep, shared)
         bounds = (z_floor, z_ceil)
-        if calibrate and align_distance is None:  # the coarse pass's distance gives the correspondences
-            t = _clock()
-            d_coarse = cv2.resize(np.asarray(coarse[0], np.float32), (raw.width, raw.height),
-                                  interpolation=cv2.INTER_NEAREST)
-            frame, _ = aligned_frame(raw, photometric, distance=d_coarse)
-            _lap(shared, "photometric_refit", t)
         if from_sweep:  # only the priors made from the plain sweep read the coarse maps
             size = (frame.width, frame.height)
             coarse = tuple(cv2.resize(np.asarray(a, np.float32), size, interpolation=cv2.INTER_LINEAR)
@@ -331,7 +329,8 @@ def sweep_distances(frame, sweep: SweepMethod, priors: Sequence[Prior | PriorFro
                 "wall_yaw_deg": None if yaw is None else float(np.degrees(yaw)),
                 "walls_m": [float(np.median(o)) for _, o in walls],
                 "floor_m": float(bounds[0]), "ceiling_m": float(bounds[1]), "cpu_seconds": cpu,
-                "copy_seconds": copy_seconds}
+                "copy_seconds": copy_seconds,
+                **({"calibration": calibration.record, "applied": calibration.applied} if calibration.record else {})}
         out.append((d.astype(np.float32), np.clip(conf, 0.0, 1.0).astype(np.float32), seconds, info))
     return out
 
@@ -358,8 +357,10 @@ class SweepMethod:
         post: fill and median (:class:`PostParams`).
         pairs: the pairs used ("U", "R"); one pair only is an ablation.
         label: the method's label.
-        photometric: photometric self-calibration of U and R against C before matching
+        photometric: photometric self-calibration before matching
             (:class:`reconstruction.photometry.PhotometricParams`; mode ``"none"`` = the images as they are).
+        corrected_cost: the cost used instead of ``cost`` when the self-calibration changed the images (what a
+            corrected gain leaves can weigh less); None: ``cost`` always.
     """
 
     cost: CostParams = field(default_factory=CostParams)
@@ -369,11 +370,15 @@ class SweepMethod:
     pairs: tuple[str, ...] = ("U", "R")
     label: str = "sweep"
     photometric: PhotometricParams = PhotometricParams()
+    corrected_cost: CostParams | None = None
 
     def config(self) -> dict:
-        return {"kind": "sweep", "label": self.label, "cost": asdict(self.cost), "planes": asdict(self.planes),
-                "sgm": asdict(self.sgm), "post": asdict(self.post), "pairs": list(self.pairs),
-                "photometric": asdict(self.photometric)}
+        out = {"kind": "sweep", "label": self.label, "cost": asdict(self.cost), "planes": asdict(self.planes),
+               "sgm": asdict(self.sgm), "post": asdict(self.post), "pairs": list(self.pairs),
+               "photometric": asdict(self.photometric)}
+        if self.corrected_cost is not None:
+            out["corrected_cost"] = asdict(self.corrected_cost)
+        return out
 
     def run(self, frame) -> MethodOutput:
         d, conf, seconds, info = sweep_distances(frame, self, [None])[0]

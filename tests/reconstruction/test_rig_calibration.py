@@ -126,25 +126,26 @@ def test_self_calibration_corrects_a_told_rotation_that_is_off():
         told[k] = corrected_pose(frame.cameras[k], omega / np.linalg.norm(omega) * np.radians(0.4))
     off = dataclasses.replace(frame, cameras=told)
     params = RigParams()
-    _, matched, fits, seconds = self_calibrate(off, NO_CALIBRATION, params, TriangulationLimits())
-    assert "rig" in seconds and set(fits) == {"U", "R"}
+    calibration = self_calibrate(off, NO_CALIBRATION, params, TriangulationLimits())
+    matched, fits = calibration.frame, calibration.record["rig"]
+    assert "rig" in calibration.seconds and set(fits) == {"U", "R"}
+    assert calibration.applied == ["U rotation", "R rotation"]
     for k in ("U", "R"):
-        assert fits[k]["applied"]
+        assert fits[k]["applied"] and fits[k]["evidence"]["p_value"] < 1e-3
         assert _angle_deg(matched.cameras[k].rotation, frame.cameras[k].rotation) < 0.15
         assert _angle_deg(told[k].rotation, frame.cameras[k].rotation) == pytest.approx(0.4, abs=1e-6)
         np.testing.assert_array_equal(matched.cameras[k].position, told[k].position)
     np.testing.assert_array_equal(matched.cameras["C"].rotation, frame.cameras["C"].rotation)
-    _, exact, _, _ = self_calibrate(frame, NO_CALIBRATION, params, TriangulationLimits())
-    for k in ("U", "R"):
-        assert _angle_deg(exact.cameras[k].rotation, frame.cameras[k].rotation) < 0.1
+    exact = self_calibrate(frame, NO_CALIBRATION, params, TriangulationLimits())
+    assert exact.applied == [] and exact.frame is frame  # the told poses are right: nothing is applied
 
 
 def test_without_rig_calibration_the_told_poses_are_used():
     frame = make_synthetic_frame(width=160)
-    raw, matched, fits, seconds = self_calibrate(frame, NO_CALIBRATION, NO_RIG_CALIBRATION, TriangulationLimits())
-    assert raw is frame and matched is frame and fits == {} and seconds == {}
-    _, matched, fits, _ = self_calibrate(frame, PhotometricParams(), NO_RIG_CALIBRATION, TriangulationLimits())
-    assert fits == {} and matched.cameras is frame.cameras
+    calibration = self_calibrate(frame, NO_CALIBRATION, NO_RIG_CALIBRATION, TriangulationLimits())
+    assert calibration.frame is frame and calibration.record == {} and calibration.seconds == {}
+    calibration = self_calibrate(frame, PhotometricParams(), NO_RIG_CALIBRATION, TriangulationLimits())
+    assert "rig" not in calibration.record and calibration.frame.cameras is frame.cameras
 
 
 def test_flow_method_records_its_rig_calibration():

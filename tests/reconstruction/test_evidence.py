@@ -1,0 +1,112 @@
+"""The test that decides whether a self-calibration's correction is applied (reconstruction.evidence), and the
+photometric fit that uses it (reconstruction.photometry.fit_photometric): cameras that agree get nothing, cameras
+that differ get their difference, on exact ray-cast frames."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from reconstruction.camera.equirect import bearing_grid
+from reconstruction.evidence import BLOCKS, hotelling, jackknife_linear, sphere_blocks
+from reconstruction.photometry import (
+    PhotometricParams,
+    apply_photometric,
+    fit_photometric,
+    linear_to_srgb,
+    srgb_to_linear,
+)
+from tests.helpers import make_synthetic_frame
+
+
+def _unit(rng, n):
+    b = rng.normal(size=(n, 3))
+    return b / np.linalg.norm(b, axis=1, keepdims=True)
+
+
+def test_blocks_cover_the_sphere():
+    blocks = sphere_blocks(bearing_grid(64, 32))
+    assert blocks.shape == (32, 64) and set(np.unique(blocks)) == set(range(BLOCKS))
+    assert (blocks[:16] % 2 == 0).all() and (blocks[16:] % 2 == 1).all()  # above / below the horizon
+
+
+def test_jackknife_of_a_constant_offset_rejects_only_a_real_one():
+    """A mean of noisy samples: zero mean is not rejected (p > 0.01), a mean of 4 noise standard errors is
+    (p < 1e-3); the full-data solution is the weighted mean (1e-9)."""
+    rng = np.random.default_rng(1)
+    b = _unit(rng, 20000)
+    blocks = sphere_blocks(b)
+    design = np.ones((b.shape[0], 1))
+    noise = rng.normal(scale=1.0, size=b.shape[0])
+    theta, cov, used = jackknife_linear(design, noise, np.ones(b.shape[0]), blocks)
+    assert used == BLOCKS and abs(theta[0] - noise.mean()) < 1e-9  # the ridge: 1e-9 of the trace
+    assert hotelling(theta, cov, used)["p_value"] > 0.01
+    shift = 4.0 / np.sqrt(b.shape[0])
+    theta, cov, used = jackknife_linear(design, noise + shift + 0.05, np.ones(b.shape[0]), blocks)
+    assert hotelling(theta, cov, used)["supported"]
+
+
+def test_a_block_effect_is_not_a_camera_effect():
+    """An offset that only one block of the sphere shows (a scene's, not a camera's) is not supported, though it
+    moves the full-data mean by many standard errors."""
+    rng = np.random.default_rng(2)
+    b = _unit(rng, 20000)
+    blocks = sphere_blocks(b)
+    y = rng.normal(scale=0.01, size=b.shape[0]) + np.where(blocks == 5, 0.5, 0.0)
+    theta, cov, used = jackknife_linear(np.ones((b.shape[0], 1)), y, np.ones(b.shape[0]), blocks)
+    assert theta[0] > 0.01 and not hotelling(theta, cov, used)["supported"]
+
+
+def test_hotelling_needs_more_blocks_than_quantities():
+    ev = hotelling(np.ones(3), np.eye(3), 3)
+    assert not ev["supported"] and ev["p_value"] == 1.0
+
+
+def _relit(frame, cams: dict):
+    """The frame's images with per-camera gains (per channel) and a lens-axis fall-off along camera Y."""
+    h, w = frame.height, frame.width
+    theta = np.arccos(np.clip(np.abs(bearing_grid(w, h)[..., 1]), 0, 1)) / (np.pi / 2)
+    images = dict(frame.images)
+    for k, (gains, edge) in cams.items():
+        field = (1 - edge * theta ** 2)[..., None] * np.asarray(gains)
+        images[k] = linear_to_srgb(srgb_to_linear(frame.images[k]) * field)
+    return images
+
+
+def test_cameras_that_agree_get_no_correction():
+    frame = make_synthetic_frame(width=480)
+    model, record = fit_photometric(frame.images, frame.cameras, frame.distance["C"], PhotometricParams())
+    assert model.is_identity and not record["applied"]
+    assert apply_photometric(frame.images, model)["U"] is frame.images["U"]
+
+
+def test_cameras_that_differ_are_corrected_to_c():
+    """U and R with other gains (0.8-1.2) and fall-off (20 %, 30 %): both are applied, and the corrected images are
+    within 1 grey level of the originals on 95 % of the pixels."""
+    frame = make_synthetic_frame(width=480)
+    images = _relit(frame, {"U": ((1.2, 1.1, 0.9), 0.2), "R": ((0.8, 0.85, 0.9), 0.3)})
+    model, record = fit_photometric(images, frame.cameras, frame.distance["C"], PhotometricParams())
+    for k in ("U", "R"):
+        assert record[k]["gain"]["applied"] and record[k]["field"]["applied"]
+    out = apply_photometric(images, model)
+    assert out["C"] is images["C"]
+    for k in ("U", "R"):
+        diff = np.abs(out[k].astype(int) - frame.images[k].astype(int))
+        assert np.percentile(diff, 95) <= 1.0
+
+
+def test_a_fall_off_all_three_share_is_removed_from_the_parallax():
+    """The same 40 % fall-off in C, U and R (a common_field fit): applied, and the log ratio of the corrected to
+    the original images spans a tenth of what it spanned (5th-95th percentile)."""
+    frame = make_synthetic_frame(width=480)
+    images = _relit(frame, {k: ((1.0, 1.0, 1.0), 0.4) for k in ("C", "U", "R")})
+    model, record = fit_photometric(images, frame.cameras, frame.distance["C"], PhotometricParams(common_field=True))
+    assert record["common"]["field"]["applied"] and model.common is not None
+    out = apply_photometric(images, model)
+    ok = (frame.images["C"].mean(-1) > 20) & (frame.images["C"].mean(-1) < 230)
+
+    def spread(img):
+        r = np.log(srgb_to_linear(img).mean(-1) + 1e-4) - np.log(srgb_to_linear(frame.images["C"]).mean(-1) + 1e-4)
+        lo, hi = np.percentile(r[ok], [5, 95])
+        return hi - lo
+
+    assert spread(out["C"]) < 0.1 * spread(images["C"])
