@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import shutil
 
@@ -9,15 +10,18 @@ import numpy as np
 import pytest
 
 from harness.cli import main
+from harness.commands.parts import perturbations as P
 from harness.commands.parts.captured import captured_twin
 from harness.commands.parts.perturbations import ORDER, noise_parameters, srgb_to_linear
-from harness.commands.perturb import frame_hash, perturb_root
+from harness.commands.perturb import frame_hash, perturb_frame, perturb_root
 from harness.data.frame import read_frame, write_frame
 from harness.data.photometric import CameraDistribution
+from harness.render.camera import encode
+from reconstruction.camera.equirect import bearing_grid
 from tests.helpers import make_synthetic_frame
 
 LEVELS = {"rotation": 0.5, "translation": 2.0, "exposure": 0.5, "white_balance": 0.1, "noise": 3.0, "jpeg": 60,
-          "vignetting": 0.3, "soiling": 6, "glare": 0.5}
+          "vignetting": 0.3, "vignetting_each": 0.4, "response": 1.0, "soiling": 6, "glare": 0.5}
 
 
 @pytest.fixture(scope="module")
@@ -93,13 +97,111 @@ def test_noise_level_is_grey_levels_at_mid_grey():
 
 
 @pytest.mark.parametrize("apply", ["foo=1", "noise", "noise=x", "noise=-1", "jpeg=0", "jpeg=2.5", "soiling=0",
-                                   "vignetting=1", "rotation=nan"])
+                                   "vignetting=1", "rotation=nan", "vignetting_each=1", "vignetting_each=0",
+                                   "vignetting_each=x", "response=2.5", "response=0", "response=-1", "response=inf"])
 def test_bad_kind_or_level_is_one_line_exit_2(source, tmp_path, capsys, apply):
     root, _ = source
     assert main(["perturb", str(root), "--out", str(tmp_path / "o"), "--apply", apply]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "--apply" in err
     assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize("kind", ["vignetting_each", "response"])
+def test_the_per_camera_photometric_kinds_are_deterministic(source, tmp_path, kind):
+    root, _ = source
+    (a,) = perturb_root(root, tmp_path / "a", [(kind, LEVELS[kind])], seed=5)
+    (b,) = perturb_root(root, tmp_path / "b", [(kind, LEVELS[kind])], seed=5)
+    (c,) = perturb_root(root, tmp_path / "c", [(kind, LEVELS[kind])], seed=6)
+    for n in ("C.png", "U.png", "R.png"):
+        assert (a / n).read_bytes() == (b / n).read_bytes(), n
+    assert any((a / n).read_bytes() != (c / n).read_bytes() for n in ("C.png", "U.png", "R.png"))
+    rec = json.loads((a / "frame.json").read_text())["renderer"]["perturbation"]
+    (applied,) = rec["applied"]
+    assert (applied["kind"], applied["level"], applied["seed"]) == (kind, LEVELS[kind], 5)
+    assert applied["unit"] == P.KINDS[kind] and set(applied["drawn"]) == {"C", "U", "R"}
+
+
+def _flat(value: int, width: int = 120):
+    """A synthetic frame whose three images are flat grey ``value`` (sRGB)."""
+    frame = make_synthetic_frame(width=width)
+    images = {n: np.full_like(frame.images[n], value) for n in "CUR"}
+    return dataclasses.replace(frame, images=images)
+
+
+def _seam_loss(before: np.ndarray, after: np.ndarray) -> float:
+    """The seam loss ``L`` of a fall-off ``1 - L (theta / 90 deg)**2`` about camera +-Y, fitted (least squares) to
+    the linear-light ratio of two images."""
+    h, w = before.shape[:2]
+    theta = np.arccos(np.clip(np.abs(bearing_grid(w, h)[..., 1]), 0.0, 1.0))
+    shape = (theta / (np.pi / 2.0)) ** 2
+    loss = 1.0 - srgb_to_linear(after)[..., 1] / srgb_to_linear(before)[..., 1]
+    return float((loss * shape).sum() / (shape * shape).sum())
+
+
+def test_vignetting_each_gives_each_camera_its_own_seam_loss_within_its_range():
+    level = 0.6
+    frame = _flat(200)
+    new = perturb_frame(frame, [("vignetting_each", level)], seed=2, source={"path": "x", "sha256": "y"})
+    (applied,) = new.renderer["perturbation"]["applied"]
+    drawn = {n: applied["drawn"][n]["edge_loss"] for n in "CUR"}
+    measured = {n: _seam_loss(frame.images[n], new.images[n]) for n in "CUR"}
+    for n in "CUR":
+        assert level / 2 <= drawn[n] <= level
+        assert measured[n] == pytest.approx(drawn[n], abs=0.005), n  # 8-bit rounding, averaged over the image
+    for a, b in (("C", "U"), ("C", "R"), ("U", "R")):  # the cameras differ (this seed's draws: > 0.02 apart)
+        assert abs(measured[a] - measured[b]) > 0.02, (a, b, measured)
+        assert not np.array_equal(new.images[a], new.images[b])
+    # unlike `vignetting`, alike in all three cameras
+    same = perturb_frame(frame, [("vignetting", level)], seed=2, source={"path": "x", "sha256": "y"})
+    assert np.array_equal(same.images["C"], same.images["U"]) and np.array_equal(same.images["C"], same.images["R"])
+    assert _seam_loss(frame.images["C"], same.images["C"]) == pytest.approx(level, abs=0.005)
+    # the draws over many streams stay within [level/2, level] and fill it
+    img = np.full((8, 16, 3), 200, np.uint8)
+    losses = [P.vignetting_each(img, level, P.generator(s, "vignetting_each", "C"))[1]["edge_loss"]
+              for s in range(300)]
+    assert level / 2 <= min(losses) < level / 2 + 0.02 and level - 0.02 < max(losses) <= level
+
+
+def _log_ratio_spread(before: np.ndarray, after: np.ndarray) -> float:
+    """Over the intensities of a grey ramp (a row), the spread (max - min) of ``log`` of the linear light read (as
+    sRGB) after over before, where both are in sRGB [50, 250) (there 8-bit rounding moves it by < 0.04)."""
+    a, b = before[0, :, 1], after[0, :, 1]
+    ok = (a >= 50) & (b >= 50) & (b < 250)
+    assert ok.sum() > 20
+    return float(np.ptp(np.log(srgb_to_linear(b[ok]) / srgb_to_linear(a[ok]))))
+
+
+def test_response_is_not_a_gain_and_its_draw_reproduces_the_images():
+    level = 2.0
+    frame = make_synthetic_frame(width=120)
+    ramp = np.linspace(20, 240, frame.width).round().astype(np.uint8)  # sRGB 20..240 along each row
+    ramp_img = np.repeat(np.repeat(ramp[None, :, None], frame.height, axis=0), 3, axis=2)
+    frame = dataclasses.replace(frame, images={n: ramp_img.copy() for n in "CUR"})
+    new = perturb_frame(frame, [("response", level)], seed=1, source={"path": "x", "sha256": "y"})
+    drawn = new.renderer["perturbation"]["applied"][0]["drawn"]
+    gammas = [n for n in "CUR" if "gamma" in drawn[n]]
+    assert gammas, drawn  # this seed draws a gamma curve for at least one camera
+    for n in "CUR":
+        curve = drawn[n]["response"]
+        np.testing.assert_array_equal(new.images[n], encode(srgb_to_linear(ramp_img), curve))
+        if n in gammas:
+            g = drawn[n]["gamma"]
+            assert 2.2 - level / 2 <= g <= 2.2 + level / 2 and abs(g - 2.2) > 0.1, drawn
+            assert curve == f"gamma-{g!r}"
+        else:
+            assert drawn[n]["contrast"] == pytest.approx(1 + level / 2, abs=0) and curve.startswith("s-curve-")
+        # not a gain: the log ratio to the original varies over the intensities by far more than 8-bit rounding
+        spread = _log_ratio_spread(ramp_img, new.images[n])
+        assert spread > 0.15, (n, curve, spread)
+    # a gain (exposure) keeps the log ratio constant to within the rounding
+    gain = perturb_frame(frame, [("exposure", 0.5)], seed=1, source={"path": "x", "sha256": "y"})
+    for n in "CUR":
+        assert _log_ratio_spread(ramp_img, gain.images[n]) < 0.05, n
+    # either curve is drawn, about half the time each
+    picks = [P.response(ramp_img[:1, :8], level, P.generator(s, "response", "U"))[1] for s in range(400)]
+    share = sum("gamma" in d for d in picks) / len(picks)
+    assert 0.4 < share < 0.6
 
 
 def test_kind_twice_and_output_into_input_refused(source, tmp_path, capsys):

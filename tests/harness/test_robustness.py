@@ -150,6 +150,9 @@ def test_an_added_level_runs_only_itself_and_a_new_seed_every_perturbed_point_bu
     ('[levels]\nrotation = [1, 50]\n', "[levels] rotation[1] 'rotation=50': rotation level must be at most 45"),
     ('[levels]\njpeg = [80, 101]\n', "jpeg level must be in 1..100"),
     ('[levels]\njpeg = [80.5]\n', "jpeg level must be an integer"),
+    ('[levels]\nvignetting_each = [0.5, 1]\n', "[levels] vignetting_each[1] 'vignetting_each=1': vignetting_each "
+                                              "level must be at most 0.999"),
+    ('[levels]\nresponse = [1, 2.5]\n', "[levels] response[1] 'response=2.5': response level must be at most 2"),
     ('[levels]\nnoise = [0, 2]\n', "[levels] noise[0]: level 0 (the unperturbed frames) is always run"),
     ('[levels]\nnoise = [2, 2]\n', "[levels] noise: lists a level twice"),
     ('[levels]\nnoise = ["2"]\n', "[levels] noise[0]: a level must be a number"),
@@ -171,6 +174,17 @@ def test_bad_files_are_one_line_exit_2_and_write_nothing(source, tmp_path, capsy
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and message in err and str(path) in err, err
     assert not (tmp_path / "o").exists()
+
+
+def test_the_per_camera_photometric_kinds_are_accepted_as_levels(tmp_path):
+    path = tmp_path / "r.toml"
+    path.write_text('kind = "robustness"\ndata = "d"\n[levels]\nresponse = [0.5, 2]\nvignetting_each = [0.6, 0.2]\n'
+                    'vignetting = [0.4]\n', encoding="utf-8")
+    spec = rob.load_robustness(path)
+    assert spec.levels == {"vignetting": (0.4,), "vignetting_each": (0.6, 0.2), "response": (0.5, 2.0)}
+    assert [p.name for p in rob.plan_points(spec)] == ["unperturbed", "vignetting-0.4", "vignetting_each-0.6",
+                                                       "vignetting_each-0.2", "response-0.5", "response-2"]
+    assert [p.applies for p in rob.plan_points(spec)][-1] == [("response", 2.0)]
 
 
 def test_missing_data_root_is_one_line_exit_2(tmp_path, capsys):

@@ -3,7 +3,8 @@
 Every operation takes a level (the unit is the kind's, :data:`KINDS`) and a ``numpy.random.Generator`` and
 returns the new value plus a JSON-able record of what it drew, so a perturbed frame says exactly what was done to
 it.  Photometric operations work in linear light (sRGB decoded, changed, re-encoded, rounded to uint8), except
-``jpeg`` (which compresses the sRGB bytes, as a camera does).
+``response`` (which re-encodes the linear light through another curve than sRGB) and ``jpeg`` (which compresses
+the sRGB bytes, as a camera does).
 
 Kinds and levels:
 
@@ -16,10 +17,19 @@ Kinds and levels:
   ``(1 + level)**g``, ``g`` uniform in [-1, 1].
 - ``noise`` (grey levels > 0): Poisson-Gaussian sensor noise in linear light whose standard deviation at sRGB
   mid-grey (128) is ``level`` grey levels; 80 % of the variance there is shot noise, 20 % read noise.
+- ``response`` (spread of the tone curves, in (0, 2]): each camera's image decoded from sRGB to linear light and
+  re-encoded through its own response curve instead of sRGB (:func:`harness.render.camera.encode`), then read by
+  methods as sRGB again: with probability 1/2 ``gamma-G`` (``x**(1/G)``), ``G`` uniform in
+  [2.2 - level/2, 2.2 + level/2], otherwise ``s-curve-K`` (sRGB, then :func:`harness.render.camera.s_curve`
+  ``s**K / (s**K + (1 - s)**K)``) with ``K = 1 + level/2``; 8 bits either way.  The cameras' intensities are
+  then no longer related by a gain (sRGB is not a pure gamma, so even ``G`` = 2.2 is not quite the identity).
 - ``jpeg`` (quality, an integer 1..100): JPEG compression at that quality (OpenCV / libjpeg).
 - ``vignetting`` (fraction in (0, 1)): light lost at the edge of the camera's two back-to-back fisheye lenses
   (looking along the camera's +Y and -Y): gain ``1 - level * (theta / 90 deg)**2``, ``theta`` the angle from the
   nearer lens axis, so the stitching meridian (left/right of the lens axes) loses ``level``.
+- ``vignetting_each`` (fraction in (0, 0.999]): the same fall-off, but each camera its own: camera ``k``'s seam
+  loss ``L_k`` is drawn uniform in [level / 2, level], gain ``1 - L_k * (theta / 90 deg)**2``
+  (:func:`harness.render.camera.vignetting_gain` about the camera's Y axis), so the cameras differ from one another.
 - ``soiling`` (an integer count > 0): that many blobs per camera, alternately water drops (a blurred,
   slightly brightened disc) and dirt (a soft dark brown stain of 40-80 % opacity), radius 1-4 % of the height.
 - ``glare`` (strength > 0): veiling glare around the brightest direction seen by C (a light source, treated as
@@ -36,24 +46,30 @@ import cv2
 import numpy as np
 
 from harness.data.photometric import noise_parameters
+from harness.render.camera import encode, vignetting_gain
 from reconstruction.camera.equirect import bearing_grid, pixel_to_bearing
 from reconstruction.camera.rig import CameraPose
 from reconstruction.photometry import linear_to_srgb, srgb_to_linear
 
 __all__ = ["KINDS", "ORDER", "parse_level", "srgb_to_linear", "linear_to_srgb", "rotation_about",
            "perturb_pose_rotation", "perturb_pose_translation", "exposure", "white_balance", "noise", "jpeg",
-           "vignetting", "soiling", "glare", "generator", "noise_parameters", "brightest_bearing", "IMAGE_OPS"]
+           "vignetting", "vignetting_each", "response", "soiling", "glare", "generator", "noise_parameters",
+           "brightest_bearing", "IMAGE_OPS"]
 
 KINDS: dict[str, str] = {
     "rotation": "degrees", "translation": "millimetres", "exposure": "stops", "white_balance": "relative gain",
     "noise": "grey levels at mid-grey", "jpeg": "quality 1-100", "vignetting": "fraction of light lost at the lens "
-    "edge, < 1", "soiling": "blobs per camera", "glare": "linear-light strength",
+    "edge, < 1", "vignetting_each": "largest fraction of light lost at the lens edge, per camera, < 1",
+    "response": "spread of the cameras' tone curves", "soiling": "blobs per camera", "glare": "linear-light strength",
 }
 """Every kind -> the unit of its level."""
 
-ORDER = ("rotation", "translation", "glare", "soiling", "vignetting", "exposure", "white_balance", "noise", "jpeg")
+ORDER = ("rotation", "translation", "glare", "soiling", "vignetting", "vignetting_each", "exposure", "white_balance",
+         "noise", "response", "jpeg")
 """The order perturbations are applied in, whatever the command line's: poses, then light on its way through the
-lens (glare, soiling, vignetting), then the sensor (exposure, white balance, noise), then compression."""
+lens (glare, soiling, vignetting, vignetting_each), then the sensor (exposure, white balance, noise), then the
+response curve that encodes the sensor's linear signal (response), then compression -- the order of
+:func:`harness.render.camera.apply`."""
 
 GLARE_SIGMA_DEG = 8.0
 GLARE_VEIL = 1.0 / 20.0
@@ -79,7 +95,7 @@ def parse_level(kind: str, text: str) -> float | int:
     if not np.isfinite(value) or value <= 0:
         raise ValueError(f"{kind} level must be positive and finite ({KINDS[kind]}), got {text!r}")
     limits = {"rotation": 45.0, "translation": 1000.0, "exposure": 8.0, "white_balance": 10.0, "noise": 128.0,
-              "vignetting": 0.999, "glare": 100.0}
+              "vignetting": 0.999, "vignetting_each": 0.999, "response": 2.0, "glare": 100.0}
     if value > limits[kind]:
         raise ValueError(f"{kind} level must be at most {limits[kind]:g} ({KINDS[kind]}), got {text!r}")
     return value
@@ -167,6 +183,29 @@ def vignetting(img: np.ndarray, level: float, rng: np.random.Generator) -> tuple
     return linear_to_srgb(srgb_to_linear(img) * gain[..., None]), {"edge_loss": float(level)}
 
 
+def vignetting_each(img: np.ndarray, level: float, rng: np.random.Generator) -> tuple[np.ndarray, dict]:
+    """:func:`vignetting` with this camera's own seam loss, drawn uniform in [level / 2, level]."""
+    h, w = img.shape[:2]
+    loss = float(rng.uniform(level / 2.0, level))
+    gain = vignetting_gain(w, h, "y", loss)
+    return linear_to_srgb(srgb_to_linear(img) * gain[..., None]), {"axis": "y", "edge_loss": loss}
+
+
+RESPONSE_GAMMA = 2.2
+"""The gamma about which ``response`` draws its gamma curves (sRGB's is close to ``x**(1/2.2)``)."""
+
+
+def response(img: np.ndarray, level: float, rng: np.random.Generator) -> tuple[np.ndarray, dict]:
+    """Re-encode the image through a drawn response curve instead of sRGB (module doc); stays 8-bit."""
+    if rng.random() < 0.5:
+        g = float(rng.uniform(RESPONSE_GAMMA - level / 2.0, RESPONSE_GAMMA + level / 2.0))
+        curve, drawn = f"gamma-{g!r}", {"gamma": g}
+    else:
+        k = 1.0 + level / 2.0
+        curve, drawn = f"s-curve-{k!r}", {"contrast": k}
+    return encode(srgb_to_linear(img), curve), {"response": curve, **drawn}
+
+
 def _disc(h: int, w: int, cu: float, cv: float, radius: float) -> np.ndarray:
     """Soft (H, W) disc weight in [0, 1] around pixel (cu, cv), wrapping across the seam."""
     v, u = np.mgrid[0:h, 0:w]
@@ -219,4 +258,5 @@ def glare(img: np.ndarray, strength: float, pose: CameraPose, source_world: np.n
 
 
 IMAGE_OPS: dict[str, Callable] = {"exposure": exposure, "white_balance": white_balance, "noise": noise,
-                                  "jpeg": jpeg, "vignetting": vignetting, "soiling": soiling}
+                                  "jpeg": jpeg, "vignetting": vignetting, "vignetting_each": vignetting_each,
+                                  "response": response, "soiling": soiling}
