@@ -65,6 +65,10 @@ class PhotometricParams:
             symmetric about the camera's axes, as two like back-to-back lenses give, which a brightness
             difference between one side of the room and the other (a glossy floor's view-dependent reflection)
             cannot move.
+        central: the fields keep only the monomials of even total degree (and ``|x|, |y|, |z|``): a fall-off the
+            same at a bearing and its opposite, as two like back-to-back lenses give whatever their axis, which a
+            brightness difference between the floor and the ceiling (a polished floor's view-dependent reflection)
+            cannot move.
         common_field: :func:`fit_photometric` also fits the fall-off all three cameras share (from the parallax:
             the same point is seen at different bearings) and removes it from all three images, C's included.  Off
             by default: through a 0.3-0.4 m rig's parallax it cannot be told from view-dependent reflection (on
@@ -92,6 +96,7 @@ class PhotometricParams:
     iterations: int = 8
     max_log_gain: float = 2.0
     even: bool = False
+    central: bool = True
     common_field: bool = False
     min_gain: float = 0.05
     min_field: float = 0.10
@@ -143,13 +148,15 @@ def linear_to_srgb(linear: np.ndarray, dtype=np.float64) -> np.ndarray:
     return np.floor(s * 255.0 + 0.5).astype(np.uint8)
 
 
-def basis(bearings: np.ndarray, degree: int, even: bool = False) -> np.ndarray:
+def basis(bearings: np.ndarray, degree: int, even: bool = False, central: bool = False) -> np.ndarray:
     """The field's basis functions at camera-frame bearings.
 
     Args:
         bearings: (..., 3) unit bearings in the camera's frame.
         degree: highest monomial degree (0: no field).
         even: only the monomials whose every power is even.
+        central: only the monomials of even total degree: the functions with ``f(-b) = f(b)``, as the fall-off of
+            two like back-to-back lenses is, whatever their axis.
     Returns:
         (..., J) float64: every monomial ``x^i y^j z^k`` with ``1 <= i + j + k <= degree`` whose ``z`` power is at
         most 1 (``z^2 = 1 - x^2 - y^2`` makes the others redundant; with ``even``, ``i``, ``j`` even and no ``z``),
@@ -160,7 +167,8 @@ def basis(bearings: np.ndarray, degree: int, even: bool = False) -> np.ndarray:
     cols = []
     for total in range(1, degree + 1):
         for i, j, k in itertools.product(range(total + 1), repeat=3):
-            if i + j + k == total and k <= 1 and not (even and (i % 2 or j % 2 or k % 2)):
+            if i + j + k == total and k <= 1 and not (even and (i % 2 or j % 2 or k % 2)) \
+                    and not (central and total % 2):
                 cols.append(x ** i * y ** j * z ** k)
     if degree >= 1:
         cols += [np.abs(x), np.abs(y), np.abs(z)]
@@ -308,7 +316,7 @@ class PhotometricModel:
         fields: per camera with a supported field of its own, the (J,) coefficients of its field over its own
             bearings (:func:`basis` of ``degree``).
         common: (J,) coefficients of the fall-off all three cameras share, or None.
-        degree, even: the basis.
+        degree, even, central: the basis (:func:`basis`).
     """
 
     gains: dict
@@ -316,6 +324,7 @@ class PhotometricModel:
     common: np.ndarray | None
     degree: int
     even: bool
+    central: bool = False
 
     @property
     def is_identity(self) -> bool:
@@ -328,8 +337,10 @@ IDENTITY = PhotometricModel({}, {}, None, 0, False)
 
 
 def _irls(design: np.ndarray, target: np.ndarray, coef: np.ndarray, params: PhotometricParams,
-          ridge: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
-    """Tukey-reweighted least squares from ``coef``: ``(coef, weights, sigma)``."""
+          ridge: np.ndarray, tied: int = 1) -> tuple[np.ndarray, np.ndarray, float]:
+    """Tukey-reweighted least squares from ``coef``: ``(coef, weights, sigma)``.  The rows are ``tied`` blocks of
+    the same pixels in the same order (each pixel's 3 channels consecutive): a pixel's weight in every row is its
+    smallest over its rows (a pixel whose views do not all agree is left out of all of them)."""
     w = np.ones(target.size)
     sigma = float("nan")
     for _ in range(params.iterations):
@@ -337,6 +348,8 @@ def _irls(design: np.ndarray, target: np.ndarray, coef: np.ndarray, params: Phot
         sigma = 1.4826 * float(np.median(np.abs(res - np.median(res)))) + 1e-6
         u = res / (params.tukey_c * sigma)
         w = np.where(np.abs(u) < 1.0, (1.0 - u * u) ** 2, 0.0)
+        per_pixel = w.reshape(tied, -1, 3).min(axis=(0, 2))
+        w = np.broadcast_to(per_pixel[None, :, None], (tied, per_pixel.size, 3)).reshape(-1)
         a = design * w[:, None]
         coef = np.linalg.solve(a.T @ design + np.diag(ridge), a.T @ target)
     return coef, w, sigma
@@ -357,8 +370,9 @@ def fit_photometric(images: dict, cameras: dict, distance: np.ndarray,
     """Fit U's and R's gains and fields relative to C and the fall-off the three share, and keep what the frame
     supports.
 
-    Each of C's pixels is paired with where its point (``distance``) projects into U and R; over the pairs that
-    are neither dark nor near saturation and lie in flat patches (``flat_log_gradient``), one robust fit of
+    Each of C's pixels is paired with where its point (``distance``) projects into U and R; over the pixels that
+    are neither dark nor near saturation in any camera and lie in flat patches (``flat_log_gradient``), one robust
+    fit (a pixel whose views do not all agree with the model, a view-dependent reflection, is left out of all) of
 
         ln K_c(q) - ln C_c(p) = a_Kc + g_K(b_K) + f(b_K) - f(b_C)
 
@@ -384,7 +398,7 @@ def fit_photometric(images: dict, cameras: dict, distance: np.ndarray,
     lin_c = _reduce(srgb_to_linear(images["C"]).astype(np.float32), f)
     h, w = lin_c.shape[:2]
     b_c = bearing_grid(w, h)
-    phi_c = basis(b_c, params.degree, params.even)
+    phi_c = basis(b_c, params.degree, params.even, params.central)
     n_j = phi_c.shape[-1]
     d_small = _reduce(np.asarray(distance, np.float32), f)
     rot_c = np.asarray(cameras["C"].rotation, np.float64)
@@ -396,17 +410,20 @@ def fit_photometric(images: dict, cameras: dict, distance: np.ndarray,
     cols_per = 3 + n_j
     common_first = cols_per * len(others)
     n_cols = common_first + (n_j if params.common_field else 0)
-    rows, targets, blocks = [], [], []
-    for i, k in enumerate(others):
+    samples, bearings, usable = {}, {}, ok_c
+    for k in others:
         lin_k = _reduce(srgb_to_linear(images[k]).astype(np.float32), f)
-        u, row, b_k = _project(np.asarray(cameras[k].rotation, np.float64),
-                               np.asarray(cameras[k].position, np.float64), world, w, h)
-        sample = _sample(lin_k, u, row)
-        usable = ok_c & np.all((sample > params.dark) & (sample < params.bright), axis=-1)
-        idx = np.flatnonzero(usable.reshape(-1))
-        idx = idx[::step(idx.size, MAX_FIT_PIXELS)]
-        ratio = (np.log(sample.reshape(-1, 3)[idx]) - np.log(lin_c.reshape(-1, 3)[idx])).astype(np.float64)
-        phi_k = basis(b_k.reshape(-1, 3)[idx], params.degree, params.even)
+        u, row, bearings[k] = _project(np.asarray(cameras[k].rotation, np.float64),
+                                       np.asarray(cameras[k].position, np.float64), world, w, h)
+        samples[k] = _sample(lin_k, u, row)
+        usable = usable & np.all((samples[k] > params.dark) & (samples[k] < params.bright), axis=-1)
+    # the pixels every camera sees well: one sample each, so that the fit can ask all views to agree on it
+    idx = np.flatnonzero(usable.reshape(-1))
+    idx = idx[::step(idx.size, MAX_FIT_PIXELS)]
+    rows, targets = [], []
+    for i, k in enumerate(others):
+        ratio = (np.log(samples[k].reshape(-1, 3)[idx]) - np.log(lin_c.reshape(-1, 3)[idx])).astype(np.float64)
+        phi_k = basis(bearings[k].reshape(-1, 3)[idx], params.degree, params.even, params.central)
         design = np.zeros((idx.size, 3, n_cols))
         for c in range(3):
             design[:, c, i * cols_per + c] = 1.0
@@ -415,7 +432,7 @@ def fit_photometric(images: dict, cameras: dict, distance: np.ndarray,
             design[:, :, common_first:] = (phi_k - phi_c.reshape(-1, n_j)[idx])[:, None, :]
         rows.append(design.reshape(-1, n_cols))
         targets.append(ratio.reshape(-1))
-        blocks.append(np.repeat(blocks_c.reshape(-1)[idx], 3))
+    blocks = [np.repeat(blocks_c.reshape(-1)[idx], 3)] * len(others)
     design, target, blocks = np.concatenate(rows), np.concatenate(targets), np.concatenate(blocks)
     n_samples = target.size // 3
     if n_samples < 10 * n_cols:
@@ -426,7 +443,7 @@ def fit_photometric(images: dict, cameras: dict, distance: np.ndarray,
     coef0 = np.zeros(n_cols)
     for i, t in enumerate(targets):
         coef0[i * cols_per:i * cols_per + 3] = np.median(t.reshape(-1, 3), axis=0)
-    coef, weights, sigma = _irls(design, target, coef0, params, ridge)
+    coef, weights, sigma = _irls(design, target, coef0, params, ridge, len(others))
     theta, cov, n_blocks = jackknife_linear(design, target, weights, blocks, ridge)
     phi_mean = phi_c.reshape(-1, n_j).mean(axis=0)
     phi_all = phi_c.reshape(-1, n_j)
@@ -471,7 +488,8 @@ def fit_photometric(images: dict, cameras: dict, distance: np.ndarray,
     if not keep.any():
         record["applied"] = False
         return IDENTITY, record
-    coef, weights, sigma = _irls(design[:, keep], target, np.where(keep, coef, 0.0)[keep], params, ridge[keep])
+    coef, weights, sigma = _irls(design[:, keep], target, np.where(keep, coef, 0.0)[keep], params, ridge[keep],
+                                 len(others))
     full = np.zeros(n_cols)
     full[keep] = coef
     gains, fields = {}, {}
@@ -484,7 +502,7 @@ def fit_photometric(images: dict, cameras: dict, distance: np.ndarray,
         common = full[common_first:]
     record["applied"] = True
     record["sigma_applied"] = sigma
-    return PhotometricModel(gains, fields, common, params.degree, params.even), record
+    return PhotometricModel(gains, fields, common, params.degree, params.even, params.central), record
 
 
 def apply_photometric(images: dict, model: PhotometricModel, max_log_gain: float = 2.0) -> dict:
@@ -504,7 +522,7 @@ def apply_photometric(images: dict, model: PhotometricModel, max_log_gain: float
         if k not in model.gains and k not in model.fields and model.common is None:
             continue
         small_w, small_h = max(w // 4, 8), max(h // 4, 4)
-        phi = basis(bearing_grid(small_w, small_h), model.degree, model.even)
+        phi = basis(bearing_grid(small_w, small_h), model.degree, model.even, model.central)
         field = np.zeros((small_h, small_w))
         if model.fields.get(k) is not None:
             field += phi @ model.fields[k]

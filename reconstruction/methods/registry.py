@@ -39,7 +39,7 @@ __all__ = ["ENTRY_POINT_GROUP", "DEFAULT_CONFIGS", "DEFAULT_METHOD", "DEFAULT_VA
            "MIRROR_PLANES", "MIRROR_INTENSITY_WEIGHT", "MIRROR_BLUR_PX",
            "flow_methods", "evaluate_default_methods", "fused_method", "adaptive_method", "gated_method",
            "mirror_method", "Preset", "PRESETS", "RETIRED_PRESETS", "former_label_note", "with_photometric",
-           "uncalibrated", "told_poses"]
+           "uncalibrated"]
 
 ENTRY_POINT_GROUP = "tri360.methods"
 #: the paper's set-up: DeepFlow as published (DeepMatching + the DeepFlow energy) on rectified pairs (the baseline
@@ -176,16 +176,6 @@ def with_photometric(method: PriorSweepMethod, params: PhotometricParams, label:
         quality_flow=None if quality is None else dataclasses.replace(quality, photometric=params))
 
 
-def told_poses(method: PriorSweepMethod) -> PriorSweepMethod:
-    """``method`` with the told poses (no rig self-calibration; the photometric one as it is), labelled
-    ``<label>-told-poses``."""
-    quality = method.quality_flow
-    return dataclasses.replace(method, label=f"{method.label}-told-poses",
-                               flow=dataclasses.replace(method.flow, rig=NO_RIG_CALIBRATION),
-                               quality_flow=None if quality is None else dataclasses.replace(quality,
-                                                                                             rig=NO_RIG_CALIBRATION))
-
-
 def uncalibrated(method: PriorSweepMethod) -> PriorSweepMethod:
     """``method`` matching the images as they are with the told poses (no photometric or rig self-calibration) and
     the sweep cost's default intensity weight and blur, labelled ``<label>-raw``: the ablation that shows what the
@@ -228,8 +218,6 @@ PRESETS = (
     Preset("fused-mirror-raw", lambda: uncalibrated(mirror_method()),
            "ablation: fused-mirror matching the images as they are with the told poses (no self-calibration, the "
            "sweep's own cost)"),
-    Preset("fused-mirror-told-poses", lambda: told_poses(mirror_method()),
-           "ablation: fused-mirror with the told poses (its photometric self-calibration only)"),
     Preset("fused", fused_method,
            "the sweep over spheres and floor/ceiling planes (no wall planes) with the refined dis-rect:gradient "
            "distance as SGM prior at one constant weight"),

@@ -11,6 +11,7 @@ from reconstruction.evidence import BLOCKS, hotelling, jackknife_linear, sphere_
 from reconstruction.photometry import (
     PhotometricParams,
     apply_photometric,
+    basis,
     fit_photometric,
     linear_to_srgb,
     srgb_to_linear,
@@ -110,3 +111,13 @@ def test_a_fall_off_all_three_share_is_removed_from_the_parallax():
         return hi - lo
 
     assert spread(out["C"]) < 0.1 * spread(images["C"])
+
+
+def test_the_central_basis_is_the_same_at_opposite_bearings():
+    """A fall-off of two like back-to-back lenses is the same at b and -b whatever their axis: the central basis
+    keeps exactly the monomials of even total degree (x^2, xy, xz, y^2, yz at degree 2) and |x|, |y|, |z|."""
+    b = bearing_grid(16, 8)
+    phi = basis(b, 2, central=True)
+    assert phi.shape == (8, 16, 5 + 3)
+    np.testing.assert_allclose(basis(-b, 2, central=True), phi, atol=1e-12)
+    assert not np.allclose(basis(-b, 2), basis(b, 2))  # the full basis has odd monomials

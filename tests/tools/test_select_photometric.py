@@ -76,10 +76,12 @@ def test_candidates_and_the_reference():
     assert raw.flow.photometric == NO_CALIBRATION and raw.sweep.photometric == NO_CALIBRATION
     assert raw.sweep.cost.intensity_weight == 1.0 and raw.quality_flow.photometric == NO_CALIBRATION
     assert raw.flow.rig == NO_RIG_CALIBRATION and raw.quality_flow.rig == NO_RIG_CALIBRATION
-    assert raw.sweep.cost.blur_px == 0.0
-    assert methods["fused-mirror-i0.25"].sweep.cost.intensity_weight == 0.25
+    assert raw.sweep.cost.blur_px == 0.0 and raw.sweep.corrected_cost is None
+    # a candidate's intensity weight and blur are the cost of images the self-calibration changed
+    assert methods["fused-mirror-i0.25"].sweep.corrected_cost.intensity_weight == 0.25
+    assert methods["fused-mirror-i0.25"].sweep.cost == raw.sweep.cost
     assert methods["fused-mirror-told-poses"].flow.rig == NO_RIG_CALIBRATION
-    assert mirror_method().sweep.cost.intensity_weight == MIRROR_INTENSITY_WEIGHT
+    assert mirror_method().sweep.corrected_cost.intensity_weight == MIRROR_INTENSITY_WEIGHT
     chosen = methods["fused-mirror-rig-b0.7"]  # the default is exactly the candidate the selection chose
     assert {**chosen.config(), "label": "fused-mirror"} == mirror_method().config()
     assert uncalibrated(mirror_method()).label == "fused-mirror-raw"

@@ -58,10 +58,12 @@ class PhotometricCandidate:
         label: the method's label.
         photometric: the self-calibration of its flow, sweep and quality flow
             (:class:`reconstruction.photometry.PhotometricParams`).
-        intensity_weight: the sweep cost's intensity weight.
+        intensity_weight: the sweep cost's intensity weight when the self-calibration changed the images
+            (``SweepMethod.corrected_cost``; cameras that agree are matched with the sweep's own cost).
         rig: the rig self-calibration of its flow and quality flow (:class:`reconstruction.rig_calibration.
             RigParams`).
-        blur_px: the Gaussian blur of the sweep's grey images, pixels (``CostParams.blur_px``).
+        blur_px: the Gaussian blur of the sweep's grey images when the self-calibration changed them, pixels
+            (``CostParams.blur_px`` of ``corrected_cost``).
     """
 
     label: str
@@ -73,9 +75,10 @@ class PhotometricCandidate:
     def method(self, base: PriorSweepMethod) -> PriorSweepMethod:
         """The candidate built on ``base`` (the default's matching, ``mirror_method()``)."""
         m = with_photometric(base, self.photometric, self.label)
-        cost = dataclasses.replace(m.sweep.cost, intensity_weight=self.intensity_weight, blur_px=self.blur_px)
+        cost = dataclasses.replace(m.sweep.corrected_cost or m.sweep.cost, intensity_weight=self.intensity_weight,
+                                   blur_px=self.blur_px)
         quality = m.quality_flow
-        return dataclasses.replace(m, sweep=dataclasses.replace(m.sweep, cost=cost),
+        return dataclasses.replace(m, sweep=dataclasses.replace(m.sweep, corrected_cost=cost),
                                    flow=dataclasses.replace(m.flow, rig=self.rig),
                                    quality_flow=None if quality is None else dataclasses.replace(quality, rig=self.rig))
 
