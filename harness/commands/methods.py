@@ -1,4 +1,5 @@
-"""``tri360 methods``: the methods ``--method`` accepts, as text: the named ones (the default marked), the flows and
+"""``tri360 methods``: the methods ``--method`` accepts, as text: the named ones (the default marked), the default's
+ablations, the flows and
 variants that the flow pipeline's labels combine, what ``evaluate`` runs by default, and plugins' methods.
 
 Only what can be selected is listed.  Every plugin that failed to load, every outside method, flow or variant that
@@ -15,6 +16,7 @@ from reconstruction.flow.backends import ORACLE, flow_registry
 from reconstruction.methods.base import Method
 from reconstruction.methods.flow_pipeline import DEFAULT_FLOW, FlowMethod, config_label
 from reconstruction.methods.registry import (
+    ABLATIONS,
     DEFAULT_CONFIGS,
     DEFAULT_METHOD,
     DEFAULT_VARIANTS,
@@ -52,6 +54,8 @@ def method_listing() -> tuple[list[str], list[str]]:
     variants = {k: v for k, v in variant_reg.entries.items() if k not in bad_variants}
     out = ["named methods (* = the default, what 'tri360 reconstruct' runs):"]
     out += _rows([(p.label + ("*" if p.label == DEFAULT_METHOD else ""), p.description) for p in PRESETS])
+    out += ["", f"ablations ({DEFAULT_METHOD} with one part switched off, and the methods it grew from):"]
+    out += _rows([(p.label, p.description) for p in ABLATIONS])
     out += ["", "the flow pipeline: FLOW-rect:VARIANT or FLOW-plain:VARIANT (e.g. dis-rect:gradient): flow C->U and "
             "C->R, triangulate each pair, then a variant",
             "  rect: flow on pairs rotated so that the baseline is the polar axis; plain: on the equirect images "
@@ -62,7 +66,7 @@ def method_listing() -> tuple[list[str], list[str]]:
     out.append("  variants:")
     out += _rows([("average", AVERAGE), *((name, v.description) for name, v in variants.items())], indent="    ")
     configs = ", ".join(f"{config_label(f, r)}:{{{','.join(DEFAULT_VARIANTS)}}}" for f, r in DEFAULT_CONFIGS)
-    named = [p.label for p in PRESETS]
+    named = [p.label for p in (*PRESETS, *ABLATIONS)]
     plugins = [(label, getattr(m, "description", "") or type(m).__name__) for label, m in sorted(reg.entries.items())
                if not isinstance(m, FlowMethod) and label not in named and label not in bad_methods]
     out += ["", f"'tri360 evaluate' runs by default: {DEFAULT_METHOD}, sweep, {configs}"]

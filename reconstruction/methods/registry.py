@@ -38,8 +38,8 @@ __all__ = ["ENTRY_POINT_GROUP", "DEFAULT_CONFIGS", "DEFAULT_METHOD", "DEFAULT_VA
            "WALL_PLANES", "ADAPTIVE_PRIOR", "GATED_PRIOR", "builtin_methods", "discover_methods", "get_methods",
            "MIRROR_PLANES", "MIRROR_INTENSITY_WEIGHT", "MIRROR_BLUR_PX",
            "flow_methods", "evaluate_default_methods", "fused_method", "adaptive_method", "gated_method",
-           "mirror_method", "Preset", "PRESETS", "RETIRED_PRESETS", "former_label_note", "with_photometric",
-           "uncalibrated"]
+           "mirror_method", "Preset", "PRESETS", "ABLATIONS", "former_label_note", "with_photometric",
+           "uncalibrated", "told_poses", "images_as_they_are"]
 
 ENTRY_POINT_GROUP = "tri360.methods"
 #: the paper's set-up: DeepFlow as published (DeepMatching + the DeepFlow energy) on rectified pairs (the baseline
@@ -215,9 +215,6 @@ PRESETS = (
            "bound tells a polished floor's mirror image of the ceiling from the floor; its cost weighs intensity "
            "0.25 against gradients 2 on images blurred by 0.7 px when the self-calibration corrected them; the "
            "cameras' gains, fall-off and rotations self-calibrated where the frame's evidence supports it"),
-    Preset("fused-mirror-raw", lambda: uncalibrated(mirror_method()),
-           "ablation: fused-mirror matching the images as they are with the told poses (no self-calibration, the "
-           "sweep's own cost)"),
     Preset("fused", fused_method,
            "the sweep over spheres and floor/ceiling planes (no wall planes) with the refined dis-rect:gradient "
            "distance as SGM prior at one constant weight"),
@@ -226,21 +223,46 @@ PRESETS = (
 )
 
 
-#: named methods that left the built-in list -> what to use instead (``get_methods`` names it in one line); a results
-#: set that ran one keeps its whole configuration in ``config.json``, and :func:`gated_method` /
-#: :func:`adaptive_method` still build them (``tools.research.select_matching`` compares them)
-RETIRED_PRESETS = {
-    "fused-gated": "fused-mirror, which is fused-gated with the room bound's mirror test, a self-calibration and "
-                   "intensity weighted 0.25",
-    "fused-adaptive": "fused-mirror, which gates the same wall-plane sweep's prior by C's texture and the sweep's "
-                      "confidence as well",
-}
+def told_poses(method: PriorSweepMethod, label: str) -> PriorSweepMethod:
+    """``method`` with the told poses (no rig self-calibration, its photometric one as it is), labelled ``label``."""
+    quality = method.quality_flow
+    return dataclasses.replace(method, label=label, flow=dataclasses.replace(method.flow, rig=NO_RIG_CALIBRATION),
+                               quality_flow=None if quality is None else dataclasses.replace(quality,
+                                                                                             rig=NO_RIG_CALIBRATION))
+
+
+def images_as_they_are(method: PriorSweepMethod, label: str) -> PriorSweepMethod:
+    """``method`` matching the images as they are (no photometric self-calibration, the sweep's own cost; its rig
+    self-calibration as it is), labelled ``label``."""
+    m = with_photometric(method, NO_CALIBRATION, label)
+    return dataclasses.replace(m, sweep=dataclasses.replace(m.sweep, corrected_cost=None))
+
+
+#: the default with one part switched off, and the methods it grew from: each is built in (``--method``), listed
+#: by ``tri360 methods`` under "ablations", and measured in the docs
+ABLATIONS = (
+    Preset("fused-mirror-raw", lambda: uncalibrated(mirror_method()),
+           "fused-mirror matching the images as they are with the told poses (no self-calibration, the sweep's own "
+           "cost)"),
+    Preset("fused-mirror-told-rig", lambda: told_poses(mirror_method(), "fused-mirror-told-rig"),
+           "fused-mirror with the told poses (its photometric self-calibration only)"),
+    Preset("fused-mirror-raw-images", lambda: images_as_they_are(mirror_method(), "fused-mirror-raw-images"),
+           "fused-mirror matching the images as they are (its rig self-calibration only, the sweep's own cost)"),
+    Preset("fused-gated", gated_method,
+           "fused-mirror without the room bound's mirror test and with the sweep's own cost always (the default "
+           "before fused-mirror)"),
+    Preset("fused-adaptive", adaptive_method,
+           "the wall-plane sweep with fused's refined dis-rect:gradient distance as prior, weighted by the frame's "
+           "flow/sweep agreement only (60-80 %), not by C's texture or the sweep's confidence (the default before "
+           "fused-gated)"),
+)
 
 
 def builtin_methods() -> list[Method]:
-    """The :data:`PRESETS`, then every configuration of the flow pipeline (all flows incl. the oracle, rectified and
-    plain, all variants)."""
-    return [*(p.build() for p in PRESETS), *flow_methods([*discover_flows()[0], ORACLE], [True, False])]
+    """The :data:`PRESETS`, the :data:`ABLATIONS`, then every configuration of the flow pipeline (all flows incl. the
+    oracle, rectified and plain, all variants)."""
+    return [*(p.build() for p in (*PRESETS, *ABLATIONS)),
+            *flow_methods([*discover_flows()[0], ORACLE], [True, False])]
 
 
 def discover_methods() -> tuple[dict[str, Method], dict[str, str]]:
@@ -256,11 +278,8 @@ def discover_methods() -> tuple[dict[str, Method], dict[str, str]]:
 
 def former_label_note(label: str) -> str:
     """For a flow-pipeline label whose flow was renamed (:data:`reconstruction.flow.backends.RENAMED_FLOWS`), e.g.
-    ``deepflowdm-rect:gradient``: ``"deepflowdm-rect:gradient is now called deepflow-rect:gradient"``; for a
-    retired named method (:data:`RETIRED_PRESETS`): that it left the built-in methods and what to use instead;
-    else ``""``."""
-    if label in RETIRED_PRESETS:
-        return f"{label} is no longer a built-in method: use {RETIRED_PRESETS[label]}"
+    ``deepflowdm-rect:gradient``: ``"deepflowdm-rect:gradient is now called deepflow-rect:gradient"``; else
+    ``""``."""
     for old, new in RENAMED_FLOWS.items():
         for rect in ("rect", "plain"):
             prefix = f"{old}-{rect}:"
@@ -273,8 +292,8 @@ def get_methods(labels: Sequence[str]) -> list[Method]:
     """Methods by label.
 
     Raises:
-        ValueError: naming the unknown labels (a renamed one with its name now, a retired one with what to use),
-            the named built-in methods, the label pattern of the flow pipeline and the registered plugins' methods
+        ValueError: naming the unknown labels (a renamed one with its name now), the named built-in methods and
+            ablations, the label pattern of the flow pipeline and the registered plugins' methods
             (each with its plugin); or a label that a refused plugin also provides (naming the plugin: an outside
             method never replaces a built-in or another plugin's).
     """
@@ -290,9 +309,11 @@ def get_methods(labels: Sequence[str]) -> list[Method]:
         if len(former) == len(bad):
             raise ValueError("; ".join(former))
         named = [p.label for p in PRESETS]
-        plugins = sorted(f"{k} ({reg.sources[k]})" if k in reg.sources else k
-                         for k, m in methods.items() if not isinstance(m, FlowMethod) and k not in named)
-        raise ValueError(f"unknown method(s) {', '.join(bad)} (named methods: {', '.join(named)}; the flow pipeline: "
+        ablations = [p.label for p in ABLATIONS]
+        plugins = sorted(f"{k} ({reg.sources[k]})" if k in reg.sources else k for k, m in methods.items()
+                         if not isinstance(m, FlowMethod) and k not in named and k not in ablations)
+        raise ValueError(f"unknown method(s) {', '.join(bad)} (named methods: {', '.join(named)}; ablations: "
+                         f"{', '.join(ablations)}; the flow pipeline: "
                          f"FLOW-rect:VARIANT or FLOW-plain:VARIANT, e.g. dis-rect:gradient; plugins' methods: "
                          f"{', '.join(plugins) or 'none'}; 'tri360 methods' lists them all)"
                          + (f"; {'; '.join(former)}" if former else "") + _plugin_note(errors))

@@ -12,9 +12,9 @@ from reconstruction.flow.backends import FlowBackend, builtin_flows, discover_fl
 from reconstruction.methods.base import Method, MethodOutput, flow_fields, run_methods
 from reconstruction.methods.flow_pipeline import FlowMethod
 from reconstruction.methods.registry import (
+    ABLATIONS,
     DEFAULT_METHOD,
     PRESETS,
-    RETIRED_PRESETS,
     builtin_methods,
     discover_methods,
     evaluate_default_methods,
@@ -34,11 +34,11 @@ def test_builtin_labels_are_stable_and_unique():
     for label in ("dis-rect:gradient", "deepflow-rect:average", "deepflow-plain:average", "deepflow-opencv-plain:color",
                   "oracle-rect:color", "farneback-plain:angle", "fused-mirror", "fused", "sweep"):
         assert label in labels
-    for label in RETIRED_PRESETS:
-        assert label not in labels
-        with pytest.raises(ValueError) as err:
-            get_methods([label])
-        assert str(err.value) == f"{label} is no longer a built-in method: use {RETIRED_PRESETS[label]}"
+    # the default's ablations and the defaults it grew from are built in
+    for label in ("fused-mirror-raw", "fused-mirror-told-rig", "fused-mirror-raw-images", "fused-gated",
+                  "fused-adaptive"):
+        assert label in labels and get_methods([label])[0].label == label
+    assert [p.label for p in ABLATIONS] == [m.label for m in builtin_methods()[len(PRESETS):len(PRESETS) + 5]]
     assert [m.label for m in evaluate_default_methods()] == [
         "fused-mirror", "sweep", "dis-rect:average", "dis-rect:angle", "dis-rect:gradient", "dis-rect:color",
         "deepflow-rect:average", "deepflow-rect:angle", "deepflow-rect:gradient", "deepflow-rect:color"]
@@ -49,12 +49,14 @@ def test_builtin_labels_are_stable_and_unique():
 
 
 def test_presets_are_the_named_builtins_each_described_in_one_line():
-    labels = [p.label for p in PRESETS]
+    labels = [p.label for p in (*PRESETS, *ABLATIONS)]
     assert DEFAULT_METHOD in labels and len(labels) == len(set(labels))
     assert [m.label for m in builtin_methods() if not isinstance(m, FlowMethod)] == labels
     for p in PRESETS:
         assert p.build().label == p.label
         assert p.description and "\n" not in p.description and "default" not in p.description, p.label
+    for p in ABLATIONS:
+        assert p.build().label == p.label and p.description and "\n" not in p.description
 
 
 def test_flow_method_fields_and_config_are_json():

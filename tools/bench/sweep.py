@@ -11,8 +11,9 @@ in turn, so that both see the same load.  Goals, printed as ``[PASS]`` / ``[FAIL
 is missed):
 
 - the method's median wall time at 1000x500 at most :data:`GOAL_TIME_FACTOR` x the comparison method's in the same
-  run: what the default adds to its matching (the photometric and rig self-calibration) costs at most a fifth of
-  it (measured 1.08-1.12 x).  Both are timed on the same machine in the same minutes, so no absolute time is needed;
+  run: what the default adds to its matching (the self-calibration stage: a reduced flow pass, the rig and
+  photometric fits and their tests) costs at most a tenth of it.  Both are timed on the same machine in the same
+  minutes, so no absolute time is needed;
 - its peak RSS at 1000x500 at most :data:`GOAL_PEAK_GB`: a frame of the default size fits in the memory a
   ``--workers`` task is given (``harness.runtime.cluster.BASE_BYTES``, 1 GiB); measured 0.78-0.86 GB.  Memory does
   not depend on the machine's speed, so this stays absolute.
@@ -48,7 +49,7 @@ from tools.common import ArgumentParser, report_goals, synthetic_box_frame, user
 
 BASE_WIDTH = 1000
 GOAL_PEAK_GB = 1.0  # peak RSS of the method at 1000x500, GB
-GOAL_TIME_FACTOR = 1.2  # the method's median wall time at 1000x500 over the comparison method's in the same run
+GOAL_TIME_FACTOR = 1.1  # the method's median wall time at 1000x500 over the comparison method's in the same run
 DEFAULT_COMPARISON = f"{DEFAULT_METHOD}-raw"
 #: the repository root, where ``python -m tools.bench.sweep`` finds ``tools``
 ROOT = Path(__file__).resolve().parents[2]
