@@ -10,8 +10,27 @@ that column and row ``theta'``, compared with C's, truncated, weighted by ``sin^
 pixel's bearing and the pair's baseline, summed over both pairs and quantised to uint16 (then optionally
 box-filtered): one fused numba pass in C's own equirect grid.
 
-Features (computed in the rectified frame, so both images of a pair use the same axes): gray intensity
-(0-255) and its two derivatives along the rectified columns and rows (gray levels per pixel).
+Features (computed in the rectified frame, so both images of a pair use the same axes): an image ``T`` and its
+two derivatives along the rectified columns and rows (gray levels per pixel), weighted ``intensity_weight`` and
+``gradient_weight``.  ``T`` is chosen by ``CostParams.feature`` (:data:`FEATURES`; docs/cost.md):
+
+- ``"intensity"`` (the default): the gray intensity itself (0-255).  Cameras must agree in intensity (up to what the
+  photometric self-calibration's gain model corrects).
+- ``"rank"``: the rank transform (Zabih & Woodfill 1994), the number of the :data:`RANK_RADIUS_PX` window's
+  ``(2 r + 1)^2 - 1`` neighbours strictly darker than the pixel, times ``255 / ((2 r + 1)^2 - 1)`` (0-255).  It
+  depends only on the order of the intensities, so any increasing tone curve leaves it unchanged.
+- ``"normalized"``: the locally normalised intensity ``NORM_SCALE * (g - mu) / sqrt(var + NORM_EPS^2)``, ``mu``
+  and ``var`` the mean and variance of the gray image ``g`` in a Gaussian window of sigma :data:`NORM_SIGMA_PX`:
+  unchanged by a gain and an offset, hence nearly so by any smooth increasing tone curve (locally affine) where
+  the local contrast is well above ``NORM_EPS`` (below it, the plain high-passed intensity ``NORM_SCALE / NORM_EPS
+  * (g - mu)``: flat, noisy areas are not amplified).
+
+The invariance holds for the rectified gray image; the gray conversion of per-channel curves and the bilinear
+resampling into the rectified frame, which a tone curve does not commute with, make it approximate.
+
+Both gain-free features follow Hirschmueller & Scharstein (2009), "Evaluation of stereo matching costs on images
+with radiometric differences" (rank and mean/LoG-filtered costs; census and mutual information do not fit a
+per-pixel feature compared by L1).
 """
 
 from __future__ import annotations
@@ -25,8 +44,20 @@ import numpy as np
 from reconstruction.camera.equirect import bearing_grid
 from reconstruction.camera.resample import WRAP_PAD, rectifying_rotation, rotation_maps, warp_equirect
 
-__all__ = ["CostParams", "PairWarp", "inverse_distances", "gray_float", "prepare_pair", "build_cost_volume",
-           "source_rows", "rect_row"]
+__all__ = ["CostParams", "PairWarp", "FEATURES", "RANK_RADIUS_PX", "NORM_SIGMA_PX", "NORM_EPS", "NORM_SCALE",
+           "inverse_distances", "gray_float", "rank_transform", "local_normalize", "feature_image", "prepare_pair",
+           "build_cost_volume", "source_rows", "rect_row"]
+
+#: the per-pixel features of the cost (``CostParams.feature``; module doc)
+FEATURES = ("intensity", "rank", "normalized")
+#: radius of the rank transform's square window, pixels of the rectified image (7 x 7: 48 neighbours)
+RANK_RADIUS_PX = 3
+#: sigma of the Gaussian window of the local normalisation, pixels of the rectified image
+NORM_SIGMA_PX = 5.0
+#: floor of the local standard deviation of the local normalisation, gray levels (flat, noisy areas stay small)
+NORM_EPS = 8.0
+#: gray levels per local standard deviation of the normalised intensity
+NORM_SCALE = 16.0
 
 
 @dataclass(frozen=True)
@@ -37,15 +68,18 @@ class CostParams:
         d_min_m, d_max_m: nearest and farthest distance hypothesis, metres.
         levels: number of sphere hypotheses, uniform in inverse distance between ``1/d_max_m`` and ``1/d_min_m``.
         blur_px: Gaussian sigma applied to the gray images before matching, pixels (0 = none).
-        gradient_weight: weight of the summed absolute gradient differences against the intensity difference
-            (dimensionless; gradients are gray levels per pixel).
-        intensity_weight: weight of the absolute intensity difference (dimensionless; what is left of a gain
-            difference between the cameras after the photometric self-calibration acts on it, the gradients much
-            less).
+        gradient_weight: weight of the summed absolute gradient differences (of the feature image ``T``, module
+            doc) against the difference of ``T`` itself (dimensionless; gradients are gray levels per pixel).
+        intensity_weight: weight of the absolute difference of ``T`` (the intensity by default; dimensionless;
+            what is left of a gain difference between the cameras after the photometric self-calibration acts on
+            it, the gradients much less).
         truncate: per-pair cost truncation, gray levels (robustness to reflections and occlusions).
         box_px: side of the box filter applied to each cost slice in C's grid, pixels (1 = none).
         scale: quantisation, uint16 cost units per gray level.
         pair_power: exponent of ``sin(angle to baseline)`` in each pair's weight (2 = sin^2).
+        feature: the image ``T`` compared with its derivatives (:data:`FEATURES`, module doc): ``"intensity"``
+            (gray levels, 0-255), ``"rank"`` (rank transform, 0-255) or ``"normalized"`` (locally normalised
+            intensity, gray-level units, typically within +-3 :data:`NORM_SCALE`).
     """
 
     d_min_m: float = 0.3
@@ -58,6 +92,11 @@ class CostParams:
     box_px: int = 1
     scale: float = 8.0
     pair_power: float = 2.0
+    feature: str = "intensity"
+
+    def __post_init__(self) -> None:
+        if self.feature not in FEATURES:
+            raise ValueError(f"unknown cost feature {self.feature!r} (known: {', '.join(FEATURES)})")
 
     def max_cost(self) -> int:
         """Largest possible summed cost, uint16 units (both pairs' weights sum to at most 2)."""
@@ -79,8 +118,72 @@ def gray_float(image: np.ndarray, blur_px: float) -> np.ndarray:
     return np.ascontiguousarray(g)
 
 
-def _features(gray_rect: np.ndarray, gradient_weight: float, intensity_weight: float = 1.0) -> np.ndarray:
-    """(H, W) rectified gray -> (3, H, W) float32: weighted intensity and weighted d/du (wrapping), d/dv."""
+def _wrap_pad(image: np.ndarray, pad: int) -> np.ndarray:
+    """(H, W) equirect -> (H + 2 pad, W + 2 pad): columns wrapped in longitude, rows mirrored at the poles (the
+    edge row not repeated)."""
+    rows = np.pad(image, ((pad, pad), (0, 0)), mode="reflect")
+    return np.concatenate([rows[:, -pad:], rows, rows[:, :pad]], axis=1)
+
+
+def rank_transform(gray: np.ndarray, radius: int = RANK_RADIUS_PX) -> np.ndarray:
+    """The rank transform of an equirect gray image, in gray-level units.
+
+    Args:
+        gray: (H, W) float32 gray levels (any monotonic scale: only their order matters).
+        radius: half side of the square window, pixels (wrapping in longitude, mirrored at the poles).
+    Returns:
+        (H, W) float32 in [0, 255]: the number of the window's ``(2 radius + 1)^2 - 1`` neighbours strictly
+        darker than the pixel, times ``255 / ((2 radius + 1)^2 - 1)``.
+    """
+    h, w = gray.shape
+    side = 2 * radius + 1
+    padded = _wrap_pad(gray, radius)
+    count = np.zeros((h, w), np.uint8)
+    for dy in range(side):
+        for dx in range(side):
+            if dy != radius or dx != radius:
+                count += padded[dy:dy + h, dx:dx + w] < gray
+    return count.astype(np.float32) * np.float32(255.0 / (side * side - 1))
+
+
+def local_normalize(gray: np.ndarray, sigma_px: float = NORM_SIGMA_PX, eps: float = NORM_EPS,
+                    scale: float = NORM_SCALE) -> np.ndarray:
+    """The locally normalised intensity of an equirect gray image, in gray-level units.
+
+    Args:
+        gray: (H, W) float32 gray levels, 0-255.
+        sigma_px: sigma of the Gaussian window, pixels (wrapping in longitude, mirrored at the poles).
+        eps: floor of the local standard deviation, gray levels.
+        scale: gray levels per local standard deviation.
+    Returns:
+        (H, W) float32 ``scale * (g - mu) / sqrt(var + eps^2)``, ``mu`` and ``var`` the window's Gaussian-weighted
+        mean and variance of ``g``; typically within +-``3 scale``.
+    """
+    pad = int(np.ceil(3 * sigma_px))
+    g = _wrap_pad(np.asarray(gray, np.float32), pad)
+    mu = cv2.GaussianBlur(g, (0, 0), sigma_px, borderType=cv2.BORDER_REFLECT)
+    var = np.maximum(cv2.GaussianBlur(g * g, (0, 0), sigma_px, borderType=cv2.BORDER_REFLECT) - mu * mu, 0.0)
+    out = (g - mu) * (np.float32(scale) / np.sqrt(var + np.float32(eps * eps)))
+    return np.ascontiguousarray(out[pad:-pad, pad:-pad], dtype=np.float32)
+
+
+def feature_image(gray_rect: np.ndarray, feature: str) -> np.ndarray:
+    """(H, W) rectified gray (0-255) -> (H, W) float32 image ``T`` of ``feature`` (:data:`FEATURES`, module doc):
+    the gray itself, its rank transform or its local normalisation, gray-level units."""
+    if feature == "intensity":
+        return gray_rect
+    if feature == "rank":
+        return rank_transform(gray_rect)
+    if feature == "normalized":
+        return local_normalize(gray_rect)
+    raise ValueError(f"unknown cost feature {feature!r} (known: {', '.join(FEATURES)})")
+
+
+def _features(gray_rect: np.ndarray, gradient_weight: float, intensity_weight: float = 1.0,
+              feature: str = "intensity") -> np.ndarray:
+    """(H, W) rectified gray -> (3, H, W) float32: the weighted feature image ``T`` (:func:`feature_image`; the
+    intensity by default) and its weighted d/du (wrapping), d/dv, gray levels (per pixel)."""
+    gray_rect = feature_image(gray_rect, feature)
     gu = 0.5 * (np.roll(gray_rect, -1, axis=1) - np.roll(gray_rect, 1, axis=1))
     gv = np.zeros_like(gray_rect)
     gv[1:-1] = 0.5 * (gray_rect[2:] - gray_rect[:-2])
@@ -124,9 +227,10 @@ def prepare_pair(frame, name: str, gray: dict, params: CostParams) -> PairWarp:
     base = np.asarray(cam_k.position, np.float64) - np.asarray(cam_c.position, np.float64)
     b = float(np.linalg.norm(base))
     rect = rectifying_rotation(base, cam_c.rotation)
-    ref = _features(warp_equirect(gray["C"], rect, cam_c.rotation), params.gradient_weight, params.intensity_weight)
+    ref = _features(warp_equirect(gray["C"], rect, cam_c.rotation), params.gradient_weight, params.intensity_weight,
+                    params.feature)
     other = _features(warp_equirect(gray[name], rect, cam_k.rotation), params.gradient_weight,
-                      params.intensity_weight)
+                      params.intensity_weight, params.feature)
     theta = np.pi * (np.arange(h) + 0.5) / h
     bear = bearing_grid(w, h, cam_c.rotation)
     cos_b = bear @ (base / b)

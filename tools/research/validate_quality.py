@@ -168,8 +168,8 @@ def _without_labels(config) -> object:
 
 #: parameters added after results sets were first written, with the value that reproduces what came before: a
 #: stored configuration without the key ran that way (a sweep's ``planes.mirror_tolerance``: no mirror test; its
-#: cost's ``intensity_weight``: 1; a method's ``photometric``: the images as they are)
-_ADDED_KEYS = {"mirror_tolerance": 0.0, "intensity_weight": 1.0,
+#: cost's ``intensity_weight``: 1 and ``feature``: the intensity; a method's ``photometric``: the images as they are)
+_ADDED_KEYS = {"mirror_tolerance": 0.0, "intensity_weight": 1.0, "feature": "intensity",
                "photometric": dataclasses.asdict(NO_CALIBRATION)}
 
 
