@@ -72,13 +72,14 @@ class PhotometricParams:
         common_field: :func:`fit_photometric` also fits the fall-off all three cameras share (from the parallax:
             the same point is seen at different bearings) and removes it from all three images, C's included.  Off
             by default: through a 0.3-0.4 m rig's parallax it cannot be told from view-dependent reflection (on
-            ideal rendered frames it finds "significant" fall-offs of 15-45 %).
+            ideal rendered frames it finds "significant" shared fall-offs of up to 0.35 in log range).
         min_gain, min_field: the smallest corrections applied (natural log: a camera's largest mean channel gain,
             a field's range over the sphere), whatever the test says.  The fit is not exact where nothing differs:
             a surface's view-dependent reflection and the pre-pass's correspondence errors make cameras that agree
-            look different by up to 0.045 (gain) and 0.089 (field) on the ideal frames of tri360-v2 dev (docs/
+            look different by up to 0.023 (gain) and 0.055 (field) on the ideal frames of tri360-v2 dev (docs/
             photometry.md, ``python -m tools.research.calibration_floor``), which no test over the sphere's blocks
-            tells from a camera's (they are as consistent across the sphere).
+            tells from a camera's (they are as consistent across the sphere); a captured camera's median is 0.25
+            and 0.09.
         flat_log_gradient: only pixels where C's log intensity changes by less than this per pixel of the reduced
             images take part (a flat patch's ratio does not depend on a match's last pixel of accuracy).
         alpha: the level of the test each correction must pass to be applied (:mod:`reconstruction.evidence`).

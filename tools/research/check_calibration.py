@@ -4,10 +4,12 @@ and hold on every camera family?
 Run as::
 
     tri360 evaluate DATA_ROOT --method fused-mirror fused-mirror-raw --out RESULTS
-    python -m tools.research.check_calibration RESULTS [--method fused-mirror] [--reference fused-mirror-raw]
+    python -m tools.research.check_calibration RESULTS [RESULTS ...] [--method fused-mirror]
+        [--reference fused-mirror-raw]
 
 ``DATA_ROOT`` holds ideal frames and their twins of any conditions (e.g. ``python -m tools.research.render_subset``
-with ``--suite suites/tri360-v3.toml``).  Prints, as Markdown:
+with ``--suite suites/tri360-v3.toml``); several results sets are read as one (e.g. the ideal frames with both
+methods in one, the twins of other conditions with the method alone in another).  Prints, as Markdown:
 
 - per method the MAE (m) per condition (camera family) x room family, pooled over scored pixels;
 - **ideal**: the method's MAE over the reference's (the default without self-calibration), pooled per room family
@@ -115,13 +117,16 @@ def check(results: pd.DataFrame, method: str, reference: str) -> tuple[str, bool
 
 def main(argv: list[str] | None = None) -> int:
     parser = ArgumentParser(prog=PROG, description="the self-calibration issue's bounds on a results set")
-    parser.add_argument("results", type=Path, metavar="RESULTS")
+    parser.add_argument("results", type=Path, nargs="+", metavar="RESULTS")
     parser.add_argument("--method", default="fused-mirror", help="the method checked (default: fused-mirror)")
     parser.add_argument("--reference", default="fused-mirror-raw",
                         help="the same method without self-calibration (default: fused-mirror-raw)")
     args = parser.parse_args(argv)
     try:
-        text, ok = check(read_results(args.results), args.method, args.reference)
+        table = pd.concat([read_results(r) for r in args.results], ignore_index=True)
+        if table.duplicated(["scene", "viewpoint", "method"]).any():
+            raise UserError("the results sets share a (scene, viewpoint, method) row: give each frame and method once")
+        text, ok = check(table, args.method, args.reference)
     except UserError as exc:
         return user_error(PROG, exc)
     print(text)
