@@ -70,9 +70,11 @@ class PhotometricParams:
             brightness difference between the floor and the ceiling (a polished floor's view-dependent reflection)
             cannot move.
         common_field: :func:`fit_photometric` also fits the fall-off all three cameras share (from the parallax:
-            the same point is seen at different bearings) and removes it from all three images, C's included.  Off
-            by default: through a 0.3-0.4 m rig's parallax it cannot be told from view-dependent reflection (on
-            ideal rendered frames it finds "significant" shared fall-offs of up to 0.35 in log range).
+            the same point is seen at different bearings) and removes it from all three images, C's included.
+            Off by default: through a 0.3-0.4 m rig's parallax it is hard to tell from view-dependent reflection
+            (on ideal rendered frames it finds "significant" shared fall-offs of up to 0.35 in log range, hence
+            ``min_common`` when it is on; on with it, it is applied on 0 of 21 ideal and 7 of 21 captured frames
+            of tri360-v2 dev, whose accuracy is not measured yet).
         min_gain, min_field: the smallest corrections applied (natural log: a camera's largest mean channel gain,
             a field's range over the sphere), whatever the test says.  The fit is not exact where nothing differs:
             a surface's view-dependent reflection and the pre-pass's correspondence errors make cameras that agree
@@ -80,6 +82,8 @@ class PhotometricParams:
             photometry.md, ``python -m tools.research.calibration_floor``), which no test over the sphere's blocks
             tells from a camera's (they are as consistent across the sphere); a captured camera's median is 0.25
             and 0.09.
+        min_common: the same for the shared fall-off (log range over the sphere): above the 0.35 it finds on
+            those ideal frames even from their true distance (a lens losing 40 % of the light at its seam).
         flat_log_gradient: only pixels where C's log intensity changes by less than this per pixel of the reduced
             images take part (a flat patch's ratio does not depend on a match's last pixel of accuracy).
         alpha: the level of the test each correction must pass to be applied (:mod:`reconstruction.evidence`).
@@ -101,6 +105,7 @@ class PhotometricParams:
     common_field: bool = False
     min_gain: float = 0.05
     min_field: float = 0.10
+    min_common: float = 0.5
     flat_log_gradient: float = 0.1
     alpha: float = ALPHA
 
@@ -116,8 +121,9 @@ class PhotometricParams:
             raise ValueError(f"photometric prepass_factor must be >= 1, got {self.prepass_factor}")
         if not 0.0 < self.alpha < 1.0:
             raise ValueError(f"photometric alpha must be in (0, 1), got {self.alpha}")
-        if not (self.min_gain >= 0 and self.min_field >= 0):
-            raise ValueError(f"photometric min_gain {self.min_gain} and min_field {self.min_field} must be >= 0")
+        if not (self.min_gain >= 0 and self.min_field >= 0 and self.min_common >= 0):
+            raise ValueError(f"photometric min_gain {self.min_gain}, min_field {self.min_field} and min_common "
+                             f"{self.min_common} must be >= 0")
         if not self.flat_log_gradient > 0:
             raise ValueError(f"photometric flat_log_gradient must be > 0, got {self.flat_log_gradient}")
         if self.factor < 1:
@@ -483,7 +489,7 @@ def fit_photometric(images: dict, cameras: dict, distance: np.ndarray,
     if params.common_field and n_j:
         c_cols = np.arange(common_first, n_cols)
         lo, hi = field_range(theta[c_cols])
-        ev = test(np.eye(n_cols)[c_cols], float(np.log(hi / lo)), params.min_field)
+        ev = test(np.eye(n_cols)[c_cols], float(np.log(hi / lo)), params.min_common)
         record["common"] = {"field_range": [lo, hi], "field": {**ev, "applied": ev["supported"]}}
         keep[c_cols] = ev["supported"]
     if not keep.any():

@@ -96,10 +96,10 @@ def test_cameras_that_differ_are_corrected_to_c():
 
 
 def test_a_fall_off_all_three_share_is_removed_from_the_parallax():
-    """The same 40 % fall-off in C, U and R (a common_field fit): applied, and the log ratio of the corrected to
+    """The same 50 % fall-off in C, U and R (the common_field fit): applied, and the log ratio of the corrected to
     the original images spans a tenth of what it spanned (5th-95th percentile)."""
     frame = make_synthetic_frame(width=480)
-    images = _relit(frame, {k: ((1.0, 1.0, 1.0), 0.4) for k in ("C", "U", "R")})
+    images = _relit(frame, {k: ((1.0, 1.0, 1.0), 0.5) for k in ("C", "U", "R")})
     model, record = fit_photometric(images, frame.cameras, frame.distance["C"], PhotometricParams(common_field=True))
     assert record["common"]["field"]["applied"] and model.common is not None
     out = apply_photometric(images, model)

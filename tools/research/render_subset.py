@@ -4,7 +4,7 @@ take with ``--partial``.
 Run as::
 
     python -m tools.research.render_subset DATA_ROOT [--suite suites/tri360-v2.toml] [--split dev]
-        [--viewpoints 1] [--conditions ideal captured ...] [--quiet]
+        [--viewpoints 1] [--conditions captured ...] [--twins-only] [--quiet]
 
 Every group's rigs are placed as ``tri360 render --suite`` places them (the same scene, seed and rig: a frame
 rendered here is the suite's frame, byte for byte in its settings), then only its first ``--viewpoints``
@@ -36,9 +36,11 @@ PROG = "python -m tools.research.render_subset"
 
 
 def render_subset(suite_path: Path, split: str, out_root: Path, viewpoints: int = 1,
-                  conditions: tuple[str, ...] | None = None, progress: bool = True) -> list[Path]:
+                  conditions: tuple[str, ...] | None = None, progress: bool = True,
+                  twins_only: bool = False) -> list[Path]:
     """Render the first ``viewpoints`` frames of every group of ``split`` into ``out_root`` and derive their twins
-    of ``conditions`` (None: every condition of the suite); complete frames are kept.  Returns the frames' dirs."""
+    of ``conditions`` (None: every condition of the suite); complete frames are kept.  ``twins_only``: render
+    nothing, derive the twins of the frames already rendered.  Returns the dirs of the frames now complete."""
     if viewpoints < 1:
         raise UserError(f"--viewpoints must be >= 1, got {viewpoints}")
     suite = load(suite_path)
@@ -54,13 +56,14 @@ def render_subset(suite_path: Path, split: str, out_root: Path, viewpoints: int 
     ctx = RunContext(None, progress=progress)
     todo = [p for p in planned if not is_complete(frame_dir(out_root, p.frame.scene, p.frame.viewpoint))]
     rendered = [p for p in todo if p.frame.condition == IDEAL]
-    if rendered:
+    if rendered and not twins_only:
         _render(suite, split, rendered, out_root, ctx)
     mark_output(out_root, "data")
-    twins = [p for p in todo if p.frame.condition != IDEAL]
+    twins = [p for p in todo if p.frame.condition != IDEAL
+             and is_complete(frame_dir(out_root, p.frame.source.scene, p.frame.viewpoint))]
     if twins:
         _derive_twins(suite, split, twins, out_root, ctx)
-    return [frame_dir(out_root, p.frame.scene, p.frame.viewpoint) for p in planned]
+    return [d for d in (frame_dir(out_root, p.frame.scene, p.frame.viewpoint) for p in planned) if is_complete(d)]
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -71,11 +74,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--viewpoints", type=int, default=1, help="viewpoints per group (default: 1, vp000)")
     parser.add_argument("--conditions", nargs="+", default=None, metavar="NAME",
                         help="twins to derive (default: every condition of the suite)")
+    parser.add_argument("--twins-only", action="store_true",
+                        help="render nothing: derive the twins of the frames already rendered")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     args = parser.parse_args(argv)
     try:
         dirs = render_subset(args.suite, args.split, args.data_root, args.viewpoints,
-                             None if args.conditions is None else tuple(args.conditions), not args.quiet)
+                             None if args.conditions is None else tuple(args.conditions), not args.quiet,
+                             args.twins_only)
     except UserError as exc:
         return user_error(PROG, exc)
     print(f"{len(dirs)} frame(s) in {args.data_root}")
