@@ -6,6 +6,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
@@ -455,8 +456,8 @@ def self_calibrate(frame, photometric: PhotometricParams, rig: RigParams, limits
     """The frame's self-calibration: U's and R's rotations and the cameras' photometric differences, each applied
     only where the frame's own evidence supports it (:mod:`reconstruction.evidence`).
 
-    A flow pass (:data:`PREPASS_FLOW` on rectified images reduced by ``photometric.prepass_factor``, after
-    per-channel gains from the same pixels so that it matches across an exposure difference) gives the
+    A flow pass (:data:`PREPASS_FLOW` on rectified images reduced by ``photometric.prepass_factor``, after each
+    channel's median gain from the same pixels so that it matches across an exposure difference) gives the
     correspondences; the rig fit (:func:`reconstruction.rig_calibration.fit_rotation`) runs on its matches, the
     matches are triangulated again with the applied poses, and the photometric fit
     (:func:`reconstruction.photometry.fit_photometric`) runs on that distance's correspondences.
@@ -477,8 +478,9 @@ def self_calibrate(frame, photometric: PhotometricParams, rig: RigParams, limits
     start = time.perf_counter()
     seconds, record = {}, {}
     matched = frame
-    if photometric.mode != "none":  # for the pre-pass only: gains from the same pixels
-        matched = FrameView(frame, images=align_images(frame.images, frame.cameras, photometric)[0])
+    if photometric.mode != "none":  # for the pre-pass only: each channel's median gain from the same pixels
+        quick = dataclasses.replace(photometric, iterations=0)
+        matched = FrameView(frame, images=align_images(frame.images, frame.cameras, quick)[0])
     small = reduced_frame(matched, max(photometric.prepass_factor, 1))
     prep = prepare(small, PREPASS_FLOW, True, limits)
     d_small = prep.d0
