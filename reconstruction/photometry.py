@@ -1,24 +1,27 @@
-"""Photometric self-calibration: make U's and R's images look as if taken with C's exposure, white balance and
-lens fall-off, from the frame's own pixels.
+"""Photometric self-calibration: bring U's and R's images to C's exposure, white balance and lens fall-off (and,
+optionally, remove the fall-off all three share), from the frame's own pixels, and only where the frame shows the
+cameras to differ.
 
 Real rigs are three cameras that meter exposure and white balance each on their own and whose lenses darken
 towards their edges, each a little differently.  A matching cost that compares intensities across cameras reads
-such a difference as a distance.  This module estimates, for each other camera K, a smooth gain field relative to C
-in linear light,
+such a difference as a distance.  :func:`fit_photometric` fits, for each other camera K, in linear light,
 
-    ln K_c(p) - ln C_c(p) = a_c + sum_j beta_j * phi_j(b(p))
+    ln K_c(q) - ln C_c(p) = a_Kc + g_K(b_K) [+ f(b_K) - f(b_C)]
 
-per colour channel ``c`` (``a_c``: exposure and white balance) plus one achromatic field over the bearing ``b(p)``
-of pixel p in the camera's own frame (``phi_j``: the monomials of ``(x, y, z)`` up to :attr:`PhotometricParams.
-degree` and ``|x|, |y|, |z|``, which follow the kink of two back-to-back fisheyes' fall-off at their seam whatever
-the lenses' axis), and divides it out.  C's image is never changed.
+between C's pixel p and the pixel q of K that sees the same point (through a distance map of C): ``a_Kc`` per
+colour channel (exposure and white balance), ``g_K`` one achromatic field over K's camera-frame bearing (the
+monomials of :func:`basis`: with ``central``, those the same at opposite bearings, and ``|x|, |y|, |z|``, which
+follow the kink of two back-to-back fisheyes' fall-off at their seam), and optionally ``f`` the fall-off shared by
+all three, seen through the parallax.  Each quantity is applied only when a test over the sphere's blocks supports
+it and it exceeds the fit's error on cameras that agree (:mod:`reconstruction.evidence`);
+:func:`apply_photometric` divides the applied ones out.
 
-The log ratio is taken between pixels that see the same surface point: at the same pixel (:func:`align_images`
-without a distance: the cameras share their orientation and are 0.3-0.4 m apart, so most pixels see nearly the
-same surface, and a robust fit ignores the rest) or, given a distance map of C, between C's pixel and where its
-point projects into K (``distance=``: correct for near surfaces too).  Only pixels that are neither dark (noise)
-nor near saturation in either camera count, on images reduced by :attr:`PhotometricParams.factor` (area
-averaging in linear light); the fit is iteratively reweighted least squares with Tukey's biweight.
+:func:`align_images` is the cheap form: per-channel gains from the same pixels (the cameras share their
+orientation and are 0.3-0.4 m apart, so most pixels see nearly the same surface, and a robust fit ignores the
+rest), or a field through a distance map; the self-calibration uses it, with each channel's median gain, only to
+let its pre-pass flow match across an exposure difference.  Only pixels that are neither dark (noise) nor near
+saturation count, on images reduced by :attr:`PhotometricParams.factor` (area averaging in linear light); the
+fits are iteratively reweighted least squares with Tukey's biweight.
 """
 
 from __future__ import annotations
@@ -53,7 +56,7 @@ class PhotometricParams:
         prepass_factor: the flow pipeline fits the field from the correspondences of a flow pass on images
             reduced by this factor (after the per-channel gains), then computes its flow on the corrected images;
             1 = no pre-pass (gains only before the flow).
-        ridge: weight of the penalty ``ridge * |beta|^2`` per sample (keeps the field flat where few pixels say
+        ridge: weight of the penalty ``ridge * |beta|^2`` per pixel (keeps the field flat where few pixels say
             otherwise; natural-log units).
         factor: images reduced by this factor before the fit (area averaging in linear light).
         dark, bright: linear-light levels in [0, 1] below / above which a pixel (any channel, either camera) is not
@@ -205,20 +208,9 @@ def fit_gain(ratio: np.ndarray, phi: np.ndarray, params: PhotometricParams) -> t
     target = ratio.reshape(-1).astype(np.float64)
     # start from the per-channel medians (robust to the parallax outliers)
     a0 = np.median(ratio, axis=0)
-    coef = np.concatenate([a0, np.zeros(j)])
-    w = np.ones(target.size)
-    sigma = float("nan")
-    for _ in range(params.iterations):
-        res = target - design @ coef
-        sigma = 1.4826 * float(np.median(np.abs(res - np.median(res)))) + 1e-6
-        u = res / (params.tukey_c * sigma)
-        w = np.where(np.abs(u) < 1.0, (1.0 - u * u) ** 2, 0.0)
-        sw = np.sqrt(w)
-        a = design * sw[:, None]
-        reg = np.full(3 + j, 1e-6)
-        reg[3:] += params.ridge * max(float(w.sum()), 1.0)
-        ata = a.T @ a + np.diag(reg)
-        coef = np.linalg.solve(ata, a.T @ (target * sw))
+    reg = np.full(3 + j, 1e-6)
+    reg[3:] += params.ridge * n
+    coef, w, sigma = _irls(design, target, np.concatenate([a0, np.zeros(j)]), params, reg, tied=0)
     return coef[:3], coef[3:], {"pixels": int(n), "sigma": sigma, "inliers": float((w > 0).mean())}
 
 
@@ -345,9 +337,10 @@ IDENTITY = PhotometricModel({}, {}, None, 0, False)
 
 def _irls(design: np.ndarray, target: np.ndarray, coef: np.ndarray, params: PhotometricParams,
           ridge: np.ndarray, tied: int = 1) -> tuple[np.ndarray, np.ndarray, float]:
-    """Tukey-reweighted least squares from ``coef``: ``(coef, weights, sigma)``.  The rows are ``tied`` blocks of
-    the same pixels in the same order (each pixel's 3 channels consecutive): a pixel's weight in every row is its
-    smallest over its rows (a pixel whose views do not all agree is left out of all of them)."""
+    """Tukey-reweighted least squares from ``coef`` (``params.iterations`` steps; none: ``coef`` as it is):
+    ``(coef, weights, sigma)``.  ``tied`` > 0: the rows are ``tied`` blocks of the same pixels in the same order
+    (each pixel's 3 channels consecutive), and a pixel's weight in every row is its smallest over its rows (a pixel
+    whose views do not all agree is left out of all of them); 0: each row its own weight."""
     w = np.ones(target.size)
     sigma = float("nan")
     for _ in range(params.iterations):
@@ -355,8 +348,9 @@ def _irls(design: np.ndarray, target: np.ndarray, coef: np.ndarray, params: Phot
         sigma = 1.4826 * float(np.median(np.abs(res - np.median(res)))) + 1e-6
         u = res / (params.tukey_c * sigma)
         w = np.where(np.abs(u) < 1.0, (1.0 - u * u) ** 2, 0.0)
-        per_pixel = w.reshape(tied, -1, 3).min(axis=(0, 2))
-        w = np.broadcast_to(per_pixel[None, :, None], (tied, per_pixel.size, 3)).reshape(-1)
+        if tied:
+            per_pixel = w.reshape(tied, -1, 3).min(axis=(0, 2))
+            w = np.broadcast_to(per_pixel[None, :, None], (tied, per_pixel.size, 3)).reshape(-1)
         a = design * w[:, None]
         coef = np.linalg.solve(a.T @ design + np.diag(ridge), a.T @ target)
     return coef, w, sigma

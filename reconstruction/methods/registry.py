@@ -248,6 +248,11 @@ ABLATIONS = (
            "fused-mirror with the told poses (its photometric self-calibration only)"),
     Preset("fused-mirror-raw-images", lambda: images_as_they_are(mirror_method(), "fused-mirror-raw-images"),
            "fused-mirror matching the images as they are (its rig self-calibration only, the sweep's own cost)"),
+    Preset("fused-mirror-shared-falloff",
+           lambda: with_photometric(mirror_method(), dataclasses.replace(PhotometricParams(), common_field=True),
+                                    "fused-mirror-shared-falloff"),
+           "fused-mirror that also removes the fall-off all three cameras share, where the frame supports it "
+           "(PhotometricParams.common_field)"),
     Preset("fused-gated", gated_method,
            "fused-mirror without the room bound's mirror test and with the sweep's own cost always (the default "
            "before fused-mirror)"),

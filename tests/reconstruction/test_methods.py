@@ -35,10 +35,10 @@ def test_builtin_labels_are_stable_and_unique():
                   "oracle-rect:color", "farneback-plain:angle", "fused-mirror", "fused", "sweep"):
         assert label in labels
     # the default's ablations and the defaults it grew from are built in
-    for label in ("fused-mirror-raw", "fused-mirror-told-rig", "fused-mirror-raw-images", "fused-gated",
-                  "fused-adaptive"):
+    for label in ("fused-mirror-raw", "fused-mirror-told-rig", "fused-mirror-raw-images", "fused-mirror-shared-falloff",
+                  "fused-gated", "fused-adaptive"):
         assert label in labels and get_methods([label])[0].label == label
-    assert [p.label for p in ABLATIONS] == [m.label for m in builtin_methods()[len(PRESETS):len(PRESETS) + 5]]
+    assert [p.label for p in ABLATIONS] == [m.label for m in builtin_methods()[len(PRESETS):len(PRESETS) + 6]]
     assert [m.label for m in evaluate_default_methods()] == [
         "fused-mirror", "sweep", "dis-rect:average", "dis-rect:angle", "dis-rect:gradient", "dis-rect:color",
         "deepflow-rect:average", "deepflow-rect:angle", "deepflow-rect:gradient", "deepflow-rect:color"]
