@@ -254,12 +254,10 @@ ABLATIONS = (
            "fused-mirror that also removes the fall-off all three cameras share, where the frame supports it "
            "(PhotometricParams.common_field)"),
     Preset("fused-gated", gated_method,
-           "fused-mirror without the room bound's mirror test and with the sweep's own cost always (the default "
-           "before fused-mirror)"),
+           "fused-mirror without the room bound's mirror test and with the sweep's own cost always"),
     Preset("fused-adaptive", adaptive_method,
            "the wall-plane sweep with fused's refined dis-rect:gradient distance as prior, weighted by the frame's "
-           "flow/sweep agreement only (60-80 %), not by C's texture or the sweep's confidence (the default before "
-           "fused-gated)"),
+           "flow/sweep agreement only (60-80 %), not by C's texture or the sweep's confidence"),
 )
 
 
