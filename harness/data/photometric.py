@@ -183,15 +183,20 @@ class Photometric:
                 and (self.seam is None or tuple(self.seam["gains"]) == (1.0, 1.0)))
 
 
-def gamma_of(response: str) -> float | None:
-    """G of a ``"gamma-G"`` response with G in [1, 4], else None."""
-    if not response.startswith("gamma-"):
+def _curve_parameter(response: str, prefix: str) -> float | None:
+    """The number after ``prefix`` in ``response`` when it is finite and in [1, 4], else None."""
+    if not response.startswith(prefix):
         return None
     try:
-        g = float(response[len("gamma-"):])
+        x = float(response[len(prefix):])
     except ValueError:
         return None
-    return g if math.isfinite(g) and 1.0 <= g <= 4.0 else None
+    return x if math.isfinite(x) and 1.0 <= x <= 4.0 else None
+
+
+def gamma_of(response: str) -> float | None:
+    """G of a ``"gamma-G"`` response with G in [1, 4], else None."""
+    return _curve_parameter(response, "gamma-")
 
 
 def contrast_of(response: str) -> float | None:
@@ -201,13 +206,7 @@ def contrast_of(response: str) -> float | None:
     ``s`` in [0, 1]: smooth, increasing, fixed points 0, 1/2 and 1, slope ``K`` at mid-grey (1 = plain sRGB): a
     camera's "vivid" tone curve, darker shadows and brighter highlights than sRGB.
     """
-    if not response.startswith("s-curve-"):
-        return None
-    try:
-        k = float(response[len("s-curve-"):])
-    except ValueError:
-        return None
-    return k if math.isfinite(k) and 1.0 <= k <= 4.0 else None
+    return _curve_parameter(response, "s-curve-")
 
 
 def is_response(response) -> bool:
