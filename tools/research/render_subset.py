@@ -22,7 +22,7 @@ if __name__ == "__main__":  # run as a script: Ctrl-C during the imports below i
 import sys
 from pathlib import Path
 
-from harness.commands.parts.suite import _derive_twins, _render, load, plan
+from harness.commands.parts.suite import derive_twins, load, plan, render_planned
 from harness.data.errors import UserError
 from harness.data.frame import frame_dir, is_complete
 from harness.data.outputs import check_output, ensure_output_dir, mark_output
@@ -57,12 +57,12 @@ def render_subset(suite_path: Path, split: str, out_root: Path, viewpoints: int 
     todo = [p for p in planned if not is_complete(frame_dir(out_root, p.frame.scene, p.frame.viewpoint))]
     rendered = [p for p in todo if p.frame.condition == IDEAL]
     if rendered and not twins_only:
-        _render(suite, split, rendered, out_root, ctx)
+        render_planned(suite, split, rendered, out_root, ctx)
     mark_output(out_root, "data")
     twins = [p for p in todo if p.frame.condition != IDEAL
              and is_complete(frame_dir(out_root, p.frame.source.scene, p.frame.viewpoint))]
     if twins:
-        _derive_twins(suite, split, twins, out_root, ctx)
+        derive_twins(suite, split, twins, out_root, ctx)
     return [d for d in (frame_dir(out_root, p.frame.scene, p.frame.viewpoint) for p in planned) if is_complete(d)]
 
 

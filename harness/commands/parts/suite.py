@@ -53,7 +53,8 @@ from reconstruction.methods.base import Method
 from scenes.model import SceneSpec, choose_viewpoints
 from scenes.registry import discover
 
-__all__ = ["PlannedFrame", "load", "plan", "render_suite", "check_suite_data", "twin_problem", "evaluate_suite",
+__all__ = ["PlannedFrame", "load", "plan", "render_planned", "derive_twins",
+           "render_suite", "check_suite_data", "twin_problem", "evaluate_suite",
            "score_suite"]
 
 TWIN_TOLERANCE = 1e-9
@@ -296,10 +297,10 @@ def render_suite(path: Path, split: str, out_root: Path, threads: int = DEFAULTS
         return dirs
     try:
         if rendered_todo:
-            _render(suite, split, rendered_todo, out_root, ctx)
+            render_planned(suite, split, rendered_todo, out_root, ctx)
         mark_output(out_root, "data")
         if twins_todo:
-            _derive_twins(suite, split, twins_todo, out_root, ctx)
+            derive_twins(suite, split, twins_todo, out_root, ctx)
     except BaseException:
         for d in created:  # an interrupted first render leaves no empty directories behind
             try:
@@ -310,7 +311,7 @@ def render_suite(path: Path, split: str, out_root: Path, threads: int = DEFAULTS
     return dirs
 
 
-def _derive_twins(suite: Suite, split: str, todo: list[PlannedFrame], out_root: Path, ctx: RunContext) -> None:
+def derive_twins(suite: Suite, split: str, todo: list[PlannedFrame], out_root: Path, ctx: RunContext) -> None:
     """Write each twin (:func:`harness.commands.parts.captured.captured_twin`) of a rendered frame of ``out_root``."""
     with progress_bar(len(todo), f"{suite.name} {split}: twins", enabled=ctx.progress) as bar:
         for p in todo:
@@ -323,7 +324,9 @@ def _derive_twins(suite: Suite, split: str, todo: list[PlannedFrame], out_root: 
             bar.update(1)
 
 
-def _render(suite: Suite, split: str, todo: list[PlannedFrame], out_root: Path, ctx: RunContext) -> None:
+def render_planned(suite: Suite, split: str, todo: list[PlannedFrame], out_root: Path, ctx: RunContext) -> None:
+    """Render the planned ideal frames ``todo`` of ``suite``'s ``split`` into ``out_root`` (:func:`harness.commands.
+    render.render_items`: where ``ctx`` says, with its progress)."""
     items = [RenderItem(p.renderer, p.spec, p.settings, p.rig, p.frame.scene, p.frame.viewpoint) for p in todo]
     render_items(items, out_root, f"{suite.name} {split}", ctx)
 
