@@ -58,7 +58,7 @@ from reconstruction.rig_calibration import (
 
 __all__ = ["DEFAULT_FLOW", "PAIRS", "Reconstruction", "Calibration", "reconstruct", "self_calibrate",
            "available_variants",
-           "fuse_average", "fill_invalid", "fill_edge_aware", "Prepared", "prepare", "variant_problem",
+           "fuse_average", "agreed_distance", "fill_invalid", "fill_edge_aware", "Prepared", "prepare", "variant_problem",
            "refine_variant", "FlowMethod", "config_label", "flow_confidence", "run_flow_group"]
 
 DEFAULT_FLOW = "dis"  # chosen by measurement, see docs/refinement.md
@@ -166,6 +166,22 @@ def fuse_average(d_pairs: Sequence[np.ndarray], valid: Sequence[np.ndarray], sha
     n = v.sum(axis=0)
     mean_valid = (d * v).sum(axis=0) / np.maximum(n, 1.0)
     return fill_invalid(mean_valid.reshape(shape), (n > 0).reshape(shape)).reshape(-1)
+
+
+def agreed_distance(d_pairs: Sequence[np.ndarray], valid: Sequence[np.ndarray], tolerance: float) -> np.ndarray:
+    """The pairs' mean distance where both triangulate and agree, NaN elsewhere.
+
+    Args:
+        d_pairs: per pair (N,) distances, metres; valid: per pair (N,) bool.
+        tolerance: the largest ``|ln(d_a / d_b)|`` between the pairs (dimensionless).
+    Returns:
+        (N,) float64 distances, metres (NaN where a pair is invalid or they disagree).
+    """
+    d = np.stack([np.asarray(x, np.float64) for x in d_pairs])
+    ok = np.all(np.stack(valid), axis=0) & np.all(d > 0, axis=0)
+    logs = np.log(np.where(ok, d, 1.0))
+    ok &= logs.max(axis=0) - logs.min(axis=0) <= tolerance
+    return np.where(ok, d.mean(axis=0), np.nan)
 
 
 def _color_terms(frame, config: RefineConfig, bearings: np.ndarray) -> list[ColorTerm]:
@@ -460,7 +476,8 @@ def self_calibrate(frame, photometric: PhotometricParams, rig: RigParams, limits
     channel's median gain from the same pixels so that it matches across an exposure difference) gives the
     correspondences; the rig fit (:func:`reconstruction.rig_calibration.fit_rotation`) runs on its matches, the
     matches are triangulated again with the applied poses, and the photometric fit
-    (:func:`reconstruction.photometry.fit_photometric`) runs on that distance's correspondences.
+    (:func:`reconstruction.photometry.fit_photometric`) runs on the correspondences of the pixels whose two pairs
+    triangulate alike (:func:`agreed_distance` within ``photometric.agreement``).
 
     Args:
         frame: the frame (images and told poses).
@@ -483,12 +500,12 @@ def self_calibrate(frame, photometric: PhotometricParams, rig: RigParams, limits
         matched = FrameView(frame, images=align_images(frame.images, frame.cameras, quick)[0])
     small = reduced_frame(matched, max(photometric.prepass_factor, 1))
     prep = prepare(small, PREPASS_FLOW, True, limits)
-    d_small = prep.d0
+    d_pair, valid = [prep.d_pair[k] for k in PAIRS], [prep.valid[k] for k in PAIRS]
     cameras = dict(frame.cameras)
     if rig.mode != "none":
         t_rig = time.perf_counter()
-        d_pair, valid, fits = [], [], {}
-        for k in PAIRS:
+        fits = {}
+        for i, k in enumerate(PAIRS):
             m = prep.matches[k]
             fit = fit_rotation(prep.bearings, usable_matches(small.images["C"], m.bearing, m.fb_error_px,
                                                              prep.valid[k], rig), m.baseline,
@@ -500,14 +517,13 @@ def self_calibrate(frame, photometric: PhotometricParams, rig: RigParams, limits
             cameras[k] = corrected_pose(frame.cameras[k], omega)
             # the pre-pass's matches seen from the applied pose, triangulated again
             g = pair_geometry(prep.bearings, m.baseline, m.bearing.reshape(-1, 3) @ rotation_vector_matrix(omega).T)
-            d_k, v_k = triangulate_sines(g, limits)
-            d_pair.append(d_k)
-            valid.append(v_k)
-        d_small = fuse_average(d_pair, valid, (small.height, small.width))
+            d_pair[i], valid[i] = triangulate_sines(g, limits)
         record["rig"] = fits
         seconds["rig"] = time.perf_counter() - t_rig
     model = IDENTITY
     if photometric.mode != "none":
+        # the pixels both pairs triangulate alike (a wrong match pairs C's pixel with another surface)
+        d_small = agreed_distance(d_pair, valid, photometric.agreement)
         d_full = cv2.resize(d_small.reshape(small.height, small.width).astype(np.float32), (w, h),
                             interpolation=cv2.INTER_NEAREST)
         model, record["photometric"] = fit_photometric(frame.images, cameras, d_full, photometric)
