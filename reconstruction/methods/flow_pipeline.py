@@ -57,8 +57,8 @@ from reconstruction.rig_calibration import (
 )
 
 __all__ = ["DEFAULT_FLOW", "PAIRS", "Reconstruction", "Calibration", "reconstruct", "self_calibrate",
-           "available_variants",
-           "fuse_average", "agreed_distance", "fill_invalid", "fill_edge_aware", "Prepared", "prepare", "variant_problem",
+           "available_variants", "fuse_average", "agreed_distance", "fill_invalid", "fill_edge_aware", "Prepared",
+           "prepare", "variant_problem",
            "refine_variant", "FlowMethod", "config_label", "flow_confidence", "run_flow_group"]
 
 DEFAULT_FLOW = "dis"  # chosen by measurement, see docs/refinement.md
