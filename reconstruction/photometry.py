@@ -1,31 +1,32 @@
-"""Photometric self-calibration: bring U's and R's images to C's exposure, white balance and lens fall-off (and,
-optionally, remove the fall-off all three share), from the frame's own pixels, and only where the frame shows the
-cameras to differ.
+"""Photometric self-calibration: bring U's and R's images to C's exposure, white balance, response and lens fall-off
+(and, optionally, remove the fall-off all three share), from the frame's own pixels, and only where the frame shows
+the cameras to differ.
 
 Real rigs are three cameras that meter exposure and white balance each on their own and whose lenses darken
 towards their edges, each a little differently.  A matching cost that compares intensities across cameras reads
 such a difference as a distance.  :func:`fit_photometric` fits, for each other camera K, in linear light,
 
-    ln K_c(q) - ln C_c(p) = a_Kc + g_K(b_K) [+ f(b_K) - f(b_C)]
+    ln K_c(q) - ln C_c(p) = a_Kc + g_K(b_K) + r_K(ln K_c(q)) [+ f(b_K) - f(b_C)]
 
-between C's pixel p and the pixel q of K that sees the same point (through a distance map of C): ``a_Kc`` per
-colour channel (exposure and white balance), ``g_K`` one achromatic field over K's camera-frame bearing (the
-monomials of :func:`basis`: with ``central``, those the same at opposite bearings, and ``|x|, |y|, |z|``, which
-follow the kink of two back-to-back fisheyes' fall-off at their seam), and optionally ``f`` the fall-off shared by
-all three, seen through the parallax.  Each quantity is applied only when a test over the sphere's blocks supports
-it and it exceeds the fit's error on cameras that agree (:mod:`reconstruction.evidence`);
-:func:`apply_photometric` divides the applied ones out.
+between C's pixel p and the pixel q of K that sees the same point (through a distance map of C): ``a_Kc`` per colour
+channel (exposure and white balance), ``r_K`` K's response curve relative to C's (:func:`response_basis`), ``g_K``
+one achromatic field over K's camera-frame bearing (the monomials of :func:`basis`: with ``central``, those the same
+at opposite bearings, and ``|x|, |y|, |z|``, which follow the kink of two back-to-back fisheyes' fall-off at their
+seam), and optionally ``f`` the fall-off shared by all three, seen through the parallax. Each quantity is applied
+only when a test over the sphere's blocks supports it and it exceeds the fit's error on cameras that agree
+(:mod:`reconstruction.evidence`); :func:`apply_photometric` divides the applied ones out.
 
-:func:`align_images` is the cheap form: per-channel gains from the same pixels (the cameras share their
-orientation and are 0.3-0.4 m apart, so most pixels see nearly the same surface, and a robust fit ignores the
-rest); the self-calibration uses it, with each channel's median gain, only to let its pre-pass flow match across
-an exposure difference.  Only pixels that are neither dark (noise) nor near
-saturation count, on images reduced by :attr:`PhotometricParams.factor` (area averaging in linear light); the
-fits are iteratively reweighted least squares with Tukey's biweight.
+:func:`align_images` is the cheap form: per-channel gains from the same pixels (the cameras share their orientation
+and are 0.3-0.4 m apart, so most pixels see nearly the same surface, and a robust fit ignores the rest); the
+self-calibration uses it, with each channel's median gain, only to let its pre-pass flow match across an exposure
+difference. Only pixels that are neither dark (noise) nor near saturation count, on images reduced by
+:attr:`PhotometricParams.factor` (area averaging in linear light); the fits are iteratively reweighted least squares
+with Tukey's biweight.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 from dataclasses import dataclass
 
@@ -38,7 +39,8 @@ from reconstruction.evidence import ALPHA, Evidence, hotelling, jackknife_linear
 MAX_FIT_PIXELS = 15000
 """The fit uses at most this many pixels (evenly strided): the field of degree 2 has 11 coefficients."""
 
-__all__ = ["NO_CALIBRATION", "PhotometricParams", "srgb_to_linear", "linear_to_srgb", "basis", "fit_gain",
+__all__ = ["NO_CALIBRATION", "PhotometricParams", "srgb_to_linear", "linear_to_srgb", "basis", "RESPONSE_MID",
+           "response_basis", "fit_gain",
            "align_images", "PhotometricModel", "IDENTITY", "fit_photometric", "apply_photometric",
            "FrameView"]
 
@@ -95,6 +97,15 @@ class PhotometricParams:
             directions that agree are seldom both wrong.  A pixel matched wrongly is paired with another surface, and
             on weakly textured rooms whose pre-pass distance is off by 30 % at half the pixels, the slow shading
             of walls read through those pairs looks like a camera gain of 5 % and a field of 0.14 (log).
+        response: degree of each camera's response relative to C's, a polynomial ``r_K(s)`` without constant term
+            in ``s = ln K_c - ln(0.18)`` (K's own log linear level per channel, about mid-grey), added to the model:
+            a camera whose tone curve is not C's is not a gain of C's (a gamma of G instead of sRGB's about 2.2 is
+            about ``r(s) = (1 - G / 2.2) s``).  1 (a power law): a cubic, which would follow an S-shaped
+            curve, found log ranges of up to 4.7 between ``dark`` and ``bright`` on ideal frames of tri360-v3 dev
+            (where few pixels are, it extrapolates).  0: none.
+        min_response: the smallest response applied: the range of ``r_K`` over the levels of most of the fit's
+            pixels (C's 5th to 95th percentile), natural log; above the 0.06 the fit finds on cameras that agree and
+            the 0.09 on cameras that differ only by gain, fall-off, noise and JPEG (tri360-v3 dev, ideal and captured).
     """
 
     mode: str = "gain-field"
@@ -117,6 +128,8 @@ class PhotometricParams:
     flat_log_gradient: float = 0.1
     alpha: float = ALPHA
     agreement: float = 0.05
+    response: int = 1
+    min_response: float = 0.10
 
     def __post_init__(self):
         if self.mode not in ("none", "gain-field"):
@@ -133,6 +146,10 @@ class PhotometricParams:
         if not (self.min_gain >= 0 and self.min_field >= 0 and self.min_common >= 0):
             raise ValueError(f"photometric min_gain {self.min_gain}, min_field {self.min_field} and min_common "
                              f"{self.min_common} must be >= 0")
+        if not 0 <= self.response <= 4:
+            raise ValueError(f"photometric response must be in 0..4, got {self.response}")
+        if not self.min_response >= 0:
+            raise ValueError(f"photometric min_response must be >= 0, got {self.min_response}")
         if not self.agreement > 0:
             raise ValueError(f"photometric agreement must be > 0, got {self.agreement}")
         if not self.flat_log_gradient > 0:
@@ -193,6 +210,23 @@ def basis(bearings: np.ndarray, degree: int, even: bool = False, central: bool =
     if not cols:
         return np.zeros((*b.shape[:-1], 0))
     return np.stack(cols, axis=-1)
+
+
+RESPONSE_MID = float(np.log(0.18))
+"""The level about which a camera's response polynomial is written (mid-grey, natural log of linear light)."""
+
+
+def response_basis(log_level: np.ndarray, degree: int) -> np.ndarray:
+    """The response polynomial's terms at log linear levels.
+
+    Args:
+        log_level: (...) natural log of a camera's linear level per channel.
+        degree: the polynomial's degree (0: no terms).
+    Returns:
+        (..., degree) float64: ``s, s^2, ..., s^degree`` with ``s = log_level - RESPONSE_MID``.
+    """
+    s = np.asarray(log_level, np.float64) - RESPONSE_MID
+    return np.stack([s ** (i + 1) for i in range(degree)], axis=-1) if degree else np.zeros((*s.shape, 0))
 
 
 def fit_gain(ratio: np.ndarray, phi: np.ndarray, params: PhotometricParams) -> tuple[np.ndarray, np.ndarray, dict]:
@@ -306,6 +340,8 @@ class PhotometricModel:
             bearings (:func:`basis` of ``degree``).
         common: (J,) coefficients of the fall-off all three cameras share, or None.
         degree, even, central: the basis (:func:`basis`).
+        responses: per camera with a supported response of its own, the coefficients of
+            :func:`response_basis` (its log level relative to C's, beyond the gain).
     """
 
     gains: dict
@@ -314,11 +350,12 @@ class PhotometricModel:
     degree: int
     even: bool
     central: bool = False
+    responses: dict = dataclasses.field(default_factory=dict)
 
     @property
     def is_identity(self) -> bool:
         """Nothing to correct."""
-        return not self.gains and not self.fields and self.common is None
+        return not self.gains and not self.fields and self.common is None and not self.responses
 
 
 IDENTITY = PhotometricModel({}, {}, None, 0, False)
@@ -365,14 +402,15 @@ def fit_photometric(images: dict, cameras: dict, distance: np.ndarray,
     are neither dark nor near saturation in any camera and lie in flat patches (``flat_log_gradient``), one robust
     fit (a pixel whose views do not all agree with the model, a view-dependent reflection, is left out of all) of
 
-        ln K_c(q) - ln C_c(p) = a_Kc + g_K(b_K) + f(b_K) - f(b_C)
+        ln K_c(q) - ln C_c(p) = a_Kc + g_K(b_K) + r_K(ln K_c(q)) + f(b_K) - f(b_C)
 
     (``g_K`` K's own field, ``f`` the shared fall-off, both over :func:`basis` of the camera-frame bearings ``b_K``,
-    ``b_C``; ``f`` is seen only through parallax, so only with ``common_field``).  Each quantity (K's mean gains,
-    K's field, the shared fall-off) is then tested (:func:`reconstruction.evidence.hotelling` over the jackknife of
+    ``b_C``; ``f`` is seen only through parallax, so only with ``common_field``; ``r_K`` K's response, the terms of
+    :func:`response_basis` of its own level per channel).  Each quantity (K's mean gains, K's field, K's response,
+    the shared fall-off) is then tested (:func:`reconstruction.evidence.hotelling` over the jackknife of
     the sphere's blocks) and kept when the test rejects "no correction" at ``params.alpha`` and the correction is
-    at least ``params.min_gain`` (the largest channel's mean log gain) or ``params.min_field`` (the field's log
-    range over the sphere); the kept ones are fitted again alone.
+    at least ``params.min_gain`` (the largest channel's mean log gain), ``params.min_field`` (the field's log
+    range over the sphere) or ``params.min_response``; the kept ones are fitted again alone.
 
     Args:
         images: (H, W, 3) uint8 sRGB image per camera name; cameras: pose per camera (``position`` (3,) metres,
@@ -398,7 +436,8 @@ def fit_photometric(images: dict, cameras: dict, distance: np.ndarray,
     flat = _log_gradient(lin_c) < params.flat_log_gradient
     ok_c = np.isfinite(d_small) & (d_small > 0) & flat & np.all((lin_c > params.dark) & (lin_c < params.bright),
                                                                  axis=-1)
-    cols_per = 3 + n_j
+    n_r = params.response
+    cols_per = 3 + n_j + n_r
     common_first = cols_per * len(others)
     n_cols = common_first + (n_j if params.common_field else 0)
     samples, bearings, usable = {}, {}, ok_c
@@ -418,7 +457,9 @@ def fit_photometric(images: dict, cameras: dict, distance: np.ndarray,
         design = np.zeros((idx.size, 3, n_cols))
         for c in range(3):
             design[:, c, i * cols_per + c] = 1.0
-        design[:, :, i * cols_per + 3:(i + 1) * cols_per] = phi_k[:, None, :]
+        design[:, :, i * cols_per + 3:i * cols_per + 3 + n_j] = phi_k[:, None, :]
+        design[:, :, i * cols_per + 3 + n_j:(i + 1) * cols_per] = response_basis(
+            np.log(samples[k].reshape(-1, 3)[idx]), n_r)
         if params.common_field:
             design[:, :, common_first:] = (phi_k - phi_c.reshape(-1, n_j)[idx])[:, None, :]
         rows.append(design.reshape(-1, n_cols))
@@ -430,7 +471,7 @@ def fit_photometric(images: dict, cameras: dict, distance: np.ndarray,
         return IDENTITY, {"pixels": int(n_samples), "applied": False, "reason": "too few usable pixels"}
     ridge = np.full(n_cols, 1e-6)
     for i in range(len(others)):
-        ridge[i * cols_per + 3:(i + 1) * cols_per] += params.ridge * n_samples
+        ridge[i * cols_per + 3:i * cols_per + 3 + n_j] += params.ridge * n_samples
     coef0 = np.zeros(n_cols)
     for i, t in enumerate(targets):
         coef0[i * cols_per:i * cols_per + 3] = np.median(t.reshape(-1, 3), axis=0)
@@ -444,6 +485,13 @@ def fit_photometric(images: dict, cameras: dict, distance: np.ndarray,
         ev["supported"] = bool(ev["supported"] and size >= floor)
         return ev
 
+    # the levels most of the fit's pixels have (C's 5th to 95th percentile)
+    levels = response_basis(np.linspace(*np.quantile(np.log(lin_c.reshape(-1, 3)[idx]), [0.05, 0.95]), 64), n_r)
+
+    def response_range(coef: np.ndarray) -> float:
+        r = levels @ coef
+        return float(r.max() - r.min())
+
     def field_range(beta: np.ndarray) -> tuple[float, float]:
         v = phi_all @ beta
         v = v - v.mean()
@@ -454,7 +502,8 @@ def fit_photometric(images: dict, cameras: dict, distance: np.ndarray,
     keep = np.zeros(n_cols, bool)
     for i, k in enumerate(others):
         a_cols = np.arange(i * cols_per, i * cols_per + 3)
-        f_cols = np.arange(i * cols_per + 3, (i + 1) * cols_per)
+        f_cols = np.arange(i * cols_per + 3, i * cols_per + 3 + n_j)
+        r_cols = np.arange(i * cols_per + 3 + n_j, (i + 1) * cols_per)
         mean_gain = np.zeros((3, n_cols))
         mean_gain[np.arange(3), a_cols] = 1.0
         mean_gain[:, f_cols] = phi_mean
@@ -465,7 +514,13 @@ def fit_photometric(images: dict, cameras: dict, distance: np.ndarray,
             Evidence(statistic=float("nan"), p_value=1.0, blocks=n_blocks, supported=False)
         record[k] = {"gain_rgb": np.exp(gains).tolist(), "gain": {**gain_ev, "applied": gain_ev["supported"]},
                      "field_range": [lo, hi], "field": {**field_ev, "applied": field_ev["supported"]}}
-        if gain_ev["supported"] or field_ev["supported"]:
+        if n_r:
+            size = response_range(theta[r_cols])
+            response_ev = test(np.eye(n_cols)[r_cols], size, params.min_response)
+            record[k]["response_range"] = size
+            record[k]["response"] = {**response_ev, "applied": response_ev["supported"]}
+            keep[r_cols] = response_ev["supported"]
+        if gain_ev["supported"] or field_ev["supported"] or keep[r_cols].any():
             keep[a_cols] = True
         if field_ev["supported"]:
             keep[f_cols] = True
@@ -483,17 +538,19 @@ def fit_photometric(images: dict, cameras: dict, distance: np.ndarray,
                                  len(others))
     full = np.zeros(n_cols)
     full[keep] = coef
-    gains, fields = {}, {}
+    gains, fields, responses = {}, {}, {}
     for i, k in enumerate(others):
         if keep[i * cols_per]:
             gains[k] = full[i * cols_per:i * cols_per + 3]
         if n_j and keep[i * cols_per + 3]:
-            fields[k] = full[i * cols_per + 3:(i + 1) * cols_per]
+            fields[k] = full[i * cols_per + 3:i * cols_per + 3 + n_j]
+        if n_r and keep[i * cols_per + 3 + n_j]:
+            responses[k] = full[i * cols_per + 3 + n_j:(i + 1) * cols_per]
     if params.common_field and n_j and keep[-1]:
         common = full[common_first:]
     record["applied"] = True
     record["sigma_applied"] = sigma
-    return PhotometricModel(gains, fields, common, params.degree, params.even, params.central), record
+    return PhotometricModel(gains, fields, common, params.degree, params.even, params.central, responses), record
 
 
 def apply_photometric(images: dict, model: PhotometricModel, max_log_gain: float = 2.0) -> dict:
@@ -510,7 +567,7 @@ def apply_photometric(images: dict, model: PhotometricModel, max_log_gain: float
         return out
     for k, img in images.items():
         h, w = img.shape[:2]
-        if k not in model.gains and k not in model.fields and model.common is None:
+        if k not in model.gains and k not in model.fields and k not in model.responses and model.common is None:
             continue
         small_w, small_h = max(w // 4, 8), max(h // 4, 4)
         phi = basis(bearing_grid(small_w, small_h), model.degree, model.even, model.central)
@@ -523,7 +580,12 @@ def apply_photometric(images: dict, model: PhotometricModel, max_log_gain: float
         field = cv2.resize(np.clip(field, -max_log_gain, max_log_gain).astype(np.float32), (w, h),
                            interpolation=cv2.INTER_LINEAR)
         log_gain = field[..., None] + np.asarray(model.gains.get(k, np.zeros(3)), np.float32)
-        out[k] = linear_to_srgb(srgb_to_linear(img).astype(np.float32) * np.exp(-log_gain), np.float32)
+        lin = srgb_to_linear(img).astype(np.float32)
+        if model.responses.get(k) is not None:  # of K's own level: a table of its 256 codes
+            coef = np.asarray(model.responses[k], np.float64)
+            table = response_basis(np.log(np.maximum(_SRGB_TABLE, 1e-4)), coef.size) @ coef
+            log_gain = log_gain + np.clip(table, -max_log_gain, max_log_gain).astype(np.float32)[img]
+        out[k] = linear_to_srgb(lin * np.exp(-log_gain), np.float32)
     return out
 
 

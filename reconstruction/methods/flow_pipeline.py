@@ -452,14 +452,15 @@ class Calibration:
 
     @property
     def applied(self) -> list[str]:
-        """What was applied, e.g. ``["U gain", "U field", "R rotation", "common field"]`` (empty: nothing)."""
+        """What was applied, e.g. ``["R rotation", "U gain", "U field", "U response", "common field"]`` (empty:
+        nothing)."""
         out = []
         for k, fit in self.record.get("rig", {}).items():
             if fit.get("applied"):
                 out.append(f"{k} rotation")
         photo = self.record.get("photometric", {})
         for k in PAIRS:
-            for what in ("gain", "field"):
+            for what in ("gain", "field", "response"):
                 if photo.get(k, {}).get(what, {}).get("applied"):
                     out.append(f"{k} {what}")
         if photo.get("common", {}).get("field", {}).get("applied"):

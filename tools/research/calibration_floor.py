@@ -7,7 +7,8 @@ Run as::
 For every frame (``frame.json`` below ``DATA_ROOT``) the self-calibration of ``fused-mirror``
 (:func:`reconstruction.methods.flow_pipeline.self_calibrate`, on the frame's images and told poses only) runs once;
 one row per frame: its condition (``ideal`` or the twin's), per camera U and R the fitted rotation (degrees) and
-its test's p-value, the largest mean channel log gain and the field's log range with theirs, and what was applied.
+its test's p-value, the largest mean channel log gain, the field's log range and the response's log range (over C's
+5th-95th percentile of levels) with theirs, and what was applied.
 The floors ``PhotometricParams.min_gain`` / ``min_field`` and ``RigParams.min_degrees`` are read against the
 ``ideal`` rows: cameras that agree, whose fitted differences are the fit's own error.  Prints the table and, per
 condition, the largest of each figure; ``--out`` also writes the rows as CSV.
@@ -70,6 +71,8 @@ def calibration_rows(data_root: Path, progress: bool = True) -> pd.DataFrame:
                 row[f"{k}_gain_p"] = fit.get("gain", {}).get("p_value", np.nan)
                 row[f"{k}_log_field"] = float(np.log(fit["field_range"][1] / fit["field_range"][0])) if fit else np.nan
                 row[f"{k}_field_p"] = fit.get("field", {}).get("p_value", np.nan)
+                row[f"{k}_log_response"] = fit.get("response_range", np.nan)
+                row[f"{k}_response_p"] = fit.get("response", {}).get("p_value", np.nan)
             row["applied"] = "; ".join(cal.applied) or "none"
             rows.append(row)
             bar.update(1)
@@ -88,7 +91,7 @@ def main(argv: list[str] | None = None) -> int:
         return user_error(PROG, exc)
     with pd.option_context("display.width", 250, "display.max_columns", 30, "display.max_rows", 500):
         print(table.round(4).to_string(index=False))
-        figures = [c for c in table.columns if c.endswith(("_deg", "_log_gain", "_log_field"))]
+        figures = [c for c in table.columns if c.endswith(("_deg", "_log_gain", "_log_field", "_log_response"))]
         print("\nlargest per condition:")
         print(table.groupby("condition")[figures].max().round(4).to_string())
     if args.out is not None:
