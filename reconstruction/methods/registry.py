@@ -69,6 +69,11 @@ MIRROR_INTENSITY_WEIGHT = 0.25
 #: ``python -m tools.research.select_photometric`` among 0, 0.5, 0.7 and 1 on the dev split under both conditions
 #: (docs/photometry.md)
 MIRROR_BLUR_PX = 0.7
+#: ``fused-mirror``'s sweep, when the self-calibration corrected the images, blurs them by 1 px per gray level of
+#: noise above 1 (up to 1.5 px; never less than :data:`MIRROR_BLUR_PX`): rendered frames measure 0.1-0.2 gray
+#: levels, the suite's captured cameras 0.3-1.0 and its low-light ones 0.6-6
+#: (``reconstruction.sweep.cost.image_noise``, tri360-v3 dev, docs/photometry.md)
+MIRROR_NOISE_BLUR = 1.0
 #: ``fused-adaptive``'s prior weight: ``fused``'s, scaled by the share of pixels where the flow and the plain coarse
 #: sweep agree within 5 %: 0 below 60 %, full above 80 % (:class:`reconstruction.methods.prior_sweep.PriorParams`)
 ADAPTIVE_PRIOR = PriorParams(frame_agreement_low=0.6, frame_agreement_high=0.8)
@@ -156,11 +161,13 @@ def mirror_method() -> PriorSweepMethod:
     polished floors whose mirror image of the ceiling wins the coarse pass, and the sweep cost's intensity term
     weighted :data:`MIRROR_INTENSITY_WEIGHT` (what a gain difference between the cameras leaves after the
     self-calibration weighs less against the gradients) and its images blurred by :data:`MIRROR_BLUR_PX` when the
-    self-calibration changed the images (cameras that agree are matched with the sweep's own cost); chosen
-    on the dev split of suites/tri360-v2.toml under both conditions (docs/photometry.md)."""
+    self-calibration changed the images (cameras that agree are matched with the sweep's own cost), then more
+    (:data:`MIRROR_NOISE_BLUR`) where the images are noisier than the suite's captured cameras; chosen on the dev
+    split of suites/tri360-v2.toml under both conditions and of tri360-v3 under its low-light family
+    (docs/photometry.md)."""
     gated = gated_method()
     corrected = dataclasses.replace(gated.sweep.cost, intensity_weight=MIRROR_INTENSITY_WEIGHT,
-                                    blur_px=MIRROR_BLUR_PX)
+                                    blur_px=MIRROR_BLUR_PX, noise_blur=MIRROR_NOISE_BLUR)
     return dataclasses.replace(gated, sweep=dataclasses.replace(gated.sweep, planes=MIRROR_PLANES,
                                                                 corrected_cost=corrected),
                                label="fused-mirror")

@@ -21,7 +21,14 @@ from reconstruction.methods.flow_pipeline import Calibration, fill_edge_aware, r
 from reconstruction.photometry import PhotometricParams
 from reconstruction.refine.triangulate import TriangulationLimits
 from reconstruction.rig_calibration import NO_RIG_CALIBRATION
-from reconstruction.sweep.cost import CostParams, build_cost_volume, gray_float, inverse_distances
+from reconstruction.sweep.cost import (
+    CostParams,
+    build_cost_volume,
+    gray_float,
+    image_noise,
+    inverse_distances,
+    noise_blur_px,
+)
 from reconstruction.sweep.planes import (
     PlaneParams,
     add_prior,
@@ -268,12 +275,14 @@ def sweep_distances(frame, sweep: SweepMethod, priors: Sequence[Prior | PriorFro
         calibration: the frame's self-calibration when another stage made it (a flow-prior sweep matches the
             frame its flow matched; its seconds are the flow's); None: the sweep's own
             (:func:`reconstruction.methods.flow_pipeline.self_calibrate` with ``sweep.photometric`` and the told
-            poses; stage ``photometric``).  When it changed the images, the sweep's cost is ``corrected_cost``.
+            poses; stage ``photometric``).  When it changed the images, the sweep's cost is ``corrected_cost``; a
+            cost with ``noise_blur`` then blurs as much as the images' noise asks (``CostParams.noise_blur``).
     Returns:
         One ``(distance, confidence, seconds, info)`` per prior: (H, W) float32 metres, (H, W) float32 in [0, 1],
         wall time per stage (the shared ``coarse_*`` and ``cost`` stages in every one, as they would take alone),
         details (plane share, room bounds, ``cpu_seconds``: process CPU time per stage; ``copy_seconds``: the wall
         time of copying the shared volume for this prior, 0 for the last, which takes the volume itself;
+        ``blur_px``: the images' blur; ``noise_grey_levels``: their noise, when the cost asks for it;
         ``calibration``: what the self-calibration applied, when it ran).
     """
     shared = {}
@@ -283,6 +292,11 @@ def sweep_distances(frame, sweep: SweepMethod, priors: Sequence[Prior | PriorFro
     frame = calibration.frame
     if calibration.corrected_images and sweep.corrected_cost is not None:
         sweep = dataclasses.replace(sweep, cost=sweep.corrected_cost)
+    noise = None
+    if sweep.cost.noise_blur > 0:  # noisier images than the cost's blur was chosen for: blur more
+        noise = max(image_noise(frame.images[k]) for k in ("C", *sweep.pairs))
+        sweep = dataclasses.replace(sweep, cost=dataclasses.replace(sweep.cost,
+                                                                    blur_px=noise_blur_px(sweep.cost, noise)))
     cost_params, plane_params, post = sweep.cost, sweep.planes, sweep.post
     bounds, yaw, walls, coarse = (-np.inf, np.inf), None, [], None
     from_sweep = any(isinstance(p, PriorFromSweep) for p in priors)
@@ -329,7 +343,8 @@ def sweep_distances(frame, sweep: SweepMethod, priors: Sequence[Prior | PriorFro
                 "wall_yaw_deg": None if yaw is None else float(np.degrees(yaw)),
                 "walls_m": [float(np.median(o)) for _, o in walls],
                 "floor_m": float(bounds[0]), "ceiling_m": float(bounds[1]), "cpu_seconds": cpu,
-                "copy_seconds": copy_seconds,
+                "copy_seconds": copy_seconds, "blur_px": float(cost_params.blur_px),
+                **({"noise_grey_levels": noise} if noise is not None else {}),
                 **({"calibration": calibration.record, "applied": calibration.applied} if calibration.record else {})}
         out.append((d.astype(np.float32), np.clip(conf, 0.0, 1.0).astype(np.float32), seconds, info))
     return out

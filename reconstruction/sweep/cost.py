@@ -46,7 +46,7 @@ from reconstruction.camera.resample import WRAP_PAD, rectifying_rotation, rotati
 
 __all__ = ["CostParams", "PairWarp", "FEATURES", "RANK_RADIUS_PX", "NORM_SIGMA_PX", "NORM_EPS", "NORM_SCALE",
            "inverse_distances", "gray_float", "rank_transform", "local_normalize", "feature_image", "prepare_pair",
-           "build_cost_volume", "source_rows", "rect_row"]
+           "build_cost_volume", "source_rows", "rect_row", "MAX_NOISE_BLUR_PX", "image_noise", "noise_blur_px"]
 
 #: the per-pixel features of the cost (``CostParams.feature``; module doc)
 FEATURES = ("intensity", "rank", "normalized")
@@ -58,6 +58,9 @@ NORM_SIGMA_PX = 5.0
 NORM_EPS = 8.0
 #: gray levels per local standard deviation of the normalised intensity
 NORM_SCALE = 16.0
+#: the largest blur the images' noise raises ``CostParams.blur_px`` to, pixels
+MAX_NOISE_BLUR_PX = 1.5
+_LAPLACIAN_DIFFERENCE = np.array([[1, -2, 1], [-2, 4, -2], [1, -2, 1]], np.float32)
 
 
 @dataclass(frozen=True)
@@ -80,6 +83,10 @@ class CostParams:
         feature: the image ``T`` compared with its derivatives (:data:`FEATURES`, module doc): ``"intensity"``
             (gray levels, 0-255), ``"rank"`` (rank transform, 0-255) or ``"normalized"`` (locally normalised
             intensity, gray-level units, typically within +-3 :data:`NORM_SCALE`).
+        noise_blur, noise_floor: the blur grows with the images' noise: ``blur_px`` becomes
+            ``noise_blur * (noise - noise_floor)`` where that is larger (at most :data:`MAX_NOISE_BLUR_PX`), with
+            ``noise`` the largest :func:`image_noise` of the frame's images, gray levels (:func:`noise_blur_px`);
+            ``noise_blur`` in pixels per gray level, 0 = off.
     """
 
     d_min_m: float = 0.3
@@ -93,14 +100,44 @@ class CostParams:
     scale: float = 8.0
     pair_power: float = 2.0
     feature: str = "intensity"
+    noise_blur: float = 0.0
+    noise_floor: float = 1.0
 
     def __post_init__(self) -> None:
         if self.feature not in FEATURES:
             raise ValueError(f"unknown cost feature {self.feature!r} (known: {', '.join(FEATURES)})")
+        if not (self.noise_blur >= 0 and self.noise_floor >= 0):
+            raise ValueError(f"cost noise_blur {self.noise_blur} and noise_floor {self.noise_floor} must be >= 0")
 
     def max_cost(self) -> int:
         """Largest possible summed cost, uint16 units (both pairs' weights sum to at most 2)."""
         return int(np.ceil(2.0 * self.truncate * self.scale)) + 1
+
+
+def image_noise(image: np.ndarray) -> float:
+    """The noise of an 8-bit image, gray levels (standard deviation): Immerkaer's estimate (1996), the mean absolute
+    response of the 3x3 Laplacian difference times ``sqrt(pi / 2) / 6``, over the flatter half of the pixels (the
+    smaller half of the Sobel gradient), so that texture and edges do not count as noise.
+
+    Args:
+        image: (H, W, 3) uint8 RGB (or (H, W) gray).
+    Returns:
+        The estimate for the mean of the channels, gray levels (independent noise of ``s`` per channel is
+        ``s / sqrt(3)`` there).
+    """
+    g = np.asarray(image, np.float32)
+    g = g.mean(axis=-1) if g.ndim == 3 else g
+    response = np.abs(cv2.filter2D(g, -1, _LAPLACIAN_DIFFERENCE))[2:-2, 2:-2]
+    grad = np.hypot(cv2.Sobel(g, cv2.CV_32F, 1, 0), cv2.Sobel(g, cv2.CV_32F, 0, 1))[2:-2, 2:-2]
+    flat = grad <= np.median(grad)
+    return float(np.sqrt(np.pi / 2.0) / 6.0 * response[flat].mean())
+
+
+def noise_blur_px(params: CostParams, noise: float) -> float:
+    """The blur (pixels) of ``params`` for images of ``noise`` gray levels (``CostParams.noise_blur``)."""
+    if params.noise_blur <= 0 or not noise > params.noise_floor:
+        return params.blur_px
+    return max(params.blur_px, min(params.noise_blur * (noise - params.noise_floor), MAX_NOISE_BLUR_PX))
 
 
 def inverse_distances(params: CostParams) -> np.ndarray:

@@ -130,11 +130,11 @@ def test_the_default_is_fused_gated_with_the_mirror_test_and_a_lighter_intensity
     gated = json.loads(json.dumps(gated_method().config()))
     assert cfg["kind"] == "fused" and cfg["label"] == "fused-mirror" == DEFAULT_METHOD
     assert cfg["sweep"]["planes"]["mirror_tolerance"] == 0.2 and gated["sweep"]["planes"]["mirror_tolerance"] == 0.0
-    # its own cost is gated's; the lighter intensity term and the blur only when the self-calibration corrected the
-    # images
+    # its own cost is gated's; the lighter intensity term, the blur and the noise's blur only when the
+    # self-calibration corrected the images
     assert cfg["sweep"]["cost"] == gated["sweep"]["cost"]
     corrected = cfg["sweep"].pop("corrected_cost")
-    assert corrected == {**gated["sweep"]["cost"], "intensity_weight": 0.25, "blur_px": 0.7}
+    assert corrected == {**gated["sweep"]["cost"], "intensity_weight": 0.25, "blur_px": 0.7, "noise_blur": 1.0}
     cfg["sweep"]["planes"]["mirror_tolerance"] = 0.0
     assert {**cfg, "label": "fused-gated"} == gated
 
