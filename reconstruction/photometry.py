@@ -104,7 +104,7 @@ class PhotometricParams:
             curve, found log ranges of up to 4.7 between ``dark`` and ``bright`` on ideal frames of tri360-v3 dev
             (where few pixels are, it extrapolates).  0: none.
         min_response: the smallest response applied: the range of ``r_K`` over the levels of most of the fit's
-            pixels (C's 5th to 95th percentile), natural log; above the 0.06 the fit finds on cameras that agree and
+            pixels (C's 5th to 95th percentile), natural log; above the 0.04 the fit finds on cameras that agree and
             the 0.09 on cameras that differ only by gain, fall-off, noise and JPEG (tri360-v3 dev, ideal and captured).
     """
 
