@@ -451,15 +451,16 @@ def fit_photometric(images: dict, cameras: dict, distance: np.ndarray,
     idx = np.flatnonzero(usable.reshape(-1))
     idx = idx[::step(idx.size, MAX_FIT_PIXELS)]
     rows, targets = [], []
+    log_c = np.log(lin_c.reshape(-1, 3)[idx])
     for i, k in enumerate(others):
-        ratio = (np.log(samples[k].reshape(-1, 3)[idx]) - np.log(lin_c.reshape(-1, 3)[idx])).astype(np.float64)
+        log_k = np.log(samples[k].reshape(-1, 3)[idx])
+        ratio = (log_k - log_c).astype(np.float64)
         phi_k = basis(bearings[k].reshape(-1, 3)[idx], params.degree, params.even, params.central)
         design = np.zeros((idx.size, 3, n_cols))
         for c in range(3):
             design[:, c, i * cols_per + c] = 1.0
         design[:, :, i * cols_per + 3:i * cols_per + 3 + n_j] = phi_k[:, None, :]
-        design[:, :, i * cols_per + 3 + n_j:(i + 1) * cols_per] = response_basis(
-            np.log(samples[k].reshape(-1, 3)[idx]), n_r)
+        design[:, :, i * cols_per + 3 + n_j:(i + 1) * cols_per] = response_basis(log_k, n_r)
         if params.common_field:
             design[:, :, common_first:] = (phi_k - phi_c.reshape(-1, n_j)[idx])[:, None, :]
         rows.append(design.reshape(-1, n_cols))
@@ -486,7 +487,7 @@ def fit_photometric(images: dict, cameras: dict, distance: np.ndarray,
         return ev
 
     # the levels most of the fit's pixels have (C's 5th to 95th percentile)
-    levels = response_basis(np.linspace(*np.quantile(np.log(lin_c.reshape(-1, 3)[idx]), [0.05, 0.95]), 64), n_r)
+    levels = response_basis(np.linspace(*np.quantile(log_c, [0.05, 0.95]), 64), n_r)
 
     def response_range(coef: np.ndarray) -> float:
         r = levels @ coef
