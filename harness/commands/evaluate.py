@@ -21,8 +21,19 @@ run leaves the previous results set (results and report together) untouched and 
 results.  ``out`` must be absent, empty or a results set tri360 wrote (nothing else in it), and never the data root,
 a frame, a predictions root, inside one or a parent of one (:func:`harness.data.outputs.check_output`); the set
 carries the marker of a results set.  Every name that becomes part of a map's path (scene, viewpoint, method label,
-flow configuration, variant) is checked (:func:`harness.data.names.check_name`), and every frame must have usable
-ground truth (or, below, none may have it), all before the first method runs.
+flow configuration, variant) is checked (:func:`harness.data.names.check_name`), and every frame must have ground truth
+(or, below, none may have it), all before the first method runs.
+
+**Each frame is read once per task.**  Finding, selecting and checking the frames (:func:`select_frames`,
+:func:`check_frame_kinds`) reads only their ``frame.json`` and looks at which files are there
+(:func:`harness.data.frame.read_frame_info`): no image or distance map is opened before the tasks.  Each task
+reads its frame once (:func:`harness.data.frame.read_frame`: ``frame.json``, the images and the ground truth) and
+everything in it works on that one :class:`harness.data.frame.Frame`: the methods (through
+:func:`harness.runtime.blind.run_blind`), the regions, the floor and the scoring (or the quality figures), the
+maps it writes and its ``config.json`` entry.  So a frame whose image or distance map does not decode, or whose
+ground truth holds no finite distance, is refused (named) by its task, before that task runs a method, and the
+whole run stops without writing a results set.  On Dask the task's worker reads the frame, not this process.  The
+report (``build_report``), drawn after every task, reads each frame once more.
 
 **Methods never see the frame.**  Every method, built in or outside, in this process or on a Dask worker, runs on its
 :class:`reconstruction.methods.base.MethodInput`: read-only copies of the images and the told rig, nothing else (no
@@ -55,7 +66,7 @@ import pandas as pd
 from harness.commands.report import build_report
 from harness.data.errors import UserError
 from harness.data.exr import CONFIDENCE_CHANNEL, DISTANCE_CHANNEL, write_exr_channels, write_float_map
-from harness.data.frame import find_frames, read_frame
+from harness.data.frame import find_frames, read_frame, read_frame_info
 from harness.data.names import check_name
 from harness.data.outputs import RESULTS_FORMAT, check_output, mark_output, staged_directory
 from harness.data.provenance import software
@@ -87,11 +98,13 @@ __all__ = ["FrameRef", "select_frames", "evaluate", "evaluate_task", "method_gro
 
 @dataclass(frozen=True)
 class FrameRef:
-    """A frame found under a data root: its directory and the scene/viewpoint its frame.json names."""
+    """A frame found under a data root: its directory, the scene/viewpoint its frame.json names, and whether it holds
+    ground-truth distance files (:attr:`harness.data.frame.FrameInfo.has_ground_truth`; not read)."""
 
     path: Path
     scene: str
     viewpoint: str
+    has_ground_truth: bool
 
 
 def group_name(group: Sequence[Method]) -> str:
@@ -103,11 +116,13 @@ def select_frames(data_root: Path, scenes: Sequence[str] | None = None) -> list[
     """Every frame under ``data_root`` (which may itself be a frame directory), optionally only ``scenes``.
 
     A frame's scene is the one its ``frame.json`` names; a scene also matches by the name of the directory
-    level the frame sits in (``<root>/<scene>/<viewpoint>``).
+    level the frame sits in (``<root>/<scene>/<viewpoint>``).  Reads only each frame's ``frame.json``
+    (:func:`harness.data.frame.read_frame_info`): no pixel.
 
     Raises:
-        UserError: missing root, no frames (for the scenes), a malformed frame.json, or two frame
-            directories that name the same scene and viewpoint (their outputs would collide).
+        UserError: missing root, no frames (for the scenes), a malformed frame.json, a missing image or distance
+            file (:func:`~harness.data.frame.read_frame_info`), or two frame directories that name the same scene
+            and viewpoint (their outputs would collide).
     """
     data_root = Path(data_root)
     if not data_root.is_dir():
@@ -115,10 +130,10 @@ def select_frames(data_root: Path, scenes: Sequence[str] | None = None) -> list[
                         else f"{data_root}: data root is not a directory")
     refs = []
     for d in find_frames(data_root):
-        meta = read_frame(d, load_distance=False)
-        check_name(meta.scene, f"{d / 'frame.json'} (scene)")
-        check_name(meta.viewpoint, f"{d / 'frame.json'} (viewpoint)")
-        refs.append(FrameRef(d, meta.scene, meta.viewpoint))
+        info = read_frame_info(d)
+        check_name(info.scene, f"{d / 'frame.json'} (scene)")
+        check_name(info.viewpoint, f"{d / 'frame.json'} (viewpoint)")
+        refs.append(FrameRef(d, info.scene, info.viewpoint, info.has_ground_truth))
     if scenes:
         wanted = set(scenes)
         found = sorted({r.scene for r in refs})
@@ -157,7 +172,8 @@ def check_method_paths(methods: Sequence[Method]) -> None:
 
 
 def scorable_frame(path: Path, scored: bool = True):
-    """Read the frame at ``path`` with its ground truth, refusing one that cannot be scored.
+    """Read the frame at ``path`` with its ground truth (each file once, :func:`harness.data.frame.read_frame`),
+    refusing one that cannot be scored.
 
     Args:
         scored: False = the frame is expected to have no ground truth (a real capture: nothing is scored); it is
@@ -175,34 +191,23 @@ def scorable_frame(path: Path, scored: bool = True):
     if not frame.has_ground_truth:
         raise UserError(f"{path}: frame has no ground-truth distance, nothing to score "
                         "(use 'tri360 reconstruct' for captures without ground truth)")
-    return _with_finite_distance(frame, path)
-
-
-def _with_finite_distance(frame, path: Path):
-    """``frame`` (with ground truth), refused when no pixel of C has a finite true distance."""
     if not np.isfinite(frame.distance["C"]).any():
         raise UserError(f"{Path(path) / 'C.distance.exr'}: no pixel has a finite distance, nothing to score")
     return frame
 
 
 def check_frame_kinds(refs: Sequence[FrameRef], methods: Sequence[Method], suite: dict | None = None) -> bool:
-    """Read every frame (validating it and its ground truth, before the first method runs) and decide how the
-    data root is evaluated: True = every frame has ground truth (scored), False = none has (methods run, nothing
-    scored; the module doc).
+    """Decide, before the first method runs, how the data root is evaluated from which files its frames hold
+    (:attr:`FrameRef.has_ground_truth`; nothing is read): True = every frame has ground truth (scored), False = none
+    has (methods run, nothing scored; the module doc).  Whether the files decode, and whether the ground truth holds
+    a finite distance, each frame's task checks when it reads the frame (:func:`scorable_frame`).
 
     Raises:
-        UserError: a malformed frame or one with no finite true distance (named); frames with and without ground
-            truth mixed (one line naming one of each); no ground truth in a suite's split, or for a method that
-            needs it (the oracle).
+        UserError: frames with and without ground truth mixed (one line naming one of each); no ground truth in a
+            suite's split, or for a method that needs it (the oracle).
     """
-    with_gt, without = [], []
-    for ref in refs:
-        frame = read_frame(ref.path)
-        if frame.has_ground_truth:
-            _with_finite_distance(frame, ref.path)
-            with_gt.append(ref)
-        else:
-            without.append(ref)
+    with_gt = [ref for ref in refs if ref.has_ground_truth]
+    without = [ref for ref in refs if not ref.has_ground_truth]
     if not without:
         return True
     if suite:
@@ -313,9 +318,9 @@ def _score_rows(frame, method: Method, output: MethodOutput, masks: dict,
 
 
 def evaluate_task(frame_path: str, methods: Sequence[Method], stage: str, scored: bool = True) -> dict:
-    """One task of :func:`evaluate`: run ``methods`` on one frame, write their maps under ``stage``, score them
-    (``scored=False``: a frame without ground truth; its rows carry the quality figures, and its quality maps are
-    written too).
+    """One task of :func:`evaluate`: read one frame (each of its files once, :func:`scorable_frame`), run ``methods``
+    on it, write their maps under ``stage``, score them (``scored=False``: a frame without ground truth; its rows
+    carry the quality figures, and its quality maps are written too); everything works on that one frame in memory.
 
     Runs in this process or on a Dask worker (then ``frame_path`` and ``stage`` must be on a file system the
     worker sees at the same path).  Writing the maps is atomic and idempotent, so a task re-run after a lost
@@ -324,7 +329,8 @@ def evaluate_task(frame_path: str, methods: Sequence[Method], stage: str, scored
     Returns:
         ``{"rows": {label: (row, breakdown rows, region rows)}, "frame": the frame's config.json entry}``.
     Raises:
-        UserError: the frame has no usable ground truth, or a method fails on it (named).
+        UserError: the frame is malformed or has no usable ground truth (before any method runs), or a method fails
+            on it (named).
     """
     path = Path(frame_path)
     frame = scorable_frame(path, scored)
@@ -363,19 +369,20 @@ def evaluate(data_root: Path, out: Path, methods: Sequence[Method], scenes: Sequ
              suite: dict | None = None) -> pd.DataFrame:
     """Run ``methods`` on every frame under ``data_root``, score them, and write a results set to ``out``.
 
-    Before any method runs: the frames are found and read, every name that becomes a path is checked, either every
-    frame has ground truth (scored) or none has (nothing scored, quality figures instead: the module doc;
-    :func:`check_frame_kinds`), and ``out`` must be absent, empty or a results set tri360 wrote, and neither an
-    input nor inside or above one (the data root, the frames and ``inputs``, e.g. ``score``'s predictions roots).
+    Before any method runs: the frames are found and their ``frame.json`` read (no pixel: each task reads its frame,
+    the module doc), every name that becomes a path is checked, either every frame has ground truth (scored) or none
+    has (nothing scored, quality figures instead: the module doc; :func:`check_frame_kinds`), and ``out`` must be
+    absent, empty or a results set tri360 wrote, and neither an input nor inside or above one (the data root, the
+    frames and ``inputs``, e.g. ``score``'s predictions roots).
 
     Args:
         inputs: further inputs that ``out`` must keep clear of (predictions roots).
         ctx: where it runs and whether it shows progress.  On Dask (``--scheduler`` / ``--workers``, or a
             study's open executor, left open): one task per frame x group of methods that share work (the
             variants of one flow configuration); workers write the maps into the staged results directory, this
-            process gathers the rows and writes the results files.  In this process: one task per frame.  The
-            rows and maps are the same either way (only ``seconds``, each method's wall time, differs from run to
-            run).
+            process gathers the rows and writes the results files.  In this process: one task per frame.  Either
+            way each task reads its frame once, and holds one frame.  The rows and maps are the same either way
+            (only ``seconds``, each method's wall time, differs from run to run).
         suite: the evaluated suite split (``harness.data.suite.Suite.describe``, from
             ``harness.commands.parts.suite``, which checks the data root first): recorded in ``config.json`` and
             in every row (``suite_id``, ``split``).
@@ -384,9 +391,10 @@ def evaluate(data_root: Path, out: Path, methods: Sequence[Method], scenes: Sequ
     Returns:
         The results table (also written to ``out``).
     Raises:
-        UserError: bad data root, a malformed frame, frames with and without ground truth mixed (named), an
-            unsafe name, an unusable output location (all checked before any long work), or a method that fails on
-            a frame.
+        UserError: bad data root, a malformed frame.json or a missing file, frames with and without ground truth
+            mixed (named), an unsafe name, an unusable output location (all checked before any long work); a frame
+            whose files do not decode or whose ground truth holds no finite distance (by its task), or a method that
+            fails on a frame.
     """
     started = time.time()
     ctx.check()
@@ -398,7 +406,7 @@ def evaluate(data_root: Path, out: Path, methods: Sequence[Method], scenes: Sequ
         raise UserError(f"duplicate method labels: {', '.join(sorted({x for x in labels if labels.count(x) > 1}))}")
     check_method_paths(methods)
     check_output(out, "results", [data_root, *(r.path for r in refs), *inputs])
-    scored = check_frame_kinds(refs, methods, suite)  # ground truth of every frame, before the first method runs
+    scored = check_frame_kinds(refs, methods, suite)  # which frames hold ground truth, before the first method runs
     distributed = ctx.distributed
     groups = method_groups(methods) if distributed else [list(methods)]
     rows, brows, rrows, frames_index, frames_config = [], [], [], [], []

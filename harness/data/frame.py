@@ -8,7 +8,9 @@
       C.distance.exr  U.distance.exr  R.distance.exr   # float32 channel "distance", metres, +inf = no surface
 
 Distance files are optional (real captures have no ground truth).  Every reader validates and raises
-:class:`FrameError` with one message naming the file and what is wrong; :func:`write_frame` runs the same
+:class:`FrameError` with one message naming the file and what is wrong.  :func:`read_frame` reads the pixels;
+:func:`read_frame_info` reads ``frame.json`` only and looks at which files are there (for listing and selecting
+frames, and checking a data root before the work).  :func:`write_frame` runs the same
 checks *before* it writes anything, so it never produces a frame that :func:`read_frame` refuses.  Writes
 are atomic (:mod:`harness.data.atomic`): a frame is assembled in a hidden sibling directory and swapped into
 place, so an interrupted write never leaves a directory that looks like a complete frame, and concurrent
@@ -33,7 +35,7 @@ import numpy as np
 from harness.data.atomic import atomic_directory, atomic_write_text
 from harness.data.errors import FrameError
 from harness.data.exr import read_distance_exr, write_distance_exr
-from harness.data.images import read_png, write_png
+from harness.data.images import read_png, require_file, write_png
 from harness.data.names import MAX_NAME_LENGTH, NAME_CHARACTERS, is_safe_name
 from harness.data.photometric import Photometric
 from reconstruction.camera.rig import CAMERA_NAMES, CameraPose
@@ -42,10 +44,12 @@ __all__ = [
     "FORMAT",
     "Frame",
     "FrameError",
+    "FrameInfo",
     "MIN_CAMERA_SEPARATION_M",
     "baseline_tolerance_m",
     "validate_metadata",
     "read_frame",
+    "read_frame_info",
     "write_frame",
     "frame_dir",
     "is_complete",
@@ -107,6 +111,26 @@ class Frame:
                                   if name in self.photometric else {})} for name in CAMERA_NAMES},
             "renderer": self.renderer,
         }
+
+
+@dataclass(frozen=True)
+class FrameInfo:
+    """A frame directory as its ``frame.json`` and its file names describe it, no pixel read (:func:`read_frame_info`).
+
+    Attributes:
+        path: the frame directory.
+        scene, viewpoint: names (validated as :func:`read_frame` does).
+        width, height: image size in pixels, width == 2 * height.
+        has_ground_truth: the directory holds a distance file for every camera (otherwise it holds none); the
+            maps themselves are not read, so whether they decode and hold a finite distance is not known.
+    """
+
+    path: Path
+    scene: str
+    viewpoint: str
+    width: int
+    height: int
+    has_ground_truth: bool
 
 
 # --------------------------------------------------------------------------------------------- validation
@@ -252,16 +276,12 @@ def _check_frame(frame: Frame, target: Path) -> str:
 # ----------------------------------------------------------------------------------------------- read/write
 
 
-def read_frame(directory: Path, load_distance: bool = True) -> Frame:
-    """Read and validate one ``tri360-frame/1`` directory.
+def _read_metadata(directory: Path) -> tuple[dict, dict[str, CameraPose]]:
+    """``directory``'s parsed and validated ``frame.json`` and its camera poses (:func:`validate_metadata`).
 
-    Args:
-        directory: the frame directory.
-        load_distance: also read (and validate) the distance maps, if present.
     Raises:
-        FrameError: naming the offending file, for anything missing or malformed.
+        FrameError: naming ``frame.json``: missing, not a regular file, unreadable, not JSON, or malformed.
     """
-    directory = Path(directory)
     meta_path = directory / "frame.json"
     if not meta_path.exists():
         raise FrameError(f"{meta_path}: file is missing (not a tri360 frame directory)")
@@ -273,7 +293,22 @@ def read_frame(directory: Path, load_distance: bool = True) -> Frame:
         raise FrameError(f"{meta_path}: not valid JSON ({exc})") from None
     except OSError as exc:
         raise FrameError(f"{meta_path}: cannot be read ({exc.strerror or exc})") from None
-    cameras = validate_metadata(meta, meta_path)
+    return meta, validate_metadata(meta, meta_path)
+
+
+def read_frame(directory: Path, load_distance: bool = True) -> Frame:
+    """Read and validate one ``tri360-frame/1`` directory: ``frame.json``, then each camera's image, then (when any
+    is there) each camera's distance map, every file once.
+
+    Args:
+        directory: the frame directory.
+        load_distance: also read (and validate) the distance maps, if present.
+    Raises:
+        FrameError: naming the offending file, for anything missing or malformed.
+    """
+    directory = Path(directory)
+    meta, cameras = _read_metadata(directory)
+    meta_path = directory / "frame.json"
     w, h = meta["width"], meta["height"]
     images, distance = {}, {}
     for name in CAMERA_NAMES:
@@ -291,6 +326,28 @@ def read_frame(directory: Path, load_distance: bool = True) -> Frame:
     return Frame(scene=meta["scene"], viewpoint=meta["viewpoint"], width=w, height=h,
                  baseline_m=float(meta["baseline_m"]), cameras=cameras, images=images, distance=distance,
                  renderer=meta.get("renderer", {}), path=directory, photometric=parse_photometric(meta, meta_path))
+
+
+def read_frame_info(directory: Path) -> FrameInfo:
+    """What one frame directory says of itself, reading only ``frame.json`` (validated as :func:`read_frame` does)
+    and looking at which files are there: no image or distance map is opened.
+
+    Raises:
+        FrameError: naming the file: a missing or malformed ``frame.json``, a camera's image missing or not a
+            regular file, or a distance file missing for a camera when another camera has one (:func:`read_frame`
+            would refuse each of these the same way).
+    """
+    directory = Path(directory)
+    meta, _ = _read_metadata(directory)
+    for name in CAMERA_NAMES:
+        require_file(directory / f"{name}.png")
+    exr = [directory / f"{n}.distance.exr" for n in CAMERA_NAMES]
+    present = [p.exists() for p in exr]
+    if any(present) and not all(present):
+        raise FrameError(f"{exr[present.index(False)]}: file is missing (a frame has a distance map for every "
+                         "camera or for none)")
+    return FrameInfo(path=directory, scene=meta["scene"], viewpoint=meta["viewpoint"], width=meta["width"],
+                     height=meta["height"], has_ground_truth=all(present))
 
 
 def frame_dir(root: Path, scene: str, viewpoint: str) -> Path:

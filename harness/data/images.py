@@ -21,8 +21,8 @@ from harness.data.atomic import atomic_write_bytes
 from harness.data.errors import FrameError
 from harness.data.native import first_library_message, native_output_captured
 
-__all__ = ["PNG_SIGNATURE", "JPEG_SIGNATURE", "MAX_IMAGE_SIDE", "MAX_IMAGE_PIXELS", "header_size", "read_png",
-           "write_png"]
+__all__ = ["PNG_SIGNATURE", "JPEG_SIGNATURE", "MAX_IMAGE_SIDE", "MAX_IMAGE_PIXELS", "header_size", "require_file",
+           "read_png", "write_png"]
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 JPEG_SIGNATURE = b"\xff\xd8"
@@ -81,6 +81,19 @@ def write_png(path: Path, image: np.ndarray) -> None:
     atomic_write_bytes(path, buf.tobytes())
 
 
+def require_file(path: Path) -> None:
+    """Refuse a ``path`` that is not there or not a regular file, as :func:`read_png` does (without opening it).
+
+    Raises:
+        FrameError: naming ``path``: "file is missing" or "is not a regular file".
+    """
+    path = Path(path)
+    if not path.exists():
+        raise FrameError(f"{path}: file is missing")
+    if not path.is_file():
+        raise FrameError(f"{path}: is not a regular file")
+
+
 def read_png(path: Path) -> np.ndarray:
     """Read an 8-bit image (PNG; anything OpenCV decodes is accepted) -> (H, W, 3) uint8 RGB.
 
@@ -93,10 +106,7 @@ def read_png(path: Path) -> np.ndarray:
             not an image at all, or not 8-bit.
     """
     path = Path(path)
-    if not path.exists():
-        raise FrameError(f"{path}: file is missing")
-    if not path.is_file():
-        raise FrameError(f"{path}: is not a regular file")
+    require_file(path)
     try:
         raw = np.fromfile(str(path), dtype=np.uint8)
     except OSError as exc:
