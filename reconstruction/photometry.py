@@ -33,7 +33,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from reconstruction.camera.equirect import bearing_grid
+from reconstruction.camera.equirect import bearing_grid, lonlat_to_pixel
+from reconstruction.camera.image_ops import grey, periodic_pad, robust_scale, sobel_gradient, tukey_weights
 from reconstruction.evidence import ALPHA, Evidence, hotelling, jackknife_linear, sphere_blocks
 
 MAX_FIT_PIXELS = 15000
@@ -265,19 +266,22 @@ def _reduce(lin: np.ndarray, factor: int) -> np.ndarray:
 
 def _project(rot_k: np.ndarray, pos_k: np.ndarray, points: np.ndarray, width: int, height: int):
     """Where world ``points`` (..., 3) project into camera K (rotation: world-from-camera): pixel column and row
-    (..., float64) of a ``width`` x ``height`` equirect image and the unit bearing (..., 3) in K's own frame."""
+    (..., float64) of a ``width`` x ``height`` equirect image and the unit bearing (..., 3) in K's own frame.  The
+    longitude and latitude come from the unit bearing (``arcsin`` of its z); they differ from
+    :func:`reconstruction.camera.equirect.project`'s (``arctan2`` of the unnormalised vector) by about 1e-12 pixel."""
     v = (np.asarray(points, np.float64) - pos_k) @ rot_k
     v = v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-12)
     lam = np.arctan2(v[..., 0], v[..., 1])
     phi = np.arcsin(np.clip(v[..., 2], -1.0, 1.0))
-    return (lam + np.pi) * width / (2 * np.pi) - 0.5, (np.pi / 2 - phi) * height / np.pi - 0.5, v
+    return *lonlat_to_pixel(lam, phi, width, height), v
 
 
 def _sample(lin_k: np.ndarray, u: np.ndarray, row: np.ndarray) -> np.ndarray:
-    """Bilinear samples (..., 3) of the equirect image ``lin_k`` at columns ``u`` and rows ``row`` (wrapping in
-    longitude)."""
+    """Bilinear samples (..., 3) of the equirect image ``lin_k`` at columns ``u`` in [-0.5, W - 0.5] and rows ``row``
+    (two columns wrapped on each side; ``u`` is not reduced modulo W, so a few samples in a million differ by a
+    1/32-pixel step from :func:`reconstruction.camera.resample.sample_equirect`'s)."""
     pad = 2
-    padded = np.concatenate([lin_k[:, -pad:], lin_k, lin_k[:, :pad]], axis=1)
+    padded = periodic_pad(lin_k, pad)
     return cv2.remap(padded, (u + pad).astype(np.float32), row.astype(np.float32), cv2.INTER_LINEAR,
                      borderMode=cv2.BORDER_REPLICATE)
 
@@ -372,9 +376,8 @@ def _irls(design: np.ndarray, target: np.ndarray, coef: np.ndarray, params: Phot
     sigma = float("nan")
     for _ in range(params.iterations):
         res = target - design @ coef
-        sigma = 1.4826 * float(np.median(np.abs(res - np.median(res)))) + 1e-6
-        u = res / (params.tukey_c * sigma)
-        w = np.where(np.abs(u) < 1.0, (1.0 - u * u) ** 2, 0.0)
+        sigma = robust_scale(res, 1e-6, "add")
+        w = tukey_weights(res, params.tukey_c, sigma)
         if tied:
             per_pixel = w.reshape(tied, -1, 3).min(axis=(0, 2))
             w = np.broadcast_to(per_pixel[None, :, None], (tied, per_pixel.size, 3)).reshape(-1)
@@ -385,11 +388,8 @@ def _irls(design: np.ndarray, target: np.ndarray, coef: np.ndarray, params: Phot
 
 def _log_gradient(lin: np.ndarray) -> np.ndarray:
     """(h, w) magnitude of the gradient of the log mean intensity, per pixel (wrapping in longitude)."""
-    g = np.log(np.maximum(lin.mean(axis=-1), 1e-4)).astype(np.float32)
-    padded = np.concatenate([g[:, -1:], g, g[:, :1]], axis=1)
-    gx = cv2.Sobel(padded, cv2.CV_32F, 1, 0, ksize=3, borderType=cv2.BORDER_REPLICATE)[:, 1:-1] / 8.0
-    gy = cv2.Sobel(padded, cv2.CV_32F, 0, 1, ksize=3, borderType=cv2.BORDER_REPLICATE)[:, 1:-1] / 8.0
-    return np.hypot(gx, gy)
+    g = np.log(np.maximum(grey(lin, "mean"), 1e-4)).astype(np.float32)
+    return np.hypot(*sobel_gradient(g))
 
 
 def fit_photometric(images: dict, cameras: dict, distance: np.ndarray,

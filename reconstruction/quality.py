@@ -44,10 +44,17 @@ import cv2
 import numpy as np
 
 from reconstruction.camera.equirect import bearing_grid, project, project_with_derivative
+from reconstruction.camera.image_ops import (
+    axis_angle_matrix,
+    grey,
+    periodic_box_filter,
+    periodic_gaussian_blur,
+    sobel_gradient,
+)
 from reconstruction.camera.resample import sample_equirect
 
 __all__ = ["SEARCH_STEPS", "CALIBRATION_STEP_DEG", "CALIBRATION_THRESHOLD", "FACTORS", "UNCERTAINTY_FACTORS",
-           "DISAGREEMENT_FLOOR", "grey", "warped_grey", "photometric_residual", "distance_residual", "pair_agreement",
+           "DISAGREEMENT_FLOOR", "warped_grey", "photometric_residual", "distance_residual", "pair_agreement",
            "residual_uncertainty", "geometric_uncertainty", "disagreement", "uncertainty_factors", "combine",
            "valley_offset", "calibration_score", "assess"]
 
@@ -71,12 +78,9 @@ to better than that do not make a pixel more trustworthy than the other factors 
 DISAGREEMENT_SIGMA_PX = 3.0
 """Gaussian smoothing of the disagreement, pixels (wrapping in longitude): wrong regions, not single pixels."""
 WINDOW = 5
-_LUMA = np.array([0.299, 0.587, 0.114], dtype=np.float32)
-
-
-def grey(image: np.ndarray) -> np.ndarray:
-    """(H, W, 3) uint8 sRGB -> (H, W) float32 grey levels 0..255 (Rec. 601 luma of the sRGB values)."""
-    return np.asarray(image, dtype=np.float32) @ _LUMA
+_GREY = "bt601"
+"""The grey images compared (:func:`reconstruction.camera.image_ops.grey`): Rec. 601 luma of the sRGB values in
+float32, grey levels 0..255."""
 
 
 def _points(cam_c, distance: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -108,17 +112,10 @@ def _matched_abs_diff(gc: np.ndarray, gk: np.ndarray, valid: np.ndarray) -> np.n
 
 def _box(x: np.ndarray, valid: np.ndarray, window: int) -> np.ndarray:
     """Mean of ``x`` over the valid pixels of each ``window`` box (wrapping across the seam); NaN where none."""
-    pad = window // 2
     xs = np.where(valid, x, 0).astype(np.float32)
     ws = valid.astype(np.float32)
-    if pad:
-        xs = np.concatenate([xs[:, -pad:], xs, xs[:, :pad]], axis=1)
-        ws = np.concatenate([ws[:, -pad:], ws, ws[:, :pad]], axis=1)
-    k = (window, window)
-    num = cv2.boxFilter(xs, -1, k, normalize=False, borderType=cv2.BORDER_REPLICATE)
-    den = cv2.boxFilter(ws, -1, k, normalize=False, borderType=cv2.BORDER_REPLICATE)
-    if pad:
-        num, den = num[:, pad:-pad], den[:, pad:-pad]
+    num = periodic_box_filter(xs, window, normalize=False, border=cv2.BORDER_REPLICATE)
+    den = periodic_box_filter(ws, window, normalize=False, border=cv2.BORDER_REPLICATE)
     with np.errstate(invalid="ignore", divide="ignore"):
         return np.where(den > 0, num / np.maximum(den, 1e-12), np.nan).astype(np.float32)
 
@@ -127,10 +124,10 @@ def _residuals(frame, distance, cameras=None, window: int = WINDOW) -> dict[str,
     """Box-averaged matched residual of U and of R (grey levels, (H, W) each, NaN where ``distance`` is invalid)."""
     cams = dict(frame.cameras) if cameras is None else cameras
     pts, valid = _points(frame.cameras["C"], distance)
-    gc = grey(frame.images["C"])
+    gc = grey(frame.images["C"], _GREY)
     out = {}
     for k in ("U", "R"):
-        wk = warped_grey(pts, grey(frame.images[k]), cams[k].position, cams[k].rotation)
+        wk = warped_grey(pts, grey(frame.images[k], _GREY), cams[k].position, cams[k].rotation)
         out[k] = np.where(valid, _box(_matched_abs_diff(gc, wk, valid), valid, window), np.nan).astype(np.float32)
     return out
 
@@ -148,13 +145,12 @@ def distance_residual(frame, distance: np.ndarray, window: int = WINDOW) -> np.n
     h, w = d.shape
     b = bearing_grid(w, h, rotation=cam_c.rotation)
     dd = np.where(valid, d, 1.0)
-    gc = grey(frame.images["C"])
+    gc = grey(frame.images["C"], _GREY)
     best = np.full((h, w), np.inf, np.float32)
     for k in ("U", "R"):
         cam = frame.cameras[k]
-        gk = grey(frame.images[k])
-        gx = cv2.Sobel(gk, cv2.CV_32F, 1, 0, borderType=cv2.BORDER_REPLICATE) / 8.0
-        gy = cv2.Sobel(gk, cv2.CV_32F, 0, 1, borderType=cv2.BORDER_REPLICATE) / 8.0
+        gk = grey(frame.images[k], _GREY)
+        gx, gy = sobel_gradient(gk, wrap=False)
         u, v, du, dv = project_with_derivative(cam_c.position, b, dd, cam.position, cam.rotation, w, h)
         wk = sample_equirect(gk, u, v)
         slope = np.abs(sample_equirect(gx, u, v) * du + sample_equirect(gy, u, v) * dv).astype(np.float32)
@@ -188,14 +184,6 @@ def pair_agreement(frame, distance: np.ndarray, window: int = WINDOW) -> np.ndar
     return np.where(valid, np.abs(best["U"] - best["R"]), np.nan).astype(np.float32)
 
 
-def _axis_rotation(axis: int, angle_rad: float) -> np.ndarray:
-    c, s = np.cos(angle_rad), np.sin(angle_rad)
-    i, j = [(1, 2), (2, 0), (0, 1)][axis]
-    m = np.eye(3)
-    m[i, i], m[i, j], m[j, i], m[j, j] = c, -s, s, c
-    return m
-
-
 def valley_offset(r_minus: float, r0: float, r_plus: float, step: float) -> float:
     """Where a parabola through ``(-step, r_minus), (0, r0), (step, r_plus)`` has its minimum, clipped to
     ``[-2 step, 2 step]``; ``+-step`` towards the lower side when the three values make no valley (units of
@@ -221,22 +209,22 @@ def calibration_score(frame, distance: np.ndarray, step_deg: float = CALIBRATION
         (``offset_deg``); ``score`` is the larger norm, degrees (NaN when no pixel is textured and valid).
     """
     pts, valid = _points(frame.cameras["C"], distance)
-    gc = grey(frame.images["C"])
+    gc = grey(frame.images["C"], _GREY)
     grad = np.hypot(cv2.Sobel(gc, cv2.CV_32F, 1, 0), cv2.Sobel(gc, cv2.CV_32F, 0, 1))
     textured = valid & (grad > np.median(grad[valid])) if valid.any() else valid
     out: dict = {}
     norms = []
     for k in ("U", "R"):
         cam = frame.cameras[k]
-        gk = grey(frame.images[k])
+        gk = grey(frame.images[k], _GREY)
 
         def mean_residual(rot, cam=cam, gk=gk):
             wk = warped_grey(pts, gk, cam.position, rot)
             return float(np.mean(_matched_abs_diff(gc, wk, textured)[textured])) if textured.any() else np.nan
 
         told = mean_residual(cam.rotation)
-        turned = [[mean_residual(_axis_rotation(a, sgn * np.radians(step_deg)) @ cam.rotation) for sgn in (-1.0, 1.0)]
-                  for a in range(3)]
+        turned = [[mean_residual(axis_angle_matrix(a, sgn * np.radians(step_deg)) @ cam.rotation)
+                   for sgn in (-1.0, 1.0)] for a in range(3)]
         offsets = [valley_offset(m, told, p, step_deg) for m, p in turned]
         norm = float(np.sqrt(np.sum(np.square(offsets))))
         out[k] = {"told_residual": told, "turned_residuals": turned, "offsets_deg": offsets, "offset_deg": norm}
@@ -298,10 +286,7 @@ def disagreement(distance: np.ndarray, reference: np.ndarray, sigma_px: float = 
     ok = valid & np.isfinite(r) & (r > 0)
     x = np.ones(d.shape, np.float32)
     x[ok] = np.abs(np.log(d[ok] / r[ok]))
-    if sigma_px > 0:
-        pad = int(np.ceil(3 * sigma_px))
-        g = np.concatenate([x[:, -pad:], x, x[:, :pad]], axis=1)
-        x = cv2.GaussianBlur(g, (0, 0), sigma_px, borderType=cv2.BORDER_REFLECT)[:, pad:-pad]
+    x = periodic_gaussian_blur(x, sigma_px)
     return np.where(valid, x, np.nan).astype(np.float32)
 
 

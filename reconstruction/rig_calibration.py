@@ -33,6 +33,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from reconstruction.camera.image_ops import grey, robust_scale, rotation_vector_matrix, tukey_weights
 from reconstruction.camera.rig import CameraPose
 from reconstruction.evidence import ALPHA, hotelling, jackknife_linear, sphere_blocks
 
@@ -90,17 +91,6 @@ NO_RIG_CALIBRATION = RigParams(mode="none")
 """The told poses as they are."""
 
 
-def rotation_vector_matrix(omega: np.ndarray) -> np.ndarray:
-    """(3, 3) rotation of the rotation vector ``omega`` (3,) (axis times angle, radians; Rodrigues)."""
-    omega = np.asarray(omega, np.float64)
-    angle = float(np.linalg.norm(omega))
-    if angle == 0.0:
-        return np.eye(3)
-    a = omega / angle
-    k = np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
-    return np.eye(3) + np.sin(angle) * k + (1.0 - np.cos(angle)) * (k @ k)
-
-
 class RigFit(dict):
     """What :func:`fit_rotation` found (a JSON-able dict): ``omega`` (3,) radians, ``degrees`` its norm,
     ``matches`` used, ``sigma_deg`` the robust scale of the final residuals, ``iterations``, ``evidence`` (the test
@@ -152,9 +142,8 @@ def fit_rotation(c: np.ndarray, k: np.ndarray, baseline: np.ndarray, *, min_sin:
         kk = k @ rotation_vector_matrix(omega).T
         r = np.einsum("ij,ij->i", n, kk)
         jac = np.cross(kk, n)  # d r / d omega for a small extra rotation: n . (w x kk) = w . (kk x n)
-        sigma = max(1.4826 * float(np.median(np.abs(r - np.median(r)))), 1e-6)
-        u = r / (tukey_c * sigma)
-        wts = np.where(np.abs(u) < 1.0, (1.0 - u * u) ** 2, 0.0)
+        sigma = robust_scale(r, 1e-6, "max")
+        wts = tukey_weights(r, tukey_c, sigma)
         a = jac.T @ (jac * wts[:, None])
         b = jac.T @ (wts * r)
         step = -np.linalg.solve(a + 1e-9 * np.trace(a) * np.eye(3), b)
@@ -163,8 +152,7 @@ def fit_rotation(c: np.ndarray, k: np.ndarray, baseline: np.ndarray, *, min_sin:
             break
     kk = k @ rotation_vector_matrix(omega).T
     r = np.einsum("ij,ij->i", n, kk)
-    u = r / (tukey_c * sigma)
-    wts = np.where(np.abs(u) < 1.0, (1.0 - u * u) ** 2, 0.0)
+    wts = tukey_weights(r, tukey_c, sigma)
     _, cov, used = jackknife_linear(np.cross(kk, n), -r, wts, blocks)
     return RigFit(omega=omega.tolist(), degrees=float(np.degrees(np.linalg.norm(omega))), matches=int(idx.size),
                   sigma_deg=float(np.degrees(sigma)), iterations=done, evidence=hotelling(omega, cov, used, alpha))
@@ -183,8 +171,7 @@ def usable_matches(image_c: np.ndarray, bearing: np.ndarray, fb_error_px: np.nda
     Returns:
         (N, 3) float64 bearings, NaN rows where a match is not used.
     """
-    grey = cv2.cvtColor(np.ascontiguousarray(image_c), cv2.COLOR_RGB2GRAY).astype(np.float32)
-    response = cv2.cornerMinEigenVal(grey, 5, 3).reshape(-1)
+    response = cv2.cornerMinEigenVal(grey(image_c).astype(np.float32), 5, 3).reshape(-1)
     out = np.asarray(bearing, np.float64).reshape(-1, 3).copy()
     bad = (np.asarray(fb_error_px).reshape(-1) > params.max_fb_px) | ~np.asarray(valid, bool).reshape(-1)
     if params.texture_quantile > 0:

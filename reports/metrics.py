@@ -27,6 +27,7 @@ import cv2
 import numpy as np
 
 from reconstruction.camera.equirect import bearing_grid, pixel_to_lonlat
+from reconstruction.camera.image_ops import grey, periodic_filter, sobel_gradient
 
 __all__ = [
     "ANGLE_EDGES_DEG",
@@ -216,11 +217,12 @@ def dilate_wrapped(mask, radius_px: int) -> np.ndarray:
         raise ValueError(f"radius_px must be >= 0, got {radius_px}")
     if r == 0 or not mask.any():
         return mask.copy()
-    padded = np.pad(mask.astype(np.uint8), ((r, r), (0, 0)), mode="constant")
-    padded = np.pad(padded, ((0, 0), (r, r)), mode="wrap")
-    grown = cv2.dilate(padded, np.ones((2 * r + 1, 2 * r + 1), np.uint8), borderType=cv2.BORDER_CONSTANT,
-                       borderValue=0)
-    return grown[r:-r, r:-r].astype(bool)
+    kernel = np.ones((2 * r + 1, 2 * r + 1), np.uint8)
+
+    def dilate(padded):
+        return cv2.dilate(padded, kernel, borderType=cv2.BORDER_CONSTANT, borderValue=0)
+
+    return periodic_filter(mask.astype(np.uint8), r, dilate, r, "constant").astype(bool)
 
 
 @dataclass
@@ -588,14 +590,7 @@ def texture_magnitude(image) -> np.ndarray:
     Returns:
         (H, W) float64 gradient magnitude, grey levels per pixel (>= 0).
     """
-    img = np.asarray(image)
-    grey = cv2.cvtColor(img, cv2.COLOR_RGB2GRAY) if img.ndim == 3 else img
-    grey = grey.astype(np.float32)
-    padded = np.pad(grey, ((1, 1), (0, 0)), mode="edge")
-    padded = np.pad(padded, ((0, 0), (1, 1)), mode="wrap")
-    gx = cv2.Sobel(padded, cv2.CV_32F, 1, 0, ksize=3)[1:-1, 1:-1] / 8.0
-    gy = cv2.Sobel(padded, cv2.CV_32F, 0, 1, ksize=3)[1:-1, 1:-1] / 8.0
-    return np.hypot(gx, gy).astype(np.float64)
+    return np.hypot(*sobel_gradient(grey(image).astype(np.float32))).astype(np.float64)
 
 
 def binned_errors(values, abs_err, edges) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

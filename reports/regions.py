@@ -24,6 +24,7 @@ import cv2
 import numpy as np
 
 from reconstruction.camera.equirect import bearing_grid, pixel_to_lonlat, project
+from reconstruction.camera.image_ops import grey, periodic_box_filter, periodic_gaussian_blur
 from reports.metrics import (
     EDGE_LOG_JUMP,
     ScoredMaps,
@@ -78,11 +79,6 @@ REGION_NAMES = ("all", "textureless", "discontinuity", "occluded", "occluded_U",
                 "epipole", "epipole_U", "epipole_R", "pole", *DISTANCE_BANDS_M)
 
 
-def _wrap_pad(img: np.ndarray, r: int) -> np.ndarray:
-    """Pad an (H, W) image by ``r``: columns wrap around (the seam), rows replicate (the poles)."""
-    return np.pad(np.pad(img, ((r, r), (0, 0)), mode="edge"), ((0, 0), (r, r)), mode="wrap")
-
-
 def texture_level(image) -> np.ndarray:
     """Local texture strength of an equirect image, in 8-bit grey levels per pixel.
 
@@ -96,14 +92,13 @@ def texture_level(image) -> np.ndarray:
     Returns:
         (H, W) float64, grey levels per pixel (>= 0).
     """
-    img = np.asarray(image)
-    grey = (cv2.cvtColor(img, cv2.COLOR_RGB2GRAY) if img.ndim == 3 else img).astype(np.float32)
+    g = grey(image).astype(np.float32)
     r = int(math.ceil(3 * TEXTURE_BLUR_SIGMA_PX))
-    k = 2 * r + 1
-    blurred = cv2.GaussianBlur(_wrap_pad(grey, r), (k, k), TEXTURE_BLUR_SIGMA_PX)[r:-r, r:-r]
+    blurred = periodic_gaussian_blur(g, TEXTURE_BLUR_SIGMA_PX, cols=r, rows=r, row_mode="edge", ksize=2 * r + 1,
+                                     border=cv2.BORDER_REFLECT_101)
     mag = texture_magnitude(blurred).astype(np.float32)
     w = TEXTURE_WINDOW_PX // 2
-    mean = cv2.blur(_wrap_pad(mag, w), (TEXTURE_WINDOW_PX, TEXTURE_WINDOW_PX))[w:-w, w:-w]
+    mean = periodic_box_filter(mag, TEXTURE_WINDOW_PX, rows=w, row_mode="edge")
     return mean.astype(np.float64)
 
 

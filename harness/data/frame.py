@@ -38,6 +38,7 @@ from harness.data.exr import read_distance_exr, write_distance_exr
 from harness.data.images import read_png, require_file, write_png
 from harness.data.names import MAX_NAME_LENGTH, NAME_CHARACTERS, is_safe_name
 from harness.data.photometric import Photometric
+from reconstruction.camera.image_ops import vector_angle_deg
 from reconstruction.camera.rig import CAMERA_NAMES, CameraPose
 
 __all__ = [
@@ -175,8 +176,7 @@ def _check_rig(meta_path: Path, cameras: dict[str, CameraPose], baseline_m: floa
                      f"impossible rig: cameras {a} and {b} coincide ({gap * 1000:.3g} mm apart, "
                      f"minimum {MIN_CAMERA_SEPARATION_M * 1000:g} mm)")
     t_u, t_r = (cameras[k].position - cameras["C"].position for k in ("U", "R"))
-    cos = float(np.dot(t_u, t_r) / (np.linalg.norm(t_u) * np.linalg.norm(t_r)))
-    angle = math.degrees(math.acos(min(1.0, max(-1.0, cos))))
+    angle = vector_angle_deg(t_u, t_r)
     _require(MIN_BASELINE_ANGLE_DEG <= angle <= 180.0 - MIN_BASELINE_ANGLE_DEG, meta_path,
              f"impossible rig: U - C and R - C are {angle:.3g} degrees apart, colinear cameras (the two baselines "
              f"must be {MIN_BASELINE_ANGLE_DEG:g} to {180 - MIN_BASELINE_ANGLE_DEG:g} degrees apart; 90 in an L rig)")

@@ -80,6 +80,7 @@ from harness.data.errors import FrameError, UserError
 from harness.data.exr import read_exr_channels, write_exr_channels
 from harness.data.outputs import EXPORT_FORMAT as MANIFEST_FORMAT
 from reconstruction.camera.equirect import bearing_grid, bearing_to_pixel
+from reconstruction.camera.image_ops import rotation_angle_deg, vector_angle_deg
 from reconstruction.camera.resample import sample_equirect
 
 __all__ = ["LAYOUTS", "Layout", "MapFile", "Encoding", "ENCODINGS", "MANIFEST", "MANIFEST_FORMAT", "PARALLEL_TOL_DEG",
@@ -119,15 +120,6 @@ def distance_from_disparity(disparity_deg: np.ndarray, alpha: np.ndarray, baseli
         good = np.isfinite(d) & (d > 0) & (d < math.pi)
         r = baseline_m * np.sin(alpha + d) / np.sin(np.where(good, d, 1.0))
     return np.where(good & (r > 0), r, np.nan).astype(np.float32)
-
-
-def _angle_deg(a: np.ndarray, b: np.ndarray) -> float:
-    cos = float(np.dot(a, b) / (np.linalg.norm(a) * np.linalg.norm(b)))
-    return math.degrees(math.acos(min(1.0, max(-1.0, cos))))
-
-
-def _rotation_deg(a: np.ndarray, b: np.ndarray) -> float:
-    return math.degrees(math.acos(min(1.0, max(-1.0, (float(np.trace(a.T @ b)) - 1.0) / 2.0))))
 
 
 CASSINI_FROM_CAMERA = {
@@ -429,10 +421,10 @@ def rig_problem(layout: Layout, cameras: dict, tol_deg: float = PARALLEL_TOL_DEG
         if name == "C":
             continue
         axis, where = axes[name]
-        off = _angle_deg(cameras[name].position - c.position, c.rotation[:, axis])
+        off = vector_angle_deg(cameras[name].position - c.position, c.rotation[:, axis])
         if off > tol_deg:
             return f"{name} is not straight {where} C ({off:.3g} degrees off C's axis, tolerance {tol_deg:g})"
-        turned = _rotation_deg(cameras[name].rotation, c.rotation)
+        turned = rotation_angle_deg(cameras[name].rotation, c.rotation)
         if turned > tol_deg:
             return (f"{name} is turned {turned:.3g} degrees from C (the layout assumes parallel cameras, tolerance "
                     f"{tol_deg:g})")

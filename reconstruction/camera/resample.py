@@ -11,6 +11,7 @@ import cv2
 import numpy as np
 
 from reconstruction.camera.equirect import bearing_grid, bearing_to_pixel
+from reconstruction.camera.image_ops import periodic_pad
 
 __all__ = ["rectifying_rotation", "bilinear_with_gradient", "sample_equirect", "rotation_maps", "warp_equirect",
            "WRAP_PAD"]
@@ -88,7 +89,7 @@ def sample_equirect(image: np.ndarray, u, v, interpolation: int = cv2.INTER_LINE
         Samples of shape ``u.shape`` (+ (C,) for multi-channel images), dtype of ``image``.
     """
     h, w = image.shape[:2]
-    padded = np.concatenate([image[:, w - WRAP_PAD:], image, image[:, :WRAP_PAD]], axis=1)
+    padded = periodic_pad(image, WRAP_PAD)
     uu = (np.mod(np.asarray(u, dtype=np.float64) + 0.5, w) - 0.5 + WRAP_PAD).astype(np.float32)
     vv = np.asarray(v, dtype=np.float32)
     # remap wants 2-D maps narrower than 32767 columns: lay the samples out in rows of 1024

@@ -6,6 +6,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from reconstruction.camera.image_ops import axis_angle_matrix
+
 CAMERA_NAMES = ("C", "U", "R")
 DEFAULT_BASELINE_M = 0.4
 
@@ -30,8 +32,7 @@ class CameraPose:
 
 def yaw_rotation(yaw_rad: float) -> np.ndarray:
     """(3, 3) rotation about world +Z by ``yaw_rad`` radians (counter-clockwise seen from above)."""
-    c, s = np.cos(yaw_rad), np.sin(yaw_rad)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    return axis_angle_matrix(2, yaw_rad)
 
 
 def tilt_rotation(pitch_rad: float, roll_rad: float) -> np.ndarray:
@@ -43,11 +44,7 @@ def tilt_rotation(pitch_rad: float, roll_rad: float) -> np.ndarray:
     """
     if pitch_rad == 0.0 and roll_rad == 0.0:
         return np.eye(3)
-    cp, sp = np.cos(pitch_rad), np.sin(pitch_rad)
-    cr, sr = np.cos(roll_rad), np.sin(roll_rad)
-    rx = np.array([[1.0, 0.0, 0.0], [0.0, cp, -sp], [0.0, sp, cp]])
-    ry = np.array([[cr, 0.0, sr], [0.0, 1.0, 0.0], [-sr, 0.0, cr]])
-    return rx @ ry
+    return axis_angle_matrix(0, pitch_rad) @ axis_angle_matrix(1, roll_rad)
 
 
 @dataclass(frozen=True)

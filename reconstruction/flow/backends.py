@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
+from reconstruction.camera.image_ops import grey, periodic_pad
 from reconstruction.flow.deepflow import DeepFlowParams, deep_flow_both
 from reconstruction.flow.deepmatching import DeepMatchingParams, Matches, deep_matching_both
 from reconstruction.plugins import Registry, collect_registry, shadow_message, unknown_name_message
@@ -107,13 +108,9 @@ def _warm_deepflow() -> None:
     deep_flow_both(*_warm_pair(), DeepFlowParams())
 
 
-def _gray(img: np.ndarray) -> np.ndarray:
-    return img if img.ndim == 2 else cv2.cvtColor(img, cv2.COLOR_RGB2GRAY)
-
-
 def _opencv_deepflow(img0, img1):
     """OpenCV's DeepFlow: only the variational part of Weinzaepfel et al. 2013 (no DeepMatching, no matching term)."""
-    return cv2.optflow.createOptFlow_DeepFlow().calc(_gray(img0), _gray(img1), None)
+    return cv2.optflow.createOptFlow_DeepFlow().calc(grey(img0), grey(img1), None)
 
 
 _MATCH_CACHE = threading.local()
@@ -178,10 +175,7 @@ def _epicflow(img0, img1, downscale=1, ngh_rad_x=0, ngh_rad_y=0, wrap=True, pad=
     h, w = img0.shape[:2]
     pad = int(min(pad, w)) if wrap else 0
 
-    def padded(img):
-        return np.ascontiguousarray(np.concatenate([img[:, w - pad:], img, img[:, :pad]], axis=1)) if pad else img
-
-    a, b = padded(np.ascontiguousarray(img0)), padded(np.ascontiguousarray(img1))
+    a, b = (periodic_pad(np.ascontiguousarray(img), pad) for img in (img0, img1))
     if m.x0.size < 4:
         return np.zeros((h, w, 2), np.float32)
     p0 = np.stack([m.x0 + pad, m.y0], axis=1).astype(np.float32)
@@ -189,7 +183,7 @@ def _epicflow(img0, img1, downscale=1, ngh_rad_x=0, ngh_rad_y=0, wrap=True, pad=
     interp = cv2.ximgproc.createEdgeAwareInterpolator()
     dense = interp.interpolate(a, p0.reshape(-1, 1, 2), b, p1.reshape(-1, 1, 2))
     ref = cv2.VariationalRefinement_create()
-    dense = ref.calc(_gray(a), _gray(b), dense)
+    dense = ref.calc(grey(a), grey(b), dense)
     return np.ascontiguousarray(dense[:, pad:pad + w], np.float32)
 
 
@@ -208,12 +202,12 @@ def _dis(img0, img1, preset="medium", finest_scale=0, patch_size=8, patch_stride
     dis.setVariationalRefinementIterations(var_iterations)
     dis.setVariationalRefinementAlpha(var_alpha)
     dis.setUseSpatialPropagation(spatial_propagation)
-    return dis.calc(_gray(img0), _gray(img1), None)
+    return dis.calc(grey(img0), grey(img1), None)
 
 
 def _farneback(img0, img1, pyr_scale=0.5, levels=5, winsize=21, iterations=5, poly_n=7, poly_sigma=1.5):
     """Farneback polynomial-expansion flow."""
-    return cv2.calcOpticalFlowFarneback(_gray(img0), _gray(img1), None, pyr_scale=pyr_scale, levels=levels,
+    return cv2.calcOpticalFlowFarneback(grey(img0), grey(img1), None, pyr_scale=pyr_scale, levels=levels,
                                         winsize=winsize, iterations=iterations, poly_n=poly_n,
                                         poly_sigma=poly_sigma, flags=0)
 
@@ -316,10 +310,7 @@ def equirect_flow(backend: FlowBackend, img0: np.ndarray, img1: np.ndarray, pad:
     w = img0.shape[1]
     pad = 0 if backend.wraps else int(min(max(pad, 0), w))
 
-    def wrap(img):
-        return np.ascontiguousarray(np.concatenate([img[:, w - pad:], img, img[:, :pad]], axis=1)) if pad else img
-
-    flow = backend(wrap(img0), wrap(img1))
+    flow = backend(periodic_pad(img0, pad), periodic_pad(img1, pad))
     flow = np.asarray(flow, dtype=np.float32)
     if not np.isfinite(flow).all():
         flow = np.nan_to_num(flow, nan=0.0, posinf=0.0, neginf=0.0)

@@ -45,11 +45,11 @@ import cv2
 import numba
 import numpy as np
 
+from reconstruction.camera.image_ops import central_differences
 from reconstruction.flow.deepmatching import (
     DeepMatchingParams,
     Matches,
     blur_periodic,
-    central_differences,
     deep_matching,
     deep_matching_both,
 )

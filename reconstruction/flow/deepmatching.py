@@ -56,8 +56,10 @@ import numpy as np
 from numba.core import types as nbtypes
 from numba.extending import intrinsic
 
-__all__ = ["DeepMatchingParams", "Matches", "deep_matching", "deep_matching_both", "pixel_descriptors", "blur_periodic",
-           "central_differences"]
+from reconstruction.camera.image_ops import central_differences, grey, periodic_gaussian_blur
+
+__all__ = ["DeepMatchingParams", "Matches", "deep_matching", "deep_matching_both", "pixel_descriptors",
+           "blur_periodic"]
 
 PATCH_CELLS = 4  # an atomic patch is 4 x 4 cells
 N_ORIENT = 8
@@ -121,31 +123,11 @@ class Matches:
 
 
 def blur_periodic(x: np.ndarray, sigma: float, wrap: bool) -> np.ndarray:
-    """Gaussian blur (``sigma`` pixels) of an (H, W) or (H, W, C) float32 array, periodic in columns if ``wrap``
-    (rows: the edge replicated)."""
-    if sigma <= 0:
-        return x
-    pad = int(np.ceil(3 * sigma)) + 1
-    if wrap:
-        w = x.shape[1]
-        pad = min(pad, w)
-        xp = np.concatenate([x[:, w - pad:], x, x[:, :pad]], axis=1)
-        out = cv2.GaussianBlur(xp, (0, 0), sigma, borderType=cv2.BORDER_REPLICATE)
-        return np.ascontiguousarray(out[:, pad:pad + w])
-    return cv2.GaussianBlur(x, (0, 0), sigma, borderType=cv2.BORDER_REPLICATE)
-
-
-def central_differences(x: np.ndarray, wrap: bool) -> tuple[np.ndarray, np.ndarray]:
-    """``(d/dx, d/dy)`` of an (H, W) or (H, W, C) array by central differences (per pixel); columns periodic if
-    ``wrap`` (else 0 in the first and last column), 0 in the first and last row."""
-    if wrap:
-        gx = 0.5 * (np.roll(x, -1, axis=1) - np.roll(x, 1, axis=1))
-    else:
-        gx = np.zeros_like(x)
-        gx[:, 1:-1] = 0.5 * (x[:, 2:] - x[:, :-2])
-    gy = np.zeros_like(x)
-    gy[1:-1] = 0.5 * (x[2:] - x[:-2])
-    return gx, gy
+    """DeepMatching's and DeepFlow's smoothing: Gaussian blur (``sigma`` pixels) of an (H, W) or (H, W, C) float32
+    array, periodic in columns if ``wrap`` (``ceil(3 sigma) + 1`` columns wrapped, at most W), the edge replicated
+    beyond (:func:`reconstruction.camera.image_ops.periodic_gaussian_blur`); ``x`` itself for ``sigma`` <= 0."""
+    cols = min(int(np.ceil(3 * sigma)) + 1, x.shape[1]) if wrap else 0
+    return periodic_gaussian_blur(x, sigma, cols=cols, border=cv2.BORDER_REPLICATE)
 
 
 def pixel_descriptors(gray: np.ndarray, p: DeepMatchingParams) -> np.ndarray:
@@ -707,7 +689,7 @@ def deep_matching_both(img0: np.ndarray, img1: np.ndarray,
     wh, ww = _working_size(h, w, int(p.downscale))
 
     def prep(img):
-        g = img if img.ndim == 2 else cv2.cvtColor(np.ascontiguousarray(img), cv2.COLOR_RGB2GRAY)
+        g = grey(img)
         g = cv2.resize(g.astype(np.float32), (ww, wh), interpolation=cv2.INTER_AREA)
         return pixel_descriptors(g, p)
 

@@ -16,6 +16,7 @@ import cv2
 import numpy as np
 
 from reconstruction.camera.equirect import bearing_grid
+from reconstruction.camera.image_ops import central_differences, rotation_vector_matrix
 from reconstruction.flow.backends import ORACLE, FlowBackend
 from reconstruction.flow.matching import PairMatch, match_pair
 from reconstruction.methods.base import MethodOutput
@@ -52,7 +53,6 @@ from reconstruction.rig_calibration import (
     RigParams,
     corrected_pose,
     fit_rotation,
-    rotation_vector_matrix,
     usable_matches,
 )
 
@@ -212,9 +212,7 @@ def color_texture_mask(image: np.ndarray, config: RefineConfig) -> np.ndarray:
     gray = to_gray(image)
     if config.color_blur_px > 0:
         gray = cv2.GaussianBlur(gray, (0, 0), config.color_blur_px)
-    gu = (np.roll(gray, -1, axis=1) - np.roll(gray, 1, axis=1)) / 2.0
-    gv = np.zeros_like(gray)
-    gv[1:-1] = (gray[2:] - gray[:-2]) / 2.0
+    gu, gv = central_differences(gray)
     return np.hypot(gu, gv) > config.color_min_gradient
 
 

@@ -24,9 +24,9 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
 
-import cv2
 import numpy as np
 
+from reconstruction.camera.image_ops import periodic_gaussian_blur, periodic_pad
 from reconstruction.methods.base import MethodOutput
 from reconstruction.methods.flow_pipeline import Calibration, FlowMethod, run_flow_group
 from reconstruction.methods.sweep import Prior, PriorFromSweep, SgmParams, SweepMethod, sweep_distances
@@ -105,14 +105,10 @@ def local_contrast(gray: np.ndarray, sigma_px: float) -> np.ndarray:
         (H, W) float32 contrast, gray levels.
     """
     pad = int(np.ceil(3 * sigma_px))
-    g = np.concatenate([gray[:, -pad:], gray, gray[:, :pad]], axis=1).astype(np.float64)
-    g -= g.mean()  # float64 and centred: E[x^2] - E[x]^2 without cancellation
-
-    def blur(x):
-        return cv2.GaussianBlur(x, (0, 0), sigma_px, borderType=cv2.BORDER_REFLECT)[:, pad:-pad]
-
-    mean = blur(g)
-    var = blur(g * g) - mean * mean
+    # float64 and centred (on the mean of the padded image): E[x^2] - E[x]^2 without cancellation
+    g = gray.astype(np.float64) - periodic_pad(gray, pad).astype(np.float64).mean()
+    mean = periodic_gaussian_blur(g, sigma_px, cols=pad)
+    var = periodic_gaussian_blur(g * g, sigma_px, cols=pad) - mean * mean
     return np.sqrt(np.maximum(var, 0.0)).astype(np.float32)
 
 

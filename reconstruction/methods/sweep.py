@@ -16,6 +16,7 @@ import cv2
 import numpy as np
 
 from reconstruction.camera.equirect import bearing_grid
+from reconstruction.camera.image_ops import periodic_filter
 from reconstruction.methods.base import MethodOutput
 from reconstruction.methods.flow_pipeline import Calibration, fill_edge_aware, reduced_frame, self_calibrate
 from reconstruction.photometry import PhotometricParams
@@ -173,9 +174,7 @@ def _median_wrap(d: np.ndarray, k: int) -> np.ndarray:
     """Median filter of side ``k`` (3 or 5) wrapping in longitude; (H, W) float -> float32."""
     if k <= 1:
         return d.astype(np.float32)
-    pad = k // 2
-    x = np.concatenate([d[:, -pad:], d, d[:, :pad]], axis=1).astype(np.float32)
-    return cv2.medianBlur(x, k)[:, pad:-pad]
+    return periodic_filter(d.astype(np.float32), k // 2, lambda x: cv2.medianBlur(x, k))
 
 
 def _sphere_costs(frame, sweep: SweepMethod, seconds, prefix="", wall_labels: int = 0):

@@ -13,14 +13,16 @@ import cv2
 import numpy as np
 
 from reconstruction.camera.equirect import bearing_to_pixel
+from reconstruction.camera.image_ops import grey
 from reconstruction.camera.resample import sample_equirect, warp_equirect
 
 __all__ = ["angle_weight", "epipolar_gradient", "gradient_confidence", "lateral_confidence", "to_gray"]
 
 
 def to_gray(image: np.ndarray) -> np.ndarray:
-    """(H, W, 3) uint8 RGB -> (H, W) float32 intensity in [0, 1]."""
-    return cv2.cvtColor(image, cv2.COLOR_RGB2GRAY).astype(np.float32) / 255.0
+    """(H, W, 3) uint8 RGB -> (H, W) float32 intensity in [0, 1]: OpenCV's 8-bit grey
+    (:func:`reconstruction.camera.image_ops.grey`) over 255."""
+    return grey(image).astype(np.float32) / 255.0
 
 
 def angle_weight(sin_alpha: np.ndarray, power: float) -> np.ndarray:

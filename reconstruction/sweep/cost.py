@@ -42,6 +42,7 @@ import numba
 import numpy as np
 
 from reconstruction.camera.equirect import bearing_grid
+from reconstruction.camera.image_ops import central_differences, grey, periodic_gaussian_blur, periodic_pad
 from reconstruction.camera.resample import WRAP_PAD, rectifying_rotation, rotation_maps, warp_equirect
 
 __all__ = ["CostParams", "PairWarp", "FEATURES", "RANK_RADIUS_PX", "NORM_SIGMA_PX", "NORM_EPS", "NORM_SCALE",
@@ -125,8 +126,7 @@ def image_noise(image: np.ndarray) -> float:
         The estimate for the mean of the channels, gray levels (independent noise of ``s`` per channel is
         ``s / sqrt(3)`` there).
     """
-    g = np.asarray(image, np.float32)
-    g = g.mean(axis=-1) if g.ndim == 3 else g
+    g = np.asarray(grey(image, "mean"), np.float32)
     response = np.abs(cv2.filter2D(g, -1, _LAPLACIAN_DIFFERENCE))[2:-2, 2:-2]
     grad = np.hypot(cv2.Sobel(g, cv2.CV_32F, 1, 0), cv2.Sobel(g, cv2.CV_32F, 0, 1))[2:-2, 2:-2]
     flat = grad <= np.median(grad)
@@ -147,19 +147,8 @@ def inverse_distances(params: CostParams) -> np.ndarray:
 
 def gray_float(image: np.ndarray, blur_px: float) -> np.ndarray:
     """(H, W, 3) uint8 RGB -> (H, W) float32 gray, 0-255, optionally Gaussian-blurred (sigma ``blur_px``)."""
-    g = cv2.cvtColor(image, cv2.COLOR_RGB2GRAY).astype(np.float32)
-    if blur_px > 0:
-        pad = int(np.ceil(3 * blur_px))
-        g = np.concatenate([g[:, -pad:], g, g[:, :pad]], axis=1)  # wrap in longitude
-        g = cv2.GaussianBlur(g, (0, 0), blur_px, borderType=cv2.BORDER_REFLECT)[:, pad:-pad]
-    return np.ascontiguousarray(g)
-
-
-def _wrap_pad(image: np.ndarray, pad: int) -> np.ndarray:
-    """(H, W) equirect -> (H + 2 pad, W + 2 pad): columns wrapped in longitude, rows mirrored at the poles (the
-    edge row not repeated)."""
-    rows = np.pad(image, ((pad, pad), (0, 0)), mode="reflect")
-    return np.concatenate([rows[:, -pad:], rows, rows[:, :pad]], axis=1)
+    g = grey(image).astype(np.float32)
+    return np.ascontiguousarray(periodic_gaussian_blur(g, blur_px))
 
 
 def rank_transform(gray: np.ndarray, radius: int = RANK_RADIUS_PX) -> np.ndarray:
@@ -174,7 +163,7 @@ def rank_transform(gray: np.ndarray, radius: int = RANK_RADIUS_PX) -> np.ndarray
     """
     h, w = gray.shape
     side = 2 * radius + 1
-    padded = _wrap_pad(gray, radius)
+    padded = periodic_pad(gray, radius, radius, "reflect")
     count = np.zeros((h, w), np.uint8)
     for dy in range(side):
         for dx in range(side):
@@ -197,11 +186,15 @@ def local_normalize(gray: np.ndarray, sigma_px: float = NORM_SIGMA_PX, eps: floa
         mean and variance of ``g``; typically within +-``3 scale``.
     """
     pad = int(np.ceil(3 * sigma_px))
-    g = _wrap_pad(np.asarray(gray, np.float32), pad)
-    mu = cv2.GaussianBlur(g, (0, 0), sigma_px, borderType=cv2.BORDER_REFLECT)
-    var = np.maximum(cv2.GaussianBlur(g * g, (0, 0), sigma_px, borderType=cv2.BORDER_REFLECT) - mu * mu, 0.0)
+    g = np.asarray(gray, np.float32)
+
+    def blur(x):
+        return periodic_gaussian_blur(x, sigma_px, cols=pad, rows=pad, row_mode="reflect")
+
+    mu = blur(g)
+    var = np.maximum(blur(g * g) - mu * mu, 0.0)
     out = (g - mu) * (np.float32(scale) / np.sqrt(var + np.float32(eps * eps)))
-    return np.ascontiguousarray(out[pad:-pad, pad:-pad], dtype=np.float32)
+    return np.ascontiguousarray(out, dtype=np.float32)
 
 
 def feature_image(gray_rect: np.ndarray, feature: str) -> np.ndarray:
@@ -221,9 +214,7 @@ def _features(gray_rect: np.ndarray, gradient_weight: float, intensity_weight: f
     """(H, W) rectified gray -> (3, H, W) float32: the weighted feature image ``T`` (:func:`feature_image`; the
     intensity by default) and its weighted d/du (wrapping), d/dv, gray levels (per pixel)."""
     gray_rect = feature_image(gray_rect, feature)
-    gu = 0.5 * (np.roll(gray_rect, -1, axis=1) - np.roll(gray_rect, 1, axis=1))
-    gv = np.zeros_like(gray_rect)
-    gv[1:-1] = 0.5 * (gray_rect[2:] - gray_rect[:-2])
+    gu, gv = central_differences(gray_rect)
     return np.stack([intensity_weight * gray_rect, gradient_weight * gu, gradient_weight * gv]).astype(np.float32)
 
 
@@ -308,7 +299,7 @@ def _pair_arrays(pw: PairWarp, frame):
     mu, mv = rotation_maps(w, h, frame.cameras["C"].rotation, pw.rect_rotation)
     mu = np.mod(mu + 0.5, w) - 0.5
     feats = np.ascontiguousarray(pw.ref.transpose(1, 2, 0))
-    padded = np.concatenate([feats[:, w - WRAP_PAD:], feats, feats[:, :WRAP_PAD]], axis=1)
+    padded = periodic_pad(feats, WRAP_PAD)
     ref = cv2.remap(padded, (mu + WRAP_PAD).astype(np.float32), mv.astype(np.float32), cv2.INTER_LINEAR,
                     borderMode=cv2.BORDER_REPLICATE)
     other_t = np.ascontiguousarray(pw.other.transpose(2, 1, 0))

@@ -14,6 +14,8 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
+from reconstruction.camera.image_ops import central_differences
+
 __all__ = ["add_prior", "PlaneParams", "plane_heights", "fill_plane_costs", "plane_inverse_distance", "bound_costs",
            "dominant_planes", "wall_normals", "dominant_wall_yaw", "dominant_walls", "bound_wall_costs"]
 
@@ -91,9 +93,7 @@ def dominant_wall_yaw(points: np.ndarray, min_share: float, max_tilt_rad: float 
     """
     p = np.asarray(points, np.float64)
     k = int(step_px)
-    du = np.roll(p, -k, axis=1) - np.roll(p, k, axis=1)
-    dv = np.zeros_like(p)
-    dv[k:-k] = p[2 * k:] - p[:-2 * k]
+    du, dv = central_differences(p, step=k, scale=1.0)
     n = np.cross(du, dv)
     norm = np.linalg.norm(n, axis=-1)
     with np.errstate(invalid="ignore", divide="ignore"):

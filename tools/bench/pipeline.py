@@ -59,6 +59,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from harness.runtime.progress import track
+from reconstruction.camera.image_ops import grey
 from reconstruction.flow.matching import match_pair
 from reconstruction.methods.flow_pipeline import (
     DEFAULT_FLOW,
@@ -94,7 +95,7 @@ def reference_seconds(frame) -> float:
     against, so that its time follows both the speed of a core and whether a second one is free: with a parallel
     reference alone the ratios moved by 1.6 x between an idle and a busy machine, with a serial one by 1.4 x, with
     this one by 1.2 x."""
-    c, r = (cv2.cvtColor(frame.images[k], cv2.COLOR_RGB2GRAY) for k in ("C", "R"))
+    c, r = (grey(frame.images[k]) for k in ("C", "R"))
     threads = cv2.getNumThreads()
     total = 0.0
     try:

@@ -48,6 +48,8 @@ import numpy as np
 from harness.data.photometric import noise_parameters
 from harness.render.camera import encode, vignetting_gain
 from reconstruction.camera.equirect import bearing_grid, pixel_to_bearing
+from reconstruction.camera.image_ops import axis_angle_matrix as rotation_about
+from reconstruction.camera.image_ops import grey
 from reconstruction.camera.rig import CameraPose
 from reconstruction.photometry import linear_to_srgb, srgb_to_linear
 
@@ -110,14 +112,6 @@ def generator(seed: int, kind: str, camera: str) -> np.random.Generator:
 
 
 # -------------------------------------------------------------------------------------------------- poses
-
-
-def rotation_about(axis: np.ndarray, angle_rad: float) -> np.ndarray:
-    """(3, 3) rotation by ``angle_rad`` about unit ``axis`` (Rodrigues)."""
-    a = np.asarray(axis, dtype=np.float64)
-    a = a / np.linalg.norm(a)
-    k = np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
-    return np.eye(3) + np.sin(angle_rad) * k + (1.0 - np.cos(angle_rad)) * (k @ k)
 
 
 def _unit(rng: np.random.Generator) -> np.ndarray:
@@ -240,7 +234,7 @@ def soiling(img: np.ndarray, count: int, rng: np.random.Generator) -> tuple[np.n
 def brightest_bearing(img: np.ndarray, pose: CameraPose) -> np.ndarray:
     """World bearing (3,) of the brightest spot of an equirect image (luminance blurred over ~1 % of H)."""
     h, w = img.shape[:2]
-    lum = srgb_to_linear(img) @ np.array([0.2126, 0.7152, 0.0722])
+    lum = grey(srgb_to_linear(img), "bt709")
     k = max(3, (h // 50) | 1)
     lum = cv2.GaussianBlur(lum, (k, k), 0)
     v, u = np.unravel_index(int(np.argmax(lum)), lum.shape)
