@@ -35,10 +35,15 @@ import numpy as np
 
 from reconstruction.camera.equirect import bearing_grid, lonlat_to_pixel
 from reconstruction.camera.image_ops import grey, periodic_pad, robust_scale, sobel_gradient, tukey_weights
-from reconstruction.evidence import ALPHA, Evidence, hotelling, jackknife_linear, sphere_blocks
-
-MAX_FIT_PIXELS = 15000
-"""The fit uses at most this many pixels (evenly strided): the field of degree 2 has 11 coefficients."""
+from reconstruction.evidence import (
+    ALPHA,
+    LONGITUDE_BLOCKS,
+    MIN_BLOCK_SAMPLES,
+    Evidence,
+    hotelling,
+    jackknife_linear,
+    sphere_blocks,
+)
 
 __all__ = ["NO_CALIBRATION", "PhotometricParams", "srgb_to_linear", "linear_to_srgb", "basis", "RESPONSE_MID",
            "response_basis", "fit_gain",
@@ -107,6 +112,14 @@ class PhotometricParams:
         min_response: the smallest response applied: the range of ``r_K`` over the levels of most of the fit's
             pixels (C's 5th to 95th percentile), natural log; above the 0.04 the fit finds on cameras that agree and
             the 0.09 on cameras that differ only by gain, fall-off, noise and JPEG (tri360-v3 dev, ideal and captured).
+        prepass_flow: the flow backend of the self-calibration's pre-pass (by name; on rectified images reduced by
+            ``prepass_factor``, whatever the method's own flow: it only needs correspondences good enough to fit a
+            smooth gain field and the rotations, fast).
+        max_fit_pixels: the fits use at most this many pixels (evenly strided): the field of degree 2 has 11
+            coefficients.
+        longitude_blocks, min_block_samples: the blocks of the sphere over which each correction is tested
+            (:func:`reconstruction.evidence.sphere_blocks`: sectors of longitude, each cut at the horizon) and the
+            fewest samples of a block left out on its own (:func:`reconstruction.evidence.jackknife_linear`).
     """
 
     mode: str = "gain-field"
@@ -131,6 +144,10 @@ class PhotometricParams:
     agreement: float = 0.05
     response: int = 1
     min_response: float = 0.10
+    prepass_flow: str = "dis"
+    max_fit_pixels: int = 15000
+    longitude_blocks: int = LONGITUDE_BLOCKS
+    min_block_samples: int = MIN_BLOCK_SAMPLES
 
     def __post_init__(self):
         if self.mode not in ("none", "gain-field"):
@@ -160,6 +177,9 @@ class PhotometricParams:
         if not 0.0 <= self.dark < self.bright <= 1.0:
             raise ValueError(f"photometric dark {self.dark} and bright {self.bright} must satisfy 0 <= dark < "
                              "bright <= 1")
+        if not (self.max_fit_pixels >= 1 and self.longitude_blocks >= 1 and self.min_block_samples >= 0):
+            raise ValueError(f"photometric max_fit_pixels {self.max_fit_pixels} and longitude_blocks "
+                             f"{self.longitude_blocks} must be >= 1, min_block_samples {self.min_block_samples} >= 0")
 
 
 NO_CALIBRATION = PhotometricParams(mode="none")
@@ -286,7 +306,7 @@ def _sample(lin_k: np.ndarray, u: np.ndarray, row: np.ndarray) -> np.ndarray:
                      borderMode=cv2.BORDER_REPLICATE)
 
 
-def step(n: int, most: int = MAX_FIT_PIXELS) -> int:
+def step(n: int, most: int) -> int:
     """Stride that keeps at most ``most`` of ``n`` samples."""
     return max(1, -(-n // most))
 
@@ -320,7 +340,8 @@ def align_images(images: dict, cameras: dict, params: PhotometricParams = Photom
         usable = np.all((lin_c > params.dark) & (lin_c < params.bright), axis=-1) \
             & np.all((sample > params.dark) & (sample < params.bright), axis=-1)
         ratio = np.log(sample[usable]) - np.log(lin_c[usable])
-        a, beta, fit = fit_gain(ratio[::step(ratio.shape[0])], phi_small[usable][::step(ratio.shape[0])], params)
+        stride = step(ratio.shape[0], params.max_fit_pixels)
+        a, beta, fit = fit_gain(ratio[::stride], phi_small[usable][::stride], params)
         field = phi_small @ beta if beta.size else np.zeros((h, w))
         field = np.clip(field, -params.max_log_gain, params.max_log_gain)
         mean_field = float(np.mean(field))
@@ -432,7 +453,7 @@ def fit_photometric(images: dict, cameras: dict, distance: np.ndarray,
     d_small = _reduce(np.asarray(distance, np.float32), f)
     rot_c = np.asarray(cameras["C"].rotation, np.float64)
     world = b_c @ rot_c.T * d_small[..., None] + np.asarray(cameras["C"].position, np.float64)
-    blocks_c = sphere_blocks(b_c @ rot_c.T)
+    blocks_c = sphere_blocks(b_c @ rot_c.T, params.longitude_blocks)
     flat = _log_gradient(lin_c) < params.flat_log_gradient
     ok_c = np.isfinite(d_small) & (d_small > 0) & flat & np.all((lin_c > params.dark) & (lin_c < params.bright),
                                                                  axis=-1)
@@ -449,7 +470,7 @@ def fit_photometric(images: dict, cameras: dict, distance: np.ndarray,
         usable = usable & np.all((samples[k] > params.dark) & (samples[k] < params.bright), axis=-1)
     # the pixels every camera sees well: one sample each, so that the fit can ask all views to agree on it
     idx = np.flatnonzero(usable.reshape(-1))
-    idx = idx[::step(idx.size, MAX_FIT_PIXELS)]
+    idx = idx[::step(idx.size, params.max_fit_pixels)]
     rows, targets = [], []
     log_c = np.log(lin_c.reshape(-1, 3)[idx])
     for i, k in enumerate(others):
@@ -477,7 +498,7 @@ def fit_photometric(images: dict, cameras: dict, distance: np.ndarray,
     for i, t in enumerate(targets):
         coef0[i * cols_per:i * cols_per + 3] = np.median(t.reshape(-1, 3), axis=0)
     coef, weights, sigma = _irls(design, target, coef0, params, ridge, len(others))
-    theta, cov, n_blocks = jackknife_linear(design, target, weights, blocks, ridge)
+    theta, cov, n_blocks = jackknife_linear(design, target, weights, blocks, ridge, params.min_block_samples)
     phi_mean = phi_c.reshape(-1, n_j).mean(axis=0)
     phi_all = phi_c.reshape(-1, n_j)
 

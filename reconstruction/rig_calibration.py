@@ -35,7 +35,14 @@ import numpy as np
 
 from reconstruction.camera.image_ops import grey, robust_scale, rotation_vector_matrix, tukey_weights
 from reconstruction.camera.rig import CameraPose
-from reconstruction.evidence import ALPHA, hotelling, jackknife_linear, sphere_blocks
+from reconstruction.evidence import (
+    ALPHA,
+    LONGITUDE_BLOCKS,
+    MIN_BLOCK_SAMPLES,
+    hotelling,
+    jackknife_linear,
+    sphere_blocks,
+)
 
 __all__ = ["RigParams", "NO_RIG_CALIBRATION", "RigFit", "rotation_vector_matrix", "fit_rotation", "usable_matches",
            "corrected_pose"]
@@ -60,6 +67,8 @@ class RigParams:
             a false one is at least ``min_degrees`` and none passed on the ideal dev frames that did not at 0.001.
         min_degrees: a smaller correction is not applied however significant: a tenth of a pixel of the pre-pass
             (500 px around at 1000x500), about what its flow resolves.
+        iterations, tukey_c, max_matches, longitude_blocks, min_block_samples: the fit's
+            (:func:`fit_rotation`).
     """
 
     mode: str = "rotation"
@@ -69,6 +78,11 @@ class RigParams:
     max_degrees: float = 2.0
     alpha: float = 0.01
     min_degrees: float = 0.072
+    iterations: int = 6
+    tukey_c: float = 4.685
+    max_matches: int = 40000
+    longitude_blocks: int = LONGITUDE_BLOCKS
+    min_block_samples: int = MIN_BLOCK_SAMPLES
 
     def __post_init__(self):
         if self.mode not in ("none", "rotation"):
@@ -85,6 +99,11 @@ class RigParams:
             raise ValueError(f"rig calibration min_degrees {self.min_degrees} must be in [0, max_degrees)")
         if not self.max_degrees > 0:
             raise ValueError(f"rig calibration max_degrees must be > 0, got {self.max_degrees}")
+        if not (self.iterations >= 0 and self.tukey_c > 0 and self.max_matches >= 1 and self.longitude_blocks >= 1
+                and self.min_block_samples >= 0):
+            raise ValueError(f"rig calibration iterations {self.iterations} and min_block_samples "
+                             f"{self.min_block_samples} must be >= 0, tukey_c {self.tukey_c} > 0, max_matches "
+                             f"{self.max_matches} and longitude_blocks {self.longitude_blocks} >= 1")
 
 
 NO_RIG_CALIBRATION = RigParams(mode="none")
@@ -99,7 +118,8 @@ class RigFit(dict):
 
 def fit_rotation(c: np.ndarray, k: np.ndarray, baseline: np.ndarray, *, min_sin: float = 0.3,
                  iterations: int = 6, tukey_c: float = 4.685, max_matches: int = 40000,
-                 alpha: float = ALPHA) -> RigFit:
+                 alpha: float = ALPHA, longitude_blocks: int = LONGITUDE_BLOCKS,
+                 min_block_samples: int = MIN_BLOCK_SAMPLES) -> RigFit:
     """The rotation that puts K's matched bearings back onto C's epipolar planes (module doc).
 
     Args:
@@ -116,6 +136,8 @@ def fit_rotation(c: np.ndarray, k: np.ndarray, baseline: np.ndarray, *, min_sin:
             jackknife of the matches' blocks of C's sphere (:mod:`reconstruction.evidence`), the robust weights
             and the linearisation held at the solution; ``supported`` when it rejects "the told rotation" at
             ``alpha``.
+        longitude_blocks, min_block_samples: those blocks (:func:`reconstruction.evidence.sphere_blocks`) and the
+            fewest matches of one left out on its own (:func:`reconstruction.evidence.jackknife_linear`).
     Returns:
         A :class:`RigFit`; ``omega`` is zero and nothing supported when fewer than 100 matches are usable.
     """
@@ -132,7 +154,7 @@ def fit_rotation(c: np.ndarray, k: np.ndarray, baseline: np.ndarray, *, min_sin:
     if idx.size < 100:
         return RigFit(omega=omega.tolist(), degrees=0.0, matches=int(idx.size), sigma_deg=float("nan"),
                       iterations=0, evidence=hotelling(omega, np.full((3, 3), np.nan), 0, alpha))
-    blocks = sphere_blocks(c[idx])
+    blocks = sphere_blocks(c[idx], longitude_blocks)
     n = n[idx] / sin[idx, None]
     k = k[idx]
     sigma = float("nan")
@@ -153,7 +175,7 @@ def fit_rotation(c: np.ndarray, k: np.ndarray, baseline: np.ndarray, *, min_sin:
     kk = k @ rotation_vector_matrix(omega).T
     r = np.einsum("ij,ij->i", n, kk)
     wts = tukey_weights(r, tukey_c, sigma)
-    _, cov, used = jackknife_linear(np.cross(kk, n), -r, wts, blocks)
+    _, cov, used = jackknife_linear(np.cross(kk, n), -r, wts, blocks, min_samples=min_block_samples)
     return RigFit(omega=omega.tolist(), degrees=float(np.degrees(np.linalg.norm(omega))), matches=int(idx.size),
                   sigma_deg=float(np.degrees(sigma)), iterations=done, evidence=hotelling(omega, cov, used, alpha))
 

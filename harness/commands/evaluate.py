@@ -93,7 +93,7 @@ from reports.tables import method_summary, quality_summary
 from scenes.registry import discover
 
 __all__ = ["FrameRef", "select_frames", "evaluate", "evaluate_task", "method_groups", "summary_text",
-           "results_config", "checked_maps"]
+           "results_config", "method_configs", "checked_maps"]
 
 
 @dataclass(frozen=True)
@@ -224,6 +224,12 @@ def check_frame_kinds(refs: Sequence[FrameRef], methods: Sequence[Method], suite
     return False
 
 
+def method_configs(methods: Sequence[Method]) -> dict[str, dict]:
+    """``config.json``'s ``methods``: each method's full configuration (``config()``) by label (also what ``tri360
+    methods --show`` prints)."""
+    return {m.label: m.config() for m in methods}
+
+
 def results_config(methods: Sequence[Method], frames: list, data_root: Path, started: float,
                    suite: dict | None = None) -> dict:
     """The contents of ``config.json`` (with a ``suite`` entry when a suite's split was evaluated)."""
@@ -232,7 +238,7 @@ def results_config(methods: Sequence[Method], frames: list, data_root: Path, sta
         "software": software(),
         "created_unix_s": round(started, 3),
         "data_root": str(Path(data_root).resolve()),
-        "methods": {m.label: m.config() for m in methods},
+        "methods": method_configs(methods),
         "frames": frames,
         **({"suite": suite} if suite else {}),
     }

@@ -1,6 +1,7 @@
 """``tri360 methods``: the methods ``--method`` accepts, as text: the named ones (the default marked), the default's
 ablations, the flows and
-variants that the flow pipeline's labels combine, what ``evaluate`` runs by default, and plugins' methods.
+variants that the flow pipeline's labels combine, what ``evaluate`` runs by default, and plugins' methods; with
+``--show LABEL``, one method's whole configuration (:func:`method_config_text`).
 
 Only what can be selected is listed.  Every plugin that failed to load, every outside method, flow or variant that
 its registry refused (a name a built-in or an earlier plugin has, or no string name: each refused name of an entry
@@ -11,7 +12,10 @@ its own instead.
 
 from __future__ import annotations
 
+from harness.commands.evaluate import method_configs
 from harness.commands.parts.plugins import unusable
+from harness.data import jsonio
+from harness.data.errors import UserError
 from reconstruction.flow.backends import ORACLE, flow_registry
 from reconstruction.methods.base import Method
 from reconstruction.methods.flow_pipeline import DEFAULT_FLOW, FlowMethod, config_label
@@ -24,11 +28,12 @@ from reconstruction.methods.registry import (
     PAPER_CONFIG,
     PRESETS,
     builtin_methods,
+    get_methods,
 )
 from reconstruction.plugins import collect_registry
 from reconstruction.refine.lm import variant_registry
 
-__all__ = ["AVERAGE", "ORACLE_TEXT", "method_listing"]
+__all__ = ["AVERAGE", "ORACLE_TEXT", "method_listing", "method_config_text"]
 
 #: what ``average`` is (it is no refinement variant, so it has no registry entry of its own)
 AVERAGE = "no refinement: the mean of the two pairs' triangulated distances (the paper's \"before optimisation\")"
@@ -73,3 +78,18 @@ def method_listing() -> tuple[list[str], list[str]]:
     out += ["", "plugins' methods (entry points of tri360.methods):" if plugins else "plugins' methods: none"]
     out += _rows(plugins)
     return out, [*warnings, *flow_warnings, *variant_warnings]
+
+
+def method_config_text(label: str) -> str:
+    """The whole configuration of the method ``label`` as JSON text: what ``config.json`` records for it
+    (:func:`harness.commands.evaluate.method_configs`), every parameter that changes its result.
+
+    Raises:
+        UserError: an unknown label (one line naming the known ones, :func:`reconstruction.methods.registry.
+            get_methods`).
+    """
+    try:
+        method = get_methods([label])[0]
+    except ValueError as exc:
+        raise UserError(str(exc)) from None
+    return jsonio.dumps(method_configs([method])[method.label])

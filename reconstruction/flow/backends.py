@@ -8,6 +8,11 @@ left/right seam are found, then crops the result back to ``W`` columns.
 A backend that handles the wrap itself (``wraps=True``: its solver treats columns as periodic, e.g.
 ``deepflow``, DeepFlow as published) gets the images unpadded.
 
+A backend's ``params`` are every parameter that changes its flow, and what ``config.json`` records of it: those of
+``deepflow`` are every field of :class:`~reconstruction.flow.deepflow.DeepFlowParams` and of its
+:class:`~reconstruction.flow.deepmatching.DeepMatchingParams`, those of ``epicflow`` DeepMatching's and its padding
+(:func:`backend_params`); a backend with other values is the same ``compute`` with other ``params``.
+
 ``oracle`` is not an image backend: it is the exact correspondence from ground-truth distance and lives in
 :mod:`reconstruction.flow.matching`.  Outside packages add backends through the entry-point group
 ``tri360.flows`` (an entry point loads to a :class:`FlowBackend` or a list of them); :func:`discover_flows`
@@ -16,6 +21,7 @@ finds them.
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import threading
 from collections.abc import Callable
@@ -30,8 +36,9 @@ from reconstruction.flow.deepmatching import DeepMatchingParams, Matches, deep_m
 from reconstruction.plugins import Registry, collect_registry, shadow_message, unknown_name_message
 
 __all__ = ["flow_registry", "refuse_shadowed_flow",
-           "FlowBackend", "ORACLE", "RENAMED_FLOWS", "renamed_flow_note", "builtin_flows", "discover_flows",
-           "get_flow", "available_flows", "equirect_flow"]
+           "FlowBackend", "ORACLE", "RENAMED_FLOWS", "renamed_flow_note", "builtin_flows", "builtin_flow",
+           "discover_flows", "get_flow", "available_flows", "equirect_flow", "MATCHING_PARAMS", "DEEPFLOW_PARAMS",
+           "matching_params", "deepflow_params", "backend_params"]
 
 
 ENTRY_POINT_GROUP = "tri360.flows"
@@ -148,29 +155,65 @@ def cached_matches(img0: np.ndarray, img1: np.ndarray, params: DeepMatchingParam
     return _one_way_of_both(_MATCH_CACHE, img0, img1, repr(params), lambda a, b: deep_matching_both(a, b, params))
 
 
-def _dm_params(downscale, ngh_rad_x, ngh_rad_y, wrap) -> DeepMatchingParams:
-    return DeepMatchingParams(downscale=int(downscale), ngh_rad_x=int(ngh_rad_x), ngh_rad_y=int(ngh_rad_y),
-                              wrap=bool(wrap))
+#: DeepMatching's parameters as a backend's parameters: every field of :class:`DeepMatchingParams` but ``wrap`` (the
+#: backend's own, which its flow step shares)
+MATCHING_PARAMS = tuple(f.name for f in dataclasses.fields(DeepMatchingParams) if f.name != "wrap")
+#: DeepFlow's as the ``deepflow`` backend's parameters: every field of :class:`DeepFlowParams` but ``wrap`` (the
+#: backend's own) and ``matching`` (:data:`MATCHING_PARAMS`, beside them)
+DEEPFLOW_PARAMS = tuple(f.name for f in dataclasses.fields(DeepFlowParams) if f.name not in ("wrap", "matching"))
 
 
-def _deepflow(img0, img1, downscale=1, ngh_rad_x=0, ngh_rad_y=0, wrap=True):
+def _typed(cls, params: dict) -> dict:
+    """``params`` (field name -> value) with each value of ``cls``'s int, float or bool fields made that type (other
+    values as they are)."""
+    kinds = {"int": int, "float": float, "bool": bool}
+    types = {f.name: f.type for f in dataclasses.fields(cls)}
+    return {k: kinds[types[k]](v) if types.get(k) in kinds else v for k, v in params.items()}
+
+
+def matching_params(wrap: bool = True, **params) -> DeepMatchingParams:
+    """The :class:`DeepMatchingParams` of a backend's parameters: ``wrap`` and those of :data:`MATCHING_PARAMS`
+    (one not given keeps its default; an unknown one is a TypeError)."""
+    return DeepMatchingParams(**_typed(DeepMatchingParams, {**params, "wrap": wrap}))
+
+
+def deepflow_params(wrap: bool = True, **params) -> DeepFlowParams:
+    """The :class:`DeepFlowParams` of the ``deepflow`` backend's parameters: ``wrap`` (DeepFlow's and DeepMatching's)
+    and those of :data:`DEEPFLOW_PARAMS` and :data:`MATCHING_PARAMS` (one not given keeps its default; an unknown
+    one is a TypeError)."""
+    own = {k: params.pop(k) for k in DEEPFLOW_PARAMS if k in params}
+    return DeepFlowParams(**_typed(DeepFlowParams, {**own, "wrap": wrap}), matching=matching_params(wrap, **params))
+
+
+def backend_params(params: DeepFlowParams | DeepMatchingParams, **extra) -> dict:
+    """The flat parameters of a backend built on DeepFlow or DeepMatching: every field of ``params`` (and of its
+    matching), ``wrap`` once, then ``extra``; :func:`deepflow_params` and :func:`matching_params` read them back."""
+    matching = params.matching if isinstance(params, DeepFlowParams) else params
+    out = {k: getattr(matching, k) for k in MATCHING_PARAMS}
+    if isinstance(params, DeepFlowParams):
+        out.update({k: getattr(params, k) for k in DEEPFLOW_PARAMS})
+    return {**out, "wrap": params.wrap, **extra}
+
+
+def _deepflow(img0, img1, **params):
     """DeepFlow as published (Weinzaepfel et al. 2013): DeepMatching + the variational energy with its matching
-    term.
+    term; ``params``: :func:`deepflow_params`'s.
 
     The pipeline asks for each pair's forward then backward flow: the first call matches both ways and solves
     both flows at once (:func:`~reconstruction.flow.deepflow.deep_flow_both`, one thread each) and keeps the
     reverse flow for the next call, which returns it if its images are the first call's, swapped."""
-    p = DeepFlowParams(wrap=bool(wrap), matching=_dm_params(downscale, ngh_rad_x, ngh_rad_y, wrap))
+    p = deepflow_params(**params)
     return _one_way_of_both(_FLOW_CACHE, img0, img1, repr(p), lambda a, b: deep_flow_both(a, b, p))
 
 
-def _epicflow(img0, img1, downscale=1, ngh_rad_x=0, ngh_rad_y=0, wrap=True, pad=32):
-    """EpicFlow route: DeepMatching matches, OpenCV's edge-aware interpolation, OpenCV variational refinement.
+def _epicflow(img0, img1, wrap=True, pad=32, **matching):
+    """EpicFlow route: DeepMatching matches (``wrap`` and ``matching``: :func:`matching_params`'s), OpenCV's
+    edge-aware interpolation, OpenCV variational refinement.
 
     OpenCV's interpolator and refinement know no periodic boundary, so the matched images are padded by ``pad``
     columns from the opposite edge for those two steps.
     """
-    dm = _dm_params(downscale, ngh_rad_x, ngh_rad_y, wrap)
+    dm = matching_params(wrap, **matching)
     m = cached_matches(img0, img1, dm)
     h, w = img0.shape[:2]
     pad = int(min(pad, w)) if wrap else 0
@@ -233,12 +276,12 @@ def builtin_flows() -> list[FlowBackend]:
     out = [
         FlowBackend("deepflow", _deepflow, "DeepFlow as published (Weinzaepfel et al. 2013): DeepMatching + the "
                     "variational energy with its matching term; periodic in longitude",
-                    params={"downscale": 1, "ngh_rad_x": 0, "ngh_rad_y": 0, "wrap": True}, min_width=60,
+                    params=backend_params(DeepFlowParams()), min_width=60,
                     wraps=True, warm_up=_warm_deepflow),
         FlowBackend("deepflow-opencv", _opencv_deepflow, "OpenCV's DeepFlow: the variational energy only (no "
                     "DeepMatching, no matching term), on images padded at the seam", min_width=8),
         FlowBackend("epicflow", _epicflow, "DeepMatching + OpenCV edge-aware interpolation + variational refinement",
-                    params={"downscale": 1, "ngh_rad_x": 0, "ngh_rad_y": 0, "wrap": True, "pad": 32},
+                    params=backend_params(DeepMatchingParams(), pad=32),
                     min_width=60, wraps=True, warm_up=_warm_matching),
         FlowBackend("dis", _dis, "OpenCV DIS, medium preset, stride 3, variational refinement",
                     params={"preset": "medium", "finest_scale": 0, "patch_size": 8, "patch_stride": 3,
@@ -252,6 +295,25 @@ def builtin_flows() -> list[FlowBackend]:
         out.append(FlowBackend("rlof", _rlof, "OpenCV dense RLOF",
                                params={"min_grid_step": 6, "max_matches": 30000}, min_width=60))
     return out
+
+
+def builtin_flow(name: str, params: dict) -> FlowBackend:
+    """The built-in backend ``name`` (:func:`builtin_flows`) with ``params`` as its parameters, which must name
+    every parameter it has and no other (a preset writes its flow's parameters out in full,
+    :mod:`reconstruction.methods.presets`).
+
+    Raises:
+        ValueError: ``name`` is no built-in backend, or ``params`` lacks one of its parameters or has another.
+    """
+    flows = {b.name: b for b in builtin_flows()}
+    if name not in flows:
+        raise ValueError(f"no built-in flow {name!r} (built in: {', '.join(sorted(flows))})")
+    base = flows[name]
+    missing, unknown = sorted(set(base.params) - set(params)), sorted(set(params) - set(base.params))
+    if missing or unknown:
+        raise ValueError(f"flow {name}: parameters missing: {', '.join(missing) or 'none'}; unknown: "
+                         f"{', '.join(unknown) or 'none'}")
+    return dataclasses.replace(base, params=dict(params))
 
 
 def flow_registry() -> Registry:

@@ -63,9 +63,6 @@ __all__ = ["DEFAULT_FLOW", "PAIRS", "Reconstruction", "Calibration", "reconstruc
 
 DEFAULT_FLOW = "dis"  # chosen by measurement, see docs/refinement.md
 PAIRS = ("U", "R")
-PREPASS_FLOW = "dis"
-"""The flow of the photometric pre-pass (on rectified, reduced images), whatever the configured flow: it only needs
-correspondences good enough to fit a smooth gain field, fast."""
 
 
 def available_variants() -> list[str]:
@@ -471,7 +468,7 @@ def self_calibrate(frame, photometric: PhotometricParams, rig: RigParams, limits
     """The frame's self-calibration: U's and R's rotations and the cameras' photometric differences, each applied
     only where the frame's own evidence supports it (:mod:`reconstruction.evidence`).
 
-    A flow pass (:data:`PREPASS_FLOW` on rectified images reduced by ``photometric.prepass_factor``, after each
+    A flow pass (``photometric.prepass_flow`` on rectified images reduced by ``photometric.prepass_factor``, after each
     channel's median gain from the same pixels so that it matches across an exposure difference) gives the
     correspondences; the rig fit (:func:`reconstruction.rig_calibration.fit_rotation`) runs on its matches, the
     matches are triangulated again with the applied poses, and the photometric fit
@@ -498,7 +495,7 @@ def self_calibrate(frame, photometric: PhotometricParams, rig: RigParams, limits
         quick = dataclasses.replace(photometric, iterations=0)
         matched = FrameView(frame, images=align_images(frame.images, frame.cameras, quick)[0])
     small = reduced_frame(matched, max(photometric.prepass_factor, 1))
-    prep = prepare(small, PREPASS_FLOW, True, limits)
+    prep = prepare(small, photometric.prepass_flow, True, limits)
     d_pair, valid = [prep.d_pair[k] for k in PAIRS], [prep.valid[k] for k in PAIRS]
     cameras = dict(frame.cameras)
     if rig.mode != "none":
@@ -508,7 +505,9 @@ def self_calibrate(frame, photometric: PhotometricParams, rig: RigParams, limits
             m = prep.matches[k]
             fit = fit_rotation(prep.bearings, usable_matches(small.images["C"], m.bearing, m.fb_error_px,
                                                              prep.valid[k], rig), m.baseline,
-                               min_sin=rig.min_sin, alpha=rig.alpha)
+                               min_sin=rig.min_sin, iterations=rig.iterations, tukey_c=rig.tukey_c,
+                               max_matches=rig.max_matches, alpha=rig.alpha, longitude_blocks=rig.longitude_blocks,
+                               min_block_samples=rig.min_block_samples)
             fit["applied"] = bool(fit["evidence"]["supported"] and rig.min_degrees <= fit["degrees"] <= rig.max_degrees
                                   and fit["degrees"] > 0)
             fits[k] = fit

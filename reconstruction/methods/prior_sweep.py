@@ -1,6 +1,6 @@
 """The flow-prior sweep: the sphere sweep with the flow pipeline's distance as a prior inside SGM
 (:class:`PriorSweepMethod`).  The built-in ``fused`` and the default ``fused-mirror`` (presets in
-:mod:`reconstruction.methods.registry`) are two; ``fused-mirror`` is tri360's most accurate method.
+:mod:`reconstruction.methods.presets`) are two; ``fused-mirror`` is tri360's most accurate method.
 
 The flow pipeline (DIS on rectified pairs + the ``gradient`` LM variant) matches large structures well (coarse-
 to-fine flow) but blurs edges and is noisy on weak texture; the trinocular sweep is sharp and robust to glossy

@@ -1,9 +1,12 @@
 """The method registry: built-in methods plus outside ones (entry-point group ``tri360.methods``).
 
-Built in: the named methods of :data:`PRESETS` (one line each on what it does; ``tri360 methods`` lists them), and
-every configuration of the paper's flow pipeline, labelled ``<flow>-<rect|plain>:<variant>`` for each flow backend
+Built in: the named methods of :data:`PRESETS` and :data:`ABLATIONS` (one line each on what it does; ``tri360
+methods`` lists them), each written out in full in :mod:`reconstruction.methods.presets`, and every configuration
+of the paper's flow pipeline, labelled ``<flow>-<rect|plain>:<variant>`` for each flow backend
 (:func:`reconstruction.flow.backends.discover_flows`, plus ``oracle``), rectified and plain, and each of
 ``average`` and the refinement variants (:func:`reconstruction.refine.lm.discover_variants`).
+:func:`with_photometric` and :func:`uncalibrated` derive a variation of a flow-prior sweep (the research tools'
+candidates, ``tools.bench.sweep``'s ``<label>-raw``); no preset is built with them.
 An outside package declares methods with an entry point that loads to a :class:`Method`, a list of them,
 or a function returning them.  Nothing is registered at import time: :func:`discover_methods` builds the
 registry each time it is called.
@@ -12,8 +15,7 @@ registry each time it is called.
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from collections.abc import Sequence
 
 from reconstruction.flow.backends import (
     ORACLE,
@@ -25,21 +27,17 @@ from reconstruction.flow.backends import (
 )
 from reconstruction.methods.base import Method
 from reconstruction.methods.flow_pipeline import DEFAULT_FLOW, FlowMethod
-from reconstruction.methods.prior_sweep import PriorParams, PriorSweepMethod
-from reconstruction.methods.sweep import SweepMethod
+from reconstruction.methods.presets import ABLATIONS, DEFAULT_METHOD, PRESETS, Preset
+from reconstruction.methods.prior_sweep import PriorSweepMethod
 from reconstruction.photometry import NO_CALIBRATION, PhotometricParams
 from reconstruction.plugins import collect_registry, merge_registry, shadow_message
 from reconstruction.refine.lm import refuse_shadowed_variant, variant_registry
 from reconstruction.rig_calibration import NO_RIG_CALIBRATION
 from reconstruction.sweep.cost import CostParams
-from reconstruction.sweep.planes import PlaneParams
 
 __all__ = ["ENTRY_POINT_GROUP", "DEFAULT_CONFIGS", "DEFAULT_METHOD", "DEFAULT_VARIANTS", "PAPER_CONFIG",
-           "WALL_PLANES", "ADAPTIVE_PRIOR", "GATED_PRIOR", "builtin_methods", "discover_methods", "get_methods",
-           "MIRROR_PLANES", "MIRROR_INTENSITY_WEIGHT", "MIRROR_BLUR_PX",
-           "flow_methods", "evaluate_default_methods", "fused_method", "adaptive_method", "gated_method",
-           "mirror_method", "Preset", "PRESETS", "ABLATIONS", "former_label_note", "with_photometric",
-           "uncalibrated", "told_poses", "images_as_they_are"]
+           "builtin_methods", "discover_methods", "get_methods", "flow_methods", "evaluate_default_methods", "Preset",
+           "PRESETS", "ABLATIONS", "former_label_note", "with_photometric", "uncalibrated"]
 
 ENTRY_POINT_GROUP = "tri360.methods"
 #: the paper's set-up: DeepFlow as published (DeepMatching + the DeepFlow energy) on rectified pairs (the baseline
@@ -47,42 +45,6 @@ ENTRY_POINT_GROUP = "tri360.methods"
 PAPER_CONFIG = ("deepflow", True)
 #: flow configurations evaluated by default: tri360's and the paper's set-up, both on rectified pairs
 DEFAULT_CONFIGS = [(DEFAULT_FLOW, True), PAPER_CONFIG]
-#: what ``tri360 reconstruct`` runs by default, :func:`mirror_method`: its matching chosen by
-#: ``python -m tools.research.select_matching`` on the dev split of suites/tri360-v1.toml (docs/matching.md), its
-#: photometric self-calibration and intensity weight by ``python -m tools.research.select_photometric`` on the dev split
-#: of suites/tri360-v2.toml under both conditions (docs/photometry.md)
-DEFAULT_METHOD = "fused-mirror"
-#: the plane labels of ``fused-adaptive`` and ``fused-gated``: the sweep's horizontal planes plus 9 labels per wall
-#: found by the coarse pass
-WALL_PLANES = PlaneParams(wall_labels=9)
-#: ``fused-mirror``'s plane labels: :data:`WALL_PLANES` with the mirror test of the room bound (a floor found by the
-#: coarse pass within 20 % of where the ceiling's mirror image in a nearer, well-supported plane would be is that
-#: mirror image: the nearer plane is the floor; likewise for the ceiling).  20 % is about two plane-label spacings
-#: (the 32 heights per side are 9.5 % apart); on the dev split the mirrored floors it corrects lie 12-14 % off.
-MIRROR_PLANES = dataclasses.replace(WALL_PLANES, mirror_tolerance=0.2)
-#: ``fused-mirror``'s weight of the intensity difference in the sweep cost (the gradients' is 2): chosen by
-#: ``python -m tools.research.select_photometric`` among 1, 0.5 and 0.25 on the dev split under both conditions
-#: (docs/photometry.md)
-MIRROR_INTENSITY_WEIGHT = 0.25
-#: ``fused-mirror``'s Gaussian blur of the sweep's grey images, pixels: what a real camera's noise and JPEG leave
-#: on far, weakly textured surfaces weighs less in the gradients; chosen by
-#: ``python -m tools.research.select_photometric`` among 0, 0.5, 0.7 and 1 on the dev split under both conditions
-#: (docs/photometry.md)
-MIRROR_BLUR_PX = 0.7
-#: ``fused-mirror``'s sweep, when the self-calibration corrected the images, blurs them by 1 px per gray level of
-#: noise above 1 (up to 1.5 px; never less than :data:`MIRROR_BLUR_PX`): rendered frames measure 0.1-0.2 gray
-#: levels, the suite's captured cameras 0.3-1.0 and its low-light ones 0.6-6
-#: (``reconstruction.sweep.cost.image_noise``, tri360-v3 dev, docs/photometry.md)
-MIRROR_NOISE_BLUR = 1.0
-#: ``fused-adaptive``'s prior weight: ``fused``'s, scaled by the share of pixels where the flow and the plain coarse
-#: sweep agree within 5 %: 0 below 60 %, full above 80 % (:class:`reconstruction.methods.prior_sweep.PriorParams`)
-ADAPTIVE_PRIOR = PriorParams(frame_agreement_low=0.6, frame_agreement_high=0.8)
-#: ``fused-gated``'s (and the default ``fused-mirror``'s) prior weight: ``fused``'s, times a ramp of C's local
-#: contrast (0 below 0.5, full above 2 gray levels: no prior where there is no texture for the flow to follow), times
-#: ``1 - c_sweep`` where the flow and the plain coarse sweep disagree by more than 5 % (a confident sweep keeps its
-#: answer), times the frame's agreement share ramped from 0 at 50 % to full at 70 %
-GATED_PRIOR = PriorParams(contrast_low=0.5, contrast_high=2.0, sweep_confidence_power=1.0, frame_agreement_low=0.5,
-                          frame_agreement_high=0.7)
 DEFAULT_VARIANTS = ("average", "angle", "gradient", "color")
 """The variants ``tri360 evaluate`` runs by default: the paper's (``color-rgb`` and ``color-patch``, its next steps,
 measured no better on classroom frames, run when asked for)."""
@@ -130,47 +92,7 @@ def _plugin_note(errors: dict[str, str]) -> str:
     return ("; plugins that failed to load: " + "; ".join(f"{k}: {v}" for k, v in errors.items())) if errors else ""
 
 
-def fused_method() -> PriorSweepMethod:
-    """``fused``: the sweep with the ``{DEFAULT_FLOW}-rect:gradient`` distance as prior (docs/matching.md)."""
-    return PriorSweepMethod(flow=flow_methods([DEFAULT_FLOW], [True], ["gradient"])[0])
-
-
-def adaptive_method() -> PriorSweepMethod:
-    """``fused-adaptive``: ``fused``'s flow prior in the sweep with :data:`WALL_PLANES`,
-    weighted by :data:`ADAPTIVE_PRIOR` (chosen on the suite's dev split, docs/matching.md)."""
-    base = fused_method()
-    return PriorSweepMethod(flow=base.flow, sweep=dataclasses.replace(base.sweep, planes=WALL_PLANES),
-                       prior=ADAPTIVE_PRIOR, label="fused-adaptive")
-
-
-def gated_method() -> PriorSweepMethod:
-    """``fused-gated``: the sweep with :data:`WALL_PLANES` and the
-    ``{DEFAULT_FLOW}-rect:average`` distance (the flow pipeline without its LM: about 0.6 s less per 1000x500 frame
-    than ``fused``'s) as prior, weighted by :data:`GATED_PRIOR` (chosen on the suite's dev split,
-    docs/matching.md).  The quality measures compare its distance with ``fused``'s refined flow distance
-    (``quality_flow``; computed only when the quality is assessed): on the dev split that ranks pixels by error
-    better than the unrefined prior (docs/real-captures.md)."""
-    base = fused_method()
-    return PriorSweepMethod(flow=flow_methods([DEFAULT_FLOW], [True], ["average"])[0],
-                       sweep=dataclasses.replace(base.sweep, planes=WALL_PLANES), prior=GATED_PRIOR,
-                       label="fused-gated", quality_flow=base.flow)
-
-
-def mirror_method() -> PriorSweepMethod:
-    """``fused-mirror`` (the default): ``fused-gated`` with :data:`MIRROR_PLANES`, so that the room bound holds on
-    polished floors whose mirror image of the ceiling wins the coarse pass, and the sweep cost's intensity term
-    weighted :data:`MIRROR_INTENSITY_WEIGHT` (what a gain difference between the cameras leaves after the
-    self-calibration weighs less against the gradients) and its images blurred by :data:`MIRROR_BLUR_PX` when the
-    self-calibration changed the images (cameras that agree are matched with the sweep's own cost), then more
-    (:data:`MIRROR_NOISE_BLUR`) where the images are noisier than the suite's captured cameras; chosen on the dev
-    split of suites/tri360-v2.toml under both conditions and of tri360-v3 under its low-light family
-    (docs/photometry.md)."""
-    gated = gated_method()
-    corrected = dataclasses.replace(gated.sweep.cost, intensity_weight=MIRROR_INTENSITY_WEIGHT,
-                                    blur_px=MIRROR_BLUR_PX, noise_blur=MIRROR_NOISE_BLUR)
-    return dataclasses.replace(gated, sweep=dataclasses.replace(gated.sweep, planes=MIRROR_PLANES,
-                                                                corrected_cost=corrected),
-                               label="fused-mirror")
+# ------------------------------------------------------------------------------- variations, for the tools
 
 
 def with_photometric(method: PriorSweepMethod, params: PhotometricParams, label: str) -> PriorSweepMethod:
@@ -185,9 +107,9 @@ def with_photometric(method: PriorSweepMethod, params: PhotometricParams, label:
 
 def uncalibrated(method: PriorSweepMethod) -> PriorSweepMethod:
     """``method`` matching the images as they are with the told poses (no photometric or rig self-calibration) and
-    the sweep cost's default intensity weight and blur, labelled ``<label>-raw``: the ablation that shows what the
-    self-calibration and the weight chosen with it do (on cameras that meter each on their own they are what keeps
-    the sweep working)."""
+    the sweep cost's default intensity weight and blur always (no ``corrected_cost``), labelled ``<label>-raw``: the
+    ablation that shows what the self-calibration and the cost chosen with it do (``uncalibrated(fused_mirror())``
+    is the built-in :func:`reconstruction.methods.presets.fused_mirror_raw`)."""
     raw = with_photometric(method, NO_CALIBRATION, f"{method.label}-raw")
     cost = dataclasses.replace(raw.sweep.cost, intensity_weight=CostParams().intensity_weight,
                                blur_px=CostParams().blur_px)
@@ -196,76 +118,6 @@ def uncalibrated(method: PriorSweepMethod) -> PriorSweepMethod:
                                flow=dataclasses.replace(raw.flow, rig=NO_RIG_CALIBRATION),
                                quality_flow=None if quality is None else dataclasses.replace(quality,
                                                                                              rig=NO_RIG_CALIBRATION))
-
-
-@dataclass(frozen=True)
-class Preset:
-    """A named built-in method.
-
-    Attributes:
-        label: its label (``--method``).
-        build: makes the method.
-        description: one line: what it does and how it differs from the other presets.
-    """
-
-    label: str
-    build: Callable[[], Method]
-    description: str
-
-
-#: the named built-in methods, the default (:data:`DEFAULT_METHOD`) among them; every flow-pipeline configuration
-#: (``<flow>-<rect|plain>:<variant>``) is built in as well (:func:`flow_methods`)
-PRESETS = (
-    Preset("fused-mirror", mirror_method,
-           "the sweep over spheres, floor/ceiling and wall planes with the unrefined dis-rect distance as SGM prior, "
-           "weighted by C's texture, the sweep's confidence and how much of the frame the two agree on; its room "
-           "bound tells a polished floor's mirror image of the ceiling from the floor; its cost weighs intensity "
-           "0.25 against gradients 2 on images blurred by 0.7 px when the self-calibration corrected them; the "
-           "cameras' gains, fall-off and rotations self-calibrated where the frame's evidence supports it"),
-    Preset("fused", fused_method,
-           "the sweep over spheres and floor/ceiling planes (no wall planes) with the refined dis-rect:gradient "
-           "distance as SGM prior at one constant weight"),
-    Preset("sweep", SweepMethod,
-           "the trinocular sphere sweep with SGM over spheres and floor/ceiling planes alone: no flow, no prior"),
-)
-
-
-def told_poses(method: PriorSweepMethod, label: str) -> PriorSweepMethod:
-    """``method`` with the told poses (no rig self-calibration, its photometric one as it is), labelled ``label``."""
-    quality = method.quality_flow
-    return dataclasses.replace(method, label=label, flow=dataclasses.replace(method.flow, rig=NO_RIG_CALIBRATION),
-                               quality_flow=None if quality is None else dataclasses.replace(quality,
-                                                                                             rig=NO_RIG_CALIBRATION))
-
-
-def images_as_they_are(method: PriorSweepMethod, label: str) -> PriorSweepMethod:
-    """``method`` matching the images as they are (no photometric self-calibration, the sweep's own cost; its rig
-    self-calibration as it is), labelled ``label``."""
-    m = with_photometric(method, NO_CALIBRATION, label)
-    return dataclasses.replace(m, sweep=dataclasses.replace(m.sweep, corrected_cost=None))
-
-
-#: the default with one part switched off, and the methods it grew from: each is built in (``--method``), listed
-#: by ``tri360 methods`` under "ablations", and measured in the docs
-ABLATIONS = (
-    Preset("fused-mirror-raw", lambda: uncalibrated(mirror_method()),
-           "fused-mirror matching the images as they are with the told poses (no self-calibration, the sweep's own "
-           "cost)"),
-    Preset("fused-mirror-told-rig", lambda: told_poses(mirror_method(), "fused-mirror-told-rig"),
-           "fused-mirror with the told poses (its photometric self-calibration only)"),
-    Preset("fused-mirror-raw-images", lambda: images_as_they_are(mirror_method(), "fused-mirror-raw-images"),
-           "fused-mirror matching the images as they are (its rig self-calibration only, the sweep's own cost)"),
-    Preset("fused-mirror-shared-falloff",
-           lambda: with_photometric(mirror_method(), dataclasses.replace(PhotometricParams(), common_field=True),
-                                    "fused-mirror-shared-falloff"),
-           "fused-mirror that also removes the fall-off all three cameras share, where the frame supports it "
-           "(PhotometricParams.common_field)"),
-    Preset("fused-gated", gated_method,
-           "fused-mirror without the room bound's mirror test and with the sweep's own cost always"),
-    Preset("fused-adaptive", adaptive_method,
-           "the wall-plane sweep with fused's refined dis-rect:gradient distance as prior, weighted by the frame's "
-           "flow/sweep agreement only (60-80 %), not by C's texture or the sweep's confidence"),
-)
 
 
 def builtin_methods() -> list[Method]:

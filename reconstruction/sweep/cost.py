@@ -47,7 +47,7 @@ from reconstruction.camera.resample import WRAP_PAD, rectifying_rotation, rotati
 
 __all__ = ["CostParams", "PairWarp", "FEATURES", "RANK_RADIUS_PX", "NORM_SIGMA_PX", "NORM_EPS", "NORM_SCALE",
            "inverse_distances", "gray_float", "rank_transform", "local_normalize", "feature_image", "prepare_pair",
-           "build_cost_volume", "source_rows", "rect_row", "MAX_NOISE_BLUR_PX", "image_noise", "noise_blur_px"]
+           "build_cost_volume", "source_rows", "rect_row", "image_noise", "noise_blur_px"]
 
 #: the per-pixel features of the cost (``CostParams.feature``; module doc)
 FEATURES = ("intensity", "rank", "normalized")
@@ -59,8 +59,6 @@ NORM_SIGMA_PX = 5.0
 NORM_EPS = 8.0
 #: gray levels per local standard deviation of the normalised intensity
 NORM_SCALE = 16.0
-#: the largest blur the images' noise raises ``CostParams.blur_px`` to, pixels
-MAX_NOISE_BLUR_PX = 1.5
 _LAPLACIAN_DIFFERENCE = np.array([[1, -2, 1], [-2, 4, -2], [1, -2, 1]], np.float32)
 
 
@@ -85,9 +83,10 @@ class CostParams:
             (gray levels, 0-255), ``"rank"`` (rank transform, 0-255) or ``"normalized"`` (locally normalised
             intensity, gray-level units, typically within +-3 :data:`NORM_SCALE`).
         noise_blur, noise_floor: the blur grows with the images' noise: ``blur_px`` becomes
-            ``noise_blur * (noise - noise_floor)`` where that is larger (at most :data:`MAX_NOISE_BLUR_PX`), with
+            ``noise_blur * (noise - noise_floor)`` where that is larger (at most ``max_noise_blur_px``), with
             ``noise`` the largest :func:`image_noise` of the frame's images, gray levels (:func:`noise_blur_px`);
             ``noise_blur`` in pixels per gray level, 0 = off.
+        max_noise_blur_px: the largest blur the images' noise raises ``blur_px`` to, pixels.
     """
 
     d_min_m: float = 0.3
@@ -103,12 +102,15 @@ class CostParams:
     feature: str = "intensity"
     noise_blur: float = 0.0
     noise_floor: float = 1.0
+    max_noise_blur_px: float = 1.5
 
     def __post_init__(self) -> None:
         if self.feature not in FEATURES:
             raise ValueError(f"unknown cost feature {self.feature!r} (known: {', '.join(FEATURES)})")
         if not (self.noise_blur >= 0 and self.noise_floor >= 0):
             raise ValueError(f"cost noise_blur {self.noise_blur} and noise_floor {self.noise_floor} must be >= 0")
+        if not self.max_noise_blur_px >= 0:
+            raise ValueError(f"cost max_noise_blur_px must be >= 0, got {self.max_noise_blur_px}")
 
     def max_cost(self) -> int:
         """Largest possible summed cost, uint16 units (both pairs' weights sum to at most 2)."""
@@ -137,7 +139,7 @@ def noise_blur_px(params: CostParams, noise: float) -> float:
     """The blur (pixels) of ``params`` for images of ``noise`` gray levels (``CostParams.noise_blur``)."""
     if params.noise_blur <= 0 or not noise > params.noise_floor:
         return params.blur_px
-    return max(params.blur_px, min(params.noise_blur * (noise - params.noise_floor), MAX_NOISE_BLUR_PX))
+    return max(params.blur_px, min(params.noise_blur * (noise - params.noise_floor), params.max_noise_blur_px))
 
 
 def inverse_distances(params: CostParams) -> np.ndarray:

@@ -10,7 +10,7 @@ import pytest
 
 from harness.cli import main
 from harness.data.exr import read_float_map
-from reconstruction.methods.registry import DEFAULT_METHOD, PRESETS
+from reconstruction.methods.registry import DEFAULT_METHOD, PRESETS, get_methods
 from reports.schema import RESULT_COLUMNS
 
 
@@ -106,6 +106,34 @@ def test_methods_lists_presets_flows_variants_and_defaults(capsys):
     assert "OpenCV" in flows["deepflow-opencv"] and "tri360's flow" in flows["dis"]
     assert ("'tri360 evaluate' runs by default: fused-mirror, sweep, dis-rect:{average,angle,gradient,color}, "
             "deepflow-rect:{average,angle,gradient,color}") in lines
+
+
+def test_methods_show_prints_what_config_json_records(synthetic_root, tmp_path, capsys):
+    """``tri360 methods --show LABEL``: the method's whole configuration, the entry ``config.json`` of a results set
+    records for it; the default's in full, the paper's set-up with DeepFlow's and DeepMatching's parameters."""
+    out = tmp_path / "res"
+    assert main(["evaluate", str(synthetic_root), "--out", str(out), "--method", "oracle-rect:average",
+                 "--no-report", "--quiet"]) == 0
+    recorded = json.loads((out / "config.json").read_text())["methods"]["oracle-rect:average"]
+    capsys.readouterr()
+    assert main(["methods", "--show", "oracle-rect:average"]) == 0
+    assert json.loads(capsys.readouterr().out) == recorded
+    assert main(["methods", "--show", "fused-mirror"]) == 0
+    shown = json.loads(capsys.readouterr().out)
+    assert shown == json.loads(json.dumps(get_methods(["fused-mirror"])[0].config()))
+    assert shown["sweep"]["corrected_cost"]["intensity_weight"] == 0.25
+    assert shown["flow"]["photometric"]["prepass_flow"] == "dis" and shown["flow"]["rig"]["max_matches"] == 40000
+    assert main(["methods", "--show", "deepflow-rect:gradient"]) == 0
+    params = json.loads(capsys.readouterr().out)["flow"]["params"]
+    assert {"alpha": 6.0, "beta": 390.0, "n_solver": 25, "downscale": 1, "hog_sigmoid": 0.2}.items() <= params.items()
+
+
+def test_methods_show_of_an_unknown_label_is_one_line(capsys):
+    assert main(["methods", "--show", "nope"]) == 2
+    captured = capsys.readouterr()
+    err = captured.err.strip().splitlines()
+    assert captured.out == "" and len(err) == 1
+    assert err[0].startswith("tri360 methods: error: unknown method(s) nope (named methods: fused-mirror")
 
 
 def test_report_names_the_results_set_where_it_lives(synthetic_root, tmp_path, capsys):

@@ -260,10 +260,10 @@ def test_a_quality_reference_the_method_does_not_compute_runs_along(capture, tmp
     ``quality_flow``): evaluate runs that flow method along on a frame without ground truth, reports only the asked
     method, and its disagreement map is assess's with that method's distance as the reference."""
     from reconstruction.methods.base import reference_distance, run_methods, with_references
-    from reconstruction.methods.registry import fused_method, mirror_method
+    from reconstruction.methods.presets import fused, fused_mirror
 
     _, root, frame_dir = capture
-    method, flow = mirror_method(), fused_method().flow
+    method, flow = fused_mirror(), fused().flow
     assert method.reference_method.label == flow.label != method.flow.label
     assert [m.label for m in with_references([method])] == [method.label, flow.label]
     assert [m.label for m in with_references([method, flow])] == [method.label, flow.label]

@@ -16,7 +16,6 @@ from reconstruction.photometry import srgb_to_linear
 from reconstruction.sweep import cost as cost_module
 from reconstruction.sweep.cost import (
     FEATURES,
-    MAX_NOISE_BLUR_PX,
     RANK_RADIUS_PX,
     CostParams,
     _features,
@@ -184,12 +183,12 @@ def test_a_configuration_from_before_the_feature_reads_as_the_intensity():
     (tools.research.validate_quality), not for a gain-free feature."""
     import json
 
-    from reconstruction.methods.registry import mirror_method
+    from reconstruction.methods.presets import fused_mirror
     from tools.research.validate_quality import config_difference
 
-    old = json.loads(json.dumps(mirror_method().config()))
+    old = json.loads(json.dumps(fused_mirror().config()))
     del old["sweep"]["cost"]["feature"], old["sweep"]["corrected_cost"]["feature"]
-    assert config_difference(old, mirror_method().config()) is None
+    assert config_difference(old, fused_mirror().config()) is None
     assert config_difference(old, feature_method("rank").config()).endswith("'intensity' vs 'rank'")
 
 
@@ -197,9 +196,9 @@ def test_a_configuration_from_before_the_feature_reads_as_the_intensity():
 def test_the_measured_variants_use_the_feature_in_both_costs(feature):
     """tools.research.select_cost: ``fused-mirror`` with ``feature`` in its sweep's cost and corrected cost, every
     other parameter the default's."""
-    from reconstruction.methods.registry import mirror_method
+    from reconstruction.methods.presets import fused_mirror
 
-    base, method = mirror_method(), feature_method(feature)
+    base, method = fused_mirror(), feature_method(feature)
     assert method.sweep.cost == dataclasses.replace(base.sweep.cost, feature=feature)
     assert method.sweep.corrected_cost == dataclasses.replace(base.sweep.corrected_cost, feature=feature)
     assert method.label == ("fused-mirror" if feature == "intensity" else f"fused-mirror-{feature}")
@@ -223,7 +222,8 @@ def test_noise_blur_grows_with_the_noise_above_its_floor_only():
     params = CostParams(blur_px=0.7, noise_blur=1.0, noise_floor=1.0)
     assert noise_blur_px(params, 0.5) == 0.7 and noise_blur_px(params, 1.5) == 0.7  # never below the cost's blur
     assert noise_blur_px(params, 2.2) == pytest.approx(1.2, abs=1e-12)
-    assert noise_blur_px(params, 9.0) == MAX_NOISE_BLUR_PX
+    assert noise_blur_px(params, 9.0) == params.max_noise_blur_px == 1.5  # at most that
+    assert noise_blur_px(dataclasses.replace(params, max_noise_blur_px=2.0), 9.0) == 2.0
     assert noise_blur_px(CostParams(blur_px=0.7), 9.0) == 0.7  # noise_blur 0: off
     with pytest.raises(ValueError, match="noise_blur"):
         CostParams(noise_blur=-1.0)

@@ -2,13 +2,26 @@
 
 from __future__ import annotations
 
+import ast
+import dataclasses
+import inspect
 import json
 import textwrap
 
 import numpy as np
 import pytest
 
-from reconstruction.flow.backends import FlowBackend, builtin_flows, discover_flows
+from reconstruction.flow.backends import (
+    FlowBackend,
+    builtin_flow,
+    builtin_flows,
+    deepflow_params,
+    discover_flows,
+    get_flow,
+)
+from reconstruction.flow.deepflow import DeepFlowParams
+from reconstruction.flow.deepmatching import DeepMatchingParams
+from reconstruction.methods import presets
 from reconstruction.methods.base import Method, MethodOutput, flow_fields, run_methods
 from reconstruction.methods.flow_pipeline import FlowMethod
 from reconstruction.methods.registry import (
@@ -20,6 +33,7 @@ from reconstruction.methods.registry import (
     evaluate_default_methods,
     flow_methods,
     get_methods,
+    uncalibrated,
 )
 from reconstruction.refine.lm import RefineConfig, builtin_variants, discover_variants, get_variant
 from reports.metrics import summary
@@ -220,3 +234,100 @@ def test_flow_backend_parameters_reach_compute():
     backend(np.zeros((4, 8, 3), np.uint8), np.zeros((4, 8, 3), np.uint8))
     assert seen == {"scale": 3.0} and backend.config()["params"] == {"scale": 3.0}
     assert FlowMethod(backend).label == "p-rect:average"
+
+
+def test_deepflow_and_deepmatching_parameters_are_the_backends_and_reach_them():
+    """Every field of DeepFlowParams and of its DeepMatchingParams is a parameter of the ``deepflow`` backend (so
+    ``config.json`` records it) and a changed one reaches the solver's parameters."""
+    params = get_flow("deepflow").params
+    assert deepflow_params(**params) == DeepFlowParams()
+    deepflow_fields = {f.name for f in dataclasses.fields(DeepFlowParams)} - {"matching"}
+    matching_fields = {f.name for f in dataclasses.fields(DeepMatchingParams)}
+    assert set(params) == deepflow_fields | matching_fields
+    assert set(get_flow("epicflow").params) == matching_fields | {"pad"}
+    config = get_methods(["deepflow-rect:gradient"])[0].config()["flow"]["params"]
+    assert config["alpha"] == 6.0 and config["n_solver"] == 25 and config["hog_sigmoid"] == 0.2
+    changed = deepflow_params(**{**params, "alpha": 3.0, "cell_px": 2, "wrap": False})
+    assert (changed.alpha, changed.matching.cell_px, changed.wrap, changed.matching.wrap) == (3.0, 2, False, False)
+
+
+def test_a_builtin_flow_takes_every_parameter_or_none():
+    dis = get_flow("dis")
+    assert builtin_flow("dis", dict(dis.params)) == dis
+    with pytest.raises(ValueError, match="flow dis: parameters missing: preset; unknown: none"):
+        builtin_flow("dis", {k: v for k, v in dis.params.items() if k != "preset"})
+    with pytest.raises(ValueError, match="missing: none; unknown: bogus"):
+        builtin_flow("dis", {**dis.params, "bogus": 1})
+    with pytest.raises(ValueError, match="no built-in flow 'nope'"):
+        builtin_flow("nope", {})
+
+
+# ------------------------------------------------------------------------------------------ presets as data
+
+#: the dataclasses of a method's configuration that a preset must write out in full
+PARAMETER_CLASSES = {"PriorSweepMethod", "FlowMethod", "SweepMethod", "CostParams", "PlaneParams", "SgmParams",
+                     "PostParams", "PriorParams", "PhotometricParams", "RigParams", "TriangulationLimits",
+                     "RefineConfig"}
+
+
+def preset_problems(source: str, namespace: dict, preset_functions: set[str]) -> tuple[list[str], set[str]]:
+    """What keeps ``source`` (a presets module) from writing its presets out in full: a call of a dataclass of
+    ``namespace`` (but :class:`~reconstruction.methods.presets.Preset`, the table) that leaves a field to its default,
+    passes one positionally or unpacks ``**``; a call of a preset function; any ``replace(...)``.
+
+    Returns:
+        ``(problems, the dataclasses called)``.
+    """
+    problems, called = [], set()
+    for node in ast.walk(ast.parse(source)):
+        if not isinstance(node, ast.Call):
+            continue
+        name = node.func.id if isinstance(node.func, ast.Name) else getattr(node.func, "attr", "")
+        if name == "replace":
+            problems.append(f"line {node.lineno}: replace(...) derives a value from another")
+        if name in preset_functions:
+            problems.append(f"line {node.lineno}: calls the preset {name}")
+        target = namespace.get(name)
+        if not (isinstance(target, type) and dataclasses.is_dataclass(target)) or target is presets.Preset:
+            continue
+        called.add(name)
+        given = [k.arg for k in node.keywords]
+        if node.args or None in given:
+            problems.append(f"line {node.lineno}: {name} with positional or ** arguments")
+        missing = sorted({f.name for f in dataclasses.fields(target) if f.init} - set(given))
+        if missing:
+            problems.append(f"line {node.lineno}: {name} leaves {', '.join(missing)} to the defaults")
+    return problems, called
+
+
+def test_every_preset_is_written_out_in_full():
+    """presets.py gives every field of every parameter dataclass in every preset (no default enters a preset
+    unseen), builds no preset from another, and derives nothing with ``replace``; each preset's flow gives every
+    parameter of its backend (:func:`builtin_flow` refuses a missing one when the preset is built)."""
+    functions = {p.build.__name__ for p in (*PRESETS, *ABLATIONS)}
+    problems, called = preset_problems(inspect.getsource(presets), vars(presets), functions)
+    assert problems == []
+    assert called == PARAMETER_CLASSES
+    assert [p.build().label for p in (*PRESETS, *ABLATIONS)] == [p.label for p in (*PRESETS, *ABLATIONS)]
+
+
+def test_the_preset_check_catches_a_default_a_positional_argument_and_a_derived_preset():
+    source = textwrap.dedent("""
+        def a():
+            return SgmParams(p1=1, p2=2, p3=3, edge=4.0)
+        def b():
+            return SgmParams(1, p2=2, p3=3, edge=4.0, paths=8)
+        def c():
+            return dataclasses.replace(a(), label="c")
+    """)
+    problems, _ = preset_problems(source, vars(presets), {"a", "b", "c"})
+    assert problems == ["line 3: SgmParams leaves paths to the defaults",
+                        "line 5: SgmParams with positional or ** arguments",
+                        "line 5: SgmParams leaves p1 to the defaults",
+                        "line 7: replace(...) derives a value from another", "line 7: calls the preset a"]
+
+
+def test_the_raw_ablation_is_the_default_uncalibrated():
+    """``uncalibrated`` (``tools.bench.sweep``'s ``<label>-raw``) of the default is the written-out
+    ``fused-mirror-raw``."""
+    assert uncalibrated(presets.fused_mirror()) == presets.fused_mirror_raw()

@@ -10,20 +10,11 @@ import numpy as np
 import pytest
 
 import reconstruction.methods.flow_pipeline as pipeline
+from reconstruction.methods import presets
 from reconstruction.methods.base import method_groups, run_methods
 from reconstruction.methods.flow_pipeline import flow_confidence, prepare, refine_variant
 from reconstruction.methods.prior_sweep import PriorParams, PriorSweepMethod, local_contrast, prior_weight
-from reconstruction.methods.registry import (
-    ADAPTIVE_PRIOR,
-    DEFAULT_METHOD,
-    GATED_PRIOR,
-    adaptive_method,
-    evaluate_default_methods,
-    flow_methods,
-    fused_method,
-    gated_method,
-    mirror_method,
-)
+from reconstruction.methods.registry import DEFAULT_METHOD, evaluate_default_methods, flow_methods
 from reconstruction.methods.sweep import Prior, sweep_distance, sweep_distances
 from reconstruction.photometry import NO_CALIBRATION
 from reconstruction.refine.lm import get_variant
@@ -76,7 +67,7 @@ def test_lm_can_start_from_any_distance(frame):
 
 def test_fused_beats_or_matches_both_parts_on_exact_frame(frame):
     """On an exact ray-cast frame the fused method is within 2 % of the mean distance and gives a confidence."""
-    m = fused_method()
+    m = presets.fused()
     out = m.run(frame)
     gt = frame.distance["C"]
     ok = np.isfinite(gt)
@@ -88,7 +79,7 @@ def test_fused_beats_or_matches_both_parts_on_exact_frame(frame):
 
 
 def test_fused_config_is_json_and_prior_weight_zero_is_the_plain_sweep(frame):
-    m = uncalibrated(fused_method())
+    m = uncalibrated(presets.fused())
     cfg = json.loads(json.dumps(m.config()))
     assert cfg["kind"] == "fused" and cfg["flow"]["label"] == "dis-rect:gradient" and cfg["prior"]["weight"] > 0
     small = make_synthetic_frame(120)
@@ -104,7 +95,7 @@ def test_fused_on_tilted_yawed_rig_with_rotated_r():
     """Never an upright rig or shared rotations: pitched/rolled/yawed rig, baseline 0.3 m, R yawed 1.5 deg against C
     (exact ray-cast): within 2 % of the mean distance (measured 0.89 % at 400x200, docs/matching.md)."""
     f = tilted_frame(240)
-    out = fused_method().run(f)
+    out = presets.fused().run(f)
     gt = f.distance["C"]
     ok = np.isfinite(gt)
     assert np.abs(out.distance[ok] - gt[ok]).mean() <= 0.02 * gt[ok].mean()
@@ -120,14 +111,14 @@ def test_the_default_and_the_previous_one_are_within_2_percent_on_small_exact_fr
     f = make()
     gt = f.distance["C"]
     ok = np.isfinite(gt)
-    for method in (mirror_method(), adaptive_method()):
+    for method in (presets.fused_mirror(), presets.fused_adaptive()):
         out = method.run(f)
         assert np.abs(out.distance[ok] - gt[ok]).mean() <= 0.02 * gt[ok].mean(), method.label
 
 
 def test_the_default_is_fused_gated_with_the_mirror_test_and_a_lighter_intensity_term():
-    cfg = json.loads(json.dumps(mirror_method().config()))
-    gated = json.loads(json.dumps(gated_method().config()))
+    cfg = json.loads(json.dumps(presets.fused_mirror().config()))
+    gated = json.loads(json.dumps(presets.fused_gated().config()))
     assert cfg["kind"] == "fused" and cfg["label"] == "fused-mirror" == DEFAULT_METHOD
     assert cfg["sweep"]["planes"]["mirror_tolerance"] == 0.2 and gated["sweep"]["planes"]["mirror_tolerance"] == 0.0
     # its own cost is gated's; the lighter intensity term, the blur and the noise's blur only when the
@@ -140,24 +131,25 @@ def test_the_default_is_fused_gated_with_the_mirror_test_and_a_lighter_intensity
 
 
 def test_fused_gated_is_the_gated_prior_from_the_unrefined_flow_with_wall_families():
-    cfg = json.loads(json.dumps(gated_method().config()))
+    cfg = json.loads(json.dumps(presets.fused_gated().config()))
     assert cfg["kind"] == "fused" and cfg["label"] == "fused-gated"
-    assert cfg["sweep"] == json.loads(json.dumps(adaptive_method().config()))["sweep"]
+    assert cfg["sweep"] == json.loads(json.dumps(presets.fused_adaptive().config()))["sweep"]
     assert cfg["sweep"]["planes"]["wall_labels"] == 9
-    assert gated_method().flow.label == "dis-rect:average"  # no LM: no slower than fused
-    assert (GATED_PRIOR.contrast_low, GATED_PRIOR.contrast_high, GATED_PRIOR.sweep_confidence_power) == (0.5, 2.0, 1.0)
-    assert (GATED_PRIOR.frame_agreement_low, GATED_PRIOR.frame_agreement_high) == (0.5, 0.7)
-    assert cfg["prior"]["weight"] == json.loads(json.dumps(fused_method().config()))["prior"]["weight"]
+    assert presets.fused_gated().flow.label == "dis-rect:average"  # no LM: no slower than fused
+    gated = presets.fused_gated().prior
+    assert (gated.contrast_low, gated.contrast_high, gated.sweep_confidence_power) == (0.5, 2.0, 1.0)
+    assert (gated.frame_agreement_low, gated.frame_agreement_high) == (0.5, 0.7)
+    assert cfg["prior"]["weight"] == json.loads(json.dumps(presets.fused().config()))["prior"]["weight"]
 
 
 def test_fused_adaptive_is_fused_with_wall_families_and_the_frame_agreement_gate():
-    cfg = json.loads(json.dumps(adaptive_method().config()))
+    cfg = json.loads(json.dumps(presets.fused_adaptive().config()))
     assert cfg["kind"] == "fused" and cfg["label"] == "fused-adaptive"
     assert cfg["sweep"]["planes"]["wall_labels"] == 9
     assert (cfg["prior"]["frame_agreement_low"], cfg["prior"]["frame_agreement_high"]) == (0.6, 0.8)
-    base = json.loads(json.dumps(fused_method().config()))
+    base = json.loads(json.dumps(presets.fused().config()))
     assert cfg["flow"] == base["flow"] and cfg["prior"]["weight"] == base["prior"]["weight"]
-    assert ADAPTIVE_PRIOR.needs_plain_sweep
+    assert presets.fused_adaptive().prior.needs_plain_sweep
 
 
 def test_local_contrast_is_the_windowed_standard_deviation_and_wraps_in_longitude():
@@ -193,7 +185,7 @@ def test_one_cost_volume_for_several_priors_gives_each_prior_its_own_sweep():
     """``sweep_distances`` shares the room-bound pass and the cost volume: each result equals the sweep run alone
     with that prior (within 1 micrometre)."""
     f = make_synthetic_frame(120)
-    s = dataclasses.replace(fused_method().sweep, photometric=NO_CALIBRATION)
+    s = dataclasses.replace(presets.fused().sweep, photometric=NO_CALIBRATION)
     prior_d = f.distance["C"] * 1.1
     priors = [None, Prior(prior_d, np.full(prior_d.shape, 16.0, np.float32), 16.0),
               Prior(prior_d, np.full(prior_d.shape, 64.0, np.float32), 16.0)]
@@ -212,7 +204,7 @@ def test_default_evaluate_computes_the_flow_once_for_fused_and_the_flow_methods(
     once per frame (one ``reconstruct`` call for fused and the four dis-rect variants), and fused's result is the
     same as alone (within 1 micrometre)."""
     f = make_synthetic_frame(120)
-    methods = [mirror_method(), fused_method(),
+    methods = [presets.fused_mirror(), presets.fused(),
                *(m for m in evaluate_default_methods() if m.label.startswith("dis-rect:"))]
     assert evaluate_default_methods()[0].label == DEFAULT_METHOD == "fused-mirror"
     extra = PriorSweepMethod(flow=methods[1].flow, prior=PriorParams(use_confidence=True), label="fused-conf")
@@ -229,9 +221,9 @@ def test_default_evaluate_computes_the_flow_once_for_fused_and_the_flow_methods(
     outs = run_methods(f, methods)
     assert len(calls) == 1
     assert list(outs) == [m.label for m in methods]
-    alone = fused_method().run(f)
+    alone = presets.fused().run(f)
     np.testing.assert_allclose(outs["fused"].distance, alone.distance, rtol=0, atol=1e-6)
-    np.testing.assert_allclose(outs["fused-mirror"].distance, mirror_method().run(f).distance, rtol=0, atol=1e-6)
+    np.testing.assert_allclose(outs["fused-mirror"].distance, presets.fused_mirror().run(f).distance, rtol=0, atol=1e-6)
     assert outs["fused-mirror"].seconds["flow"] == pytest.approx(outs["dis-rect:average"].total_seconds)
     assert outs["fused"].seconds["flow"] == pytest.approx(outs["dis-rect:gradient"].total_seconds)
     np.testing.assert_allclose(outs["dis-rect:gradient"].distance,
@@ -243,7 +235,7 @@ def test_a_group_of_two_flow_configurations_is_refused():
     f = make_synthetic_frame(120)
     other = PriorSweepMethod(flow=flow_methods(["farneback"], [True], ["gradient"])[0], label="fused-farneback")
     with pytest.raises(ValueError, match="different flow configurations.*fused-farneback"):
-        fused_method().run_group(f, [fused_method(), other])
+        presets.fused().run_group(f, [presets.fused(), other])
 
 
 def test_sweep_gate_keeps_a_confident_sweep_and_scales_by_the_frames_agreement():
@@ -266,7 +258,7 @@ def test_a_frame_whose_flow_disagrees_with_the_coarse_sweep_gets_the_plain_sweep
     """The gate uses the coarse room-bound pass (no extra aggregation); when the frame's agreement is below the
     ramp the prior is off and fused gives exactly the plain sweep; a gate that always passes gives fused."""
     f = make_synthetic_frame(120)
-    m = uncalibrated(fused_method())
+    m = uncalibrated(presets.fused())
     never = PriorSweepMethod(flow=m.flow, sweep=m.sweep, label="never",
                         prior=PriorParams(frame_agreement_low=0.9995, frame_agreement_high=0.9999))
     always = PriorSweepMethod(flow=m.flow, sweep=m.sweep, label="always",

@@ -7,7 +7,8 @@ import pandas as pd
 import pytest
 
 from harness.data.errors import UserError
-from reconstruction.methods.registry import MIRROR_INTENSITY_WEIGHT, mirror_method, uncalibrated
+from reconstruction.methods.presets import fused_mirror
+from reconstruction.methods.registry import uncalibrated
 from reconstruction.photometry import NO_CALIBRATION
 from reconstruction.rig_calibration import NO_RIG_CALIBRATION
 from tools.research.select_photometric import (
@@ -81,9 +82,9 @@ def test_candidates_and_the_reference():
     assert methods["fused-mirror-i0.25"].sweep.corrected_cost.intensity_weight == 0.25
     assert methods["fused-mirror-i0.25"].sweep.cost == raw.sweep.cost
     assert methods["fused-mirror-told-poses"].flow.rig == NO_RIG_CALIBRATION
-    assert mirror_method().sweep.corrected_cost.intensity_weight == MIRROR_INTENSITY_WEIGHT
+    assert fused_mirror().sweep.corrected_cost.intensity_weight == 0.25
     chosen = methods["fused-mirror-rig-b0.7"]  # the default is exactly the candidate the selection chose
-    assert {**chosen.config(), "label": "fused-mirror"} == mirror_method().config()
-    assert uncalibrated(mirror_method()).label == "fused-mirror-raw"
+    assert {**chosen.config(), "label": "fused-mirror"} == fused_mirror().config()
+    assert uncalibrated(fused_mirror()).label == "fused-mirror-raw"
     with pytest.raises(UserError, match="candidates"):
         candidate_methods(["fused-mirror-i7"])

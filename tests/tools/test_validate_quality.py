@@ -19,7 +19,8 @@ from harness.data.frame import write_frame
 from harness.data.outputs import read_marker
 from harness.render.raycast import render_frame
 from harness.runtime.context import QUIET
-from reconstruction.methods.registry import fused_method
+from reconstruction.methods import presets
+from reconstruction.methods.registry import get_methods
 from reconstruction.methods.sweep import SweepMethod
 from reconstruction.quality import CALIBRATION_THRESHOLD, FACTORS, UNCERTAINTY_FACTORS
 from reconstruction.sweep.planes import PlaneParams
@@ -188,7 +189,7 @@ def test_configurations_compare_without_their_label():
     other = dataclasses.replace(SweepMethod(), pairs=("U",)).config()
     assert config_difference(other, base) == "pairs: ['U'] vs ['U', 'R']"
     assert config_difference({**base, "kind": "fused"}, base).startswith("kind:")
-    fused = fused_method()
+    fused = presets.fused()
     renamed = dataclasses.replace(fused, label="fused-b", sweep=dataclasses.replace(fused.sweep, label="sweep-b"))
     assert config_difference(renamed.config(), fused.config()) is None  # labels inside a method are names too
     walls = dataclasses.replace(fused, sweep=dataclasses.replace(fused.sweep, planes=PlaneParams(wall_labels=9)))
@@ -202,17 +203,41 @@ def test_configurations_compare_without_their_label():
 def test_a_configuration_written_before_a_parameter_was_added_reads_as_its_earlier_value():
     """Results sets from before ``planes.mirror_tolerance`` existed ran without the mirror test: usable for a method
     with the test off, not for one with it on."""
-    from reconstruction.methods.registry import gated_method, mirror_method, uncalibrated
+    from reconstruction.methods.registry import uncalibrated
 
-    old = json.loads(json.dumps(uncalibrated(gated_method()).config()))  # as fused-gated ran before both
+    old = json.loads(json.dumps(uncalibrated(presets.fused_gated()).config()))  # as fused-gated ran before both
     del old["sweep"]["planes"]["mirror_tolerance"], old["sweep"]["cost"]["intensity_weight"]
     for part in ("flow", "sweep", "quality_flow"):
         del old[part]["photometric"]
-    assert config_difference(old, uncalibrated(gated_method()).config()) is None
-    assert config_difference(old, gated_method().config()) == "flow.photometric.mode: 'none' vs 'gain-field'"
-    raw_mirror = uncalibrated(mirror_method()).config()
+    assert config_difference(old, uncalibrated(presets.fused_gated()).config()) is None
+    assert config_difference(old, presets.fused_gated().config()) == "flow.photometric.mode: 'none' vs 'gain-field'"
+    raw_mirror = uncalibrated(presets.fused_mirror()).config()
     assert config_difference(old, raw_mirror) == "sweep.planes.mirror_tolerance: 0.0 vs 0.2"
-    assert config_difference(gated_method().config(), old) == "flow.photometric: present vs absent"
+    assert config_difference(presets.fused_gated().config(), old) == "flow.photometric: present vs absent"
+
+
+def test_a_configuration_from_before_the_constants_became_parameters_reads_as_their_values():
+    """Results sets written before the pre-pass flow, the fits' limits, the evidence's blocks, the rig fit's
+    iterations, the noise blur's cap and DeepFlow's and DeepMatching's parameters were recorded ran with the values
+    they have by default: usable for the default and the paper's set-up, not for other values."""
+    now = presets.fused_mirror().config()
+    old = json.loads(json.dumps(now))
+    for key in ("prepass_flow", "max_fit_pixels", "longitude_blocks", "min_block_samples"):
+        del old["flow"]["photometric"][key], old["sweep"]["photometric"][key]
+    for key in ("iterations", "tukey_c", "max_matches", "longitude_blocks", "min_block_samples"):
+        del old["flow"]["rig"][key]
+    del old["sweep"]["cost"]["max_noise_blur_px"], old["sweep"]["corrected_cost"]["max_noise_blur_px"]
+    assert config_difference(old, now) is None
+    tighter = dataclasses.replace(presets.fused_mirror().flow.rig, iterations=3)
+    changed = dataclasses.replace(presets.fused_mirror(), flow=dataclasses.replace(presets.fused_mirror().flow,
+                                                                                   rig=tighter))
+    assert config_difference(old, changed.config()) == "flow.rig.iterations: 6 vs 3"
+    paper = get_methods(["deepflow-rect:gradient"])[0]
+    old = json.loads(json.dumps(paper.config()))
+    old["flow"]["params"] = {k: old["flow"]["params"][k] for k in ("downscale", "ngh_rad_x", "ngh_rad_y", "wrap")}
+    assert config_difference(old, paper.config()) is None
+    smoother = dataclasses.replace(paper.flow, params={**paper.flow.params, "alpha": 3.0})
+    assert config_difference(old, dataclasses.replace(paper, flow=smoother).config()) == "flow.params.alpha: 6.0 vs 3.0"
 
 
 def test_rank_correlation_counts_nan_as_most_uncertain():
@@ -268,7 +293,7 @@ def test_a_fused_method_ranks_with_its_flow_as_reference(data, tmp_path, capsys)
     ran = pd.read_csv(out / "validation.csv")
     assert np.isfinite(ran["rho:disagreement"]).all()
     assert np.isfinite(ran["rho:factors:" + "*".join(UNCERTAINTY_FACTORS)]).all()
-    fused = fused_method()
+    fused = presets.fused()
     res = tmp_path / "res-fused"
     evaluate(data, res, [fused, fused.flow], report=False, ctx=QUIET, scenes=["box_room"])
     reused = tmp_path / "val-fused-reused"

@@ -33,7 +33,7 @@ from harness.data.frame import find_frames, read_frame
 from harness.runtime.progress import progress_bar
 from reconstruction.methods.base import MethodInput
 from reconstruction.methods.flow_pipeline import self_calibrate
-from reconstruction.methods.registry import mirror_method
+from reconstruction.methods.presets import fused_mirror
 from tools.common import ArgumentParser, user_error
 
 __all__ = ["calibration_rows", "main"]
@@ -51,7 +51,7 @@ def calibration_rows(data_root: Path, progress: bool = True) -> pd.DataFrame:
     paths = find_frames(Path(data_root))
     if not paths:
         raise UserError(f"{data_root}: no frames (frame.json) found")
-    method = mirror_method()
+    method = fused_mirror()
     rows = []
     with progress_bar(len(paths), "self-calibration", enabled=progress) as bar:
         for path in paths:

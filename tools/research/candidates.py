@@ -17,12 +17,13 @@ from typing import TypeVar
 
 from reconstruction.methods.base import Method
 from reconstruction.methods.prior_sweep import PriorParams, PriorSweepMethod
-from reconstruction.methods.registry import WALL_PLANES, with_photometric
+from reconstruction.methods.registry import with_photometric
 from reconstruction.photometry import PhotometricParams
 from reconstruction.rig_calibration import NO_RIG_CALIBRATION, RigParams
 from reconstruction.sweep.planes import PlaneParams
 
-__all__ = ["MatchingCandidate", "PhotometricCandidate", "by_label", "WALLS_COARSE3", "MATCHING", "PHOTOMETRIC"]
+__all__ = ["MatchingCandidate", "PhotometricCandidate", "by_label", "WALL_PLANES", "WALLS_COARSE3", "MATCHING",
+           "PHOTOMETRIC"]
 
 
 @dataclass(frozen=True)
@@ -102,14 +103,17 @@ def by_label(*candidates: C) -> dict[str, C]:
     return out
 
 
+#: the sweep's horizontal planes plus 9 labels per wall found by the coarse pass: the plane families of
+#: ``fused-adaptive`` and ``fused-gated`` (:mod:`reconstruction.methods.presets`)
+WALL_PLANES = PlaneParams(wall_labels=9)
 #: the default's wall families with the coarse room-bound pass on images 3x smaller instead of 2x (the coarse pass
 #: is then about 0.6 s CPU cheaper at 1000x500, about what the wall labels cost in SGM)
 WALLS_COARSE3 = dataclasses.replace(WALL_PLANES, coarse_factor=3)
 
 #: The fused candidates of ``select_matching`` besides the registered ``fused-adaptive``
-#: (:func:`reconstruction.methods.registry.adaptive_method`: wall families, frame agreement 0.6-0.8; the first dev
+#: (:func:`reconstruction.methods.presets.fused_adaptive`: wall families, frame agreement 0.6-0.8; the first dev
 #: selection chose it under the candidate label ``fused-walls-f0.6-0.8``), ``fused-gated``
-#: (:func:`reconstruction.methods.registry.gated_method`; the dev selection with the time bound chose it under the
+#: (:func:`reconstruction.methods.presets.fused_gated`; the dev selection with the time bound chose it under the
 #: candidate label ``fused-walls-k1-f0.5-0.7-avg-c0.5-2``) and the default ``fused-mirror`` (``fused-gated`` with the
 #: room bound's mirror test; the third dev selection).  A first look at 10 dev frames (classroom, seminar, lab) left
 #: out three more that were worse than ``sweep`` pooled: the flow confidence alone, wall families alone, and wall

@@ -37,7 +37,8 @@ from harness.commands.evaluate import evaluate
 from harness.data.errors import UserError
 from harness.data.suite import IDEAL
 from reconstruction.methods.base import Method
-from reconstruction.methods.registry import get_methods, mirror_method
+from reconstruction.methods.presets import fused_mirror
+from reconstruction.methods.registry import get_methods
 from reconstruction.sweep.cost import FEATURES
 from tools.common import ArgumentParser, cell, run_selection
 
@@ -52,7 +53,7 @@ RAW_LABEL = "fused-mirror-raw"
 def feature_method(feature: str) -> Method:
     """``fused-mirror`` whose sweep compares ``feature`` (both its ``cost`` and its ``corrected_cost``; everything
     else the default's), labelled ``fused-mirror-<feature>`` (the default itself for ``intensity``)."""
-    base = mirror_method()
+    base = fused_mirror()
     if feature == base.sweep.cost.feature:
         return base
     sweep = base.sweep
@@ -69,7 +70,7 @@ def candidate_methods(features: Sequence[str] | None = None) -> list[Method]:
     if unknown:
         raise UserError(f"unknown feature(s) {', '.join(unknown)} (features: {', '.join(FEATURES)})")
     others = [f for f in FEATURES[1:] if features is None or f in features]
-    return [mirror_method(), *(feature_method(f) for f in others), *get_methods([RAW_LABEL])]
+    return [fused_mirror(), *(feature_method(f) for f in others), *get_methods([RAW_LABEL])]
 
 
 def link_frames(data_root: Path, labels: Sequence[str], into: Path) -> Path:

@@ -46,19 +46,12 @@ import pandas as pd
 from harness.commands.parts.suite import evaluate_suite
 from harness.data.errors import UserError
 from reconstruction.methods.base import Method
-from reconstruction.methods.registry import (
-    DEFAULT_VARIANTS,
-    WALL_PLANES,
-    adaptive_method,
-    fused_method,
-    gated_method,
-    get_methods,
-    mirror_method,
-)
+from reconstruction.methods.presets import fused, fused_adaptive, fused_gated, fused_mirror
+from reconstruction.methods.registry import DEFAULT_VARIANTS, get_methods
 from reconstruction.methods.sweep import SweepMethod
 from reports.tables import leaderboard_table
 from tools.common import cell, run_selection, selection_parser
-from tools.research.candidates import MATCHING
+from tools.research.candidates import MATCHING, WALL_PLANES
 
 __all__ = ["TOLERANCE", "TIME_TOLERANCE", "COMPARISON_METHODS", "CANDIDATES", "CONTEXT_METHODS", "candidate_methods",
            "family_table", "choose", "main"]
@@ -81,7 +74,7 @@ CONTEXT_METHODS = tuple(f"dis-rect:{v}" for v in DEFAULT_VARIANTS)
 
 def candidate_methods(only: Sequence[str] | None = None) -> list[Method]:
     """``sweep``, ``fused``, the sweep with wall families (``sweep-walls``), ``fused-adaptive``, ``fused-gated``,
-    the default ``fused-mirror`` (:func:`reconstruction.methods.registry.mirror_method`) and one fused method per
+    the default ``fused-mirror`` (:func:`reconstruction.methods.presets.fused_mirror`) and one fused method per
     :data:`CANDIDATES` entry (:meth:`tools.research.candidates.MatchingCandidate.method`: ``fused``'s flow, or
     ``dis-rect:average`` for a candidate with ``average_prior``; ``fused``'s sweep with the candidate's plane
     families).
@@ -91,10 +84,10 @@ def candidate_methods(only: Sequence[str] | None = None) -> list[Method]:
     Raises:
         UserError: a label in ``only`` that is not a candidate (the message lists them).
     """
-    base = fused_method()
+    base = fused()
     average = get_methods(["dis-rect:average"])[0]
-    out: list[Method] = [SweepMethod(), base, SweepMethod(planes=WALL_PLANES, label="sweep-walls"), adaptive_method(),
-                         gated_method(), mirror_method()]
+    out: list[Method] = [SweepMethod(), base, SweepMethod(planes=WALL_PLANES, label="sweep-walls"), fused_adaptive(),
+                         fused_gated(), fused_mirror()]
     out += [c.method(base, average) for c in CANDIDATES.values()]
     if only is None:
         return out

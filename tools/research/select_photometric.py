@@ -43,7 +43,7 @@ from harness.commands.parts.suite import evaluate_suite
 from harness.data.errors import UserError
 from harness.data.suite import IDEAL
 from reconstruction.methods.base import Method
-from reconstruction.methods.registry import fused_method, mirror_method, uncalibrated
+from reconstruction.methods.presets import fused, fused_mirror, fused_mirror_raw
 from reconstruction.methods.sweep import SweepMethod
 from reports.tables import leaderboard_table
 from tools.common import cell, run_selection, selection_parser
@@ -71,8 +71,8 @@ def candidate_methods(only: Sequence[str] | None = None) -> list[Method]:
     unknown = [x for x in (only or ()) if x not in CANDIDATES]
     if unknown:
         raise UserError(f"unknown candidate(s) {', '.join(unknown)} (candidates: {', '.join(CANDIDATES)})")
-    base = mirror_method()  # the candidates set the intensity weight themselves
-    out: list[Method] = [SweepMethod(), fused_method(), uncalibrated(base)]
+    base = fused_mirror()  # the candidates set the intensity weight themselves
+    out: list[Method] = [SweepMethod(), fused(), fused_mirror_raw()]
     out += [c.method(base) for label, c in CANDIDATES.items() if only is None or label in only]
     return out
 

@@ -168,20 +168,35 @@ def _without_labels(config) -> object:
 
 #: parameters added after results sets were first written, with the value that reproduces what came before: a
 #: stored configuration without the key ran that way (a sweep's ``planes.mirror_tolerance``: no mirror test; its
-#: cost's ``intensity_weight``: 1 and ``feature``: the intensity; a method's ``photometric``: the images as they are)
+#: cost's ``intensity_weight``: 1 and ``feature``: the intensity; a method's ``photometric``: the images as they are;
+#: the values that were module constants or fixed defaults before they became parameters: the pre-pass flow, the
+#: fits' pixel and match limits, the evidence's blocks, the rig fit's iterations, the noise blur's cap, DeepFlow's
+#: and DeepMatching's).  A key ``parent.key`` applies only inside a mapping stored under ``parent``.
 _ADDED_KEYS = {"mirror_tolerance": 0.0, "intensity_weight": 1.0, "feature": "intensity",
-               "photometric": dataclasses.asdict(NO_CALIBRATION)}
+               "photometric": dataclasses.asdict(NO_CALIBRATION),
+               "photometric.prepass_flow": "dis", "photometric.max_fit_pixels": 15000,
+               "photometric.longitude_blocks": 16, "photometric.min_block_samples": 50,
+               "rig.iterations": 6, "rig.tukey_c": 4.685, "rig.max_matches": 40000, "rig.longitude_blocks": 16,
+               "rig.min_block_samples": 50, "max_noise_blur_px": 1.5,
+               **{f"params.{k}": v for k, v in {
+                   "presmooth_sigma": 1.0, "mid_smoothing": 1.0, "post_smoothing": 1.0, "hog_sigmoid": 0.2,
+                   "ninth_dim": 0.3, "cell_px": 4, "nlpow": 1.4, "reciprocal_px": 4.0, "alpha": 6.0, "beta": 390.0,
+                   "gamma": 5.0, "delta": 0.5, "sigma": 0.6, "bk": 1.0, "eta": 0.95, "min_size": 25, "n_inner": 5,
+                   "n_solver": 25, "sor_omega": 1.6}.items()}}
 
 
-def _with_added_keys(stored, wanted) -> object:
+def _with_added_keys(stored, wanted, parent: str = "") -> object:
     """``stored`` with every key of :data:`_ADDED_KEYS` that ``wanted`` has at the same place and ``stored`` lacks
-    set to its earlier value."""
+    set to its earlier value (``parent``: the key ``stored`` is under)."""
     if isinstance(stored, dict) and isinstance(wanted, dict):
-        out = {k: _with_added_keys(v, wanted.get(k)) for k, v in stored.items()}
-        out.update({k: v for k, v in _ADDED_KEYS.items() if k in wanted and k not in stored})
+        out = {k: _with_added_keys(v, wanted.get(k), k) for k, v in stored.items()}
+        for name, value in _ADDED_KEYS.items():
+            where, _, k = name.rpartition(".")
+            if where in ("", parent) and k in wanted and k not in out:
+                out[k] = value
         return out
     if isinstance(stored, list) and isinstance(wanted, list) and len(stored) == len(wanted):
-        return [_with_added_keys(a, b) for a, b in zip(stored, wanted, strict=True)]
+        return [_with_added_keys(a, b, parent) for a, b in zip(stored, wanted, strict=True)]
     return stored
 
 
