@@ -424,6 +424,7 @@ def test_the_tools_import_only_the_packages_and_each_other():
     assert not bad, "\n".join(bad)
 
 
+@pytest.mark.slow
 def test_the_tools_import_from_the_repository_root():
     """What ``make bench`` and ``make regress-update`` need: every tool module imports in a fresh interpreter started
     in the repository root (``python -m tools...`` puts it on ``sys.path``), and the command line is read by none
@@ -437,6 +438,7 @@ def test_the_tools_import_from_the_repository_root():
     assert proc.returncode == 0, proc.stderr[-2000:]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("package", ["reconstruction", "scenes", "reports", "harness.cli"])
 def test_packages_import_without_blender(package):
     """Importing the package (and every module under it) in a fresh interpreter loads no bpy."""

@@ -31,6 +31,7 @@ import reconstruction.methods.base
 import reconstruction.plugins
 import reconstruction.refine.lm
 import tools.overview
+import tools.presets_snapshot
 import tools.regression
 import tools.research.select_matching
 import tools.research.select_photometric
@@ -205,6 +206,7 @@ def root(tmp_path_factory):
 
 
 class TestEvaluateHidesGroundTruth:
+    @pytest.mark.slow
     def test_an_outside_method_cannot_read_ground_truth_in_process(self, root, tmp_path):
         table = evaluate(root, tmp_path / "res", [Peeker(), *flow_methods(["oracle"], [True], ["average"])],
                          report=False, ctx=QUIET)
@@ -213,12 +215,14 @@ class TestEvaluateHidesGroundTruth:
         assert mae["peeker"] > 0.3
         assert mae["oracle-rect:average"] < 0.05
 
+    @pytest.mark.slow
     def test_the_task_a_dask_worker_runs_hides_it_too(self, root, tmp_path):
         (tmp_path / "stage").mkdir()
         frame = str(root / "synthetic_box" / "vp000")
         rows = evaluate_task(frame, [Peeker()], str(tmp_path / "stage"))["rows"]
         assert rows["peeker"][0]["mae_m"] > 0.3
 
+    @pytest.mark.slow
     def test_a_method_overwriting_its_images_does_not_change_what_is_scored(self, root, tmp_path):
         honest = evaluate(root, tmp_path / "a", [Peeker()], report=False, ctx=QUIET)
         scribbled = evaluate(root, tmp_path / "b", [Scribbler()], report=False, ctx=QUIET)
@@ -227,6 +231,7 @@ class TestEvaluateHidesGroundTruth:
         regions_a = (tmp_path / "a" / "regions.csv").read_text()
         assert regions_a.replace("peeker", "x") == (tmp_path / "b" / "regions.csv").read_text().replace("peeker", "x")
 
+    @pytest.mark.slow
     def test_a_method_editing_its_input_changes_no_other_methods_result(self, root, tmp_path):
         builtin = flow_methods(["dis"], [True], ["average"])
         alone = evaluate(root, tmp_path / "a", builtin, report=False, ctx=QUIET).set_index("method")
@@ -237,11 +242,13 @@ class TestEvaluateHidesGroundTruth:
                                    alone.loc[label, ["mae_m", "rmse_m"]].to_numpy(float), rtol=1e-9, atol=1e-12)
         assert beside.loc[label, "valid_px"] == alone.loc[label, "valid_px"]
 
+    @pytest.mark.slow
     def test_a_snooping_method_finds_nothing_in_evaluate(self, root, tmp_path):
         report = tmp_path / "found.json"
         evaluate(root, tmp_path / "res", [Snoop(report)], report=False, ctx=QUIET)
         assert json.loads(report.read_text()) == []
 
+    @pytest.mark.slow
     def test_a_snooping_plugin_finds_nothing_through_the_commands(self, root, tmp_path, monkeypatch):
         install_plugins(monkeypatch, "tri360.methods", FakeEntryPoint("snoop", "snoop_pkg:M",
                                                                       Snoop(tmp_path / "found.json")))
@@ -267,11 +274,13 @@ class TestEvaluateHidesGroundTruth:
         with pytest.raises(TypeError):
             inp.cameras["U"] = inp.cameras["C"]
 
+    @pytest.mark.slow
     def test_a_subclass_calling_its_flow_oracle_is_not_handed_ground_truth(self, root, tmp_path, capfd):
         impostor = OracleImpostor("oracle")
         with pytest.raises(Exception, match="needs ground-truth distance"):
             evaluate(root, tmp_path / "res", [impostor], report=False, ctx=QUIET)
 
+    @pytest.mark.slow
     def test_reconstruct_hides_it_as_well(self, root, tmp_path, monkeypatch):
         install_plugins(monkeypatch, "tri360.methods", FakeEntryPoint("peek", "peek_pkg:M", Peeker()))
         assert run_cli(["reconstruct", root / "synthetic_box" / "vp000", "--method", "peeker", "--out",
@@ -279,6 +288,7 @@ class TestEvaluateHidesGroundTruth:
         info = json.loads((tmp_path / "preds/synthetic_box/vp000/reconstruction.json").read_text())
         assert info["info"] == {} and info["metrics"]["mae_m"] > 0.3
 
+    @pytest.mark.slow
     def test_an_outside_method_plugin_cannot_read_it_through_the_command(self, root, tmp_path, monkeypatch):
         install_plugins(monkeypatch, "tri360.methods", FakeEntryPoint("peek", "peek_pkg:M", Peeker()))
         assert run_cli(["evaluate", root, "--method", "peeker", "--out", tmp_path / "res", "--no-report",
@@ -563,6 +573,7 @@ class TestPerturb:
         expect_refusal(["perturb", data, "--out", tmp_path / "out", "--apply", "noise=2"], capfd, tmp_path,
                        "vp000", "frame.json")
 
+    @pytest.mark.slow
     def test_an_interrupt_while_replacing_a_perturbed_root_leaves_the_previous_one_whole(self, tmp_path,
                                                                                          monkeypatch):
         data = tmp_path / "data"
@@ -705,6 +716,7 @@ class TestRenderSuite:
             with pytest.raises(UserError, match="2 frame"):
                 render_suite(small, "dev", tmp_path / "data", ctx=QUIET, force=True)
 
+    @pytest.mark.slow
     def test_a_rerun_removes_the_partials_of_a_killed_run(self, tmp_path):
         small = suite_file(tmp_path, 2)
         data = tmp_path / "data"
@@ -892,6 +904,7 @@ def evaluated(tmp_path_factory):
     return tmp, data, frame_dir, res
 
 
+@pytest.mark.slow
 class TestOverview:
     def test_results_csv_as_out_is_refused(self, evaluated, capfd):
         tmp, _, frame_dir, res = evaluated
@@ -959,7 +972,7 @@ class TestOverview:
 
 
 # ---------------------------------------------------------------------------- research tools (argument errors)
-# (tools/research/*.py, tools/regression.py, tools/overview.py, tools/scene_fingerprints.py)
+# (tools/research/*.py, tools/regression.py, tools/overview.py, tools/scene_fingerprints.py, tools/presets_snapshot.py)
 
 
 class TestResearchToolArguments:
@@ -972,10 +985,11 @@ class TestResearchToolArguments:
         ("research.validate_quality", ["data"], "--method"),
         ("research.select_matching", ["data"], "--out"),
         ("research.select_photometric", ["data", "--out", "o", "--split", "train"], "--split"),
+        ("presets_snapshot", ["--nope"], "--nope"),
     ])
     def test_an_argument_error_is_one_line_naming_the_tool_and_help(self, tool, argv, culprit, capfd, tmp_path):
         module = {"overview": tools.overview, "regression": tools.regression,
-                  "scene_fingerprints": tools.scene_fingerprints,
+                  "scene_fingerprints": tools.scene_fingerprints, "presets_snapshot": tools.presets_snapshot,
                   "research.validate_quality": validate_quality,
                   "research.select_matching": tools.research.select_matching,
                   "research.select_photometric": tools.research.select_photometric}[tool]
@@ -989,7 +1003,8 @@ class TestToolFiles:
     """The files the maintenance tools read and write: a file that is not theirs is never replaced, a malformed one
     is one line; checked before any render."""
 
-    @pytest.mark.parametrize("tool, flag", [(tools.regression, "--bounds"), (tools.scene_fingerprints, "--file")])
+    @pytest.mark.parametrize("tool, flag", [(tools.regression, "--bounds"), (tools.scene_fingerprints, "--file"),
+                                            (tools.presets_snapshot, "--file")])
     @pytest.mark.parametrize("target", ["README.md", "csv", "dir", "missing-folder/x.json"])
     def test_update_never_replaces_a_file_that_is_not_its_own(self, tool, flag, target, capfd, tmp_path):
         paths = {"README.md": tmp_path / "README.md", "csv": tmp_path / "results.csv", "dir": tmp_path / "d",
@@ -1001,7 +1016,8 @@ class TestToolFiles:
         argv = [flag, paths[target], "--update", *(["--force"] if tool is tools.scene_fingerprints else [])]
         expect_tool_refusal(tool.main, argv, capfd, tmp_path, prog, paths[target])
 
-    @pytest.mark.parametrize("tool, flag", [(tools.regression, "--bounds"), (tools.scene_fingerprints, "--file")])
+    @pytest.mark.parametrize("tool, flag", [(tools.regression, "--bounds"), (tools.scene_fingerprints, "--file"),
+                                            (tools.presets_snapshot, "--file")])
     def test_a_file_that_is_not_its_own_is_one_line_when_checked(self, tool, flag, capfd, tmp_path):
         (tmp_path / "results.csv").write_text("scene,mae_m\nx,0.1\n")
         expect_tool_refusal(tool.main, [flag, tmp_path / "results.csv"], capfd, tmp_path,
@@ -1115,6 +1131,7 @@ class TestMethodsListing:
 
 
 class TestFramePhotometric:
+    @pytest.mark.slow
     def test_a_record_missing_a_key_is_refused_naming_file_camera_and_key(self, tmp_path, capfd):
         data = tmp_path / "data"
         d = write_frame(make_synthetic_frame(64), data)

@@ -735,7 +735,22 @@ def test_catalogue_size():
     assert len({(c.group, c.name) for c in CASES}) == len(CASES)
 
 
-@pytest.mark.parametrize("case", CASES, ids=[f"{c.group}-{c.name}" for c in CASES])
+#: the cases that run a whole evaluate or report, place many viewpoints or render twice: a second or more each
+#: (marked ``slow``)
+SLOW_CASES = {"render-viewpoints-more-than-fit", "report-cleans-leftovers-of-killed-runs",
+              "report-results-of-the-previous-release", "report-results-csv-variant-escapes",
+              "report-results-csv-method-escapes", "data-umask-022-evaluate-and-report",
+              "data-umask-077-evaluate-and-report", "render-rerun-repairs-corrupt-frame",
+              "evaluate-cleans-leftovers-of-killed-runs", "render-rerun-other-baseline", "render-rerun-other-width",
+              "render-rerun-other-seed", "render-cleans-leftovers-of-killed-runs"}
+
+
+def test_every_slow_case_is_in_the_catalogue():
+    assert SLOW_CASES <= {f"{c.group}-{c.name}" for c in CASES}
+
+
+@pytest.mark.parametrize("case", [pytest.param(c, marks=pytest.mark.slow) if f"{c.group}-{c.name}" in SLOW_CASES else c
+                                  for c in CASES], ids=[f"{c.group}-{c.name}" for c in CASES])
 def test_bad_input(case: Case, env: Env, capfd, monkeypatch):
     if case.setup is not None:
         case.setup(env, monkeypatch)

@@ -49,6 +49,7 @@ def test_example_is_short_third_party_code():
     assert modules == {"json", "sys", "pathlib", "cv2", "numpy", "OpenEXR"}  # no tri360 package
 
 
+@pytest.mark.slow
 def test_example_scores_and_joins_the_leaderboard(data_root, tmp_path, capsys):
     preds = tmp_path / "preds"
     run_example(data_root, preds)
@@ -79,6 +80,7 @@ def test_example_scores_and_joins_the_leaderboard(data_root, tmp_path, capsys):
     assert (out / "figures/synthetic_box/vp000/errors.png").is_file()
 
 
+@pytest.mark.slow
 def test_example_never_reads_ground_truth(data_root, tmp_path):
     """The same predictions from a copy of the data root without any distance EXR."""
     bare = tmp_path / "bare"

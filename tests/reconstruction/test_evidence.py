@@ -5,6 +5,7 @@ that differ get their difference, on exact ray-cast frames."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from reconstruction.camera.equirect import bearing_grid
 from reconstruction.evidence import BLOCKS, hotelling, jackknife_linear, sphere_blocks
@@ -73,6 +74,7 @@ def _relit(frame, cams: dict):
     return images
 
 
+@pytest.mark.slow
 def test_cameras_that_agree_get_no_correction():
     frame = make_synthetic_frame(width=480)
     model, record = fit_photometric(frame.images, frame.cameras, frame.distance["C"], PhotometricParams())
@@ -80,6 +82,7 @@ def test_cameras_that_agree_get_no_correction():
     assert apply_photometric(frame.images, model)["U"] is frame.images["U"]
 
 
+@pytest.mark.slow
 def test_cameras_that_differ_are_corrected_to_c():
     """U and R with other gains (0.8-1.2) and fall-off (20 %, 30 %): both are applied, and the corrected images are
     within 1 grey level of the originals on 95 % of the pixels."""
@@ -95,6 +98,7 @@ def test_cameras_that_differ_are_corrected_to_c():
         assert np.percentile(diff, 95) <= 1.0
 
 
+@pytest.mark.slow
 def test_a_camera_with_another_response_curve_is_corrected_to_c():
     """U encodes its linear light with gamma 1.8 and R with gamma 2.6 instead of sRGB, after a gain: each
     response is applied (its slope in K's own log level within 0.05 of ``1 - G / 2.2``, 2.2 about sRGB's
@@ -117,6 +121,7 @@ def test_a_camera_with_another_response_curve_is_corrected_to_c():
         assert np.percentile(np.abs(out_gain[k].astype(int) - frame.images[k].astype(int)), 90) > 3.0
 
 
+@pytest.mark.slow
 def test_a_fall_off_all_three_share_is_removed_from_the_parallax():
     """The same 50 % fall-off in C, U and R (the common_field fit): applied, and the log ratio of the corrected to
     the original images spans a tenth of what it spanned (5th-95th percentile)."""

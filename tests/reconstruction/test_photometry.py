@@ -74,6 +74,7 @@ def _relit(frame, gains: dict, edge: dict):
     return images
 
 
+@pytest.mark.slow
 def test_gains_from_the_same_pixels_and_identity_on_equal_cameras():
     f = make_synthetic_frame(240)
     images = _relit(f, {"U": (1.3, 1.3, 1.3), "R": (0.8, 0.8, 0.8)}, {"U": 0.0, "R": 0.0})

@@ -116,6 +116,7 @@ def test_usable_matches_drop_inconsistent_invalid_and_untextured_pixels():
     assert kept[5:-5, w // 2 + 3: -3].mean() > 0.9
 
 
+@pytest.mark.slow
 def test_self_calibration_corrects_a_told_rotation_that_is_off():
     """A ray-cast frame whose told U and R rotations are off by 0.4 degrees: the pre-pass's matches bring both
     within 0.15 degrees of the truth; the told poses of an exact frame are moved by less than 0.1 degrees."""
@@ -140,6 +141,7 @@ def test_self_calibration_corrects_a_told_rotation_that_is_off():
     assert exact.applied == [] and exact.frame is frame  # the told poses are right: nothing is applied
 
 
+@pytest.mark.slow
 def test_without_rig_calibration_the_told_poses_are_used():
     frame = make_synthetic_frame(width=160)
     calibration = self_calibrate(frame, NO_CALIBRATION, NO_RIG_CALIBRATION, TriangulationLimits())

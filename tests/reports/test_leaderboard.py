@@ -159,6 +159,7 @@ def test_pixel_weighted_edge_cases():
     assert np.isnan(pixel_weighted([1.0], [0]))
 
 
+@pytest.mark.slow
 def test_region_and_overall_columns_equal_pooling_the_pixels(mixed):
     """The leaderboard (from the CSVs) equals reports.metrics.pooled_summary over the maps of both frames."""
     res, out = mixed
@@ -191,6 +192,7 @@ def test_region_and_overall_columns_equal_pooling_the_pixels(mixed):
     assert board.loc["outside", "coverage"] < 1.0  # its NaN pixels count
 
 
+@pytest.mark.slow
 def test_leaderboard_files_and_html(mixed):
     res, out = mixed
     board = pd.read_csv(res / "leaderboard.csv", keep_default_na=True)
@@ -280,6 +282,7 @@ def test_sortable_table_needs_a_key_per_cell():
 # ------------------------------------------------------------------------------------------ sparsification
 
 
+@pytest.mark.slow
 def test_sparsification_curves_pool_frames_like_the_results(mixed):
     res, out = mixed
     results = read_results(res)
@@ -335,6 +338,7 @@ def test_pooled_sparsification_is_the_pixel_weighted_mean_and_its_ause():
 # -------------------------------------------------------------------------------- results without the flow pipeline
 
 
+@pytest.mark.slow
 def test_only_other_methods_give_a_complete_report(tmp_path):
     res = make_results(tmp_path, flow=False, others=True)
     out = build_report(res, ply="all", cloud_points=200)
@@ -355,6 +359,7 @@ def test_only_other_methods_give_a_complete_report(tmp_path):
     assert out.markdown == (res / "leaderboard.md").read_text()
 
 
+@pytest.mark.slow
 def test_missing_map_of_another_method_is_a_problem_not_fatal(tmp_path):
     res = make_results(tmp_path, others=True)
     (res / "maps/room/v0/outside/distance.exr").unlink()
@@ -367,6 +372,7 @@ def test_missing_map_of_another_method_is_a_problem_not_fatal(tmp_path):
     assert len(out.leaderboard) == len(CONFIGS) * len(VARIANTS) + len(OTHERS) + 3  # the CSVs still rank all
 
 
+@pytest.mark.slow
 def test_error_maps_hold_every_method(tmp_path, monkeypatch):
     res = make_results(tmp_path, others=True)
     seen = {}

@@ -266,7 +266,8 @@ def test_seam_hand_computed():
 # ------------------------------------------------------------------------------------------------------ AUSE
 
 
-@pytest.mark.parametrize("seed, steps", [(0, AUSE_STEPS), (1, AUSE_STEPS), (2, 7), (3, 100)])
+@pytest.mark.parametrize("seed, steps", [pytest.param(0, AUSE_STEPS, marks=pytest.mark.slow),
+                                         pytest.param(1, AUSE_STEPS, marks=pytest.mark.slow), (2, 7), (3, 100)])
 def test_ause_and_curves_match_an_independent_computation(seed, steps):
     pred, gt, conf = random_case(seed)
     errs, confs = reference_errors(pred, gt, conf)
@@ -332,6 +333,7 @@ def test_ause_without_pixels_and_without_confidence():
 # --------------------------------------------------------------------------------------------------- pooling
 
 
+@pytest.mark.slow
 def test_pooled_summary_is_over_the_union_of_pixels():
     a = random_case(6, 40, 80)
     b = random_case(7, 20, 40)

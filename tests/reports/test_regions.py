@@ -193,6 +193,7 @@ def test_texture_level_on_flat_noise_and_ramp_images():
     assert not tl[:, 0].any() and not tl[:, 39].any()
 
 
+@pytest.mark.slow
 def test_textureless_finds_the_blank_board_of_the_synthetic_room(room):
     frame, spec, masks = room
     c = frame.cameras["C"]
@@ -221,6 +222,7 @@ def test_no_occlusion_inside_a_sphere_whatever_the_rig_orientation():
     assert occluded_from(frame, "U").sum() > 100
 
 
+@pytest.mark.slow
 def test_occluded_pixels_are_really_hidden(room):
     """Every flagged pixel is confirmed by casting the ray from U or R to its surface point in the scene."""
     frame, spec, masks = room
@@ -244,6 +246,7 @@ def test_occluded_pixels_are_really_hidden(room):
     np.testing.assert_array_equal(masks["occluded"], masks["occluded_U"] | masks["occluded_R"])
 
 
+@pytest.mark.slow
 def test_occluded_share_is_small_and_beside_depth_edges(room):
     frame, _, masks = room
     occ = masks["occluded"]
@@ -258,6 +261,7 @@ def test_occluded_share_is_small_and_beside_depth_edges(room):
 # ---------------------------------------------------------------------------------------- region summaries
 
 
+@pytest.mark.slow
 def test_region_summaries(room):
     frame, _, masks = room
     gt = frame.distance["C"].astype(np.float64)
@@ -286,6 +290,7 @@ def test_region_summaries(room):
     assert [r["mae_m"] for r in with_conf] == [r["mae_m"] for r in rows]
 
 
+@pytest.mark.slow
 def test_region_summaries_reject_a_wrong_shape(room):
     frame, _, masks = room
     with pytest.raises(ValueError, match=r"\(160, 319\) and \(160, 320\)"):

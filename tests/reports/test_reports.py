@@ -139,6 +139,7 @@ class _Collect(HTMLParser):
 # ------------------------------------------------------------------------------------------------ outputs
 
 
+@pytest.mark.slow
 def test_every_output_exists(report):
     res, outcome, _ = report
     expected = ["leaderboard.csv", "leaderboard.md", "mae.md", "mae.csv", "fig4_mae.png", "error_vs_angle.png",
@@ -163,6 +164,7 @@ def _read_ply(path: Path):
     return parse_ply(path.read_bytes(), str(path))
 
 
+@pytest.mark.slow
 def test_ply_parses_back_with_the_right_vertex_count(report):
     res, _, _ = report
     gt_pts, gt_col = _read_ply(res / "clouds/room/v0/ground_truth.ply")
@@ -196,6 +198,7 @@ def test_point_grid_recovers_distance():
     assert np.isnan(point_grid(np.full((2, 4), np.inf), np.zeros(3), np.eye(3))).all()
 
 
+@pytest.mark.slow
 def test_variant_mae_table_reduction_against_average(report):
     res, outcome, _ = report
     results = pd.read_csv(res / "results.csv")
@@ -220,6 +223,7 @@ def test_variant_mae_table_reduction_against_average(report):
     assert "dis-rect |" in outcome.markdown
 
 
+@pytest.mark.slow
 def test_paper_reference_rows(report):
     _, outcome, _ = report
     paper = [ln for ln in outcome.markdown.splitlines() if ln.startswith("| paper's figures")]
@@ -245,6 +249,7 @@ def test_variant_mae_table_averages_frames_and_pairs_average():
     assert np.isnan(t.loc[("tri360", "gradient"), "t mae_m"])
 
 
+@pytest.mark.slow
 def test_html_is_self_contained(report):
     res, _, _ = report
     text = (res / "report.html").read_text()
@@ -261,6 +266,7 @@ def test_html_is_self_contained(report):
     assert text.count("<script>") == 1 and 'table class="sortable" id="leaderboard"' in text
 
 
+@pytest.mark.slow
 def test_ply_paper_only_and_none(tmp_path):
     res = make_results(tmp_path)
     (res / "breakdown.csv").unlink()  # not needed here; saves two plots
@@ -273,6 +279,7 @@ def test_ply_paper_only_and_none(tmp_path):
     assert not list(res.rglob("*.ply"))
 
 
+@pytest.mark.slow
 def test_missing_map_and_frame_are_reported_not_fatal(tmp_path):
     res = make_results(tmp_path)
     (res / "maps/room/v0/dis-rect/color.distance.exr").unlink()
@@ -352,6 +359,7 @@ def test_names_stay_strings(tmp_path):
     assert df.loc[0, "rectify"] is False or df.loc[0, "rectify"] == False  # noqa: E712 (numpy bool)
 
 
+@pytest.mark.slow
 def test_cli_prints_the_table(tmp_path, capsys):
 
     res = make_results(tmp_path)

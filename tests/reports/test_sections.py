@@ -61,6 +61,7 @@ def _results(frame, rows, preds, confs):
     return results_table(out), regions_table(regs), breakdown_table(bd)
 
 
+@pytest.mark.slow
 def test_frame_part_holds_every_figure_and_cloud(frame):
     rows, preds, confs = _methods(frame)
     part = frame_part(frame, rows, preds, confs, ply="all", cloud_points=200, first=True)
@@ -82,6 +83,7 @@ def test_frame_part_holds_every_figure_and_cloud(frame):
     assert curve[0] == pytest.approx(summary(preds["matcher"], frame.distance["C"])["mae_m"], abs=1e-9)
 
 
+@pytest.mark.slow
 def test_frame_part_ply_choices_and_problems(frame):
     rows, preds, _ = _methods(frame)
     none = frame_part(frame, rows, preds, ply="none", cloud_points=100)
@@ -101,6 +103,7 @@ def test_frame_part_ply_choices_and_problems(frame):
     assert "figures/room/v0/errors.png" in part.files  # the rest is still drawn
 
 
+@pytest.mark.slow
 def test_summary_parts_from_dataframes(frame):
     rows, preds, confs = _methods(frame)
     results, region_table, bd = _results(frame, rows, preds, confs)
@@ -121,6 +124,7 @@ def test_summary_parts_from_dataframes(frame):
     assert sparsification_part({}).files == {}
 
 
+@pytest.mark.slow
 def test_leaderboard_part_shows_the_floor_or_says_there_is_none(frame):
     rows, preds, confs = _methods(frame)
     results, region_table, _ = _results(frame, rows, preds, confs)  # no floor columns: an older results set

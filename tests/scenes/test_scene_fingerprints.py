@@ -18,6 +18,7 @@ from tools import scene_fingerprints as fp
 FAMILIES = fp.builtin_families()
 
 
+@pytest.mark.slow
 def test_every_builtin_family_builds_what_its_fingerprints_record_under_its_version():
     problems = fp.check(fp.load(), FAMILIES)
     assert not problems, "\n".join(problems)

@@ -28,9 +28,12 @@ def tiny():
 
 
 VARIANTS = discover_variants()[0]
+#: the variants with a colour term: seconds each against scipy (marked ``slow``)
+COLOUR_VARIANTS = {name for name, v in VARIANTS.items() if v.color_weight > 0}
 
 
-@pytest.mark.parametrize("name", sorted(VARIANTS))
+@pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.slow) if n in COLOUR_VARIANTS else n
+                                  for n in sorted(VARIANTS)])
 def test_vectorised_lm_agrees_with_per_pixel_scipy(tiny, name):
     frame, prep = tiny
     res = bench.compare_variant(frame, prep, VARIANTS[name], subset=50, rng=np.random.default_rng(0), progress=False)
@@ -52,6 +55,7 @@ def test_scipy_pixel_solves_a_known_minimum(tiny):
     assert d == pytest.approx(float(frame.distance["C"].reshape(-1)[i]), abs=1e-6)  # metres
 
 
+@pytest.mark.slow
 def test_main_prints_the_summary_line_last(tmp_path, capsys):
     status = bench.main(["--width", "32", "--subset", "5", "--frame", str(tmp_path), "--no-progress"])
     out = capsys.readouterr().out
@@ -62,6 +66,7 @@ def test_main_prints_the_summary_line_last(tmp_path, capsys):
     assert any("goals vs measured" in line for line in lines)
 
 
+@pytest.mark.slow
 def test_render_bench_times_the_render_command_end_to_end_against_the_reference(capsys):
     """``bench_render`` runs ``tri360 render`` in new processes, the reference and the frame in turn (here both tiny
     ray-cast frames), and prints each time, the goal on the ratio of their medians and the range."""

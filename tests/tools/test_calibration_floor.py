@@ -6,6 +6,7 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
+import pytest
 
 from harness.data.frame import write_frame
 from reconstruction.photometry import linear_to_srgb, srgb_to_linear
@@ -13,6 +14,7 @@ from tests.helpers import make_synthetic_frame
 from tools.research.calibration_floor import calibration_rows, main
 
 
+@pytest.mark.slow
 def test_rows_say_what_was_applied(tmp_path, capsys):
     frame = make_synthetic_frame(width=480)
     write_frame(frame, tmp_path)

@@ -6,6 +6,7 @@ import json
 
 import cv2
 import numpy as np
+import pytest
 
 from harness.data.exr import write_distance_exr
 from harness.data.frame import write_frame
@@ -15,6 +16,7 @@ from tools.common import synthetic_box_frame
 from tools.overview import PNG_MARK, is_overview_png, main, marked_png
 
 
+@pytest.mark.slow
 def test_overview_writes_the_picture_and_refuses_a_missing_map(tmp_path, capsys):
     frame = synthetic_box_frame(64, "vp000")
     data = tmp_path / "data"

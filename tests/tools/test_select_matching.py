@@ -10,7 +10,7 @@ import pytest
 from harness.commands.parts.suite import render_suite
 from harness.data.outputs import read_marker
 from harness.runtime.context import QUIET
-from tests.harness.test_suite import MINI, write
+from tests.harness.commands.test_suite import MINI, write
 from tools.research import select_matching as sel
 
 
@@ -69,6 +69,7 @@ def test_candidates_are_sweep_fused_and_the_fused_variants_sharing_one_flow():
     assert len(keys) == 1  # one group: the flow once per frame for every fused candidate
 
 
+@pytest.mark.slow
 def test_candidates_can_be_narrowed_to_the_chosen_one_and_the_comparison_methods(tmp_path, capsys):
     assert [m.label for m in sel.candidate_methods(["fused-gated"])] == ["sweep", "fused", "fused-gated"]
     assert [m.label for m in sel.candidate_methods(["fused"])] == ["sweep", "fused"]
@@ -80,6 +81,7 @@ def test_candidates_can_be_narrowed_to_the_chosen_one_and_the_comparison_methods
     assert len(err) == 1 and "unknown candidate(s) nope" in err[0] and not out.exists()
 
 
+@pytest.mark.slow
 def test_select_on_a_tiny_suite_split_writes_the_results_and_the_choice(tmp_path, capsys):
     suite = write(tmp_path, MINI.format(width=64))
     root = tmp_path / "data"

@@ -69,6 +69,7 @@ def validated(data):
     return out, code, buf_out.getvalue()
 
 
+@pytest.mark.slow
 def test_outputs_exist_and_parse(data, validated):
     out, code, text = validated
     assert code == 0
@@ -93,6 +94,7 @@ def test_outputs_exist_and_parse(data, validated):
     assert read_marker(out)["kind"] == "validation"
 
 
+@pytest.mark.slow
 def test_calibration_check_flags_the_rotated_frames(validated):
     out, code, _ = validated
     assert code == 0
@@ -117,6 +119,7 @@ def results(data):
     return out
 
 
+@pytest.mark.slow
 def test_results_reuse_gives_the_same_rho_as_running_the_method(data, validated, results, tmp_path, capsys):
     out = tmp_path / "val-reused"
     code, text, err = _run(capsys, data, "--method", METHOD, "--out", out, "--results", results,
@@ -131,6 +134,7 @@ def test_results_reuse_gives_the_same_rho_as_running_the_method(data, validated,
     assert summary["calibration"]["frames"] == 0 and "Not run" in text
 
 
+@pytest.mark.slow
 def test_results_of_another_configuration_or_label_are_refused_in_one_line(data, results, tmp_path, capsys):
     out = tmp_path / "val"
     for label, words in (("sweep-u", ["'sweep-u'", "another configuration", "pairs"]),
@@ -142,6 +146,7 @@ def test_results_of_another_configuration_or_label_are_refused_in_one_line(data,
         assert not out.exists()
 
 
+@pytest.mark.slow
 def test_bad_inputs_are_one_line_and_exit_2(data, tmp_path, capsys):
     a_file = tmp_path / "file.txt"
     a_file.write_text("x", encoding="utf-8")
@@ -162,6 +167,7 @@ def test_bad_inputs_are_one_line_and_exit_2(data, tmp_path, capsys):
     assert a_file.read_text(encoding="utf-8") == "x" and not (data / "inside").exists()
 
 
+@pytest.mark.slow
 def test_a_data_root_without_ground_truth_is_refused(data, tmp_path, capsys):
     root = tmp_path / "nogt"
     write_frame(dataclasses.replace(make_synthetic_frame(width=64), distance={}), root)
@@ -247,6 +253,7 @@ def test_rank_correlation_counts_nan_as_most_uncertain():
     assert math.isnan(rank_correlation(np.ones(4), err)) and math.isnan(rank_correlation(np.ones(2), err[:2]))
 
 
+@pytest.mark.slow
 def test_frames_without_ground_truth_are_skipped_and_frames_keeps_the_first(tmp_path, capsys):
     root = tmp_path / "mixed"
     for vp in (1, 0):
@@ -283,6 +290,7 @@ def test_threshold_separates_most_frames_in_the_middle_of_the_widest_gap():
     assert np.isnan(choose_threshold([float("nan")], [float("nan")])["threshold"])
 
 
+@pytest.mark.slow
 def test_a_fused_method_ranks_with_its_flow_as_reference(data, tmp_path, capsys):
     """fused hands back its flow distance: the disagreement column is filled and, from a results set, the
     reference is read under the flow method's label (and refused, named, when the set lacks it)."""
