@@ -38,7 +38,7 @@ from reconstruction.plugins import Registry, collect_registry, shadow_message, u
 __all__ = ["flow_registry", "refuse_shadowed_flow",
            "FlowBackend", "ORACLE", "RENAMED_FLOWS", "renamed_flow_note", "builtin_flows", "builtin_flow",
            "discover_flows", "get_flow", "available_flows", "equirect_flow", "MATCHING_PARAMS", "DEEPFLOW_PARAMS",
-           "matching_params", "deepflow_params", "backend_params"]
+           "matching_params", "deepflow_params", "backend_params", "interpolate_matches"]
 
 
 ENTRY_POINT_GROUP = "tri360.flows"
@@ -206,6 +206,24 @@ def _deepflow(img0, img1, **params):
     return _one_way_of_both(_FLOW_CACHE, img0, img1, repr(p), lambda a, b: deep_flow_both(a, b, p))
 
 
+def interpolate_matches(img0: np.ndarray, img1: np.ndarray, p0: np.ndarray, p1: np.ndarray) -> np.ndarray:
+    """Dense flow from sparse matches by OpenCV's edge-aware interpolator (EpicFlow's step).
+
+    Args:
+        img0, img1: (H, W, 3) uint8 images.
+        p0, p1: (N, 2) float32 pixel positions (x, y) of N >= 4 matches, ``p0`` in ``img0``, ``p1`` in ``img1``.
+    Returns:
+        (H, W, 2) float32 flow of ``img0`` towards ``img1``, pixels.
+
+    The interpolator fits each pixel from its ``k`` nearest matches (OpenCV's default 128); with fewer matches than
+    ``k``, OpenCV 4.11 reads past its table of neighbours (undefined results or a crash, opencv_contrib issue 4195),
+    so ``k`` is cut to N.
+    """
+    interp = cv2.ximgproc.createEdgeAwareInterpolator()
+    interp.setK(min(interp.getK(), len(p0)))
+    return interp.interpolate(img0, p0.reshape(-1, 1, 2), img1, p1.reshape(-1, 1, 2))
+
+
 def _epicflow(img0, img1, wrap=True, pad=32, **matching):
     """EpicFlow route: DeepMatching matches (``wrap`` and ``matching``: :func:`matching_params`'s), OpenCV's
     edge-aware interpolation, OpenCV variational refinement.
@@ -223,8 +241,7 @@ def _epicflow(img0, img1, wrap=True, pad=32, **matching):
         return np.zeros((h, w, 2), np.float32)
     p0 = np.stack([m.x0 + pad, m.y0], axis=1).astype(np.float32)
     p1 = np.stack([m.x1 + pad, m.y1], axis=1).astype(np.float32)
-    interp = cv2.ximgproc.createEdgeAwareInterpolator()
-    dense = interp.interpolate(a, p0.reshape(-1, 1, 2), b, p1.reshape(-1, 1, 2))
+    dense = interpolate_matches(a, b, p0, p1)
     ref = cv2.VariationalRefinement_create()
     dense = ref.calc(grey(a), grey(b), dense)
     return np.ascontiguousarray(dense[:, pad:pad + w], np.float32)
