@@ -74,7 +74,7 @@ class PhotometricCandidate:
     blur_px: float = 0.0
 
     def method(self, base: PriorSweepMethod) -> PriorSweepMethod:
-        """The candidate built on ``base`` (the default's matching, ``mirror_method()``)."""
+        """The candidate built on ``base`` (the default's matching, ``presets.fused_mirror()``)."""
         m = with_photometric(base, self.photometric, self.label)
         cost = dataclasses.replace(m.sweep.corrected_cost or m.sweep.cost, intensity_weight=self.intensity_weight,
                                    blur_px=self.blur_px)
