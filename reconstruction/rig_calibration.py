@@ -20,10 +20,10 @@ most ``delta / |t|`` (0.5 %); so only the rotation is fitted.
 **Fit** (:func:`fit_rotation`): Gauss-Newton on the three components of ``omega`` (radians, world axes), each step
 weighted with Tukey's biweight of the residual over a robust scale (occlusions and failed matches are outliers),
 over the matches whose pair is far from its epipoles.  The matches (:func:`usable_matches`) come from a quick
-flow pass on reduced rectified images (the photometric pre-pass, :func:`reconstruction.methods.flow_pipeline.
-reconstruct`); only textured pixels (C's Shi-Tomasi response in its top ``1 - texture_quantile``) whose flow is
-forward-backward consistent take part: a flow's smoothness drags the cross-epipolar component of untextured
-pixels with it.
+flow pass on reduced rectified images (the self-calibration's pre-pass,
+:func:`reconstruction.methods.self_calibration.self_calibrate`); only textured pixels (C's Shi-Tomasi response in its
+top ``1 - texture_quantile``) whose flow is forward-backward consistent take part: a flow's smoothness drags the
+cross-epipolar component of untextured pixels with it.
 """
 
 from __future__ import annotations

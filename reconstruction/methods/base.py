@@ -10,9 +10,18 @@ rig (poses, baseline) and the size, which is what a real rig would hand it.  No 
 (scene recipe, rig placement, a captured twin's true poses), no photometric record; built anew for every group of
 methods, so nothing a method does to its input reaches the scorer or another method.
 
-Methods that share work (the four variants of one flow configuration share the flow and the
-triangulation) say so with a common ``group_key``; :func:`run_methods` then runs each group once through
-the first member's ``run_group``.
+Two optional protocols extend :class:`Method`, each found with ``isinstance`` (a method that implements neither,
+such as an outside method with only ``label``, ``config()`` and ``run()``, is unaffected):
+
+* :class:`GroupedMethod`: methods that share work (the variants of one flow configuration share the flow and the
+  triangulation) say so with a common ``group_key``; :func:`method_groups` puts them in one group and
+  :func:`run_methods` runs each group once through the first member's ``run_group``.  Every other method is a group
+  of its own and runs through its ``run``.
+* :class:`ReferencingMethod`: a method that names the method whose distance the ground-truth-free quality measures
+  compare its own with (``reference_method``; :func:`with_references`, :func:`reference_distance`).
+
+The flow pipeline's group adds a third for the methods built on a flow-pipeline method's distance
+(:class:`reconstruction.methods.flow_pipeline.BuiltOnFlow`).
 """
 
 from __future__ import annotations
@@ -26,8 +35,8 @@ import numpy as np
 
 from reconstruction.camera.rig import CAMERA_NAMES, CameraPose
 
-__all__ = ["Method", "MethodInput", "MethodOutput", "method_groups", "run_methods", "flow_fields", "with_references",
-           "reference_distance"]
+__all__ = ["Method", "GroupedMethod", "ReferencingMethod", "MethodInput", "MethodOutput", "method_groups",
+           "run_methods", "flow_fields", "with_references", "reference_distance"]
 
 
 def _frozen(a) -> np.ndarray:
@@ -125,6 +134,42 @@ class Method(Protocol):
         ...
 
 
+@runtime_checkable
+class GroupedMethod(Method, Protocol):
+    """A method that shares work with others (e.g. :class:`reconstruction.methods.flow_pipeline.FlowMethod`: the
+    variants of one flow configuration compute its flow once).
+
+    :func:`method_groups` puts methods with equal, non-None ``group_key`` in one group, and :func:`run_methods` runs
+    each group through its first member's ``run_group``, once per frame.
+    """
+
+    @property
+    def group_key(self) -> Hashable | None:
+        """Equal keys: the methods share work and run together; None: the method is a group of its own."""
+        ...
+
+    def run_group(self, frame: MethodInput, members: Sequence[Method],
+                  on_stage: Callable[[str], None] | None = None) -> dict[str, MethodOutput]:
+        """Run ``members`` (methods of this ``group_key``, this one among them) on one frame, sharing their work;
+        ``on_stage`` is called with a stage name before each stage (progress display).
+
+        Returns:
+            Outputs by member label: each the output the member's own ``run`` gives.
+        """
+        ...
+
+
+@runtime_checkable
+class ReferencingMethod(Method, Protocol):
+    """A method that names the method whose distance is its reference for the ground-truth-free quality measures
+    (:func:`reconstruction.quality.assess`'s ``reference``; e.g. the default ``fused-mirror``'s refined flow)."""
+
+    @property
+    def reference_method(self) -> Method | None:
+        """The reference method (run beside this one: :func:`with_references`), or None: no reference."""
+        ...
+
+
 def flow_fields(method) -> dict[str, Any]:
     """The results columns ``flow``, ``rectify`` and ``variant`` of a method (empty for methods that are not
     the flow pipeline)."""
@@ -133,19 +178,20 @@ def flow_fields(method) -> dict[str, Any]:
 
 
 def method_groups(methods: Sequence[Method]) -> list[list[Method]]:
-    """``methods`` split into the groups that share work (same ``group_key``), in order of first appearance; a
-    method without a ``group_key`` is a group of its own.  :func:`run_methods` runs each group once; a distributed
-    evaluation makes one task per frame and group."""
+    """``methods`` split into the groups that share work (:class:`GroupedMethod` with the same ``group_key``), in
+    order of first appearance; any other method (or one whose ``group_key`` is None) is a group of its own.
+    :func:`run_methods` runs each group once; a distributed evaluation makes one task per frame and group."""
     groups: dict[Hashable, list] = {}
     for i, m in enumerate(methods):
-        key = getattr(m, "group_key", None)
+        key = m.group_key if isinstance(m, GroupedMethod) else None
         groups.setdefault(("group", key) if key is not None else ("single", i), []).append(m)
     return list(groups.values())
 
 
 def run_methods(frame, methods: Sequence[Method],
                 on_stage: Callable[[str], None] | None = None) -> dict[str, MethodOutput]:
-    """Run every method on one frame, each group of methods that share work once.
+    """Run every method on one frame, each group of methods that share work once (:func:`method_groups`: through
+    the first member's ``run_group`` when it is a :class:`GroupedMethod`, else through each member's ``run``).
 
     Args:
         frame: the frame.
@@ -157,7 +203,7 @@ def run_methods(frame, methods: Sequence[Method],
     outs: dict[str, MethodOutput] = {}
     for members in method_groups(methods):
         head = members[0]
-        if hasattr(head, "run_group"):
+        if isinstance(head, GroupedMethod):
             outs.update(head.run_group(frame, members, on_stage=on_stage))
         else:
             for m in members:
@@ -169,12 +215,12 @@ def run_methods(frame, methods: Sequence[Method],
 
 def with_references(methods: Sequence[Method]) -> list[Method]:
     """``methods`` followed by the methods whose distance they name as their quality reference
-    (``reference_method``) and that are not among them (by label): run together (:func:`run_methods`), a reference
+    (:class:`ReferencingMethod`) and that are not among them (by label): run together (:func:`run_methods`), a reference
     of the same flow configuration shares the flow, and :func:`reference_distance` finds it in the outputs."""
     out = list(methods)
     labels = {m.label for m in out}
     for m in methods:
-        ref = getattr(m, "reference_method", None)
+        ref = m.reference_method if isinstance(m, ReferencingMethod) else None
         if ref is not None and ref.label not in labels:
             out.append(ref)
             labels.add(ref.label)
@@ -186,7 +232,7 @@ def reference_distance(frame, method: Method, outputs: dict[str, MethodOutput]) 
     assess`'s ``reference``).
 
     The method's own ``reference`` when its output has one; else, for a method that names one
-    (``reference_method``, e.g. the default ``fused-mirror``'s refined flow, which it does not compute itself),
+    (:class:`ReferencingMethod`, e.g. the default ``fused-mirror``'s refined flow, which it does not compute itself),
     that method's distance: taken from ``outputs`` when the same run computed it, else run now.  None for a method
     without a reference.
 
@@ -199,7 +245,7 @@ def reference_distance(frame, method: Method, outputs: dict[str, MethodOutput]) 
     own = outputs[method.label].reference
     if own is not None:
         return own
-    ref = getattr(method, "reference_method", None)
+    ref = method.reference_method if isinstance(method, ReferencingMethod) else None
     if ref is None:
         return None
     out = outputs.get(ref.label)

@@ -28,7 +28,8 @@ import numpy as np
 
 from reconstruction.camera.image_ops import periodic_gaussian_blur, periodic_pad
 from reconstruction.methods.base import MethodOutput
-from reconstruction.methods.flow_pipeline import Calibration, FlowMethod, run_flow_group
+from reconstruction.methods.flow_pipeline import FlowMethod, run_flow_group
+from reconstruction.methods.self_calibration import Calibration
 from reconstruction.methods.sweep import Prior, PriorFromSweep, SgmParams, SweepMethod, sweep_distances
 from reconstruction.sweep.cost import CostParams, gray_float
 
@@ -154,6 +155,9 @@ def sweep_gate(params: PriorParams, flow_m: np.ndarray, sweep_m: np.ndarray, swe
 @dataclass(frozen=True)
 class PriorSweepMethod:
     """The flow-prior sweep: flow pipeline -> prior cost in the sweep's volume -> SGM (a :class:`Method`).
+
+    Built on a flow-pipeline method (:class:`reconstruction.methods.flow_pipeline.BuiltOnFlow`: it runs in its flow's
+    group) and naming its quality reference (:class:`reconstruction.methods.base.ReferencingMethod`).
 
     Its ``config()`` records ``"kind": "fused"`` (the name ``config.json`` files have always held).
 

@@ -18,8 +18,9 @@ import numpy as np
 from reconstruction.camera.equirect import bearing_grid
 from reconstruction.camera.image_ops import periodic_filter
 from reconstruction.methods.base import MethodOutput
-from reconstruction.methods.flow_pipeline import Calibration, fill_edge_aware, reduced_frame, self_calibrate
+from reconstruction.methods.self_calibration import Calibration, reduced_frame, self_calibrate
 from reconstruction.photometry import PhotometricParams
+from reconstruction.refine.fill import fill_edge_aware
 from reconstruction.refine.triangulate import TriangulationLimits
 from reconstruction.rig_calibration import NO_RIG_CALIBRATION
 from reconstruction.sweep.cost import (
@@ -273,7 +274,7 @@ def sweep_distances(frame, sweep: SweepMethod, priors: Sequence[Prior | PriorFro
             and confidence).
         calibration: the frame's self-calibration when another stage made it (a flow-prior sweep matches the
             frame its flow matched; its seconds are the flow's); None: the sweep's own
-            (:func:`reconstruction.methods.flow_pipeline.self_calibrate` with ``sweep.photometric`` and the told
+            (:func:`reconstruction.methods.self_calibration.self_calibrate` with ``sweep.photometric`` and the told
             poses; stage ``photometric``).  When it changed the images, the sweep's cost is ``corrected_cost``; a
             cost with ``noise_blur`` then blurs as much as the images' noise asks (``CostParams.noise_blur``).
     Returns:

@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from reconstruction.camera.rig import CameraPose
-from reconstruction.methods.flow_pipeline import FlowMethod, self_calibrate
+from reconstruction.methods.flow_pipeline import FlowMethod
+from reconstruction.methods.self_calibration import self_calibrate
 from reconstruction.photometry import NO_CALIBRATION, PhotometricParams
 from reconstruction.refine.triangulate import TriangulationLimits
 from reconstruction.rig_calibration import (

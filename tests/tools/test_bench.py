@@ -13,7 +13,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from reconstruction.methods.flow_pipeline import prepare, variant_problem
+from reconstruction.methods.flow_pipeline import DEFAULT_FLOW
+from reconstruction.methods.flow_refine import variant_problem
+from reconstruction.methods.flow_stages import prepare
 from reconstruction.refine.lm import discover_variants
 from tests.helpers import make_synthetic_frame
 from tools import common
@@ -24,7 +26,7 @@ from tools.bench import render as bench_render
 @pytest.fixture(scope="module")
 def tiny():
     frame = make_synthetic_frame(64)
-    return frame, prepare(frame)
+    return frame, prepare(frame, DEFAULT_FLOW)
 
 
 VARIANTS = discover_variants()[0]

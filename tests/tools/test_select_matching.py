@@ -10,6 +10,7 @@ import pytest
 from harness.commands.parts.suite import render_suite
 from harness.data.outputs import read_marker
 from harness.runtime.context import QUIET
+from reconstruction.methods.base import GroupedMethod
 from tests.harness.commands.test_suite import MINI, write
 from tools.research import select_matching as sel
 
@@ -65,7 +66,7 @@ def test_candidates_are_sweep_fused_and_the_fused_variants_sharing_one_flow():
     labels = [m.label for m in methods]
     assert labels[:6] == ["sweep", "fused", "sweep-walls", "fused-adaptive", "fused-gated", "fused-mirror"]
     assert len(set(labels)) == len(labels)
-    keys = {m.group_key for m in methods if hasattr(m, "group_key")}
+    keys = {m.group_key for m in methods if isinstance(m, GroupedMethod)}
     assert len(keys) == 1  # one group: the flow once per frame for every fused candidate
 
 

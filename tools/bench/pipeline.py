@@ -6,7 +6,7 @@ Run as ``python -m tools.bench.pipeline`` (``make bench``).  It
    ray-caster in a child process (so the renderer's memory does not count towards the peak);
 2. runs :func:`reconstruction.methods.flow_pipeline.reconstruct` once for the default flow, rectified, with every
    variant (its peak memory is read right after it); then ``--rounds`` staged replays of that call (the flows and
-   triangulation of :func:`~reconstruction.methods.flow_pipeline.prepare`, then each refinement variant), timing the
+   triangulation of :func:`~reconstruction.methods.flow_stages.prepare`, then each refinement variant), timing the
    reference computation (:func:`reference_seconds`: OpenCV's DIS optical flow, C to R and back on the plain
    images) right before ``prepare`` and before each variant, and prints every stage's median and each variant's
    median ratio to its reference; DeepFlow (the paper's flow) is timed once per pair for comparison;
@@ -61,15 +61,9 @@ from scipy.optimize import least_squares
 from harness.runtime.progress import track
 from reconstruction.camera.image_ops import grey
 from reconstruction.flow.matching import match_pair
-from reconstruction.methods.flow_pipeline import (
-    DEFAULT_FLOW,
-    PAIRS,
-    color_texture_mask,
-    prepare,
-    reconstruct,
-    refine_variant,
-    variant_problem,
-)
+from reconstruction.methods.flow_pipeline import DEFAULT_FLOW, reconstruct
+from reconstruction.methods.flow_refine import color_texture_mask, refine_variant, variant_problem
+from reconstruction.methods.flow_stages import PAIRS, prepare
 from reconstruction.methods.registry import PAPER_CONFIG
 from reconstruction.refine.lm import RefineConfig, RefineProblem, discover_variants, levenberg_marquardt
 from reconstruction.refine.triangulate import TriangulationLimits

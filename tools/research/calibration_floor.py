@@ -5,7 +5,7 @@ Run as::
     python -m tools.research.calibration_floor DATA_ROOT [--out FILE.csv]
 
 For every frame (``frame.json`` below ``DATA_ROOT``) the self-calibration of ``fused-mirror``
-(:func:`reconstruction.methods.flow_pipeline.self_calibrate`, on the frame's images and told poses only) runs once;
+(:func:`reconstruction.methods.self_calibration.self_calibrate`, on the frame's images and told poses only) runs once;
 one row per frame: its condition (``ideal`` or the twin's), per camera U and R the fitted rotation (degrees) and
 its test's p-value, the largest mean channel log gain, the field's log range and the response's log range (over C's
 5th-95th percentile of levels) with theirs, and what was applied.
@@ -32,8 +32,8 @@ from harness.data.errors import FrameError, UserError
 from harness.data.frame import find_frames, read_frame
 from harness.runtime.progress import progress_bar
 from reconstruction.methods.base import MethodInput
-from reconstruction.methods.flow_pipeline import self_calibrate
 from reconstruction.methods.presets import fused_mirror
+from reconstruction.methods.self_calibration import self_calibrate
 from tools.common import ArgumentParser, user_error
 
 __all__ = ["calibration_rows", "main"]

@@ -96,7 +96,7 @@ from harness.runtime.blind import run_blind
 from harness.runtime.context import IN_PROCESS, RunContext
 from harness.runtime.progress import progress_bar
 from reconstruction.camera.rig import CAMERA_NAMES
-from reconstruction.methods.base import Method, MethodInput, reference_distance, with_references
+from reconstruction.methods.base import Method, MethodInput, ReferencingMethod, reference_distance, with_references
 from reconstruction.methods.registry import get_methods
 from reconstruction.photometry import NO_CALIBRATION
 from reconstruction.quality import (
@@ -398,7 +398,7 @@ def validate_quality(data_root: Path, method_label: str, out: Path, results: Pat
     families = {k: frame_family(k[0], v["family"]) for k, v in labelled.items()}
     stored = None if results is None else stored_maps(results, results_label or method_label, method, refs,
                                                       renderers)
-    ref_method = getattr(method, "reference_method", None)
+    ref_method = method.reference_method if isinstance(method, ReferencingMethod) else None
     ref_stored = None
     if results is not None and ref_method is not None:
         held = (read_config(results) or {}).get("methods", {})

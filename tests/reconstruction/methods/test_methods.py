@@ -22,8 +22,19 @@ from reconstruction.flow.backends import (
 from reconstruction.flow.deepflow import DeepFlowParams
 from reconstruction.flow.deepmatching import DeepMatchingParams
 from reconstruction.methods import presets
-from reconstruction.methods.base import Method, MethodOutput, flow_fields, run_methods
-from reconstruction.methods.flow_pipeline import FlowMethod
+from reconstruction.methods.base import (
+    GroupedMethod,
+    Method,
+    MethodOutput,
+    ReferencingMethod,
+    flow_fields,
+    method_groups,
+    reference_distance,
+    run_methods,
+    with_references,
+)
+from reconstruction.methods.flow_pipeline import BuiltOnFlow, FlowMethod
+from reconstruction.methods.prior_sweep import PriorSweepMethod
 from reconstruction.methods.registry import (
     ABLATIONS,
     DEFAULT_METHOD,
@@ -35,6 +46,7 @@ from reconstruction.methods.registry import (
     get_methods,
     uncalibrated,
 )
+from reconstruction.methods.sweep import SweepMethod
 from reconstruction.refine.lm import RefineConfig, builtin_variants, discover_variants, get_variant
 from reports.metrics import summary
 
@@ -187,6 +199,69 @@ def test_run_methods_keeps_order_and_runs_outside_methods(synthetic_frame):
     assert flow_fields(methods[0]) == {"flow": "", "rectify": "", "variant": ""}
 
 
+class SharedMethod(ConstantMethod):
+    """An outside method that shares work with the others of its ``group_key`` (a :class:`GroupedMethod`)."""
+
+    calls: list[list[str]] = []
+
+    def __init__(self, label: str, value: float, key: str):
+        super().__init__(label, value)
+        self.group_key = key
+
+    def run_group(self, frame, members, on_stage=None) -> dict[str, MethodOutput]:
+        SharedMethod.calls.append([m.label for m in members])
+        return {m.label: m.run(frame) for m in members}
+
+
+class KeyOnly(ConstantMethod):
+    """A ``group_key`` without ``run_group``: no :class:`GroupedMethod`, so a group of its own."""
+
+    group_key = "flow-pipeline"
+
+
+def test_the_builtin_grouped_and_referencing_methods_implement_their_protocols():
+    methods = builtin_methods()
+    flows = [m for m in methods if isinstance(m, FlowMethod)]
+    fused = [m for m in methods if isinstance(m, PriorSweepMethod)]
+    assert flows and fused
+    for m in flows:
+        assert isinstance(m, GroupedMethod) and not isinstance(m, BuiltOnFlow | ReferencingMethod), m.label
+    for m in fused:
+        assert isinstance(m, GroupedMethod) and isinstance(m, BuiltOnFlow) and isinstance(m, ReferencingMethod)
+        assert m.group_key == m.flow.group_key and isinstance(m.reference_method, FlowMethod), m.label
+    # every other built-in (the sweep) is a plain Method: a group of its own, without a reference
+    others = [m for m in methods if not isinstance(m, FlowMethod | PriorSweepMethod)]
+    assert others and all(isinstance(m, SweepMethod) for m in others)
+    assert not any(isinstance(m, GroupedMethod | ReferencingMethod) for m in others)
+
+
+def test_a_method_with_only_label_config_and_run_is_a_group_of_its_own(synthetic_frame):
+    const, key_only = ConstantMethod("const-2", 2.0), KeyOnly("key-only", 3.0)
+    a, b = flow_methods(["oracle"], [True], ["average", "angle"])
+    assert isinstance(const, Method) and not isinstance(const, GroupedMethod | ReferencingMethod)
+    assert isinstance(key_only, Method) and not isinstance(key_only, GroupedMethod)
+    groups = method_groups([const, a, key_only, b, KeyOnly("key-only-2", 4.0), ConstantMethod("const-3", 3.0)])
+    assert [[m.label for m in g] for g in groups] == [["const-2"], [a.label, b.label], ["key-only"], ["key-only-2"],
+                                                      ["const-3"]]
+    assert with_references([const]) == [const]
+    outs = run_methods(synthetic_frame, [const, key_only])
+    assert [float(o.distance.mean()) for o in outs.values()] == [2.0, 3.0]
+    assert reference_distance(synthetic_frame, const, outs) is None
+    with pytest.raises(TypeError, match="neither of the flow pipeline nor built on it.*const-2"):
+        a.run_group(synthetic_frame, [a, const])
+
+
+def test_an_outside_grouped_method_runs_its_group_once(synthetic_frame):
+    SharedMethod.calls.clear()
+    methods = [SharedMethod("s1", 1.0, "k"), ConstantMethod("c", 2.0), SharedMethod("s2", 3.0, "k"),
+               SharedMethod("t", 4.0, "other")]
+    assert all(isinstance(m, GroupedMethod) for m in methods if isinstance(m, SharedMethod))
+    outs = run_methods(synthetic_frame, methods)
+    assert SharedMethod.calls == [["s1", "s2"], ["t"]]
+    assert {k: float(o.distance.mean()) for k, o in outs.items()} == {"s1": 1.0, "c": 2.0, "s2": 3.0, "t": 4.0}
+    assert list(outs) == ["s1", "c", "s2", "t"]
+
+
 @pytest.fixture
 def plugin_dist(tmp_path, monkeypatch):
     """A real installed distribution (a .dist-info on sys.path) declaring tri360 entry points."""
@@ -232,8 +307,15 @@ def test_entry_points_extend_every_registry(plugin_dist, synthetic_frame):
     assert any("broken" in k and "expected RefineConfig" in v for k, v in errors.items())
     methods, _ = discover_methods()
     assert "half-gt" in methods and "zero-rect:angle4" in methods
-    out = get_methods(["half-gt"])[0].run(synthetic_frame)
+    half = get_methods(["half-gt"])[0]
+    out = half.run(synthetic_frame)
     np.testing.assert_allclose(out.distance, synthetic_frame.distance["C"] / 2)
+    # label, config() and run() only: a group of its own beside the built-ins, run unchanged
+    assert not isinstance(half, GroupedMethod | ReferencingMethod)
+    flows = flow_methods(["oracle"], [True], ["average"])
+    outs = run_methods(synthetic_frame, [half, *flows])
+    assert list(outs) == ["half-gt", "oracle-rect:average"] and len(method_groups([half, *flows])) == 2
+    np.testing.assert_allclose(outs["half-gt"].distance, synthetic_frame.distance["C"] / 2)
     with pytest.raises(ValueError, match="variant plugins that failed to load.*broken"):
         get_variant("nope")
 

@@ -7,7 +7,7 @@ from reconstruction.camera.equirect import bearing_grid, bearing_to_pixel
 from reconstruction.camera.resample import rectifying_rotation, sample_equirect, warp_equirect
 from reconstruction.flow.backends import FlowBackend, discover_flows, equirect_flow, get_flow
 from reconstruction.flow.matching import match_pair
-from reconstruction.methods.flow_pipeline import agreed_distance, available_variants, fill_invalid, reconstruct
+from reconstruction.methods.flow_pipeline import available_variants, reconstruct
 from reconstruction.refine.lm import get_variant
 from reconstruction.refine.triangulate import pair_geometry, triangulate_sines
 from tests.helpers import make_synthetic_frame
@@ -123,31 +123,6 @@ def test_matching_maps_flow_back_to_bearings(synthetic_frame):
     got = match_pair(frame, "R", backend, rectify=False, pad=0)
     ang = np.degrees(np.arccos(np.clip(np.einsum("...i,...i", got.bearing, exact.bearing), -1, 1)))
     assert np.percentile(ang, 99.9) < 1e-3  # degrees
-
-
-def test_fill_invalid_interpolates_holes():
-    d = np.full((40, 80), 3.0)
-    d[:, 40:] = 5.0
-    valid = np.ones_like(d, bool)
-    valid[10:14, 10:14] = False
-    valid[20:22, 60:62] = False
-    d_bad = np.where(valid, d, 99.0)
-    out = fill_invalid(d_bad, valid)
-    np.testing.assert_allclose(out[10:14, 10:14], 3.0, atol=1e-6)
-    np.testing.assert_allclose(out[20:22, 60:62], 5.0, atol=1e-6)
-    assert np.array_equal(out[valid], d[valid])
-
-
-def test_agreed_distance_keeps_only_pixels_both_pairs_triangulate_alike():
-    d_u = np.array([2.0, 2.0, 2.0, 2.0, 5.0, -1.0])
-    d_r = np.array([2.0, 2.09, 2.11, 2.0, 5.2, -1.0])
-    v_u = np.array([True, True, True, False, True, True])
-    v_r = np.ones(6, bool)
-    got = agreed_distance([d_u, d_r], [v_u, v_r], 0.05)
-    # ln(2.09 / 2) = 0.044 agrees, ln(2.11 / 2) = 0.054 does not; an invalid or non-positive pair never does
-    np.testing.assert_allclose(got[:2], [2.0, 2.045], rtol=1e-12)
-    assert np.isnan(got[2:4]).all() and np.isnan(got[5])
-    np.testing.assert_allclose(got[4], 5.1, rtol=1e-12)  # ln(5.2 / 5) = 0.039
 
 
 def test_bearings_of_c_are_those_of_the_camera_model(synthetic_frame):
