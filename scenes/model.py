@@ -7,22 +7,17 @@ kubric pattern).
 
 A family registers itself with a :class:`SceneEntry` (its build function, presets, parameters and default
 renderer); ``scenes.registry`` finds the entries.  A family's parameters are one frozen :class:`SceneParams`
-dataclass whose fields are declared with :func:`param` (type, default, unit, limits, one-line description);
-``build`` gets a checked instance.
+dataclass whose fields are declared with :func:`param` (type, default, unit, limits, one-line description:
+:mod:`reconstruction.params`); ``build`` gets a checked instance.
 
 Units: metres, radians, linear RGB in [0, 1], watts.  World is right-handed, Z up, floor at z = 0.
 """
 
 from __future__ import annotations
 
-import functools
 import hashlib
 import inspect
-import math
-import numbers
-import types
-import typing
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
@@ -30,6 +25,8 @@ from typing import Any
 import numpy as np
 
 from reconstruction.camera.rig import Rig, yaw_rotation
+from reconstruction.params import METADATA_KEY, ParamError, check_value, describe, from_mapping, info_of, type_hints
+from reconstruction.params import param as param  # families declare their parameters with scenes.model.param
 
 MATERIAL_KINDS = ("paint", "wood", "tiles", "board", "fabric", "metal", "plastic", "glass", "emission", "noise")
 LIGHT_KINDS = ("area", "point", "sun")
@@ -374,50 +371,15 @@ class SceneError(ValueError):
 
 # ------------------------------------------------------------------------------------------------ parameters
 
-PARAM_METADATA = "tri360"
-"""Key of a scene parameter's :class:`ParamInfo` in its dataclass field's ``metadata``."""
+PARAM_METADATA = METADATA_KEY
+"""Key of a scene parameter's :class:`ParamInfo` in its dataclass field's ``metadata``
+(:data:`reconstruction.params.METADATA_KEY`)."""
 
 
-@dataclass(frozen=True)
-class ParamInfo:
-    """What a scene parameter's field says about it besides its name, type and default (:func:`param`).
-
-    Attributes:
-        description: one line: what the parameter is (``tri360 scenes --params`` lists it).
-        unit: e.g. ``"m"``, ``"W"``, ``"K"``, ``"rad"``; ``""`` for counts, shares and switches.
-        limits: ``(low, high)``, the allowed values, inclusive (None: no bound on that side); of every element of
-            a tuple.
-        choices: the allowed strings of a ``str`` parameter, or of every element of a ``tuple[str, ...]``.
-    """
-
-    description: str
-    unit: str = ""
-    limits: tuple[float | None, float | None] | None = None
-    choices: tuple[str, ...] | None = None
-
-
-def param(default: Any, description: str, *, unit: str = "", limits: tuple | None = None,
-          choices: Iterable[str] | None = None) -> Any:
-    """One field of a :class:`SceneParams` dataclass: its ``default`` (immutable: a number, string, bool, tuple
-    or None) and its :class:`ParamInfo` (one-line ``description``, ``unit``, ``limits``, ``choices``)."""
-    info = ParamInfo(description, unit, None if limits is None else tuple(limits),
-                     None if choices is None else tuple(choices))
-    return field(default=default, metadata={PARAM_METADATA: info})
-
-
-class ParameterError(SceneError):
-    """A scene parameter of the wrong type or out of its limits.
-
-    Attributes:
-        detail: what is wrong, naming the parameter and what it expects (``"parameter 'rows' expects a whole
-            number in [0, 100], got 'abc'"``).
-        family: the scene family (None when the parameters were built outside a :class:`SceneEntry`); the
-            message is ``"scene 'classroom': <detail>"`` then.
-    """
-
-    def __init__(self, detail: str, family: str | None = None):
-        self.detail, self.family = detail, family
-        super().__init__(f"scene {family!r}: {detail}" if family else detail)
+class ParameterError(SceneError, ParamError):
+    """A scene parameter that is unknown, of the wrong type or out of its limits: one line,
+    ``scene 'classroom': rows: expected an integer in [0, 100], got 'many'`` (:class:`reconstruction.params.ParamError`;
+    ``where`` is empty for parameters built outside a :class:`SceneEntry`)."""
 
 
 @dataclass(frozen=True)
@@ -426,154 +388,24 @@ class SceneParams:
 
     A family subclasses it (decorated with ``@dataclass(frozen=True)``); ``build`` gets an instance.  Making
     one checks every field against its annotation and its limits and choices, and normalises it (a list becomes a
-    tuple, an int given for a float a float).  Annotations understood: ``float``, ``int``, ``bool``, ``str``,
-    ``tuple[T, T, ...]`` of a fixed length and ``tuple[T, ...]`` (T one of these), each optionally ``| None``.
-    The values come from JSON or TOML (``--set``, a suite's ``params``), so a bool is no number and 2.0 no whole
-    number.
+    tuple, an int given for a float a float): :func:`reconstruction.params.check_value`.  Annotations understood:
+    ``float``, ``int``, ``bool``, ``str``, ``tuple[T, T, ...]`` of a fixed length and ``tuple[T, ...]`` (T one of
+    these), each optionally ``| None``.  The values come from JSON or TOML (``--set``, a suite's ``params``), so a
+    bool is no number and 2.0 no whole number.  The base class itself declares no parameters (a family that has
+    none).
 
     Raises:
         ParameterError: the first field that is of the wrong type or out of range.
     """
 
     def __post_init__(self):
-        hints = _type_hints(type(self))
+        hints = type_hints(type(self))
         for f in fields(self):
-            info = f.metadata.get(PARAM_METADATA) or ParamInfo("")
-            value = getattr(self, f.name)
             try:
-                checked = _check_value(value, hints[f.name], info)
-            except _BadValue:
-                raise ParameterError(f"parameter {f.name!r} expects {_expects(hints[f.name], info)}, "
-                                     f"got {value!r}") from None
+                checked = check_value(getattr(self, f.name), hints[f.name], info_of(f), name=f.name)
+            except ParamError as exc:
+                raise exc.at("", ParameterError) from None
             object.__setattr__(self, f.name, checked)
-
-
-class _BadValue(Exception):
-    pass
-
-
-@functools.cache
-def _type_hints(cls: type) -> dict[str, Any]:
-    return typing.get_type_hints(cls)
-
-
-def _parts(tp) -> tuple[Any, bool]:
-    """``(type, optional)``: ``X | None`` -> ``(X, True)``."""
-    if typing.get_origin(tp) in (typing.Union, types.UnionType):
-        args = [a for a in typing.get_args(tp) if a is not type(None)]
-        if len(args) != 1:
-            raise SceneError(f"scene parameter type {tp} is not supported (one type, optionally | None)")
-        return args[0], len(args) < len(typing.get_args(tp))
-    return tp, False
-
-
-def _elements(tp) -> tuple[Any, int | None] | None:
-    """``tuple[T, T]`` -> ``(T, 2)``, ``tuple[T, ...]`` -> ``(T, None)``; None if ``tp`` is no tuple type."""
-    if typing.get_origin(tp) is not tuple:
-        return None
-    args = typing.get_args(tp)
-    if len(args) == 2 and args[1] is Ellipsis:
-        return args[0], None
-    if not args or any(a != args[0] for a in args):
-        raise SceneError(f"scene parameter type {tp} is not supported (a tuple of one element type)")
-    return args[0], len(args)
-
-
-def _check_scalar(value, tp, info: ParamInfo):
-    if tp is bool:
-        ok = isinstance(value, bool)
-    elif tp is int:
-        ok = isinstance(value, numbers.Integral) and not isinstance(value, bool)
-        value = int(value) if ok else value
-    elif tp is float:
-        ok = isinstance(value, numbers.Real) and not isinstance(value, bool) and math.isfinite(value)
-        value = float(value) if ok else value
-    elif tp is str:
-        ok = isinstance(value, str) and (info.choices is None or value in info.choices)
-    else:
-        raise SceneError(f"scene parameter type {tp} is not supported (float, int, bool, str or a tuple of them)")
-    if ok and tp in (int, float) and info.limits is not None:
-        lo, hi = info.limits
-        ok = (lo is None or value >= lo) and (hi is None or value <= hi)
-    if not ok:
-        raise _BadValue
-    return value
-
-
-def _check_value(value, tp, info: ParamInfo):
-    tp, optional = _parts(tp)
-    if value is None and optional:
-        return None
-    element = _elements(tp)
-    if element is None:
-        return _check_scalar(value, tp, info)
-    etype, n = element
-    if not isinstance(value, list | tuple) or (n is not None and len(value) != n):
-        raise _BadValue
-    return tuple(_check_scalar(v, etype, info) for v in value)
-
-
-def _number(v) -> str:
-    return f"{v:g}" if isinstance(v, float) else str(v)
-
-
-def _allowed(tp, info: ParamInfo) -> str:
-    """``"in [0, 1]"``, ``">= 0"``, ``"one of a, b"`` or ``""``: what limits the values."""
-    if info.choices is not None:
-        return "one of " + ", ".join(info.choices)
-    if info.limits is None:
-        return ""
-    lo, hi = info.limits
-    if lo is not None and hi is not None:
-        return f"in [{_number(lo)}, {_number(hi)}]"
-    return f">= {_number(lo)}" if lo is not None else f"<= {_number(hi)}" if hi is not None else ""
-
-
-_NOUNS = {float: ("a number", "numbers"), int: ("a whole number", "whole numbers"), bool: ("true or false", ""),
-          str: ("a string", "strings")}
-
-
-def _expects(tp, info: ParamInfo) -> str:
-    """What a value of type ``tp`` must be, in words: ``"3 numbers, each in [0.5, 100]"``."""
-    tp, optional = _parts(tp)
-    allowed = _allowed(tp, info)
-    element = _elements(tp)
-    if element is None:
-        text = (f"one of {', '.join(info.choices)}" if tp is str and info.choices is not None else
-                _NOUNS.get(tp, (str(tp),))[0] + (f" {allowed}" if allowed else ""))
-    else:
-        etype, n = element
-        noun = _NOUNS.get(etype, ("", str(etype)))[1]
-        text = f"{n} {noun}" if n is not None else f"a list of {noun}"
-        text += f", each {allowed}" if allowed else ""
-    return text + (" or null" if optional else "")
-
-
-def _show_value(value) -> str:
-    """A parameter value as the listing shows it: ``35``, ``[8, 7, 3]``, ``true``, ``none``, ``table, cube``."""
-    if value is None:
-        return "none"
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, tuple | list):
-        items = [_show_value(v) for v in value]
-        return ", ".join(items) if all(isinstance(v, str) for v in value) and value else f"[{', '.join(items)}]"
-    return _number(value)
-
-
-def describe_parameters(cls: type[SceneParams]) -> dict[str, str]:
-    """Name -> one line for each field of ``cls``: description, unit, default and allowed values, e.g.
-    ``"ceiling height, m (default 2.8; in [1.8, 20])"``."""
-    hints = _type_hints(cls)
-    out = {}
-    for f in fields(cls):
-        info = f.metadata.get(PARAM_METADATA) or ParamInfo("")
-        allowed = _allowed(_parts(hints[f.name])[0], info)
-        if allowed and _elements(_parts(hints[f.name])[0]) is not None:
-            allowed = "each " + allowed
-        unit = f", {info.unit}" if info.unit else ""
-        out[f.name] = f"{info.description}{unit} (default {_show_value(f.default)}{'; ' + allowed if allowed else ''})"
-    return out
 
 
 @dataclass(frozen=True)
@@ -583,16 +415,14 @@ class SceneEntry:
     Attributes:
         name: what users type after ``--scene``.
         build: ``build(params, seed: int) -> SceneSpec``; ``params`` is an instance of ``parameters`` (a
-            :class:`SceneParams` dataclass), or a plain dict for an entry that declares its parameters the old way.
+            :class:`SceneParams` dataclass).
         description: one line for ``tri360 scenes``.
         presets: named parameter sets: each a dict of overrides of the parameters' defaults, in the order a frame
             records them (``SceneSpec.params``); ``default_preset`` is used when none is given.
         default_preset: key into ``presets``.
         parameters: the family's parameters: a frozen :class:`SceneParams` dataclass (each field's type, default,
             unit, limits and description; ``--set``, suites and presets may use only its fields and values of
-            its types).  Still accepted from outside packages: a dict ``{key: "meaning, unit (default)"}``
-            (the keys are checked, the values are not; ``build`` gets a dict), or nothing, which accepts exactly
-            the keys the presets use.
+            its types); default :class:`SceneParams` itself, no parameters.
         renderer: the default renderer, "cycles" (Blender) or "raycast" (the numpy ray-caster, boxes only,
             no Blender needed); ``tri360 render --renderer`` picks another.
         source: where it was found (file or entry point), for error messages.
@@ -609,7 +439,7 @@ class SceneEntry:
     description: str = ""
     presets: dict[str, dict] = field(default_factory=lambda: {"default": {}})
     default_preset: str = "default"
-    parameters: type[SceneParams] | Mapping[str, str] = field(default_factory=dict)
+    parameters: type[SceneParams] = SceneParams
     renderer: str = "cycles"
     source: str = ""
     tags: tuple[str, ...] = ()
@@ -631,29 +461,19 @@ class SceneEntry:
             raise SceneError(f"scene {self.name!r}: unknown tag(s) {', '.join(unknown)} "
                              f"(known: {', '.join(DIFFICULTY_TAGS)})")
         self._check_parameter_class()
-        declared = self._declared()
-        reserved = sorted(set(declared) & set(RESERVED_PARAMETERS))
+        reserved = sorted(set(self.known_parameters) & set(RESERVED_PARAMETERS))
         if reserved:
             raise SceneError(f"scene {self.name!r}: parameter name(s) {reserved} are reserved")
-        if declared:
-            for preset, params in self.presets.items():
-                undeclared = sorted(set(params) - set(declared))
-                if undeclared:
-                    raise SceneError(f"scene {self.name!r}: preset {preset!r} uses undeclared parameter(s) "
-                                     f"{', '.join(undeclared)} (declared: {', '.join(sorted(declared))})")
-        if self.typed:
-            for preset, params in self.presets.items():
-                try:
-                    self.parameters(**params)
-                except ParameterError as exc:
-                    raise SceneError(f"scene {self.name!r}: preset {preset!r}: {exc.detail}") from None
+        for preset, params in self.presets.items():
+            try:
+                from_mapping(self.parameters, params, where=f"scene {self.name!r}: preset {preset!r}")
+            except ParamError as exc:
+                raise exc.at(exc.where, ParameterError) from None
 
     def _check_parameter_class(self) -> None:
-        """Refuse ``parameters`` that is neither a frozen :class:`SceneParams` dataclass with a default and a
-        :func:`param` declaration for every field nor a mapping; check the dataclass's defaults."""
+        """Refuse ``parameters`` that is not a frozen :class:`SceneParams` dataclass with a default and a
+        :func:`param` declaration for every field; check the dataclass's defaults."""
         cls = self.parameters
-        if isinstance(cls, Mapping):
-            return
         hint = "declare them as a frozen dataclass deriving from scenes.model.SceneParams (see scenes/README.md)"
         if not isinstance(cls, type) or not issubclass(cls, SceneParams):
             raise SceneError(f"scene {self.name!r}: parameters must be a SceneParams dataclass, got "
@@ -672,53 +492,35 @@ class SceneEntry:
             raise SceneError(f"scene {self.name!r}: every parameter of {cls.__name__} needs a default "
                              f"({exc})") from None
         except ParameterError as exc:
-            raise SceneError(f"scene {self.name!r}: the default of {exc.detail}") from None
-
-    def _declared(self) -> list[str]:
-        return [f.name for f in fields(self.parameters)] if self.typed else list(self.parameters)
-
-    @property
-    def typed(self) -> bool:
-        """Whether the parameters are a :class:`SceneParams` dataclass (else a mapping, or none declared)."""
-        return isinstance(self.parameters, type)
+            raise exc.at(f"scene {self.name!r}: defaults of {cls.__name__}") from None
 
     @property
     def known_parameters(self) -> list[str]:
-        """Sorted keys ``--set`` accepts: the declared parameters, else the keys the presets use."""
-        declared = self._declared()
-        if declared:
-            return sorted(declared)
-        return sorted({k for params in self.presets.values() for k in params})
+        """Sorted names of the declared parameters: the keys ``--set`` accepts."""
+        return sorted(f.name for f in fields(self.parameters))
 
     def describe_parameters(self) -> dict[str, str]:
         """Parameter name -> one line (description, unit, default, allowed values) for ``tri360 scenes
-        --params``, in declaration order; an entry declaring a mapping gives its own texts."""
-        return describe_parameters(self.parameters) if self.typed else dict(self.parameters)
+        --params``, in declaration order (:func:`reconstruction.params.describe`)."""
+        return describe(self.parameters)
 
-    def parameter_values(self, params: Mapping) -> SceneParams | dict:
+    def parameter_values(self, params: Mapping) -> SceneParams:
         """What ``build`` gets for the parameter dict ``params`` (a preset's merged with overrides): an instance
-        of the parameters dataclass, or (declared the old way) a copy of ``params``.
+        of the parameters dataclass (:func:`reconstruction.params.from_mapping`).
 
         Raises:
-            SceneError: a reserved key (``preset``, ``seed``) or an unknown parameter (naming it and listing the
-                known ones).
-            ParameterError: a value of the wrong type or out of range (naming the family, the parameter and
-                what it expects).
+            SceneError: a reserved key (``preset``, ``seed``).
+            ParameterError: an unknown parameter (listing the declared ones), a value of the wrong type or out of
+                range (naming the family, the parameter and what it expects).
         """
-        known = self.known_parameters
         for key in params:
             if key in RESERVED_PARAMETERS:
                 hint = "--scene NAME:PRESET" if key == "preset" else "--seed"
                 raise SceneError(f"scene {self.name!r}: {key!r} is not a scene parameter (use {hint})")
-            if key not in known:
-                raise SceneError(f"scene {self.name!r}: unknown parameter {key!r} "
-                                 f"(known: {', '.join(known) or 'none'})")
-        if not self.typed:
-            return dict(params)
         try:
-            return self.parameters(**params)
-        except ParameterError as exc:
-            raise ParameterError(exc.detail, self.name) from None
+            return from_mapping(self.parameters, params, where=f"scene {self.name!r}")
+        except ParamError as exc:
+            raise exc.at(exc.where, ParameterError) from None
 
     @property
     def code_version(self) -> str:
@@ -757,8 +559,8 @@ class SceneEntry:
         parameters and the overrides as given (``SceneSpec.params``), not the defaults.
 
         Raises:
-            SceneError: unknown preset, unknown parameter (naming it and listing the known ones), a parameter of
-                the wrong type or out of range (:class:`ParameterError`), or a build function or spec that fails.
+            SceneError: unknown preset, a parameter that is unknown, of the wrong type or out of range
+                (:class:`ParameterError`), or a build function or spec that fails.
         """
         preset = preset or self.default_preset
         if preset not in self.presets:

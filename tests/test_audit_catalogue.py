@@ -1049,7 +1049,7 @@ class TestImportPhotometric:
         rig = rig_with(tmp_path / "in", U={**FULL_RECORD, "exposure_stops": float("nan")})
         assert "NaN" in rig.read_text()
         expect_refusal(["import", c, u, r, "--rig", rig, "--out", tmp_path / "d" / "s" / "v"], capfd, tmp_path,
-                       str(rig), "cameras.U.photometric.exposure_stops", "nan")
+                       str(rig), "cameras.U.photometric: exposure_stops: expected", "nan")
 
     def test_a_record_without_a_seed_is_refused_naming_the_key(self, jpegs, tmp_path, capfd):
         c, u, r = copy_images(jpegs, tmp_path / "in")
@@ -1139,7 +1139,7 @@ class TestFramePhotometric:
         meta["cameras"]["U"]["photometric"] = {"noise": {"shot": 0.001, "read": 0.0001}}
         (d / "frame.json").write_text(json.dumps(meta))
         expect_refusal(["evaluate", data, "--out", tmp_path / "res", "--method", "sweep"], capfd, tmp_path,
-                       str(d / "frame.json"), "cameras.U.photometric", "seed")
+                       str(d / "frame.json"), "cameras.U.photometric: exposure_stops:", "got nothing")
         expect_refusal(["reconstruct", d, "--out", tmp_path / "p", "--method", "sweep"], capfd, tmp_path,
                        "cameras.U.photometric", "exposure_stops")
 

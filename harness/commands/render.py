@@ -53,10 +53,11 @@ from harness.render.base import RenderSettings, identity, recorded_identity
 from harness.render.registry import get_renderer
 from harness.runtime.cluster import BASE_BYTES, MEMORY_SHARE, physical_memory_bytes
 from harness.runtime.context import IN_PROCESS, RunContext
-from harness.runtime.options import annotations_of, typed_value
+from harness.runtime.options import typed_value
 from harness.runtime.progress import progress_bar
 from reconstruction.camera.rig import CAMERA_NAMES, DEFAULT_BASELINE_M, Rig
 from reconstruction.flow.backends import builtin_flows
+from reconstruction.params import type_hints
 from scenes.model import SceneSpec, choose_viewpoints
 from scenes.registry import get_scene
 
@@ -155,7 +156,7 @@ def check_settings(settings: RenderSettings) -> None:
     """Raise UserError unless every field of ``settings`` has its annotated type (a bool is no integer, 128.0
     no width), the width is one the pipeline can use (:func:`check_width`), the options of ``tri360 render`` are
     in range (named as options) and :meth:`RenderSettings.check` passes."""
-    hints = annotations_of(RenderSettings)
+    hints = type_hints(RenderSettings)
     for f in dataclasses.fields(RenderSettings):
         typed_value(getattr(settings, f.name), hints[f.name], f.name)
     check_width(settings.width)

@@ -80,8 +80,9 @@ from harness.data.outputs import check_output, ensure_output_dir, mark_output
 from harness.data.results import read_frames, read_results
 from harness.render.base import RenderSettings
 from harness.runtime.context import IN_PROCESS, RunContext
-from harness.runtime.options import MethodSelection, annotations_of, typed_value
+from harness.runtime.options import MethodSelection, typed_value
 from harness.runtime.progress import progress_bar
+from reconstruction.params import type_hints
 from reports.plots import png_bytes
 from reports.schema import METRIC_COLUMNS
 from scenes.registry import SceneError
@@ -123,7 +124,7 @@ def _render_hints() -> dict[str, object]:
     """The type of each ``[render]`` key: a :class:`RenderSettings` field's (``no_denoise``: ``denoise``'s), else
     the parameter of :func:`harness.commands.render.plan_render` of that name; ``set`` is a table of scene parameters
     or a list of KEY=VALUE strings."""
-    settings, plan = annotations_of(RenderSettings), annotations_of(plan_render)
+    settings, plan = type_hints(RenderSettings), type_hints(plan_render)
     out = {}
     for key in RENDER_KEYS:
         if key == "set":
@@ -138,7 +139,7 @@ def _render_hints() -> dict[str, object]:
 def _evaluate_hints() -> dict[str, object]:
     """The type of each ``[evaluate]`` key: a :class:`MethodSelection` field's, and ``report``: the evaluate
     job's parameter."""
-    return {**annotations_of(MethodSelection), "report": annotations_of(evaluate)["report"]}
+    return {**type_hints(MethodSelection), "report": type_hints(evaluate)["report"]}
 
 
 class StudySpec:

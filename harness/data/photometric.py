@@ -26,19 +26,72 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
+from reconstruction.params import REQUIRED, ParamError, from_mapping, param, shown
 from reconstruction.photometry import srgb_to_linear
 
 __all__ = ["Photometric", "AXES", "KEYS", "OPTIONAL_KEYS", "gamma_of", "contrast_of", "is_response", "RESPONSES",
            "CameraDistribution", "LATER_FIELDS", "noise_parameters", "SHOT_FRACTION", "lens_direction"]
 
 AXES = ("x", "y", "z")
-KEYS = ("exposure_stops", "white_balance", "vignetting", "noise", "response", "jpeg_quality", "seed")
-OPTIONAL_KEYS = ("falloff", "seam", "chromatic")
-"""Keys a record may leave out (absent = that effect is off); :meth:`Photometric.to_json` writes them only when set."""
 RESPONSES = "'srgb', 'gamma-G' with G in [1, 4] or 's-curve-K' with K in [1, 4]"
 """The response curves a record or a suite may name (for error messages)."""
 UNIT_TOLERANCE = 1e-6
 """How far from 1 the length of a recorded lens ``direction`` may be."""
+
+
+def _is_unit(v: tuple[float, ...]) -> bool:
+    return abs(math.sqrt(sum(x * x for x in v)) - 1.0) <= UNIT_TOLERANCE
+
+
+_UNIT = "a unit vector [x, y, z] in the camera frame"
+
+
+# The record as frame.json has it, for checking (Photometric.from_json); the fields' meanings: Photometric's.
+@dataclass(frozen=True)
+class _Vignetting:
+    axis: str = param(REQUIRED, choices=AXES)
+    edge_loss: float = param(REQUIRED, limits=(0.0, 0.999))
+
+
+@dataclass(frozen=True)
+class _Noise:
+    shot: float = param(REQUIRED, limits=(0.0, 1.0))
+    read: float = param(REQUIRED, limits=(0.0, 1.0))
+
+
+@dataclass(frozen=True)
+class _Falloff:
+    direction: tuple[float, float, float] = param(REQUIRED, valid=_is_unit, expects=_UNIT)
+    edge_loss: float = param(REQUIRED, limits=(0.0, 0.999))
+
+
+@dataclass(frozen=True)
+class _Seam:
+    direction: tuple[float, float, float] = param(REQUIRED, valid=_is_unit, expects=_UNIT)
+    gains: tuple[float, float] = param(REQUIRED, limits=(0.05, 20.0))
+    blend_deg: float = param(REQUIRED, unit="degrees", limits=(0.0, 90.0), exclusive=(True, False))
+
+
+@dataclass(frozen=True)
+class _Record:
+    exposure_stops: float = param(REQUIRED, limits=(-8.0, 8.0))
+    white_balance: tuple[float, float, float] = param(REQUIRED, limits=(0.05, 20.0))
+    vignetting: _Vignetting = param(REQUIRED)
+    noise: _Noise = param(REQUIRED)
+    response: str = param(REQUIRED, valid=lambda r: is_response(r), expects=RESPONSES)
+    jpeg_quality: int = param(REQUIRED, limits=(0, 100))
+    seed: int = param(REQUIRED, limits=(0, 2 ** 63), exclusive=(False, True))
+    falloff: _Falloff | None = None
+    seam: _Seam | None = None
+    chromatic: tuple[float, float, float] | None = param(None, limits=(0.0, 4.0))
+
+
+KEYS = tuple(f.name for f in dataclasses.fields(_Record) if f.default is REQUIRED)
+"""The keys of a record (``exposure_stops``, ``white_balance``, ``vignetting``, ``noise``, ``response``,
+``jpeg_quality``, ``seed``)."""
+OPTIONAL_KEYS = tuple(f.name for f in dataclasses.fields(_Record) if f.default is not REQUIRED)
+"""Keys a record may leave out (``falloff``, ``seam``, ``chromatic``; absent = that effect is off);
+:meth:`Photometric.to_json` writes them only when set."""
 
 
 @dataclass(frozen=True)
@@ -88,90 +141,27 @@ class Photometric:
 
     @classmethod
     def from_json(cls, raw, where: str = "photometric") -> Photometric:
-        """Read and check a record: every key of :data:`KEYS`, each valid, and no other (the keys present are
-        checked first, then that none is missing).
-
-        The keys of :data:`OPTIONAL_KEYS` may be left out.
+        """Read and check a record: every key of :data:`KEYS`, each valid, and no other; the keys of
+        :data:`OPTIONAL_KEYS` may be left out (:func:`reconstruction.params.from_mapping` on :class:`_Record`:
+        unknown keys first, then the values present, then missing keys).
 
         Raises:
-            ValueError: one line naming ``where`` and the bad, unknown or missing key(s).
+            ParamError: one line naming ``where`` and the bad, unknown or missing key
+                (``cameras.U.photometric: noise.shot: expected a number in [0, 1], got -1``).
         """
-        if not isinstance(raw, dict):
-            raise ValueError(f"{where} must be an object, got {type(raw).__name__}")
-        unknown = sorted(set(raw) - set(KEYS) - set(OPTIONAL_KEYS))
-        if unknown:
-            raise ValueError(f"{where}: unknown key(s) {', '.join(unknown)} (known: "
-                             f"{', '.join(KEYS + OPTIONAL_KEYS)})")
-
-        def number(key, value, lo, hi):
-            if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value) \
-                    or not lo <= value <= hi:
-                raise ValueError(f"{where}.{key} must be a number in [{lo:g}, {hi:g}], got {value!r}")
-            return float(value)
-
-        d = cls()
-        e = number("exposure_stops", raw.get("exposure_stops", d.exposure_stops), -8.0, 8.0)
-        wb = raw.get("white_balance", list(d.white_balance))
-        if not isinstance(wb, list | tuple) or len(wb) != 3:
-            raise ValueError(f"{where}.white_balance must be three gains [R, G, B], got {wb!r}")
-        wb = tuple(number("white_balance", g, 0.05, 20.0) for g in wb)
-        vig = raw.get("vignetting", d.vignetting)
-        if not isinstance(vig, dict) or set(vig) != {"axis", "edge_loss"} or vig["axis"] not in AXES:
-            raise ValueError(f"{where}.vignetting must be {{\"axis\": one of x, y, z, \"edge_loss\": number}}, "
-                             f"got {vig!r}")
-        vig = {"axis": vig["axis"], "edge_loss": number("vignetting.edge_loss", vig["edge_loss"], 0.0, 0.999)}
-        noise = raw.get("noise", d.noise)
-        if not isinstance(noise, dict) or set(noise) != {"shot", "read"}:
-            raise ValueError(f"{where}.noise must be {{\"shot\": number, \"read\": number}}, got {noise!r}")
-        noise = {k: number(f"noise.{k}", noise[k], 0.0, 1.0) for k in ("shot", "read")}
-        response = raw.get("response", d.response)
-        if not is_response(response):
-            raise ValueError(f"{where}.response must be {RESPONSES}, got {response!r}")
-        q = raw.get("jpeg_quality", d.jpeg_quality)
-        if isinstance(q, bool) or not isinstance(q, int) or not 0 <= q <= 100:
-            raise ValueError(f"{where}.jpeg_quality must be an integer 0-100 (0 = none), got {q!r}")
-        seed = raw.get("seed", d.seed)
-        if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2 ** 63:
-            raise ValueError(f"{where}.seed must be a non-negative integer, got {seed!r}")
-        def direction(key, value):
-            ok = isinstance(value, list | tuple) and len(value) == 3 and all(
-                not isinstance(x, bool) and isinstance(x, int | float) and math.isfinite(x) for x in value)
-            if not ok or abs(math.sqrt(sum(float(x) ** 2 for x in value)) - 1.0) > UNIT_TOLERANCE:
-                raise ValueError(f"{where}.{key} must be a unit vector [x, y, z] in the camera frame, got {value!r}")
-            return [float(x) for x in value]
-
-        falloff = raw.get("falloff")
-        if falloff is not None:
-            if not isinstance(falloff, dict) or set(falloff) != {"direction", "edge_loss"}:
-                raise ValueError(f"{where}.falloff must be {{\"direction\": [x, y, z], \"edge_loss\": number}}, "
-                                 f"got {falloff!r}")
-            falloff = {"direction": direction("falloff.direction", falloff["direction"]),
-                       "edge_loss": number("falloff.edge_loss", falloff["edge_loss"], 0.0, 0.999)}
-        seam = raw.get("seam")
-        if seam is not None:
-            if not isinstance(seam, dict) or set(seam) != {"direction", "gains", "blend_deg"} \
-                    or not isinstance(seam["gains"], list | tuple) or len(seam["gains"]) != 2:
-                raise ValueError(f"{where}.seam must be {{\"direction\": [x, y, z], \"gains\": [front, back], "
-                                 f"\"blend_deg\": number}}, got {seam!r}")
-            blend = number("seam.blend_deg", seam["blend_deg"], 0.0, 90.0)
-            if blend <= 0.0:
-                raise ValueError(f"{where}.seam.blend_deg must be a number in (0, 90] degrees, got {blend!r}")
-            seam = {"direction": direction("seam.direction", seam["direction"]),
-                    "gains": [number("seam.gains", g, 0.05, 20.0) for g in seam["gains"]], "blend_deg": blend}
-        chromatic = raw.get("chromatic")
-        if chromatic is not None:
-            if not isinstance(chromatic, list | tuple) or len(chromatic) != 3:
-                raise ValueError(f"{where}.chromatic must be three loss factors [R, G, B], got {chromatic!r}")
-            chromatic = tuple(number("chromatic", k, 0.0, 4.0) for k in chromatic)
-            losses = [vig["edge_loss"]] + ([falloff["edge_loss"]] if falloff else [])
-            if max(chromatic) * max(losses) > 0.999:
-                raise ValueError(f"{where}.chromatic: a factor of {max(chromatic):g} times an edge_loss of "
-                                 f"{max(losses):g} loses more than 0.999 of a channel's light")
-        missing = [k for k in KEYS if k not in raw]
-        if missing:
-            raise ValueError(f"{where}: missing key(s) {', '.join(missing)} (a photometric record needs every key: "
-                             f"{', '.join(KEYS)})")
-        return cls(e, wb, vig, noise, response, q, seed, falloff, seam, chromatic)
+        r = from_mapping(_Record, raw, where=where)
+        if r.chromatic is not None:
+            loss = max(r.vignetting.edge_loss, r.falloff.edge_loss if r.falloff else 0.0)
+            if max(r.chromatic) * loss > 0.999:
+                raise ParamError("chromatic", f"factors of at most {0.999 / loss:g} (times the largest edge_loss, "
+                                 f"{loss:g}, they may lose at most 0.999 of a channel's light)",
+                                 shown(raw["chromatic"]), where)
+        falloff = None if r.falloff is None else {"direction": list(r.falloff.direction),
+                                                  "edge_loss": r.falloff.edge_loss}
+        seam = None if r.seam is None else {"direction": list(r.seam.direction), "gains": list(r.seam.gains),
+                                            "blend_deg": r.seam.blend_deg}
+        return cls(r.exposure_stops, r.white_balance, dataclasses.asdict(r.vignetting), dataclasses.asdict(r.noise),
+                   r.response, r.jpeg_quality, r.seed, falloff, seam, r.chromatic)
 
     @property
     def is_ideal(self) -> bool:
@@ -254,6 +244,9 @@ class CameraDistribution:
         rotation_deg: ``[lo, hi]`` calibration error of U's and R's told orientation, degrees (0 0 = none).
         translation_mm: ``[lo, hi]`` calibration error of U's and R's told position, millimetres (0 0 = none).
 
+    The limits of each (and its type) are its field's (:func:`reconstruction.params.param`), which a suite's
+    ``[conditions.<name>]`` table is checked against (``harness.data.suite``).
+
     The keys below came after ``tri360-v2``; each is off at its default, and :meth:`to_json` leaves it out then (so
     the record of a distribution without them is what it was):
 
@@ -272,21 +265,22 @@ class CameraDistribution:
             draw ignores it).
     """
 
-    exposure_stops: float = 0.5
-    white_balance: float = 0.05
-    vignetting: tuple[float, float] = (0.15, 0.35)
-    vignetting_axis: str = "y"
-    noise_grey_levels: tuple[float, float] = (1.0, 3.0)
-    response: str = "srgb"
-    jpeg_quality: tuple[int, int] = (85, 95)
-    rotation_deg: tuple[float, float] = (0.1, 0.3)
-    translation_mm: tuple[float, float] = (1.0, 2.0)
-    falloff: tuple[float, float] = (0.0, 0.0)
-    lens_tilt_deg: tuple[float, float] = (0.0, 0.0)
-    lens_mismatch: tuple[float, float] = (0.0, 0.0)
-    seam_blend_deg: tuple[float, float] = (0.0, 0.0)
-    chromatic: tuple[float, float] = (0.0, 0.0)
-    responses: tuple[str, ...] = ()
+    exposure_stops: float = param(0.5, limits=(0.0, 8.0))
+    white_balance: float = param(0.05, limits=(0.0, 10.0))
+    vignetting: tuple[float, float] = param((0.15, 0.35), limits=(0.0, 0.999), ordered=True)
+    vignetting_axis: str = param("y", choices=AXES)
+    noise_grey_levels: tuple[float, float] = param((1.0, 3.0), limits=(0.0, 128.0), ordered=True)
+    response: str = param("srgb", valid=lambda r: is_response(r), expects=RESPONSES)
+    jpeg_quality: tuple[int, int] = param((85, 95), limits=(0, 100), ordered=True)
+    rotation_deg: tuple[float, float] = param((0.1, 0.3), limits=(0.0, 45.0), ordered=True)
+    translation_mm: tuple[float, float] = param((1.0, 2.0), limits=(0.0, 1000.0), ordered=True)
+    falloff: tuple[float, float] = param((0.0, 0.0), limits=(0.0, 0.999), ordered=True)
+    lens_tilt_deg: tuple[float, float] = param((0.0, 0.0), limits=(0.0, 90.0), ordered=True)
+    lens_mismatch: tuple[float, float] = param((0.0, 0.0), limits=(0.0, 1.0), ordered=True)
+    seam_blend_deg: tuple[float, float] = param((0.0, 0.0), limits=(0.0, 90.0), ordered=True)
+    chromatic: tuple[float, float] = param((0.0, 0.0), limits=(0.0, 0.9), ordered=True)
+    responses: tuple[str, ...] = param((), valid=lambda rs: bool(rs) and all(map(is_response, rs)),
+                                       expects=f"a non-empty list of {RESPONSES}")
     held_out: bool = False
 
     def to_json(self) -> dict:

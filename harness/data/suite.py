@@ -36,14 +36,16 @@ condition's calibration error is checked against every group's rig when the file
 (:func:`told_rig_problem`): the largest error the condition can draw, in the worst direction, must leave a told rig
 that frame validation (``harness.data.frame``) accepts.
 
-Every problem is one :class:`UserError` line naming the file and the key.  This module reads and checks only; the
-render settings' names and defaults come from the caller (``harness.commands.parts.suite``, which owns
-``RenderSettings``).
+Every problem is one :class:`UserError` line naming the file and the key, as a TOML dotted key
+(``frames[0].rig.baseline_m``, ``conditions.captured.jpeg_quality``); a key or value of the wrong type or out of
+range in the one format of :mod:`reconstruction.params` (``<file>: <key>: expected <what>, got <value>``), checked
+against the fields of :class:`SuiteRig`, :class:`CameraDistribution` and the scene family's parameters.  This
+module reads and checks only; the render settings' names and defaults come from the caller
+(``harness.commands.parts.suite``, which owns ``RenderSettings``).
 """
 
 from __future__ import annotations
 
-import dataclasses
 import hashlib
 import itertools
 import json
@@ -59,9 +61,10 @@ from harness.data.errors import FrameError, UserError
 from harness.data.frame import FORMAT as FRAME_FORMAT
 from harness.data.frame import baseline_tolerance_m, validate_metadata
 from harness.data.names import check_name
-from harness.data.photometric import AXES, RESPONSES, CameraDistribution, is_response
+from harness.data.photometric import CameraDistribution
 from reconstruction.camera.rig import CameraPose, Rig, yaw_rotation
-from scenes.model import DIFFICULTY_TAGS, RENDERERS, ParameterError, SceneEntry
+from reconstruction.params import REQUIRED, ParamError, check_keys, check_value, from_mapping, param, shown
+from scenes.model import DIFFICULTY_TAGS, RENDERERS, SceneEntry, SceneError
 from scenes.registry import discover
 
 __all__ = ["FORMAT", "SPLITS", "IDEAL", "SuiteRig", "SuiteEntry", "SuiteFrame", "Suite", "load_suite", "suite_id",
@@ -74,9 +77,6 @@ No two splits of a suite share a seed."""
 TOP_KEYS = ("format", "name", "description", "render", "frames", "conditions")
 IDEAL = "ideal"
 """The condition of the rendered frames themselves: three identical, perfectly exposed cameras."""
-CONDITION_KEYS = tuple(f.name for f in dataclasses.fields(CameraDistribution))
-ENTRY_KEYS = ("family", "preset", "seed", "viewpoints", "split", "name", "params", "renderer", "tags", "rig")
-RIG_KEYS = ("baseline_m", "height_m", "tilt_max_rad")
 #: render settings a suite may not fix: ``threads`` changes no pixel (this machine's choice), ``seed`` is each
 #: ``[[frames]]`` group's own (as ``tri360 render --seed`` sets both the scene's and the render noise's seed)
 MACHINE_SETTINGS = ("threads", "seed")
@@ -87,11 +87,29 @@ MAX_VIEWPOINTS = 1000
 @dataclass(frozen=True)
 class SuiteRig:
     """The rig of a frame group: baseline (metres), C's height range (metres, None = the family's), tilt bound
-    (radians: pitch and roll each uniform in [-t, t]; 0 = level)."""
+    (radians: pitch and roll each uniform in [-t, t]; 0 = level); a group's ``rig`` table is checked against the
+    fields' limits."""
 
-    baseline_m: float = 0.4
-    height_m: tuple[float, float] | None = None
-    tilt_max_rad: float = 0.0
+    baseline_m: float = param(0.4, unit="m", limits=(0.0, 100.0), exclusive=(True, True))
+    height_m: tuple[float, float] | None = param(None, unit="m", limits=(0.0, 100.0), exclusive=(True, True),
+                                                 ordered=True)
+    tilt_max_rad: float = param(0.0, unit="rad", limits=(0.0, math.pi / 2), exclusive=(False, True))
+
+
+@dataclass(frozen=True, kw_only=True)
+class _Group:
+    """A ``[[frames]]`` table as the file gives it (None: the family's; :class:`SuiteEntry` has the meanings)."""
+
+    family: str = param(REQUIRED)
+    preset: str | None = None
+    seed: int = param(REQUIRED, limits=(0, 2 ** 32), exclusive=(False, True))
+    viewpoints: int = param(REQUIRED, limits=(1, MAX_VIEWPOINTS))
+    split: str = param(REQUIRED, choices=SPLITS)
+    name: str | None = None
+    params: dict | None = None
+    renderer: str | None = param(None, choices=RENDERERS)
+    tags: tuple[str, ...] | None = param(None, choices=DIFFICULTY_TAGS)
+    rig: SuiteRig = SuiteRig()
 
 
 @dataclass(frozen=True)
@@ -209,180 +227,74 @@ def _fail(path: Path, where: str, what: str):
     raise UserError(f"{path}: {where}: {what}")
 
 
-def _is_int(v) -> bool:
-    return isinstance(v, int) and not isinstance(v, bool)
-
-
-def _is_number(v) -> bool:
-    return (isinstance(v, int | float) and not isinstance(v, bool)) and math.isfinite(v)
-
-
-def _check_keys(path: Path, where: str, table, allowed) -> dict:
-    if not isinstance(table, dict):
-        _fail(path, where, "must be a table")
-    bad = sorted(set(table) - set(allowed))
-    if bad:
-        _fail(path, where, f"unknown key(s) {', '.join(bad)} (allowed: {', '.join(allowed)})")
-    return table
-
-
 def _render(path: Path, raw, defaults: Mapping) -> dict:
-    allowed = [k for k in defaults if k not in MACHINE_SETTINGS]
+    """The ``[render]`` table over ``defaults``: each key one of theirs (not :data:`MACHINE_SETTINGS`), each value
+    of its default's type."""
     if isinstance(raw, dict):
         if "threads" in raw:
-            _fail(path, "[render] threads", "is this machine's choice, not the suite's (use `tri360 render --threads`)")
+            _fail(path, "render.threads", "is this machine's choice, not the suite's (use `tri360 render --threads`)")
         if "seed" in raw:
-            _fail(path, "[render] seed", "is set per [[frames]] group (its seed also seeds the render noise)")
-    table = _check_keys(path, "[render]", raw, allowed)
+            _fail(path, "render.seed", "is set per [[frames]] group (its seed also seeds the render noise)")
     out = {k: v for k, v in defaults.items() if k not in MACHINE_SETTINGS}
-    for key, value in table.items():
-        want = defaults[key]
-        if isinstance(want, bool):
-            ok = isinstance(value, bool)
-        elif isinstance(want, int):
-            ok = _is_int(value)
-        elif isinstance(want, float):
-            ok = _is_number(value)
-            value = float(value) if ok else value
-        else:
-            ok = isinstance(value, type(want))
-        if not ok:
-            _fail(path, f"[render] {key}", f"must be a {type(want).__name__} (like the default {want!r}), "
-                                           f"got {value!r}")
-        out[key] = value
+    for key, value in check_keys(raw, list(out), name="render", where=str(path)).items():
+        out[key] = check_value(value, type(defaults[key]), name=f"render.{key}", where=str(path), null=False)
     return out
 
 
-def _rig(path: Path, where: str, raw) -> SuiteRig:
-    table = _check_keys(path, f"{where} rig", raw, RIG_KEYS)
-    b = table.get("baseline_m", 0.4)
-    if not _is_number(b) or not 0 < b < 100:
-        _fail(path, f"{where} rig.baseline_m", f"must be a positive distance in metres, got {b!r}")
-    h = table.get("height_m")
-    if h is not None:
-        if not (isinstance(h, list) and len(h) == 2 and all(_is_number(x) for x in h) and 0 < h[0] <= h[1] < 100):
-            _fail(path, f"{where} rig.height_m", f"must be [low, high] metres with 0 < low <= high, got {h!r}")
-        h = (float(h[0]), float(h[1]))
-    t = table.get("tilt_max_rad", 0.0)
-    if not _is_number(t) or not 0 <= t < math.pi / 2:
-        _fail(path, f"{where} rig.tilt_max_rad", f"must be in [0, pi/2) radians, got {t!r}")
-    return SuiteRig(float(b), h, float(t))
-
-
 def _entry(path: Path, i: int, raw, scenes: dict[str, SceneEntry], errors: dict[str, str]) -> SuiteEntry:
+    """One ``[[frames]]`` table: its keys and values (:class:`_Group`), then what depends on its family."""
     where = f"frames[{i}]"
-    table = _check_keys(path, where, raw, ENTRY_KEYS)
-    for key in ("family", "seed", "viewpoints", "split"):
-        if key not in table:
-            _fail(path, f"{where}", f"missing key {key!r}")
-    family = table["family"]
-    if not isinstance(family, str) or family not in scenes:
+    g = from_mapping(_Group, raw, where=str(path), name=where, null=False)
+    if g.family not in scenes:
         hint = f"; failed scene files: {', '.join(sorted(errors))}" if errors else ""
-        _fail(path, f"{where} family", f"unknown family {family!r} (known: {', '.join(sorted(scenes))}{hint})")
-    scene = scenes[family]
-    where = f"{where} ({family})"
-    preset = table.get("preset", scene.default_preset)
-    if not isinstance(preset, str) or preset not in scene.presets:
-        _fail(path, f"{where} preset", f"unknown preset {preset!r} of {family} (known: "
-                                       f"{', '.join(sorted(scene.presets))})")
-    seed = table["seed"]
-    if not _is_int(seed) or not 0 <= seed < 2**32:
-        _fail(path, f"{where} seed", f"must be a whole number in [0, 2^32), got {seed!r}")
-    n = table["viewpoints"]
-    if not _is_int(n) or not 1 <= n <= MAX_VIEWPOINTS:
-        _fail(path, f"{where} viewpoints", f"must be a whole number in [1, {MAX_VIEWPOINTS}], got {n!r}")
-    split = table["split"]
-    if split not in SPLITS:
-        _fail(path, f"{where} split", f"must be one of {', '.join(SPLITS)}, got {split!r}")
-    params = table.get("params", {})
-    if not isinstance(params, dict):
-        _fail(path, f"{where} params", "must be a table of scene parameters")
-    known = scene.known_parameters
-    bad = sorted(set(params) - set(known))
-    if bad:
-        _fail(path, f"{where} params", f"unknown parameter(s) {', '.join(bad)} of {family} "
-                                       f"(known: {', '.join(known) or 'none'})")
+        raise ParamError(f"{where}.family", f"one of {', '.join(sorted(scenes))}{hint}", shown(g.family), str(path))
+    scene = scenes[g.family]
+    preset = scene.default_preset if g.preset is None else g.preset
+    if preset not in scene.presets:
+        raise ParamError(f"{where}.preset", f"a preset of {g.family}: one of {', '.join(sorted(scene.presets))}",
+                         shown(preset), str(path))
+    params = g.params or {}
     try:
         scene.parameter_values({**scene.presets[preset], **params})
-    except ParameterError as exc:
-        _fail(path, f"{where} params", exc.detail)
-    renderer = table.get("renderer", scene.renderer)
-    if renderer not in RENDERERS:
-        _fail(path, f"{where} renderer", f"must be one of {', '.join(RENDERERS)}, got {renderer!r}")
-    tags = table.get("tags", list(scene.tags))
-    if not isinstance(tags, list | tuple) or any(t not in DIFFICULTY_TAGS for t in tags):
-        _fail(path, f"{where} tags", f"must be a list of {', '.join(DIFFICULTY_TAGS)}, got {tags!r}")
-    default_name = f"{family}-s{seed}" if preset == scene.default_preset else f"{family}-{preset}-s{seed}"
-    name = table.get("name", default_name)
-    check_name(name, f"{path}: {where} name")
-    return SuiteEntry(name=name, family=family, preset=preset, seed=int(seed), viewpoints=int(n), split=split,
-                      params=dict(params), renderer=renderer, tags=tuple(dict.fromkeys(tags)),
-                      rig=_rig(path, where, table.get("rig", {})))
-
-
-def _pair(path: Path, where: str, value, lo: float, hi: float, integer: bool = False) -> tuple:
-    ok = isinstance(value, list) and len(value) == 2 and all(
-        (_is_int(x) if integer else _is_number(x)) and lo <= x <= hi for x in value) and value[0] <= value[1]
-    if not ok:
-        kind = "whole numbers" if integer else "numbers"
-        _fail(path, where, f"must be [low, high], {kind} with {lo:g} <= low <= high <= {hi:g}, got {value!r}")
-    return (int(value[0]), int(value[1])) if integer else (float(value[0]), float(value[1]))
+    except ParamError as exc:
+        raise ParamError(f"{where}.params.{exc.name}", exc.expected, exc.got, str(path)) from None
+    except SceneError as exc:
+        _fail(path, f"{where}.params", str(exc))
+    default_name = f"{g.family}-s{g.seed}" if preset == scene.default_preset else f"{g.family}-{preset}-s{g.seed}"
+    name = default_name if g.name is None else g.name
+    check_name(name, f"{path}: {where}.name")
+    tags = scene.tags if g.tags is None else g.tags
+    return SuiteEntry(name=name, family=g.family, preset=preset, seed=g.seed, viewpoints=g.viewpoints, split=g.split,
+                      params=dict(params), renderer=scene.renderer if g.renderer is None else g.renderer,
+                      tags=tuple(dict.fromkeys(tags)), rig=g.rig)
 
 
 def _condition(path: Path, name, raw) -> CameraDistribution:
-    """One ``[conditions.<name>]`` table -> its :class:`CameraDistribution` (defaults for what it leaves out)."""
-    where = f"[conditions.{name}]"
-    check_name(name, f"{path}: {where}")
+    """One ``[conditions.<name>]`` table -> its :class:`CameraDistribution` (defaults for what it leaves out): each
+    key and value checked against the distribution's fields, then the rules between keys."""
+    where = f"conditions.{name}"
+    check_name(name, f"{path}: [{where}]")
     if name == IDEAL:
-        _fail(path, where, "'ideal' is the rendered frames' own condition; name the other one otherwise")
-    table = _check_keys(path, where, raw, CONDITION_KEYS)
-    d = CameraDistribution()
-    values = {}
-    for key, hi in (("exposure_stops", 8.0), ("white_balance", 10.0)):
-        v = table.get(key, getattr(d, key))
-        if not _is_number(v) or not 0 <= v <= hi:
-            _fail(path, f"{where} {key}", f"must be a number in [0, {hi:g}], got {v!r}")
-        values[key] = float(v)
-    for key, hi in (("vignetting", 0.999), ("noise_grey_levels", 128.0), ("rotation_deg", 45.0),
-                    ("translation_mm", 1000.0), ("falloff", 0.999), ("lens_tilt_deg", 90.0), ("lens_mismatch", 1.0),
-                    ("seam_blend_deg", 90.0), ("chromatic", 0.9)):
-        values[key] = _pair(path, f"{where} {key}", table.get(key, list(getattr(d, key))), 0.0, hi)
-    q = _pair(path, f"{where} jpeg_quality", table.get("jpeg_quality", list(d.jpeg_quality)), 0, 100, integer=True)
-    if q[0] == 0 and q[1] != 0:
-        _fail(path, f"{where} jpeg_quality", f"is [0, 0] (no compression) or a range of qualities 1-100, got {list(q)}")
-    values["jpeg_quality"] = q
-    axis = table.get("vignetting_axis", d.vignetting_axis)
-    if axis not in AXES:
-        _fail(path, f"{where} vignetting_axis", f"must be one of {', '.join(AXES)}, got {axis!r}")
-    values["vignetting_axis"] = axis
-    response = table.get("response", d.response)
-    if not is_response(response):
-        _fail(path, f"{where} response", f"must be {RESPONSES}, got {response!r}")
-    values["response"] = response
-    responses = table.get("responses", list(d.responses))
-    if "responses" in table and not (isinstance(responses, list) and responses and all(map(is_response, responses))):
-        _fail(path, f"{where} responses", f"must be a non-empty list of {RESPONSES}, got {responses!r}")
-    if "responses" in table and "response" in table:
-        _fail(path, f"{where} responses", "each camera's response is drawn from responses: leave response out")
-    values["responses"] = tuple(responses)
-    held_out = table.get("held_out", d.held_out)
-    if not isinstance(held_out, bool):
-        _fail(path, f"{where} held_out", f"must be true or false, got {held_out!r}")
-    values["held_out"] = held_out
-    lenses = values["falloff"][1] > 0 or values["lens_mismatch"][1] > 0
-    if values["lens_tilt_deg"][1] > 0 and not lenses:
-        _fail(path, f"{where} lens_tilt_deg", "tilts the lens axis of falloff and lens_mismatch: give one of them")
-    if values["lens_mismatch"][1] > 0 and values["seam_blend_deg"][0] <= 0:
-        _fail(path, f"{where} seam_blend_deg", f"must be [low, high] degrees with 0 < low (the stitch cross-fades the "
-                                               f"lenses over a band), got {list(values['seam_blend_deg'])}")
-    if values["lens_mismatch"][1] == 0 and values["seam_blend_deg"][1] > 0:
-        _fail(path, f"{where} seam_blend_deg", "is the width of the cross-fade of lens_mismatch: give lens_mismatch")
-    worst = (1.0 + values["chromatic"][1]) * max(values["vignetting"][1], values["falloff"][1])
+        _fail(path, f"[{where}]", "'ideal' is the rendered frames' own condition; name the other one otherwise")
+    d = from_mapping(CameraDistribution, raw, where=str(path), name=where, null=False)
+    if d.jpeg_quality[0] == 0 and d.jpeg_quality[1] != 0:
+        raise ParamError(f"{where}.jpeg_quality", "[0, 0] (no compression) or a range of qualities in [1, 100]",
+                         shown(raw["jpeg_quality"]), str(path))
+    if "responses" in raw and "response" in raw:
+        _fail(path, f"{where}.responses", "each camera's response is drawn from responses: leave response out")
+    lenses = d.falloff[1] > 0 or d.lens_mismatch[1] > 0
+    if d.lens_tilt_deg[1] > 0 and not lenses:
+        _fail(path, f"{where}.lens_tilt_deg", "tilts the lens axis of falloff and lens_mismatch: give one of them")
+    if d.lens_mismatch[1] > 0 and d.seam_blend_deg[0] <= 0:
+        raise ParamError(f"{where}.seam_blend_deg", "[low, high] degrees with 0 < low (the stitch cross-fades the "
+                         "lenses over a band)", shown(list(d.seam_blend_deg)), str(path))
+    if d.lens_mismatch[1] == 0 and d.seam_blend_deg[1] > 0:
+        _fail(path, f"{where}.seam_blend_deg", "is the width of the cross-fade of lens_mismatch: give lens_mismatch")
+    worst = (1.0 + d.chromatic[1]) * max(d.vignetting[1], d.falloff[1])
     if worst > 0.999:
-        _fail(path, f"{where} chromatic", f"red's loss (1 + {values['chromatic'][1]:g}) x the largest edge loss "
-                                          f"({max(values['vignetting'][1], values['falloff'][1]):g}) is {worst:g}, "
-                                          "more than 0.999")
-    return CameraDistribution(**values)
+        _fail(path, f"{where}.chromatic", f"red's loss (1 + {d.chromatic[1]:g}) x the largest edge loss "
+                                          f"({max(d.vignetting[1], d.falloff[1]):g}) is {worst:g}, more than 0.999")
+    return d
 
 
 _TOLD_RIG_PATH = Path("told-rig")
@@ -493,7 +405,14 @@ def load_suite(path: Path, render_defaults: Mapping, scenes: dict[str, SceneEntr
             duplicate frame names, a group named like another group's twin directory, a seed used by two splits,
             or a condition whose calibration error could make an impossible told rig (:func:`told_rig_problem`).
     """
-    path = Path(path)
+    try:
+        return _load_suite(Path(path), render_defaults, scenes)
+    except ParamError as exc:  # a key or value the declared parameters refuse (reconstruction.params)
+        raise UserError(str(exc)) from None
+
+
+def _load_suite(path: Path, render_defaults: Mapping, scenes: dict[str, SceneEntry] | None) -> Suite:
+    """:func:`load_suite`, raising :class:`ParamError` for a key or value of the wrong type or out of range."""
     try:
         data = path.read_bytes()
     except FileNotFoundError:
@@ -506,14 +425,12 @@ def load_suite(path: Path, render_defaults: Mapping, scenes: dict[str, SceneEntr
         raw = tomllib.loads(data.decode("utf-8"))
     except (UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
         raise UserError(f"{path}: not valid TOML ({exc})") from None
-    _check_keys(path, "top level", raw, TOP_KEYS)
+    check_keys(raw, TOP_KEYS, where=str(path))
     if raw.get("format") != FORMAT:
         _fail(path, "format", f"must be {FORMAT!r}, got {raw.get('format')!r}")
     name = raw.get("name")
     check_name(name, f"{path}: name")
-    description = raw.get("description", "")
-    if not isinstance(description, str):
-        _fail(path, "description", "must be a string")
+    description = check_value(raw.get("description", ""), str, name="description", where=str(path), null=False)
     render = _render(path, raw.get("render", {}), render_defaults)
     frames = raw.get("frames")
     if not isinstance(frames, list) or not frames:
@@ -537,9 +454,7 @@ def load_suite(path: Path, render_defaults: Mapping, scenes: dict[str, SceneEntr
             also = f"; also {', '.join(map(str, shared[1:]))}" if shared[1:] else ""
             _fail(path, f"frames[{i}] seed", f"seed {shared[0]} is used by both splits {a} and {b} (no two splits "
                                              f"may share a seed{also})")
-    raw_conditions = raw.get("conditions", {})
-    if not isinstance(raw_conditions, dict):
-        _fail(path, "conditions", "must be a table of [conditions.<name>] tables")
+    raw_conditions = check_value(raw.get("conditions", {}), dict, name="conditions", where=str(path))
     conditions = {k: _condition(path, k, v) for k, v in raw_conditions.items()}
     _check_directories(path, entries, conditions)
     for k, dist in conditions.items():

@@ -33,6 +33,7 @@ import numpy as np
 from reconstruction.camera.image_ops import grey, periodic_pad
 from reconstruction.flow.deepflow import DeepFlowParams, deep_flow_both
 from reconstruction.flow.deepmatching import DeepMatchingParams, Matches, deep_matching_both
+from reconstruction.params import from_mapping
 from reconstruction.plugins import Registry, collect_registry, shadow_message, unknown_name_message
 
 __all__ = ["flow_registry", "refuse_shadowed_flow",
@@ -163,26 +164,27 @@ MATCHING_PARAMS = tuple(f.name for f in dataclasses.fields(DeepMatchingParams) i
 DEEPFLOW_PARAMS = tuple(f.name for f in dataclasses.fields(DeepFlowParams) if f.name not in ("wrap", "matching"))
 
 
-def _typed(cls, params: dict) -> dict:
-    """``params`` (field name -> value) with each value of ``cls``'s int, float or bool fields made that type (other
-    values as they are)."""
-    kinds = {"int": int, "float": float, "bool": bool}
-    types = {f.name: f.type for f in dataclasses.fields(cls)}
-    return {k: kinds[types[k]](v) if types.get(k) in kinds else v for k, v in params.items()}
-
-
 def matching_params(wrap: bool = True, **params) -> DeepMatchingParams:
     """The :class:`DeepMatchingParams` of a backend's parameters: ``wrap`` and those of :data:`MATCHING_PARAMS`
-    (one not given keeps its default; an unknown one is a TypeError)."""
-    return DeepMatchingParams(**_typed(DeepMatchingParams, {**params, "wrap": wrap}))
+    (one not given keeps its default; an integer given for a float becomes a float).
+
+    Raises:
+        ParamError: an unknown parameter or a value of the wrong type (:func:`reconstruction.params.from_mapping`).
+    """
+    return from_mapping(DeepMatchingParams, {**params, "wrap": wrap}, where="DeepMatching parameters")
 
 
 def deepflow_params(wrap: bool = True, **params) -> DeepFlowParams:
     """The :class:`DeepFlowParams` of the ``deepflow`` backend's parameters: ``wrap`` (DeepFlow's and DeepMatching's)
-    and those of :data:`DEEPFLOW_PARAMS` and :data:`MATCHING_PARAMS` (one not given keeps its default; an unknown
-    one is a TypeError)."""
+    and those of :data:`DEEPFLOW_PARAMS` and :data:`MATCHING_PARAMS` (one not given keeps its default; an integer
+    given for a float becomes a float).
+
+    Raises:
+        ParamError: an unknown parameter or a value of the wrong type (:func:`reconstruction.params.from_mapping`).
+    """
     own = {k: params.pop(k) for k in DEEPFLOW_PARAMS if k in params}
-    return DeepFlowParams(**_typed(DeepFlowParams, {**own, "wrap": wrap}), matching=matching_params(wrap, **params))
+    return from_mapping(DeepFlowParams, {**own, "wrap": wrap, "matching": matching_params(wrap, **params)},
+                        where="DeepFlow parameters")
 
 
 def backend_params(params: DeepFlowParams | DeepMatchingParams, **extra) -> dict:

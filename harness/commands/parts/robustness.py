@@ -53,7 +53,8 @@ from harness.data.frame import find_frames, frame_dir, is_complete, read_frame
 from harness.data.outputs import check_output, ensure_output_dir, mark_output
 from harness.data.results import CONFIG_JSON, RESULTS_CSV, read_frames, read_results
 from harness.runtime.context import IN_PROCESS, RunContext
-from harness.runtime.options import MethodSelection, annotations_of, typed_value
+from harness.runtime.options import MethodSelection, typed_value
+from reconstruction.params import type_hints
 from reports.robustness import NONE_KIND, format_level, kind_table, level_plot, pooled_mae, robustness_markdown
 
 __all__ = ["KIND", "KEYS", "ROBUSTNESS_METHODS", "ORIGINS", "RobustnessSpec", "Point", "is_robustness_study",
@@ -181,7 +182,7 @@ def load_robustness(path: Path) -> RobustnessSpec:
             raise UserError(f"{path}: frames: {bad[0]!r} is not a <scene>/<viewpoint> label")
         if len(set(frames)) != len(frames):
             raise UserError(f"{path}: frames: lists a frame twice")
-    hint = annotations_of(MethodSelection)["method"]
+    hint = type_hints(MethodSelection)["method"]
     methods = typed_value(raw.get("method", list(ROBUSTNESS_METHODS)), hint, f"{path}: method")
     try:
         labels = tuple(m.label for m in MethodSelection(method=methods).methods())

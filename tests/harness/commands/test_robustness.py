@@ -165,7 +165,7 @@ def test_an_added_level_runs_only_itself_and_a_new_seed_every_perturbed_point_bu
     ('[levels]\nnoise = []\n', "[levels] noise: must be a non-empty list"),
     ('colour = 1\n[levels]\nnoise = [2]\n', "unknown key(s) colour"),
     ('seed = -1\n[levels]\nnoise = [2]\n', "seed must be a non-negative integer"),
-    ('seed = 1.5\n[levels]\nnoise = [2]\n', "seed must be an integer"),
+    ('seed = 1.5\n[levels]\nnoise = [2]\n', "seed: expected an integer, got 1.5"),
     ('method = ["nope:x"]\n[levels]\nnoise = [2]\n', "method: unknown method"),
     ('frames = ["synthetic_box/vp009"]\n[levels]\nnoise = [2]\n', "frames: 'synthetic_box/vp009' is not a frame"),
     ('frames = ["vp000"]\n[levels]\nnoise = [2]\n', "frames: 'vp000' is not a <scene>/<viewpoint> label"),

@@ -191,7 +191,8 @@ variants = [["average"], ["gradient", "angle"]]
     ("[render\n", "not valid TOML"),
     ("[grid]\nbaseline = [0.2, 0.2]\n", "lists a value twice"),
     ("[evaluate]\nmethod = ['nope:gradient']\n", "nope"),
-    ("[render]\nscene = 'synthetic_box'\nwidth = 64\nlight_tree = 'yes'\n", "light_tree must be true or false"),
+    ("[render]\nscene = 'synthetic_box'\nwidth = 64\nlight_tree = 'yes'\n",
+     "light_tree: expected true or false, got 'yes'"),
 ])
 def test_bad_study_files_are_one_line_errors(tmp_path, capsys, text, message):
     study = tmp_path / "bad.toml"

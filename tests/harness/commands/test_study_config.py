@@ -43,26 +43,26 @@ R, E, G = "render", "evaluate", "grid"
 
 @pytest.mark.parametrize(("change", "message"), [
     # booleans are TOML booleans
-    ({R: {"no_denoise": '"false"'}}, "[render] no_denoise must be true or false, got 'false'"),
-    ({E: {"report": '"false"'}}, "[evaluate] report must be true or false, got 'false'"),
-    ({E: {"method": None, "rectify": "1"}}, "[evaluate] rectify must be true or false, got 1"),
-    ({R: {"light_tree": '"yes"'}}, "light_tree must be true or false"),
-    ({G: {"no_denoise": '[false, "true"]'}}, "[grid] no_denoise[1] must be true or false"),
+    ({R: {"no_denoise": '"false"'}}, "[render] no_denoise: expected true or false, got 'false'"),
+    ({E: {"report": '"false"'}}, "[evaluate] report: expected true or false, got 'false'"),
+    ({E: {"method": None, "rectify": "1"}}, "[evaluate] rectify: expected true or false, got 1"),
+    ({R: {"light_tree": '"yes"'}}, "light_tree: expected true or false"),
+    ({G: {"no_denoise": '[false, "true"]'}}, "[grid] no_denoise[1]: expected true or false"),
     # integers are integers
-    ({R: {"width": "128.0"}}, "[render] width must be an integer, got 128.0"),
-    ({R: {"width": '"abc"'}}, "[render] width must be an integer, got 'abc'"),
-    ({R: {"viewpoints": '"2"'}}, "[render] viewpoints must be an integer, got '2'"),
-    ({R: {"samples": "true"}}, "[render] samples must be an integer, got True"),
-    ({G: {"seed": "[0, 0.0]"}}, "[grid] seed[1] must be an integer, got 0.0"),
-    ({R: {"baseline": '"0.4"'}}, "[render] baseline must be a number, got '0.4'"),
-    ({R: {"baseline": "nan"}}, "[render] baseline must be a number, got nan"),
+    ({R: {"width": "128.0"}}, "[render] width: expected an integer, got 128.0"),
+    ({R: {"width": '"abc"'}}, "[render] width: expected an integer, got 'abc'"),
+    ({R: {"viewpoints": '"2"'}}, "[render] viewpoints: expected an integer, got '2'"),
+    ({R: {"samples": "true"}}, "[render] samples: expected an integer, got True"),
+    ({G: {"seed": "[0, 0.0]"}}, "[grid] seed[1]: expected an integer, got 0.0"),
+    ({R: {"baseline": '"0.4"'}}, "[render] baseline: expected a number, got '0.4'"),
+    ({R: {"baseline": "nan"}}, "[render] baseline: expected a number, got nan"),
     # strings, lists of strings, tables
-    ({E: {"method": "5"}}, "[evaluate] method must be a string or a non-empty list of them, got 5"),
-    ({E: {"method": "[]"}}, "[evaluate] method must be a string or a non-empty list of them"),
+    ({E: {"method": "5"}}, "[evaluate] method: expected a string or a non-empty list of strings, got 5"),
+    ({E: {"method": "[]"}}, "[evaluate] method: expected a string or a non-empty list of strings"),
     ({E: {"method": None, "flow": '"dis"'}, G: {"variants": "[['average'], [3]]"}},
-     "[grid] variants[1] must be a string or a non-empty list"),
-    ({R: {"scene": "3"}}, "[render] scene must be a string, got 3"),
-    ({R: {"set": "5"}}, "[render] set must be a table or a string or a non-empty list of them, got 5"),
+     "[grid] variants[1]: expected a string or a non-empty list"),
+    ({R: {"scene": "3"}}, "[render] scene: expected a string, got 3"),
+    ({R: {"set": "5"}}, "[render] set: expected a table or a string or a non-empty list of strings, got 5"),
     ({R: {"set": '["jitter_m"]'}}, "[render] set expects KEY=VALUE, got 'jitter_m'"),
     # ranges and names, for every grid point, before the first render
     ({G: {"width": "[128, 61]"}}, "(grid point {'width': 61}): --width must be an even number"),
@@ -72,7 +72,7 @@ R, E, G = "render", "evaluate", "grid"
     ({G: {"samples": "[4, 0]"}}, "--samples must be >= 1"),
     ({G: {"threads": "[1, -1]"}}, "--threads must be >= 0"),
     ({R: {"renderer": '"nope"'}}, "unknown renderer 'nope'"),
-    ({R: {"set": "{rooom = 1}"}}, "unknown parameter 'rooom'"),
+    ({R: {"set": "{rooom = 1}"}}, "rooom: expected one of the keys room, furniture"),
     ({G: {"scene": '["synthetic_box", "nope"]'}}, "nope"),
     ({G: {"method": "[['oracle-rect:average'], ['nope:x']]"}}, "unknown method(s) nope:x"),
     ({E: {"flow": '"dis"'}}, "method selects methods by label; do not combine it with flow, rectify or variants"),
@@ -159,7 +159,7 @@ def test_typed_values_from_annotations():
     assert typed_value(True, bool | None, "x") is True
     for value, hint in [(1, bool), (True, int), (1.5, int), ("1", int), (float("inf"), float), ([], tuple[str, ...]),
                         ({"a": 1}, str)]:
-        with pytest.raises(UserError, match="^x must be "):
+        with pytest.raises(UserError, match="^x: expected "):
             typed_value(value, hint, "x")
 
 
@@ -176,6 +176,6 @@ def test_shipped_studies_are_typed_and_valid():
 
 
 def test_settings_type_errors_are_one_line_for_library_callers(tmp_path):
-    with pytest.raises(UserError, match="^width must be an integer, got 128.0$"):
+    with pytest.raises(UserError, match="^width: expected an integer, got 128.0$"):
         render_scene("synthetic_box", out_root=tmp_path, width=128.0, ctx=QUIET)
     assert not any(tmp_path.iterdir())

@@ -47,6 +47,7 @@ from reconstruction.methods.registry import (
     uncalibrated,
 )
 from reconstruction.methods.sweep import SweepMethod
+from reconstruction.params import ParamError
 from reconstruction.refine.lm import RefineConfig, builtin_variants, discover_variants, get_variant
 from reports.metrics import summary
 
@@ -346,6 +347,11 @@ def test_deepflow_and_deepmatching_parameters_are_the_backends_and_reach_them():
     assert config["alpha"] == 6.0 and config["n_solver"] == 25 and config["hog_sigmoid"] == 0.2
     changed = deepflow_params(**{**params, "alpha": 3.0, "cell_px": 2, "wrap": False})
     assert (changed.alpha, changed.matching.cell_px, changed.wrap, changed.matching.wrap) == (3.0, 2, False, False)
+    assert isinstance(deepflow_params(**{**params, "alpha": 3}).alpha, float)  # an integer for a float: a float
+    with pytest.raises(ParamError, match=r"^DeepMatching parameters: cel_px: expected one of the keys .*, got an "):
+        deepflow_params(**{**params, "cel_px": 2})
+    with pytest.raises(ParamError, match=r"^DeepFlow parameters: n_solver: expected an integer, got 25\.0$"):
+        deepflow_params(**{**params, "n_solver": 25.0})
 
 
 def test_a_builtin_flow_takes_every_parameter_or_none():
