@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import dataclasses
 import itertools
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
@@ -44,11 +44,17 @@ from reconstruction.evidence import (
     jackknife_linear,
     sphere_blocks,
 )
+from reconstruction.flow.backends import FlowBackend, builtin_flows, get_flow
 
 __all__ = ["NO_CALIBRATION", "PhotometricParams", "srgb_to_linear", "linear_to_srgb", "basis", "RESPONSE_MID",
            "response_basis", "fit_gain",
            "align_images", "PhotometricModel", "IDENTITY", "fit_photometric", "apply_photometric",
            "FrameView"]
+
+
+def _builtin_flow(name: str) -> FlowBackend:
+    """The built-in flow backend ``name`` with its built-in parameters (no plugin lookup)."""
+    return next(b for b in builtin_flows() if b.name == name)
 
 
 @dataclass(frozen=True)
@@ -112,9 +118,10 @@ class PhotometricParams:
         min_response: the smallest response applied: the range of ``r_K`` over the levels of most of the fit's
             pixels (C's 5th to 95th percentile), natural log; above the 0.04 the fit finds on cameras that agree and
             the 0.09 on cameras that differ only by gain, fall-off, noise and JPEG (tri360-v3 dev, ideal and captured).
-        prepass_flow: the flow backend of the self-calibration's pre-pass (by name; on rectified images reduced by
-            ``prepass_factor``, whatever the method's own flow: it only needs correspondences good enough to fit a
-            smooth gain field and the rotations, fast).
+        prepass_flow: the flow backend of the self-calibration's pre-pass, with its parameters (given by name, the
+            registered backend with its own parameters; default: ``dis`` as built in); on rectified images reduced
+            by ``prepass_factor``, whatever the method's own flow: it only needs correspondences good enough to fit
+            a smooth gain field and the rotations, fast.  :meth:`config` records its name and parameters.
         max_fit_pixels: the fits use at most this many pixels (evenly strided): the field of degree 2 has 11
             coefficients.
         longitude_blocks, min_block_samples: the blocks of the sphere over which each correction is tested
@@ -144,7 +151,7 @@ class PhotometricParams:
     agreement: float = 0.05
     response: int = 1
     min_response: float = 0.10
-    prepass_flow: str = "dis"
+    prepass_flow: FlowBackend = field(default_factory=lambda: _builtin_flow("dis"))
     max_fit_pixels: int = 15000
     longitude_blocks: int = LONGITUDE_BLOCKS
     min_block_samples: int = MIN_BLOCK_SAMPLES
@@ -159,6 +166,10 @@ class PhotometricParams:
             raise ValueError(f"photometric ridge must be >= 0, got {self.ridge}")
         if self.prepass_factor < 1:
             raise ValueError(f"photometric prepass_factor must be >= 1, got {self.prepass_factor}")
+        if isinstance(self.prepass_flow, str):
+            object.__setattr__(self, "prepass_flow", get_flow(self.prepass_flow))
+        if not isinstance(self.prepass_flow, FlowBackend):
+            raise ValueError(f"photometric prepass_flow must be a flow backend or its name, got {self.prepass_flow!r}")
         if not 0.0 < self.alpha < 1.0:
             raise ValueError(f"photometric alpha must be in (0, 1), got {self.alpha}")
         if not (self.min_gain >= 0 and self.min_field >= 0 and self.min_common >= 0):
@@ -180,6 +191,12 @@ class PhotometricParams:
         if not (self.max_fit_pixels >= 1 and self.longitude_blocks >= 1 and self.min_block_samples >= 0):
             raise ValueError(f"photometric max_fit_pixels {self.max_fit_pixels} and longitude_blocks "
                              f"{self.longitude_blocks} must be >= 1, min_block_samples {self.min_block_samples} >= 0")
+
+    def config(self) -> dict:
+        """JSON-able: every field as it is, the pre-pass flow as its name, description and parameters."""
+        out = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
+        out["prepass_flow"] = self.prepass_flow.config()
+        return out
 
 
 NO_CALIBRATION = PhotometricParams(mode="none")

@@ -93,6 +93,11 @@ class FlowBackend:
         """JSON-able description: name, description and parameters."""
         return {"name": self.name, "description": self.description, "params": dict(self.params)}
 
+    def __hash__(self) -> int:
+        """By name and parameters (the parameters are a dict), so that a frozen configuration holding a backend
+        (a method's ``group_key``, :class:`reconstruction.photometry.PhotometricParams`) hashes."""
+        return hash((self.name, repr(sorted(self.params.items()))))
+
 
 _WARM_LOCK = threading.Lock()
 _WARMED: set = set()

@@ -167,7 +167,7 @@ class FlowMethod:
         flow = {"name": self.flow} if isinstance(self.flow, str) else self.flow.config()
         return {"kind": "flow-pipeline", "label": self.label, "flow": flow, "rectify": self.rectify,
                 "variant": self.variant, "refine": None if self.refine is None else self.refine.config(),
-                "triangulation": asdict(self.limits), "photometric": asdict(self.photometric),
+                "triangulation": asdict(self.limits), "photometric": self.photometric.config(),
                 "rig": asdict(self.rig)}
 
     def run(self, frame) -> MethodOutput:

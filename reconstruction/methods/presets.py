@@ -61,7 +61,8 @@ class Preset:
 # docs/refinement.md; the sweep's cost, SGM and post-processing as chosen with the flow prior (over the 4 classroom
 # frames + synthetic_box, docs/matching.md), which also serve the plain sweep best: a strong +-1-step penalty (P1 120,
 # P2 800), truncation 30 gray levels, 160 labels and pixel-wise costs (no blur, no box filter, gradients weighted 2);
-# the self-calibration's values as PhotometricParams' and RigParams' docstrings explain them.
+# the self-calibration's values as PhotometricParams' and RigParams' docstrings explain them; its pre-pass flow is the
+# same DIS (on images reduced by prepass_factor).
 
 
 def fused_mirror() -> PriorSweepMethod:
@@ -77,7 +78,7 @@ def fused_mirror() -> PriorSweepMethod:
         mode="gain-field", degree=2, pixel_degree=0, prepass_factor=2, ridge=0.0, factor=4, dark=0.01, bright=0.9,
         tukey_c=4.685, iterations=8, max_log_gain=2.0, even=False, central=True, common_field=False, min_gain=0.05,
         min_field=0.1, min_common=0.5, flat_log_gradient=0.1, alpha=0.001, agreement=0.05, response=1,
-        min_response=0.1, prepass_flow="dis", max_fit_pixels=15000, longitude_blocks=16, min_block_samples=50)
+        min_response=0.1, prepass_flow=dis, max_fit_pixels=15000, longitude_blocks=16, min_block_samples=50)
     rig = RigParams(
         mode="rotation", max_fb_px=0.5, texture_quantile=0.7, min_sin=0.3, max_degrees=2.0, alpha=0.01,
         min_degrees=0.072, iterations=6, tukey_c=4.685, max_matches=40000, longitude_blocks=16, min_block_samples=50)
@@ -154,7 +155,7 @@ def fused() -> PriorSweepMethod:
         mode="gain-field", degree=2, pixel_degree=0, prepass_factor=2, ridge=0.0, factor=4, dark=0.01, bright=0.9,
         tukey_c=4.685, iterations=8, max_log_gain=2.0, even=False, central=True, common_field=False, min_gain=0.05,
         min_field=0.1, min_common=0.5, flat_log_gradient=0.1, alpha=0.001, agreement=0.05, response=1,
-        min_response=0.1, prepass_flow="dis", max_fit_pixels=15000, longitude_blocks=16, min_block_samples=50)
+        min_response=0.1, prepass_flow=dis, max_fit_pixels=15000, longitude_blocks=16, min_block_samples=50)
     rig = RigParams(
         mode="rotation", max_fb_px=0.5, texture_quantile=0.7, min_sin=0.3, max_degrees=2.0, alpha=0.01,
         min_degrees=0.072, iterations=6, tukey_c=4.685, max_matches=40000, longitude_blocks=16, min_block_samples=50)
@@ -189,11 +190,15 @@ def fused() -> PriorSweepMethod:
 
 def sweep() -> SweepMethod:
     """``sweep``: the trinocular sphere sweep with SGM over spheres and floor/ceiling planes, no flow."""
+    # the self-calibration's pre-pass flow (the sweep itself matches no flow)
+    dis = builtin_flow("dis", {
+        "preset": "medium", "finest_scale": 0, "patch_size": 8, "patch_stride": 3, "gd_iterations": 25,
+        "var_iterations": 10, "var_alpha": 10.0, "spatial_propagation": True})
     photometric = PhotometricParams(
         mode="gain-field", degree=2, pixel_degree=0, prepass_factor=2, ridge=0.0, factor=4, dark=0.01, bright=0.9,
         tukey_c=4.685, iterations=8, max_log_gain=2.0, even=False, central=True, common_field=False, min_gain=0.05,
         min_field=0.1, min_common=0.5, flat_log_gradient=0.1, alpha=0.001, agreement=0.05, response=1,
-        min_response=0.1, prepass_flow="dis", max_fit_pixels=15000, longitude_blocks=16, min_block_samples=50)
+        min_response=0.1, prepass_flow=dis, max_fit_pixels=15000, longitude_blocks=16, min_block_samples=50)
     return SweepMethod(
         pairs=("U", "R"), label="sweep", photometric=photometric, corrected_cost=None,
         cost=CostParams(
@@ -223,7 +228,7 @@ def fused_mirror_raw() -> PriorSweepMethod:
         mode="none", degree=2, pixel_degree=0, prepass_factor=2, ridge=0.0, factor=4, dark=0.01, bright=0.9,
         tukey_c=4.685, iterations=8, max_log_gain=2.0, even=False, central=True, common_field=False, min_gain=0.05,
         min_field=0.1, min_common=0.5, flat_log_gradient=0.1, alpha=0.001, agreement=0.05, response=1,
-        min_response=0.1, prepass_flow="dis", max_fit_pixels=15000, longitude_blocks=16, min_block_samples=50)
+        min_response=0.1, prepass_flow=dis, max_fit_pixels=15000, longitude_blocks=16, min_block_samples=50)
     # mode "none": the told poses as they are (the other fields are not used)
     rig = RigParams(
         mode="none", max_fb_px=0.5, texture_quantile=0.7, min_sin=0.3, max_degrees=2.0, alpha=0.01, min_degrees=0.072,
@@ -268,7 +273,7 @@ def fused_mirror_told_rig() -> PriorSweepMethod:
         mode="gain-field", degree=2, pixel_degree=0, prepass_factor=2, ridge=0.0, factor=4, dark=0.01, bright=0.9,
         tukey_c=4.685, iterations=8, max_log_gain=2.0, even=False, central=True, common_field=False, min_gain=0.05,
         min_field=0.1, min_common=0.5, flat_log_gradient=0.1, alpha=0.001, agreement=0.05, response=1,
-        min_response=0.1, prepass_flow="dis", max_fit_pixels=15000, longitude_blocks=16, min_block_samples=50)
+        min_response=0.1, prepass_flow=dis, max_fit_pixels=15000, longitude_blocks=16, min_block_samples=50)
     # mode "none": the told poses as they are (the other fields are not used)
     rig = RigParams(
         mode="none", max_fb_px=0.5, texture_quantile=0.7, min_sin=0.3, max_degrees=2.0, alpha=0.01, min_degrees=0.072,
@@ -319,7 +324,7 @@ def fused_mirror_raw_images() -> PriorSweepMethod:
         mode="none", degree=2, pixel_degree=0, prepass_factor=2, ridge=0.0, factor=4, dark=0.01, bright=0.9,
         tukey_c=4.685, iterations=8, max_log_gain=2.0, even=False, central=True, common_field=False, min_gain=0.05,
         min_field=0.1, min_common=0.5, flat_log_gradient=0.1, alpha=0.001, agreement=0.05, response=1,
-        min_response=0.1, prepass_flow="dis", max_fit_pixels=15000, longitude_blocks=16, min_block_samples=50)
+        min_response=0.1, prepass_flow=dis, max_fit_pixels=15000, longitude_blocks=16, min_block_samples=50)
     rig = RigParams(
         mode="rotation", max_fb_px=0.5, texture_quantile=0.7, min_sin=0.3, max_degrees=2.0, alpha=0.01,
         min_degrees=0.072, iterations=6, tukey_c=4.685, max_matches=40000, longitude_blocks=16, min_block_samples=50)
@@ -363,7 +368,7 @@ def fused_mirror_shared_falloff() -> PriorSweepMethod:
         mode="gain-field", degree=2, pixel_degree=0, prepass_factor=2, ridge=0.0, factor=4, dark=0.01, bright=0.9,
         tukey_c=4.685, iterations=8, max_log_gain=2.0, even=False, central=True, min_gain=0.05, min_field=0.1,
         min_common=0.5, flat_log_gradient=0.1, alpha=0.001, agreement=0.05, response=1, min_response=0.1,
-        prepass_flow="dis", max_fit_pixels=15000, longitude_blocks=16, min_block_samples=50,
+        prepass_flow=dis, max_fit_pixels=15000, longitude_blocks=16, min_block_samples=50,
         # what this ablation switches on
         common_field=True)
     rig = RigParams(
@@ -414,7 +419,7 @@ def fused_gated() -> PriorSweepMethod:
         mode="gain-field", degree=2, pixel_degree=0, prepass_factor=2, ridge=0.0, factor=4, dark=0.01, bright=0.9,
         tukey_c=4.685, iterations=8, max_log_gain=2.0, even=False, central=True, common_field=False, min_gain=0.05,
         min_field=0.1, min_common=0.5, flat_log_gradient=0.1, alpha=0.001, agreement=0.05, response=1,
-        min_response=0.1, prepass_flow="dis", max_fit_pixels=15000, longitude_blocks=16, min_block_samples=50)
+        min_response=0.1, prepass_flow=dis, max_fit_pixels=15000, longitude_blocks=16, min_block_samples=50)
     rig = RigParams(
         mode="rotation", max_fb_px=0.5, texture_quantile=0.7, min_sin=0.3, max_degrees=2.0, alpha=0.01,
         min_degrees=0.072, iterations=6, tukey_c=4.685, max_matches=40000, longitude_blocks=16, min_block_samples=50)
@@ -464,7 +469,7 @@ def fused_adaptive() -> PriorSweepMethod:
         mode="gain-field", degree=2, pixel_degree=0, prepass_factor=2, ridge=0.0, factor=4, dark=0.01, bright=0.9,
         tukey_c=4.685, iterations=8, max_log_gain=2.0, even=False, central=True, common_field=False, min_gain=0.05,
         min_field=0.1, min_common=0.5, flat_log_gradient=0.1, alpha=0.001, agreement=0.05, response=1,
-        min_response=0.1, prepass_flow="dis", max_fit_pixels=15000, longitude_blocks=16, min_block_samples=50)
+        min_response=0.1, prepass_flow=dis, max_fit_pixels=15000, longitude_blocks=16, min_block_samples=50)
     rig = RigParams(
         mode="rotation", max_fb_px=0.5, texture_quantile=0.7, min_sin=0.3, max_degrees=2.0, alpha=0.01,
         min_degrees=0.072, iterations=6, tukey_c=4.685, max_matches=40000, longitude_blocks=16, min_block_samples=50)

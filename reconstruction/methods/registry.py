@@ -109,8 +109,10 @@ def uncalibrated(method: PriorSweepMethod) -> PriorSweepMethod:
     """``method`` matching the images as they are with the told poses (no photometric or rig self-calibration) and
     the sweep cost's default intensity weight and blur always (no ``corrected_cost``), labelled ``<label>-raw``: the
     ablation that shows what the self-calibration and the cost chosen with it do (``uncalibrated(fused_mirror())``
-    is the built-in :func:`reconstruction.methods.presets.fused_mirror_raw`)."""
-    raw = with_photometric(method, NO_CALIBRATION, f"{method.label}-raw")
+    is the built-in :func:`reconstruction.methods.presets.fused_mirror_raw`).  The pre-pass flow stays ``method``'s
+    (it runs only for a self-calibration)."""
+    none = dataclasses.replace(NO_CALIBRATION, prepass_flow=method.flow.photometric.prepass_flow)
+    raw = with_photometric(method, none, f"{method.label}-raw")
     cost = dataclasses.replace(raw.sweep.cost, intensity_weight=CostParams().intensity_weight,
                                blur_px=CostParams().blur_px)
     quality = raw.quality_flow

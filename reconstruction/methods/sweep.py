@@ -390,7 +390,7 @@ class SweepMethod:
     def config(self) -> dict:
         out = {"kind": "sweep", "label": self.label, "cost": asdict(self.cost), "planes": asdict(self.planes),
                "sgm": asdict(self.sgm), "post": asdict(self.post), "pairs": list(self.pairs),
-               "photometric": asdict(self.photometric)}
+               "photometric": self.photometric.config()}
         if self.corrected_cost is not None:
             out["corrected_cost"] = asdict(self.corrected_cost)
         return out

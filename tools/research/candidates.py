@@ -86,7 +86,7 @@ class PhotometricCandidate:
     def record(self) -> dict:
         """What ``selection.json`` records of the candidate: ``photometric`` and ``rig`` (as dicts),
         ``intensity_weight`` and ``blur_px``."""
-        return {"photometric": dataclasses.asdict(self.photometric), "intensity_weight": self.intensity_weight,
+        return {"photometric": self.photometric.config(), "intensity_weight": self.intensity_weight,
                 "rig": dataclasses.asdict(self.rig), "blur_px": self.blur_px}
 
 

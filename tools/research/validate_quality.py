@@ -65,7 +65,6 @@ from harness.runtime import startup
 if __name__ == "__main__":  # run as a script: Ctrl-C during the imports below is one line and 130
     startup.guard("validate_quality")
 
-import dataclasses
 import re
 import sys
 import time
@@ -96,6 +95,7 @@ from harness.runtime.blind import run_blind
 from harness.runtime.context import IN_PROCESS, RunContext
 from harness.runtime.progress import progress_bar
 from reconstruction.camera.rig import CAMERA_NAMES
+from reconstruction.flow.backends import get_flow
 from reconstruction.methods.base import Method, MethodInput, ReferencingMethod, reference_distance, with_references
 from reconstruction.methods.registry import get_methods
 from reconstruction.photometry import NO_CALIBRATION
@@ -169,12 +169,13 @@ def _without_labels(config) -> object:
 #: parameters added after results sets were first written, with the value that reproduces what came before: a
 #: stored configuration without the key ran that way (a sweep's ``planes.mirror_tolerance``: no mirror test; its
 #: cost's ``intensity_weight``: 1 and ``feature``: the intensity; a method's ``photometric``: the images as they are;
-#: the values that were module constants or fixed defaults before they became parameters: the pre-pass flow, the
+#: the values that were module constants or fixed defaults before they became parameters: the pre-pass flow (DIS
+#: with its built-in parameters), the
 #: fits' pixel and match limits, the evidence's blocks, the rig fit's iterations, the noise blur's cap, DeepFlow's
 #: and DeepMatching's).  A key ``parent.key`` applies only inside a mapping stored under ``parent``.
 _ADDED_KEYS = {"mirror_tolerance": 0.0, "intensity_weight": 1.0, "feature": "intensity",
-               "photometric": dataclasses.asdict(NO_CALIBRATION),
-               "photometric.prepass_flow": "dis", "photometric.max_fit_pixels": 15000,
+               "photometric": NO_CALIBRATION.config(),
+               "photometric.prepass_flow": NO_CALIBRATION.prepass_flow.config(), "photometric.max_fit_pixels": 15000,
                "photometric.longitude_blocks": 16, "photometric.min_block_samples": 50,
                "rig.iterations": 6, "rig.tukey_c": 4.685, "rig.max_matches": 40000, "rig.longitude_blocks": 16,
                "rig.min_block_samples": 50, "max_noise_blur_px": 1.5,
@@ -185,11 +186,21 @@ _ADDED_KEYS = {"mirror_tolerance": 0.0, "intensity_weight": 1.0, "feature": "int
                    "n_solver": 25, "sor_omega": 1.6}.items()}}
 
 
+#: values stored in an earlier form, read in today's: ``photometric.prepass_flow`` was the pre-pass flow's name (it
+#: ran with that backend's built-in parameters)
+_EARLIER_FORMS = {"photometric.prepass_flow": lambda v: get_flow(v).config() if isinstance(v, str) else v}
+
+
 def _with_added_keys(stored, wanted, parent: str = "") -> object:
     """``stored`` with every key of :data:`_ADDED_KEYS` that ``wanted`` has at the same place and ``stored`` lacks
-    set to its earlier value (``parent``: the key ``stored`` is under)."""
+    set to its earlier value, and every value of :data:`_EARLIER_FORMS` in today's form (``parent``: the key
+    ``stored`` is under)."""
     if isinstance(stored, dict) and isinstance(wanted, dict):
         out = {k: _with_added_keys(v, wanted.get(k), k) for k, v in stored.items()}
+        for name, convert in _EARLIER_FORMS.items():
+            where, _, k = name.rpartition(".")
+            if where in ("", parent) and k in out:
+                out[k] = convert(out[k])
         for name, value in _ADDED_KEYS.items():
             where, _, k = name.rpartition(".")
             if where in ("", parent) and k in wanted and k not in out:

@@ -125,7 +125,8 @@ def test_methods_show_prints_what_config_json_records(synthetic_root, tmp_path, 
     shown = json.loads(capsys.readouterr().out)
     assert shown == json.loads(json.dumps(get_methods(["fused-mirror"])[0].config()))
     assert shown["sweep"]["corrected_cost"]["intensity_weight"] == 0.25
-    assert shown["flow"]["photometric"]["prepass_flow"] == "dis" and shown["flow"]["rig"]["max_matches"] == 40000
+    assert shown["flow"]["photometric"]["prepass_flow"]["params"]["var_iterations"] == 10
+    assert shown["flow"]["rig"]["max_matches"] == 40000
     assert main(["methods", "--show", "deepflow-rect:gradient"]) == 0
     params = json.loads(capsys.readouterr().out)["flow"]["params"]
     assert {"alpha": 6.0, "beta": 390.0, "n_solver": 25, "downscale": 1, "hog_sigmoid": 0.2}.items() <= params.items()
