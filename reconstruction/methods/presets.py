@@ -93,7 +93,7 @@ def fused_mirror() -> PriorSweepMethod:
             cost=CostParams(
                 d_min_m=0.3, d_max_m=30.0, levels=160, blur_px=0.0, gradient_weight=2.0, intensity_weight=1.0,
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=0.0,
-                noise_floor=1.0, max_noise_blur_px=1.5),
+                noise_floor=1.0, max_noise_blur_px=1.5, noise_scale=1),
             planes=PlaneParams(
                 per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_margin=0.25,
                 bound_min_share=0.03, coarse_factor=2, wall_spread=0.1, wall_min_share=0.01,
@@ -109,7 +109,7 @@ def fused_mirror() -> PriorSweepMethod:
             # the cost when the self-calibration changed the images
             corrected_cost=CostParams(
                 d_min_m=0.3, d_max_m=30.0, levels=160, gradient_weight=2.0, truncate=30.0, box_px=1, scale=8.0,
-                pair_power=2.0, feature="intensity", noise_floor=1.0, max_noise_blur_px=1.5,
+                pair_power=2.0, feature="intensity", noise_floor=1.0, max_noise_blur_px=1.5, noise_scale=1,
                 # what a gain difference between the cameras leaves after the self-calibration weighs less against
                 # the gradients (2): chosen by ``python -m tools.research.select_photometric`` among 1, 0.5 and
                 # 0.25 on the dev split under both conditions (docs/photometry.md)
@@ -174,7 +174,7 @@ def fused() -> PriorSweepMethod:
             cost=CostParams(
                 d_min_m=0.3, d_max_m=30.0, levels=160, blur_px=0.0, gradient_weight=2.0, intensity_weight=1.0,
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=0.0,
-                noise_floor=1.0, max_noise_blur_px=1.5),
+                noise_floor=1.0, max_noise_blur_px=1.5, noise_scale=1),
             # spheres and floor/ceiling planes, no wall planes
             planes=PlaneParams(
                 per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_margin=0.25,
@@ -204,7 +204,7 @@ def sweep() -> SweepMethod:
         cost=CostParams(
             d_min_m=0.3, d_max_m=30.0, levels=160, blur_px=0.0, gradient_weight=2.0, intensity_weight=1.0,
             truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=0.0, noise_floor=1.0,
-            max_noise_blur_px=1.5),
+            max_noise_blur_px=1.5, noise_scale=1),
         planes=PlaneParams(
             per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_margin=0.25, bound_min_share=0.03,
             coarse_factor=2, wall_labels=0, wall_spread=0.1, wall_min_share=0.01, mirror_tolerance=0.0),
@@ -241,7 +241,7 @@ def fused_mirror_raw() -> PriorSweepMethod:
             cost=CostParams(
                 d_min_m=0.3, d_max_m=30.0, levels=160, blur_px=0.0, gradient_weight=2.0, intensity_weight=1.0,
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=0.0,
-                noise_floor=1.0, max_noise_blur_px=1.5),
+                noise_floor=1.0, max_noise_blur_px=1.5, noise_scale=1),
             planes=PlaneParams(
                 per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_margin=0.25,
                 bound_min_share=0.03, coarse_factor=2, wall_labels=9, wall_spread=0.1, wall_min_share=0.01,
@@ -286,7 +286,7 @@ def fused_mirror_told_rig() -> PriorSweepMethod:
             cost=CostParams(
                 d_min_m=0.3, d_max_m=30.0, levels=160, blur_px=0.0, gradient_weight=2.0, intensity_weight=1.0,
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=0.0,
-                noise_floor=1.0, max_noise_blur_px=1.5),
+                noise_floor=1.0, max_noise_blur_px=1.5, noise_scale=1),
             planes=PlaneParams(
                 per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_margin=0.25,
                 bound_min_share=0.03, coarse_factor=2, wall_labels=9, wall_spread=0.1, wall_min_share=0.01,
@@ -296,7 +296,7 @@ def fused_mirror_told_rig() -> PriorSweepMethod:
             corrected_cost=CostParams(
                 d_min_m=0.3, d_max_m=30.0, levels=160, blur_px=0.7, gradient_weight=2.0, intensity_weight=0.25,
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=1.0,
-                noise_floor=1.0, max_noise_blur_px=1.5)),
+                noise_floor=1.0, max_noise_blur_px=1.5, noise_scale=1)),
         prior=PriorParams(
             weight=16.0, truncate_levels=16.0, use_confidence=False, contrast_low=0.5, contrast_high=2.0,
             contrast_sigma_px=3.0, sweep_confidence_power=1.0, agree_tolerance=0.05, frame_agreement_low=0.5,
@@ -336,7 +336,7 @@ def fused_mirror_raw_images() -> PriorSweepMethod:
             cost=CostParams(
                 d_min_m=0.3, d_max_m=30.0, levels=160, blur_px=0.0, gradient_weight=2.0, intensity_weight=1.0,
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=0.0,
-                noise_floor=1.0, max_noise_blur_px=1.5),
+                noise_floor=1.0, max_noise_blur_px=1.5, noise_scale=1),
             planes=PlaneParams(
                 per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_margin=0.25,
                 bound_min_share=0.03, coarse_factor=2, wall_labels=9, wall_spread=0.1, wall_min_share=0.01,
@@ -382,7 +382,7 @@ def fused_mirror_shared_falloff() -> PriorSweepMethod:
             cost=CostParams(
                 d_min_m=0.3, d_max_m=30.0, levels=160, blur_px=0.0, gradient_weight=2.0, intensity_weight=1.0,
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=0.0,
-                noise_floor=1.0, max_noise_blur_px=1.5),
+                noise_floor=1.0, max_noise_blur_px=1.5, noise_scale=1),
             planes=PlaneParams(
                 per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_margin=0.25,
                 bound_min_share=0.03, coarse_factor=2, wall_labels=9, wall_spread=0.1, wall_min_share=0.01,
@@ -392,7 +392,7 @@ def fused_mirror_shared_falloff() -> PriorSweepMethod:
             corrected_cost=CostParams(
                 d_min_m=0.3, d_max_m=30.0, levels=160, blur_px=0.7, gradient_weight=2.0, intensity_weight=0.25,
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=1.0,
-                noise_floor=1.0, max_noise_blur_px=1.5)),
+                noise_floor=1.0, max_noise_blur_px=1.5, noise_scale=1)),
         prior=PriorParams(
             weight=16.0, truncate_levels=16.0, use_confidence=False, contrast_low=0.5, contrast_high=2.0,
             contrast_sigma_px=3.0, sweep_confidence_power=1.0, agree_tolerance=0.05, frame_agreement_low=0.5,
@@ -432,7 +432,7 @@ def fused_gated() -> PriorSweepMethod:
             cost=CostParams(
                 d_min_m=0.3, d_max_m=30.0, levels=160, blur_px=0.0, gradient_weight=2.0, intensity_weight=1.0,
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=0.0,
-                noise_floor=1.0, max_noise_blur_px=1.5),
+                noise_floor=1.0, max_noise_blur_px=1.5, noise_scale=1),
             # the horizontal planes plus 9 labels per wall found by the coarse pass
             planes=PlaneParams(
                 per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_margin=0.25,
@@ -488,7 +488,7 @@ def fused_adaptive() -> PriorSweepMethod:
             cost=CostParams(
                 d_min_m=0.3, d_max_m=30.0, levels=160, blur_px=0.0, gradient_weight=2.0, intensity_weight=1.0,
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=0.0,
-                noise_floor=1.0, max_noise_blur_px=1.5),
+                noise_floor=1.0, max_noise_blur_px=1.5, noise_scale=1),
             # the horizontal planes plus 9 labels per wall found by the coarse pass
             planes=PlaneParams(
                 per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_margin=0.25,

@@ -294,7 +294,7 @@ def sweep_distances(frame, sweep: SweepMethod, priors: Sequence[Prior | PriorFro
         sweep = dataclasses.replace(sweep, cost=sweep.corrected_cost)
     noise = None
     if sweep.cost.noise_blur > 0:  # noisier images than the cost's blur was chosen for: blur more
-        noise = max(image_noise(frame.images[k]) for k in ("C", *sweep.pairs))
+        noise = max(image_noise(frame.images[k], sweep.cost.noise_scale) for k in ("C", *sweep.pairs))
         sweep = dataclasses.replace(sweep, cost=dataclasses.replace(sweep.cost,
                                                                     blur_px=noise_blur_px(sweep.cost, noise)))
     cost_params, plane_params, post = sweep.cost, sweep.planes, sweep.post

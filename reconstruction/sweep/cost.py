@@ -84,9 +84,12 @@ class CostParams:
             intensity, gray-level units, typically within +-3 :data:`NORM_SCALE`).
         noise_blur, noise_floor: the blur grows with the images' noise: ``blur_px`` becomes
             ``noise_blur * (noise - noise_floor)`` where that is larger (at most ``max_noise_blur_px``), with
-            ``noise`` the largest :func:`image_noise` of the frame's images, gray levels (:func:`noise_blur_px`);
+            ``noise`` the largest :func:`image_noise` of the frame's images at ``noise_scale``, gray levels
+            (:func:`noise_blur_px`);
             ``noise_blur`` in pixels per gray level, 0 = off.
         max_noise_blur_px: the largest blur the images' noise raises ``blur_px`` to, pixels.
+        noise_scale: the scale at which the noise is estimated (:func:`image_noise`'s ``scale``): 1 = the images'
+            pixels; 2 = images reduced by 2, where noise that JPEG coding flattened at the pixel scale still shows.
     """
 
     d_min_m: float = 0.3
@@ -103,6 +106,7 @@ class CostParams:
     noise_blur: float = 0.0
     noise_floor: float = 1.0
     max_noise_blur_px: float = 1.5
+    noise_scale: int = 1
 
     def __post_init__(self) -> None:
         if self.feature not in FEATURES:
@@ -111,24 +115,32 @@ class CostParams:
             raise ValueError(f"cost noise_blur {self.noise_blur} and noise_floor {self.noise_floor} must be >= 0")
         if not self.max_noise_blur_px >= 0:
             raise ValueError(f"cost max_noise_blur_px must be >= 0, got {self.max_noise_blur_px}")
+        if not (isinstance(self.noise_scale, int) and self.noise_scale >= 1):
+            raise ValueError(f"cost noise_scale must be an integer >= 1, got {self.noise_scale!r}")
 
     def max_cost(self) -> int:
         """Largest possible summed cost, uint16 units (both pairs' weights sum to at most 2)."""
         return int(np.ceil(2.0 * self.truncate * self.scale)) + 1
 
 
-def image_noise(image: np.ndarray) -> float:
+def image_noise(image: np.ndarray, scale: int = 1) -> float:
     """The noise of an 8-bit image, gray levels (standard deviation): Immerkaer's estimate (1996), the mean absolute
     response of the 3x3 Laplacian difference times ``sqrt(pi / 2) / 6``, over the flatter half of the pixels (the
     smaller half of the Sobel gradient), so that texture and edges do not count as noise.
 
     Args:
         image: (H, W, 3) uint8 RGB (or (H, W) gray).
+        scale: estimate on the image reduced by this factor (mean of ``scale x scale`` blocks), times ``scale``: the
+            same figure for white noise, which the mean divides by ``scale``, and a larger one for noise that is
+            not white, such as what JPEG coding leaves of it (its 8 x 8 blocks keep the low frequencies).
     Returns:
         The estimate for the mean of the channels, gray levels (independent noise of ``s`` per channel is
         ``s / sqrt(3)`` there).
     """
     g = np.asarray(grey(image, "mean"), np.float32)
+    if scale > 1:
+        h, w = (g.shape[0] // scale) * scale, (g.shape[1] // scale) * scale
+        g = scale * g[:h, :w].reshape(h // scale, scale, w // scale, scale).mean(axis=(1, 3), dtype=np.float32)
     response = np.abs(cv2.filter2D(g, -1, _LAPLACIAN_DIFFERENCE))[2:-2, 2:-2]
     grad = np.hypot(cv2.Sobel(g, cv2.CV_32F, 1, 0), cv2.Sobel(g, cv2.CV_32F, 0, 1))[2:-2, 2:-2]
     flat = grad <= np.median(grad)

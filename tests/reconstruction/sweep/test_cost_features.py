@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import dataclasses
 
+import cv2
 import numpy as np
 import pytest
 
@@ -218,6 +219,24 @@ def test_image_noise_reads_the_noise_not_the_shading():
     for sigma in (3.0, 6.0):
         noisy = np.clip(img + rng.normal(scale=sigma, size=img.shape), 0, 255).astype(np.uint8)
         assert image_noise(noisy) == pytest.approx(sigma / np.sqrt(3.0), rel=0.15)
+
+
+def test_image_noise_at_a_coarser_scale_reads_white_noise_the_same_and_sees_what_jpeg_flattened():
+    """At scale 2 (the image's 2 x 2 means, times 2) white noise reads as at the pixel scale (within 15 %); after
+    JPEG coding at quality 70, 6 gray levels per channel read below a quarter of their channel-mean figure at the
+    pixel scale (the coding flattens the finest frequencies) and within 25 % of it at scale 2."""
+    y, x = np.mgrid[0:250, 0:500]
+    img = np.repeat((120 + 100 * np.sin(x / 40.0) * np.cos(y / 30.0))[..., None], 3, axis=-1)
+    rng = np.random.default_rng(5)
+    sigma = 6.0
+    noisy = np.clip(img + rng.normal(scale=sigma, size=img.shape), 0, 255).astype(np.uint8)
+    assert image_noise(noisy, 2) == pytest.approx(sigma / np.sqrt(3.0), rel=0.15)
+    ok, buf = cv2.imencode(".jpg", noisy, [cv2.IMWRITE_JPEG_QUALITY, 70])
+    coded = cv2.imdecode(buf, cv2.IMREAD_UNCHANGED)
+    assert ok and image_noise(coded) < 0.25 * sigma / np.sqrt(3.0)
+    assert image_noise(coded, 2) == pytest.approx(sigma / np.sqrt(3.0), rel=0.25)
+    with pytest.raises(ValueError, match="noise_scale"):
+        CostParams(noise_scale=0)
 
 
 def test_noise_blur_grows_with_the_noise_above_its_floor_only():
