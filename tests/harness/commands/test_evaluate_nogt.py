@@ -23,6 +23,8 @@ from harness.data.exr import CONFIDENCE_CHANNEL, DISTANCE_CHANNEL, read_exr_chan
 from harness.data.frame import read_frame, write_frame
 from harness.data.outputs import MARKER
 from harness.data.results import map_paths, quality_map_path, read_results, read_results_set
+from reconstruction.methods.base import reference_distance, run_methods, with_references
+from reconstruction.methods.presets import fused, fused_mirror
 from reconstruction.quality import assess
 from reports.pointcloud import parse_ply
 from reports.schema import METRIC_COLUMNS, QUALITY_COLUMNS, RESULT_COLUMNS, unscored_rows
@@ -267,9 +269,6 @@ def test_a_quality_reference_the_method_does_not_compute_runs_along(capture, tmp
     """The default (fused-mirror) computes no refined flow, but its quality is compared with fused's (its
     ``quality_flow``): evaluate runs that flow method along on a frame without ground truth, reports only the asked
     method, and its disagreement map is assess's with that method's distance as the reference."""
-    from reconstruction.methods.base import reference_distance, run_methods, with_references
-    from reconstruction.methods.presets import fused, fused_mirror
-
     _, root, frame_dir = capture
     method, flow = fused_mirror(), fused().flow
     assert method.reference_method.label == flow.label != method.flow.label
