@@ -121,15 +121,20 @@ def info_of(f: dataclasses.Field) -> ParamInfo:
 
 
 @functools.cache
-def type_hints(obj) -> dict[str, Any]:
-    """The evaluated type annotations of a dataclass or function (``typing.get_type_hints``, cached)."""
-    return typing.get_type_hints(obj)
+def type_hints(obj) -> Mapping[str, Any]:
+    """The evaluated type annotations of a dataclass or function (``typing.get_type_hints``, cached; read-only)."""
+    return types.MappingProxyType(typing.get_type_hints(obj))
+
+
+#: the longest value an error message shows, characters (a longer one is cut and ends with "...")
+SHOWN_MAX = 80
 
 
 def shown(value) -> str:
-    """A value as an error message shows it: its ``repr``, on one line."""
+    """A value as an error message shows it: its ``repr``, on one line, cut after :data:`SHOWN_MAX` characters."""
     text = repr(value)
-    return " ".join(text.split()) if "\n" in text else text
+    text = " ".join(text.split()) if "\n" in text else text
+    return text if len(text) <= SHOWN_MAX else text[:SHOWN_MAX - 3] + "..."
 
 
 # ------------------------------------------------------------------------------------------------ the words
@@ -377,5 +382,7 @@ def describe(cls: type) -> dict[str, str]:
             allowed = "each " + allowed
         unit = f", {info.unit}" if info.unit else ""
         default = "required" if f.default is dataclasses.MISSING else f"default {_show_default(f.default)}"
-        out[f.name] = f"{info.description}{unit} ({default}{'; ' + allowed if allowed else ''})"
+        text = f"{info.description}{unit}"
+        out[f.name] = f"{text} ({default}{'; ' + allowed if allowed else ''})" if text else \
+            f"{default}{'; ' + allowed if allowed else ''}"
     return out

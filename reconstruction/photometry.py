@@ -44,7 +44,7 @@ from reconstruction.evidence import (
     jackknife_linear,
     sphere_blocks,
 )
-from reconstruction.flow.backends import FlowBackend, builtin_flows, get_flow
+from reconstruction.flow.backends import ORACLE, FlowBackend, builtin_flows, get_flow
 
 __all__ = ["NO_CALIBRATION", "PhotometricParams", "srgb_to_linear", "linear_to_srgb", "basis", "RESPONSE_MID",
            "response_basis", "fit_gain",
@@ -166,6 +166,8 @@ class PhotometricParams:
             raise ValueError(f"photometric ridge must be >= 0, got {self.ridge}")
         if self.prepass_factor < 1:
             raise ValueError(f"photometric prepass_factor must be >= 1, got {self.prepass_factor}")
+        if self.prepass_flow == ORACLE:
+            raise ValueError("photometric prepass_flow must be a flow backend that matches the images, not the oracle")
         if isinstance(self.prepass_flow, str):
             object.__setattr__(self, "prepass_flow", get_flow(self.prepass_flow))
         if not isinstance(self.prepass_flow, FlowBackend):

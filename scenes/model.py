@@ -372,7 +372,7 @@ class SceneError(ValueError):
 # ------------------------------------------------------------------------------------------------ parameters
 
 PARAM_METADATA = METADATA_KEY
-"""Key of a scene parameter's :class:`ParamInfo` in its dataclass field's ``metadata``
+"""Key of a scene parameter's :class:`reconstruction.params.ParamInfo` in its dataclass field's ``metadata``
 (:data:`reconstruction.params.METADATA_KEY`)."""
 
 
@@ -483,9 +483,9 @@ class SceneEntry:
             raise SceneError(f"scene {self.name!r}: parameters {cls.__name__} is not decorated with "
                              f"@dataclass(frozen=True); {hint}")
         for f in fields(cls):
-            if PARAM_METADATA not in f.metadata:
+            if PARAM_METADATA not in f.metadata or not info_of(f).description:
                 raise SceneError(f"scene {self.name!r}: parameter {f.name!r} of {cls.__name__} is not declared with "
-                                 f"scenes.model.param(default, description, unit=..., limits=...)")
+                                 f"scenes.model.param(default, description, unit=..., limits=...) and a description")
         try:
             cls()
         except TypeError as exc:  # a field without a default

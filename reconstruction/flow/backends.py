@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
+import json
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -96,7 +97,7 @@ class FlowBackend:
     def __hash__(self) -> int:
         """By name and parameters (the parameters are a dict), so that a frozen configuration holding a backend
         (a method's ``group_key``, :class:`reconstruction.photometry.PhotometricParams`) hashes."""
-        return hash((self.name, repr(sorted(self.params.items()))))
+        return hash((self.name, json.dumps(self.params, sort_keys=True, default=repr)))
 
 
 _WARM_LOCK = threading.Lock()

@@ -115,7 +115,7 @@ class CostParams:
             raise ValueError(f"cost noise_blur {self.noise_blur} and noise_floor {self.noise_floor} must be >= 0")
         if not self.max_noise_blur_px >= 0:
             raise ValueError(f"cost max_noise_blur_px must be >= 0, got {self.max_noise_blur_px}")
-        if not (isinstance(self.noise_scale, int) and self.noise_scale >= 1):
+        if type(self.noise_scale) is not int or self.noise_scale < 1:
             raise ValueError(f"cost noise_scale must be an integer >= 1, got {self.noise_scale!r}")
 
     def max_cost(self) -> int:
@@ -132,12 +132,14 @@ def image_noise(image: np.ndarray, scale: int = 1) -> float:
         image: (H, W, 3) uint8 RGB (or (H, W) gray).
         scale: estimate on the image reduced by this factor (mean of ``scale x scale`` blocks), times ``scale``: the
             same figure for white noise, which the mean divides by ``scale``, and a larger one for noise that is
-            not white, such as what JPEG coding leaves of it (its 8 x 8 blocks keep the low frequencies).
+            not white, such as what JPEG coding leaves of it (its 8 x 8 blocks keep the low frequencies); at most
+            the factor that leaves 5 pixels a side.
     Returns:
         The estimate for the mean of the channels, gray levels (independent noise of ``s`` per channel is
         ``s / sqrt(3)`` there).
     """
     g = np.asarray(grey(image, "mean"), np.float32)
+    scale = max(1, min(int(scale), g.shape[0] // 5, g.shape[1] // 5))  # the reduced image keeps 5 pixels a side
     if scale > 1:
         h, w = (g.shape[0] // scale) * scale, (g.shape[1] // scale) * scale
         g = scale * g[:h, :w].reshape(h // scale, scale, w // scale, scale).mean(axis=(1, 3), dtype=np.float32)

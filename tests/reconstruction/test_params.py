@@ -180,5 +180,5 @@ def test_describe_gives_unit_default_and_allowed_values():
     assert lines["shiny"] == "glossy floor (default false)"
     assert lines["power"] == "light power (none: automatic), W (default none; >= 0)"
     assert lines["names"] == "parts, in order (default a; each one of a, b)"
-    assert lines["inner"] == " (default none)"
+    assert lines["inner"] == "default none"  # no description: no leading space
     assert list(lines) == [f.name for f in dataclasses.fields(Record)]

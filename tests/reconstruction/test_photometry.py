@@ -3,10 +3,14 @@ U's and R's images corrected to C's exposure, white balance and fall-off on exac
 
 from __future__ import annotations
 
+import pickle
+
 import numpy as np
 import pytest
 
 from reconstruction.camera.equirect import bearing_grid
+from reconstruction.flow.backends import FlowBackend, builtin_flow, get_flow
+from reconstruction.methods.presets import fused_mirror
 from reconstruction.photometry import (
     NO_CALIBRATION,
     FrameView,
@@ -101,3 +105,22 @@ def test_no_calibration_and_the_frame_view():
 def test_bad_parameters_are_refused(bad):
     with pytest.raises(ValueError):
         PhotometricParams(**bad)
+
+
+def test_the_pre_pass_flow_is_a_backend_with_its_parameters_recorded_hashed_and_pickled():
+    """A name resolves to the registered backend, the oracle is refused (the pre-pass matches the images), the
+    configuration records the backend's parameters, and a method holding it survives pickling (a Dask worker or an
+    isolated process gets it) with equal configuration, hash and group key."""
+    named = PhotometricParams(prepass_flow="dis")
+    assert isinstance(named.prepass_flow, FlowBackend) and named == PhotometricParams()
+    assert named.config()["prepass_flow"]["params"] == get_flow("dis").params
+    with pytest.raises(ValueError, match="oracle"):
+        PhotometricParams(prepass_flow="oracle")
+    with pytest.raises(ValueError, match="no-such-flow"):
+        PhotometricParams(prepass_flow="no-such-flow")
+    other = PhotometricParams(prepass_flow=builtin_flow("dis", {**get_flow("dis").params, "var_iterations": 0}))
+    assert other != named and other.config()["prepass_flow"]["params"]["var_iterations"] == 0
+    method = fused_mirror()
+    back = pickle.loads(pickle.dumps(method))
+    assert back.config() == method.config() and back.group_key == method.group_key
+    assert hash(back.flow.photometric) == hash(method.flow.photometric)

@@ -357,6 +357,13 @@ def test_bad_parameter_declarations_are_refused_at_registration():
         entry(Bare)
 
     @dataclasses.dataclass(frozen=True)
+    class Undescribed(SceneParams):
+        n: int = param(1)
+
+    with pytest.raises(SceneError, match=r"parameter 'n' of Undescribed .* and a description"):
+        entry(Undescribed)
+
+    @dataclasses.dataclass(frozen=True)
     class BadDefault(SceneParams):
         n: int = param(-1, "n", limits=(0, 3))
 

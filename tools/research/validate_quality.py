@@ -186,9 +186,19 @@ _ADDED_KEYS = {"mirror_tolerance": 0.0, "intensity_weight": 1.0, "feature": "int
                    "n_solver": 25, "sor_omega": 1.6}.items()}}
 
 
-#: values stored in an earlier form, read in today's: ``photometric.prepass_flow`` was the pre-pass flow's name (it
-#: ran with that backend's built-in parameters)
-_EARLIER_FORMS = {"photometric.prepass_flow": lambda v: get_flow(v).config() if isinstance(v, str) else v}
+def _stored_flow(value):
+    """A stored pre-pass flow in today's form: a name (how it was stored before) as that backend's configuration with
+    its built-in parameters, which is what ran; a name no longer known, and anything else, as it is."""
+    if not isinstance(value, str):
+        return value
+    try:
+        return get_flow(value).config()
+    except ValueError:
+        return value
+
+
+#: values stored in an earlier form, read in today's: ``photometric.prepass_flow`` was the pre-pass flow's name
+_EARLIER_FORMS = {"photometric.prepass_flow": _stored_flow}
 
 
 def _with_added_keys(stored, wanted, parent: str = "") -> object:
