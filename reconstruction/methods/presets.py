@@ -109,7 +109,7 @@ def fused_mirror() -> PriorSweepMethod:
             # the cost when the self-calibration changed the images
             corrected_cost=CostParams(
                 d_min_m=0.3, d_max_m=30.0, levels=160, gradient_weight=2.0, truncate=30.0, box_px=1, scale=8.0,
-                pair_power=2.0, feature="intensity", noise_floor=1.0, max_noise_blur_px=1.5, noise_scale=1,
+                pair_power=2.0, feature="intensity", max_noise_blur_px=1.5,
                 # what a gain difference between the cameras leaves after the self-calibration weighs less against
                 # the gradients (2): chosen by ``python -m tools.research.select_photometric`` among 1, 0.5 and
                 # 0.25 on the dev split under both conditions (docs/photometry.md)
@@ -119,10 +119,12 @@ def fused_mirror() -> PriorSweepMethod:
                 # 0.7 and 1 on the dev split under both conditions (docs/photometry.md)
                 blur_px=0.7,
                 # on noisier images a blur of 1 px per gray level of noise above noise_floor (at most
-                # max_noise_blur_px, never less than blur_px): rendered frames measure 0.1-0.2 gray levels, the
-                # suite's captured cameras 0.3-1.0 and its low-light ones 0.6-6 (reconstruction.sweep.cost.
-                # image_noise; chosen on tri360-v3 dev's low-light family, docs/photometry.md)
-                noise_blur=1.0)),
+                # max_noise_blur_px, never less than blur_px), the noise measured on the images' 2 x 2 means
+                # (noise_scale 2: JPEG flattens the noise at the pixel scale, not at the scale the blurred cost
+                # matches at): rendered frames measure 0.1-0.4 gray levels there, the suite's other camera families
+                # 0.9-2.9 and its low-light ones 3.1-6.5 (reconstruction.sweep.cost.image_noise; chosen on tri360-v3
+                # dev's low-light family, docs/photometry.md)
+                noise_blur=1.0, noise_floor=2.0, noise_scale=2)),
         # fused's weight (16), times a ramp of C's local contrast (0 below 0.5, full above 2 gray levels: no prior
         # where there is no texture for the flow to follow), times 1 - c_sweep where the flow and the plain coarse
         # sweep disagree by more than 5 % (a confident sweep keeps its answer), times the frame's agreement share
@@ -296,7 +298,7 @@ def fused_mirror_told_rig() -> PriorSweepMethod:
             corrected_cost=CostParams(
                 d_min_m=0.3, d_max_m=30.0, levels=160, blur_px=0.7, gradient_weight=2.0, intensity_weight=0.25,
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=1.0,
-                noise_floor=1.0, max_noise_blur_px=1.5, noise_scale=1)),
+                noise_floor=2.0, max_noise_blur_px=1.5, noise_scale=2)),
         prior=PriorParams(
             weight=16.0, truncate_levels=16.0, use_confidence=False, contrast_low=0.5, contrast_high=2.0,
             contrast_sigma_px=3.0, sweep_confidence_power=1.0, agree_tolerance=0.05, frame_agreement_low=0.5,
@@ -392,7 +394,7 @@ def fused_mirror_shared_falloff() -> PriorSweepMethod:
             corrected_cost=CostParams(
                 d_min_m=0.3, d_max_m=30.0, levels=160, blur_px=0.7, gradient_weight=2.0, intensity_weight=0.25,
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=1.0,
-                noise_floor=1.0, max_noise_blur_px=1.5, noise_scale=1)),
+                noise_floor=2.0, max_noise_blur_px=1.5, noise_scale=2)),
         prior=PriorParams(
             weight=16.0, truncate_levels=16.0, use_confidence=False, contrast_low=0.5, contrast_high=2.0,
             contrast_sigma_px=3.0, sweep_confidence_power=1.0, agree_tolerance=0.05, frame_agreement_low=0.5,

@@ -133,9 +133,9 @@ def test_the_default_is_fused_gated_with_the_mirror_test_and_a_lighter_intensity
     # self-calibration corrected the images
     assert cfg["sweep"]["cost"] == gated["sweep"]["cost"]
     corrected = cfg["sweep"].pop("corrected_cost")
-    changed = ("intensity_weight", "blur_px", "noise_blur")
+    changed = ("intensity_weight", "blur_px", "noise_blur", "noise_floor", "noise_scale")
     assert corrected == {**gated["sweep"]["cost"], **{k: corrected[k] for k in changed}}
-    assert corrected["blur_px"] > 0 and corrected["noise_blur"] > 0
+    assert corrected["blur_px"] > 0 and corrected["noise_blur"] > 0 and corrected["noise_scale"] > 1
     assert corrected["intensity_weight"] < gated["sweep"]["cost"]["intensity_weight"]
     cfg["sweep"]["planes"]["mirror_tolerance"] = 0.0
     assert {**cfg, "label": "fused-gated"} == gated
