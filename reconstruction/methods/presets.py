@@ -90,8 +90,12 @@ def fused_mirror() -> PriorSweepMethod:
         sweep=SweepMethod(
             pairs=("U", "R"), label="sweep", photometric=photometric,
             # the cost when the self-calibration changed no image (cameras that agree): the sweep's own
+            # 200 sphere labels (the sweep's 160 before): at 1000 px and the 0.4 m baseline a label is 1.3 px of
+            # parallax at 160 and 1.06 px at 200, which brings far surfaces closer to what the rig resolves; 240
+            # measured better still, but its peak memory at 1000x500 (1.01 GB) misses the 1 GB a frame may take
+            # (python -m tools.research.select_fill, docs/edges.md)
             cost=CostParams(
-                d_min_m=0.3, d_max_m=30.0, levels=160, blur_px=0.0, gradient_weight=2.0, intensity_weight=1.0,
+                d_min_m=0.3, d_max_m=30.0, levels=200, blur_px=0.0, gradient_weight=2.0, intensity_weight=1.0,
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=0.0,
                 noise_floor=1.0, max_noise_blur_px=1.5, noise_scale=1),
             planes=PlaneParams(
@@ -105,10 +109,14 @@ def fused_mirror() -> PriorSweepMethod:
                 # heights per side are 9.5 % apart); on the dev split the mirrored floors it corrects lie 12-14 % off
                 mirror_tolerance=0.2),
             sgm=SgmParams(p1=120, p2=800, p3=200, edge=8.0, paths=8),
-            post=PostParams(min_confidence=0.0, fill_lambda=200.0, fill_sigma_color=8.0, median_px=5),
+            # the pixels whose winner is within 10 % of the best other label (SGM confidence below 0.1: weak
+            # texture, occlusions, edges) refilled from the confident ones without crossing C's image edges at 4 gray
+            # levels (chosen by python -m tools.research.select_fill on the dev split, docs/edges.md)
+            post=PostParams(min_confidence=0.1, fill_lambda=200.0, fill_sigma_color=4.0, median_px=5,
+                            fill_space="inverse"),
             # the cost when the self-calibration changed the images
             corrected_cost=CostParams(
-                d_min_m=0.3, d_max_m=30.0, levels=160, gradient_weight=2.0, truncate=30.0, box_px=1, scale=8.0,
+                d_min_m=0.3, d_max_m=30.0, levels=200, gradient_weight=2.0, truncate=30.0, box_px=1, scale=8.0,
                 pair_power=2.0, feature="intensity", max_noise_blur_px=1.5,
                 # what a gain difference between the cameras leaves after the self-calibration weighs less against
                 # the gradients (2): chosen by ``python -m tools.research.select_photometric`` among 1, 0.5 and
@@ -183,7 +191,8 @@ def fused() -> PriorSweepMethod:
                 bound_min_share=0.03, coarse_factor=2, wall_labels=0, wall_spread=0.1, wall_min_share=0.01,
                 mirror_tolerance=0.0),
             sgm=SgmParams(p1=120, p2=800, p3=200, edge=8.0, paths=8),
-            post=PostParams(min_confidence=0.0, fill_lambda=200.0, fill_sigma_color=8.0, median_px=5)),
+            post=PostParams(min_confidence=0.0, fill_lambda=200.0, fill_sigma_color=8.0, median_px=5,
+                            fill_space="inverse")),
         prior=PriorParams(
             weight=16.0, truncate_levels=16.0, use_confidence=False, contrast_low=0.0, contrast_high=0.0,
             contrast_sigma_px=3.0, sweep_confidence_power=0.0, agree_tolerance=0.05, frame_agreement_low=0.0,
@@ -211,7 +220,7 @@ def sweep() -> SweepMethod:
             per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_margin=0.25, bound_min_share=0.03,
             coarse_factor=2, wall_labels=0, wall_spread=0.1, wall_min_share=0.01, mirror_tolerance=0.0),
         sgm=SgmParams(p1=120, p2=800, p3=200, edge=8.0, paths=8),
-        post=PostParams(min_confidence=0.0, fill_lambda=200.0, fill_sigma_color=8.0, median_px=5))
+        post=PostParams(min_confidence=0.0, fill_lambda=200.0, fill_sigma_color=8.0, median_px=5, fill_space="inverse"))
 
 
 # ----------------------------------------------------------------------------------------------- the ablations
@@ -241,7 +250,7 @@ def fused_mirror_raw() -> PriorSweepMethod:
         sweep=SweepMethod(
             pairs=("U", "R"), label="sweep", photometric=photometric, corrected_cost=None,
             cost=CostParams(
-                d_min_m=0.3, d_max_m=30.0, levels=160, blur_px=0.0, gradient_weight=2.0, intensity_weight=1.0,
+                d_min_m=0.3, d_max_m=30.0, levels=200, blur_px=0.0, gradient_weight=2.0, intensity_weight=1.0,
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=0.0,
                 noise_floor=1.0, max_noise_blur_px=1.5, noise_scale=1),
             planes=PlaneParams(
@@ -249,7 +258,8 @@ def fused_mirror_raw() -> PriorSweepMethod:
                 bound_min_share=0.03, coarse_factor=2, wall_labels=9, wall_spread=0.1, wall_min_share=0.01,
                 mirror_tolerance=0.2),
             sgm=SgmParams(p1=120, p2=800, p3=200, edge=8.0, paths=8),
-            post=PostParams(min_confidence=0.0, fill_lambda=200.0, fill_sigma_color=8.0, median_px=5)),
+            post=PostParams(min_confidence=0.1, fill_lambda=200.0, fill_sigma_color=4.0, median_px=5,
+                            fill_space="inverse")),
         prior=PriorParams(
             weight=16.0, truncate_levels=16.0, use_confidence=False, contrast_low=0.5, contrast_high=2.0,
             contrast_sigma_px=3.0, sweep_confidence_power=1.0, agree_tolerance=0.05, frame_agreement_low=0.5,
@@ -286,7 +296,7 @@ def fused_mirror_told_rig() -> PriorSweepMethod:
         sweep=SweepMethod(
             pairs=("U", "R"), label="sweep", photometric=photometric,
             cost=CostParams(
-                d_min_m=0.3, d_max_m=30.0, levels=160, blur_px=0.0, gradient_weight=2.0, intensity_weight=1.0,
+                d_min_m=0.3, d_max_m=30.0, levels=200, blur_px=0.0, gradient_weight=2.0, intensity_weight=1.0,
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=0.0,
                 noise_floor=1.0, max_noise_blur_px=1.5, noise_scale=1),
             planes=PlaneParams(
@@ -294,9 +304,10 @@ def fused_mirror_told_rig() -> PriorSweepMethod:
                 bound_min_share=0.03, coarse_factor=2, wall_labels=9, wall_spread=0.1, wall_min_share=0.01,
                 mirror_tolerance=0.2),
             sgm=SgmParams(p1=120, p2=800, p3=200, edge=8.0, paths=8),
-            post=PostParams(min_confidence=0.0, fill_lambda=200.0, fill_sigma_color=8.0, median_px=5),
+            post=PostParams(min_confidence=0.1, fill_lambda=200.0, fill_sigma_color=4.0, median_px=5,
+                            fill_space="inverse"),
             corrected_cost=CostParams(
-                d_min_m=0.3, d_max_m=30.0, levels=160, blur_px=0.7, gradient_weight=2.0, intensity_weight=0.25,
+                d_min_m=0.3, d_max_m=30.0, levels=200, blur_px=0.7, gradient_weight=2.0, intensity_weight=0.25,
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=1.0,
                 noise_floor=2.0, max_noise_blur_px=1.5, noise_scale=2)),
         prior=PriorParams(
@@ -336,7 +347,7 @@ def fused_mirror_raw_images() -> PriorSweepMethod:
         sweep=SweepMethod(
             pairs=("U", "R"), label="sweep", photometric=photometric, corrected_cost=None,
             cost=CostParams(
-                d_min_m=0.3, d_max_m=30.0, levels=160, blur_px=0.0, gradient_weight=2.0, intensity_weight=1.0,
+                d_min_m=0.3, d_max_m=30.0, levels=200, blur_px=0.0, gradient_weight=2.0, intensity_weight=1.0,
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=0.0,
                 noise_floor=1.0, max_noise_blur_px=1.5, noise_scale=1),
             planes=PlaneParams(
@@ -344,7 +355,8 @@ def fused_mirror_raw_images() -> PriorSweepMethod:
                 bound_min_share=0.03, coarse_factor=2, wall_labels=9, wall_spread=0.1, wall_min_share=0.01,
                 mirror_tolerance=0.2),
             sgm=SgmParams(p1=120, p2=800, p3=200, edge=8.0, paths=8),
-            post=PostParams(min_confidence=0.0, fill_lambda=200.0, fill_sigma_color=8.0, median_px=5)),
+            post=PostParams(min_confidence=0.1, fill_lambda=200.0, fill_sigma_color=4.0, median_px=5,
+                            fill_space="inverse")),
         prior=PriorParams(
             weight=16.0, truncate_levels=16.0, use_confidence=False, contrast_low=0.5, contrast_high=2.0,
             contrast_sigma_px=3.0, sweep_confidence_power=1.0, agree_tolerance=0.05, frame_agreement_low=0.5,
@@ -382,7 +394,7 @@ def fused_mirror_shared_falloff() -> PriorSweepMethod:
         sweep=SweepMethod(
             pairs=("U", "R"), label="sweep", photometric=photometric,
             cost=CostParams(
-                d_min_m=0.3, d_max_m=30.0, levels=160, blur_px=0.0, gradient_weight=2.0, intensity_weight=1.0,
+                d_min_m=0.3, d_max_m=30.0, levels=200, blur_px=0.0, gradient_weight=2.0, intensity_weight=1.0,
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=0.0,
                 noise_floor=1.0, max_noise_blur_px=1.5, noise_scale=1),
             planes=PlaneParams(
@@ -390,9 +402,10 @@ def fused_mirror_shared_falloff() -> PriorSweepMethod:
                 bound_min_share=0.03, coarse_factor=2, wall_labels=9, wall_spread=0.1, wall_min_share=0.01,
                 mirror_tolerance=0.2),
             sgm=SgmParams(p1=120, p2=800, p3=200, edge=8.0, paths=8),
-            post=PostParams(min_confidence=0.0, fill_lambda=200.0, fill_sigma_color=8.0, median_px=5),
+            post=PostParams(min_confidence=0.1, fill_lambda=200.0, fill_sigma_color=4.0, median_px=5,
+                            fill_space="inverse"),
             corrected_cost=CostParams(
-                d_min_m=0.3, d_max_m=30.0, levels=160, blur_px=0.7, gradient_weight=2.0, intensity_weight=0.25,
+                d_min_m=0.3, d_max_m=30.0, levels=200, blur_px=0.7, gradient_weight=2.0, intensity_weight=0.25,
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=1.0,
                 noise_floor=2.0, max_noise_blur_px=1.5, noise_scale=2)),
         prior=PriorParams(
@@ -441,7 +454,8 @@ def fused_gated() -> PriorSweepMethod:
                 bound_min_share=0.03, coarse_factor=2, wall_labels=9, wall_spread=0.1, wall_min_share=0.01,
                 mirror_tolerance=0.0),
             sgm=SgmParams(p1=120, p2=800, p3=200, edge=8.0, paths=8),
-            post=PostParams(min_confidence=0.0, fill_lambda=200.0, fill_sigma_color=8.0, median_px=5)),
+            post=PostParams(min_confidence=0.0, fill_lambda=200.0, fill_sigma_color=8.0, median_px=5,
+                            fill_space="inverse")),
         # fused's weight (16), times a ramp of C's local contrast (0 below 0.5, full above 2 gray levels), times
         # 1 - c_sweep where the flow and the plain coarse sweep disagree by more than 5 %, times the frame's
         # agreement share ramped from 0 at 50 % to full at 70 % (as fused-mirror's, which took it from here)
@@ -497,7 +511,8 @@ def fused_adaptive() -> PriorSweepMethod:
                 bound_min_share=0.03, coarse_factor=2, wall_labels=9, wall_spread=0.1, wall_min_share=0.01,
                 mirror_tolerance=0.0),
             sgm=SgmParams(p1=120, p2=800, p3=200, edge=8.0, paths=8),
-            post=PostParams(min_confidence=0.0, fill_lambda=200.0, fill_sigma_color=8.0, median_px=5)),
+            post=PostParams(min_confidence=0.0, fill_lambda=200.0, fill_sigma_color=8.0, median_px=5,
+                            fill_space="inverse")),
         # fused's weight (16), scaled by the share of pixels where the flow and the plain coarse sweep agree within
         # 5 %: 0 below 60 %, full above 80 %
         prior=PriorParams(

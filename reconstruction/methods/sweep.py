@@ -20,7 +20,7 @@ from reconstruction.camera.image_ops import periodic_filter
 from reconstruction.methods.base import MethodOutput
 from reconstruction.methods.self_calibration import Calibration, reduced_frame, self_calibrate
 from reconstruction.photometry import PhotometricParams
-from reconstruction.refine.fill import fill_edge_aware
+from reconstruction.refine.fill import FILL_SPACES, fill_edge_aware
 from reconstruction.refine.triangulate import TriangulationLimits
 from reconstruction.rig_calibration import NO_RIG_CALIBRATION
 from reconstruction.sweep.cost import (
@@ -71,8 +71,11 @@ class PostParams:
     """Post-processing.
 
     Attributes:
-        min_confidence: pixels with confidence below this are refilled from confident neighbours (0 = none).
+        min_confidence: pixels with confidence below this are refilled from confident neighbours (0 = none;
+            :func:`reconstruction.refine.fill.fill_edge_aware`).
         fill_lambda, fill_sigma_color: edge-aware fill smoothness and edge scale (8-bit gray levels).
+        fill_space: what the fill interpolates: ``"inverse"`` distance or ``"log"`` distance
+            (:data:`reconstruction.refine.fill.FILL_SPACES`).
         median_px: median filter side, pixels (0, 3 or 5; wraps in longitude).
     """
 
@@ -80,6 +83,11 @@ class PostParams:
     fill_lambda: float = 200.0
     fill_sigma_color: float = 8.0
     median_px: int = 5
+    fill_space: str = "inverse"
+
+    def __post_init__(self) -> None:
+        if self.fill_space not in FILL_SPACES:
+            raise ValueError(f"unknown fill space {self.fill_space!r} (known: {', '.join(FILL_SPACES)})")
 
 
 @dataclass(frozen=True, eq=False)
@@ -331,7 +339,7 @@ def sweep_distances(frame, sweep: SweepMethod, priors: Sequence[Prior | PriorFro
             ok = conf >= post.min_confidence
             if ok.any() and not ok.all():
                 d = np.where(ok, d, fill_edge_aware(d, ok, frame.images["C"], post.fill_lambda,
-                                                    post.fill_sigma_color))
+                                                    post.fill_sigma_color, post.fill_space))
         d = _median_wrap(d, post.median_px)
         _lap(seconds, "post", t)
         cpu = {k[:-4]: seconds.pop(k) for k in [k for k in seconds if k.endswith("_cpu")]}

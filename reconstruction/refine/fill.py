@@ -13,7 +13,7 @@ from collections.abc import Sequence
 import cv2
 import numpy as np
 
-__all__ = ["fill_invalid", "fill_edge_aware", "fuse_average", "agreed_distance"]
+__all__ = ["FILL_SPACES", "fill_invalid", "fill_edge_aware", "fuse_average", "agreed_distance"]
 
 
 def fill_invalid(d: np.ndarray, valid: np.ndarray, max_sigma_px: float = 64.0) -> np.ndarray:
@@ -44,26 +44,41 @@ def fill_invalid(d: np.ndarray, valid: np.ndarray, max_sigma_px: float = 64.0) -
     return out
 
 
-def fill_edge_aware(d: np.ndarray, valid: np.ndarray, guide: np.ndarray, lam: float, sigma_color: float) -> np.ndarray:
+#: the quantities :func:`fill_edge_aware` can interpolate: inverse distance (1/m) or log distance
+FILL_SPACES = ("inverse", "log")
+
+
+def fill_edge_aware(d: np.ndarray, valid: np.ndarray, guide: np.ndarray, lam: float, sigma_color: float,
+                    space: str = "inverse") -> np.ndarray:
     """Interpolate distances from valid pixels without crossing image edges.
 
-    Normalised edge-aware smoothing of inverse distance: ``S(valid / d) / S(valid)`` with ``S`` OpenCV's
-    fast global smoother guided by ``guide``; pixels the smoother cannot reach fall back to
-    :func:`fill_invalid`.
+    Normalised edge-aware smoothing of a function of the distance: ``f^-1(S(valid * f(d)) / S(valid))`` with ``S``
+    OpenCV's fast global smoother guided by ``guide`` and ``f`` the inverse (``space="inverse"``: a plane's inverse
+    distance is linear in the bearing) or the logarithm (``"log"``: a gap between a near and a far surface is
+    not pulled towards the near one, as the mean of inverse distances is); pixels the smoother cannot reach fall
+    back to :func:`fill_invalid`.
 
     Args:
         d: (H, W) distances, metres (positive); valid: (H, W) bool; guide: (H, W, 3) uint8 image.
         lam: smoothness (larger reaches farther); sigma_color: edge scale in 8-bit levels.
+        space: ``"inverse"`` or ``"log"`` (:data:`FILL_SPACES`).
     Returns:
         (H, W) float64 interpolated distances (at every pixel, valid ones included), metres.
     """
+    if space not in FILL_SPACES:
+        raise ValueError(f"unknown fill space {space!r} (known: {', '.join(FILL_SPACES)})")
     fgs = cv2.ximgproc.createFastGlobalSmootherFilter(guide, lam, sigma_color)
     m = valid.astype(np.float32)
-    num = fgs.filter((m / np.maximum(d, 1e-6)).astype(np.float32))
+    safe = np.maximum(d, 1e-6)
+    value = 1.0 / safe if space == "inverse" else np.log(safe)
+    num = fgs.filter((m * value).astype(np.float32))
     den = fgs.filter(m)
     reached = den > 1e-4
-    inv = num / np.where(reached, den, 1.0)
-    out = 1.0 / np.maximum(inv, 1e-3).astype(np.float64)
+    mean = num / np.where(reached, den, 1.0)
+    if space == "inverse":
+        out = 1.0 / np.maximum(mean, 1e-3).astype(np.float64)
+    else:
+        out = np.exp(mean.astype(np.float64))
     if not reached.all():
         out = np.where(reached, out, fill_invalid(d, valid))
     return out

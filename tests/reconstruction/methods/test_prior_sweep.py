@@ -122,19 +122,25 @@ def test_the_default_and_the_previous_one_are_within_2_percent_on_small_exact_fr
         assert np.abs(out.distance[ok] - gt[ok]).mean() <= 0.02 * gt[ok].mean(), method.label
 
 
-def test_the_default_is_fused_gated_with_the_mirror_test_and_a_lighter_intensity_term():
+def test_the_default_is_fused_gated_with_the_mirror_test_a_lighter_intensity_term_more_labels_and_the_refill():
     """What the default is made of; its values are in the reviewed snapshot (test_presets_snapshot.py)."""
     cfg = json.loads(json.dumps(presets.fused_mirror().config()))
     gated = json.loads(json.dumps(presets.fused_gated().config()))
     assert cfg["kind"] == "fused" and cfg["label"] == "fused-mirror" == DEFAULT_METHOD
     assert cfg["sweep"]["planes"]["mirror_tolerance"] > 0
     assert gated["sweep"]["planes"]["mirror_tolerance"] == 0.0  # 0: no mirror test
-    # its own cost is gated's; the lighter intensity term, the blur and the noise's blur only when the
+    # more sphere labels than gated's, and its least confident pixels refilled (gated refills none)
+    assert cfg["sweep"]["cost"]["levels"] > gated["sweep"]["cost"]["levels"]
+    assert cfg["sweep"]["post"]["min_confidence"] > 0 == gated["sweep"]["post"]["min_confidence"]
+    cfg["sweep"]["post"] = gated["sweep"]["post"]
+    # otherwise its own cost is gated's; the lighter intensity term, the blur and the noise's blur only when the
     # self-calibration corrected the images
-    assert cfg["sweep"]["cost"] == gated["sweep"]["cost"]
+    assert cfg["sweep"]["cost"] == {**gated["sweep"]["cost"], "levels": cfg["sweep"]["cost"]["levels"]}
     corrected = cfg["sweep"].pop("corrected_cost")
-    changed = ("intensity_weight", "blur_px", "noise_blur", "noise_floor", "noise_scale")
+    changed = ("intensity_weight", "blur_px", "noise_blur", "noise_floor", "noise_scale", "levels")
     assert corrected == {**gated["sweep"]["cost"], **{k: corrected[k] for k in changed}}
+    assert corrected["levels"] == cfg["sweep"]["cost"]["levels"]
+    cfg["sweep"]["cost"]["levels"] = gated["sweep"]["cost"]["levels"]
     assert corrected["blur_px"] > 0 and corrected["noise_blur"] > 0 and corrected["noise_scale"] > 1
     assert corrected["intensity_weight"] < gated["sweep"]["cost"]["intensity_weight"]
     cfg["sweep"]["planes"]["mirror_tolerance"] = 0.0

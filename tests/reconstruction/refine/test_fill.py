@@ -1,8 +1,9 @@
 """Filling distance maps and fusing the pairs' distances (``reconstruction.refine.fill``)."""
 
 import numpy as np
+import pytest
 
-from reconstruction.refine.fill import agreed_distance, fill_invalid, fuse_average
+from reconstruction.refine.fill import agreed_distance, fill_edge_aware, fill_invalid, fuse_average
 
 
 def test_fill_invalid_interpolates_holes():
@@ -39,3 +40,26 @@ def test_fuse_average_takes_the_valid_pairs_and_fills_where_neither_is():
     np.testing.assert_allclose(got.reshape(4, 4)[:, :3], [[3.0, 2.0, 3.0]] * 4, rtol=1e-12)
     # no valid pair in column 3: filled from the neighbours (2.0 to 3.0), never the invalid pairs' 9.0
     assert (got.reshape(4, 4)[:, 3] >= 2.0).all() and (got.reshape(4, 4)[:, 3] <= 3.0).all()
+
+
+def test_fill_edge_aware_interpolates_inverse_or_log_distance_and_stops_at_image_edges():
+    # a 1 m and a 4 m region, a gap between them on a flat image: the fill of the gap's middle lies between the
+    # two, at the harmonic-like mean in inverse distance and the geometric-like mean in log distance
+    d = np.where(np.arange(120)[None, :] < 60, 1.0, 4.0) * np.ones((40, 1))
+    valid = np.ones(d.shape, bool)
+    valid[:, 50:70] = False
+    flat = np.full((40, 120, 3), 128, np.uint8)
+    inverse = fill_edge_aware(np.where(valid, d, 99.0), valid, flat, 200.0, 8.0)
+    log = fill_edge_aware(np.where(valid, d, 99.0), valid, flat, 200.0, 8.0, space="log")
+    mid_inverse, mid_log = inverse[20, 59:61].mean(), log[20, 59:61].mean()
+    assert 1.0 < mid_inverse < mid_log < 4.0
+    np.testing.assert_allclose(mid_inverse, 1.6, rtol=0.1)  # 1 / mean(1, 1 / 4)
+    np.testing.assert_allclose(mid_log, 2.0, rtol=0.1)  # exp(mean(ln 1, ln 4))
+    # an image edge where the distance jumps: the gap takes the distance of its own side in either space
+    image = np.where(np.arange(120)[None, :, None] < 60, 40, 220).astype(np.uint8) * np.ones((40, 1, 3), np.uint8)
+    for space in ("inverse", "log"):
+        out = fill_edge_aware(np.where(valid, d, 99.0), valid, image, 200.0, 8.0, space=space)
+        np.testing.assert_allclose(out[:, 52:58], 1.0, rtol=0.03)
+        np.testing.assert_allclose(out[:, 62:68], 4.0, rtol=0.03)
+    with pytest.raises(ValueError, match="unknown fill space 'linear'"):
+        fill_edge_aware(d, valid, flat, 200.0, 8.0, space="linear")

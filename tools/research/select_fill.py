@@ -1,0 +1,212 @@
+"""Choose the default's sweep resolution and how it refills its least confident pixels, per region, room family and
+camera condition.
+
+Run as::
+
+    python -m tools.research.select_fill DATA_ROOT --out DIR [--frames LABEL ...] [--candidates NAME ...]
+        [--quiet] [--workers N | --scheduler ADDRESS]
+
+``LABEL`` is a frame directory (``<scene>/<viewpoint>``) or a directory of frames (``<scene>``) relative to
+``DATA_ROOT``; without ``--frames`` every frame under ``DATA_ROOT`` (choose on a suite's ``dev`` split).  The
+methods: the reference :data:`REFERENCE` (``fused-mirror-160-0-8-inverse``: 160 sphere labels, no pixel refilled,
+as the default was before this choice), one ``fused-mirror-<levels>-<confidence>-<sigma>-<space>`` per candidate of
+:data:`CANDIDATES` (``--candidates``: these only; everything but the sweep costs' ``levels`` and the sweep's
+``PostParams.min_confidence``, ``fill_sigma_color`` and ``fill_space`` the default's) and the default
+``fused-mirror`` as registered (a candidate configured as the default is the default, not run twice).  ``DIR``
+becomes a results set (``tri360 evaluate``'s, without the report) plus ``selection.md`` and ``selection.json``:
+pooled MAE (metres; each frame weighted by its scored pixels, as the leaderboard pools) per method and region
+(``reports.regions``), and per method, camera condition and room family; and the choice.
+
+The rule (:func:`choose`): a candidate (the default among them) is *eligible* when its pooled MAE on every
+(condition, room family) is at most :data:`FAMILY_BOUND` times the reference's; the choice is the eligible candidate
+(or the reference) with the lowest pooled MAE over all frames.
+"""
+
+from __future__ import annotations
+
+from harness.runtime import startup
+
+if __name__ == "__main__":  # run as a script: Ctrl-C during the imports below is one line and 130
+    startup.guard("select_fill")
+
+import dataclasses
+import sys
+import tempfile
+from collections.abc import Sequence
+from pathlib import Path
+
+import pandas as pd
+
+from harness.commands.evaluate import evaluate
+from harness.data.errors import UserError
+from harness.data.suite import IDEAL
+from reconstruction.methods.base import Method
+from reconstruction.methods.presets import fused_mirror
+from tools.common import ArgumentParser, cell, run_selection
+from tools.research.select_cost import link_frames
+
+__all__ = ["PROG", "REFERENCE", "FAMILY_BOUND", "CANDIDATES", "fill_method", "candidate_methods",
+           "region_table", "family_table", "choose", "selection_markdown", "main"]
+
+PROG = "select_fill"
+#: a candidate's pooled MAE on every (condition, room family) at most this times the reference's
+FAMILY_BOUND = 1.0
+#: a configuration: (sphere labels of both sweep costs, min_confidence, fill_sigma_color in 8-bit gray levels,
+#: fill_space); fill_lambda the default's
+Config = tuple[int, float, float, str]
+#: the reference: the default as it was before this choice (160 labels, nothing refilled)
+REFERENCE: Config = (160, 0.0, 8.0, "inverse")
+#: the candidates
+CANDIDATES: tuple[Config, ...] = (
+    (160, 0.05, 8.0, "inverse"), (160, 0.1, 8.0, "inverse"), (160, 0.2, 8.0, "inverse"), (160, 0.1, 4.0, "inverse"),
+    (160, 0.1, 2.0, "inverse"), (160, 0.1, 8.0, "log"), (160, 0.1, 4.0, "log"), (160, 0.15, 4.0, "log"),
+    (240, 0.0, 8.0, "inverse"), (200, 0.1, 4.0, "inverse"), (240, 0.1, 4.0, "inverse"))
+
+
+def _name(config: Config) -> str:
+    levels, confidence, sigma, space = config
+    return f"{levels}-{confidence:g}-{sigma:g}-{space}"
+
+
+def fill_method(levels: int, min_confidence: float, sigma: float, space: str) -> Method:
+    """The default method with ``levels`` sphere labels in both its sweep costs, whose sweep refills the pixels below
+    ``min_confidence`` (0: none) with an edge scale of ``sigma`` gray levels in ``space``
+    (:class:`reconstruction.methods.sweep.PostParams`), everything else the default's; labelled
+    ``fused-mirror-<levels>-<confidence>-<sigma>-<space>``."""
+    base = fused_mirror()
+    sweep = base.sweep
+    post = dataclasses.replace(sweep.post, min_confidence=min_confidence, fill_sigma_color=sigma, fill_space=space)
+    corrected = None if sweep.corrected_cost is None else dataclasses.replace(sweep.corrected_cost, levels=levels)
+    sweep = dataclasses.replace(sweep, post=post, cost=dataclasses.replace(sweep.cost, levels=levels),
+                                corrected_cost=corrected)
+    return dataclasses.replace(base, sweep=sweep, label=f"{base.label}-{_name((levels, min_confidence, sigma, space))}")
+
+
+def _same_as_default(method: Method) -> bool:
+    mine, default = method.config(), fused_mirror().config()
+    return {**mine, "label": None} == {**default, "label": None}
+
+
+def candidate_methods(names: Sequence[str] | None = None) -> list[Method]:
+    """The reference (:data:`REFERENCE`), one :func:`fill_method` per candidate (``names``: these only, as
+    ``<levels>-<confidence>-<sigma>-<space>``; UserError for an unknown one; one configured as the default is left
+    out) and the default as registered."""
+    known = {_name(c): c for c in CANDIDATES}
+    unknown = [n for n in (names or ()) if n not in known]
+    if unknown:
+        raise UserError(f"unknown candidate(s) {', '.join(unknown)} (candidates: {', '.join(known)})")
+    chosen = [fill_method(*known[n]) for n in (names if names else known)]
+    return [fill_method(*REFERENCE), *(m for m in chosen if not _same_as_default(m)), fused_mirror()]
+
+
+def _pooled(rows: pd.DataFrame) -> float:
+    n = rows["valid_px"].astype(float)
+    return float((rows["mae_m"] * n).sum() / n.sum()) if n.sum() > 0 else float("nan")
+
+
+def region_table(regions: pd.DataFrame, methods: Sequence[str]) -> pd.DataFrame:
+    """Method (index) x region (columns, in ``regions``' order): pooled MAE, metres."""
+    names = list(dict.fromkeys(regions["region"]))
+    table = pd.DataFrame(index=list(methods), columns=names, dtype=float)
+    for m in methods:
+        mine = regions[regions["method"] == m]
+        for r in names:
+            table.loc[m, r] = _pooled(mine[mine["region"] == r])
+    return table
+
+
+def family_table(results: pd.DataFrame, methods: Sequence[str]) -> pd.DataFrame:
+    """(condition, family) (index; ``ideal`` first) x method: pooled MAE, metres; plus a row ``("all", "all")``."""
+    results = results.copy()
+    results["condition"] = results["condition"].fillna("").replace("", IDEAL)
+    keys = sorted(set(zip(results["condition"], results["family"], strict=True)), key=lambda k: (k[0] != IDEAL, k))
+    index = pd.MultiIndex.from_tuples([*keys, ("all", "all")], names=["condition", "family"])
+    table = pd.DataFrame(index=index, columns=list(methods), dtype=float)
+    for m in methods:
+        mine = results[results["method"] == m]
+        for c, f in keys:
+            table.loc[(c, f), m] = _pooled(mine[(mine["condition"] == c) & (mine["family"] == f)])
+        table.loc[("all", "all"), m] = _pooled(mine)
+    return table
+
+
+def choose(families: pd.DataFrame, candidates: Sequence[str]) -> tuple[str, dict[str, float]]:
+    """The rule of the module doc.  Returns ``(label, worst ratio to the reference over the (condition, family)
+    cells per candidate)``."""
+    cells = families.drop(index=("all", "all"))
+    reference = families.columns[0]
+    worst = {m: float((cells[m] / cells[reference]).max()) for m in candidates}
+    eligible = [m for m in candidates if worst[m] <= FAMILY_BOUND]
+    pooled = families.loc[("all", "all")]
+    best = min([reference, *eligible], key=lambda m: pooled[m])
+    return best, worst
+
+
+def selection_markdown(regions: pd.DataFrame, families: pd.DataFrame, choice: str, worst: dict[str, float],
+                       where: str) -> str:
+    """The tables and the choice as Markdown."""
+    ref = regions.index[0]
+    lines = [f"# Sweep resolution and the refill of the least confident pixels, on {where}", "",
+             "Pooled MAE (m; each frame weighted by its scored pixels) per method and region, and as a multiple "
+             f"of {ref}'s:", "", "| method | " + " | ".join(regions.columns) + " |",
+             "|---|" + "---:|" * len(regions.columns)]
+    for m, row in regions.iterrows():
+        lines.append(f"| {m} | " + " | ".join(f"{cell(row[r])} ({row[r] / regions.loc[ref, r]:.3f}x)"
+                                             for r in regions.columns) + " |")
+    lines += ["", "Pooled MAE (m) per camera condition and room family:", "",
+              "| condition | family | " + " | ".join(families.columns) + " |",
+              "|---|---|" + "---:|" * len(families.columns)]
+    for (c, f), row in families.iterrows():
+        lines.append(f"| {c} | {f} | " + " | ".join(cell(x) for x in row) + " |")
+    lines += ["", f"Worst (condition, family) ratio to {ref} (eligible at most {FAMILY_BOUND}):", ""]
+    lines += [f"- {m}: {v:.3f}" for m, v in worst.items()]
+    lines += ["", f"Choice (lowest pooled MAE among the eligible and the reference): **{choice}**"]
+    return "\n".join(lines) + "\n"
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = ArgumentParser(prog=f"python -m tools.research.{PROG}", description=__doc__.splitlines()[0])
+    parser.add_argument("data_root", type=Path, metavar="DATA_ROOT")
+    parser.add_argument("--out", type=Path, required=True, help="results set to write (with selection.md/json)")
+    parser.add_argument("--frames", nargs="+", default=None, metavar="LABEL",
+                        help="frame directories (<scene>/<viewpoint>) or directories of frames below DATA_ROOT "
+                             "(default: every frame)")
+    parser.add_argument("--candidates", nargs="+", default=None, metavar="NAME",
+                        help="candidates as <levels>-<confidence>-<sigma>-<space> (default: all: "
+                             + ", ".join(_name(c) for c in CANDIDATES) + ")")
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    where = parser.add_mutually_exclusive_group()
+    where.add_argument("--workers", type=int, default=None, metavar="N",
+                       help="one task per frame on a Dask LocalCluster of N single-threaded workers on 127.0.0.1")
+    where.add_argument("--scheduler", default=None, metavar="ADDRESS", help="an existing Dask scheduler")
+    args = parser.parse_args(argv)
+
+    def select(ctx) -> tuple[str, dict]:
+        methods = candidate_methods(args.candidates)
+        labels = [m.label for m in methods]
+        run = dict(report=False, ctx=ctx)
+        if args.frames:
+            if not args.data_root.is_dir():
+                raise UserError(f"{args.data_root}: data root is not a directory")
+            with tempfile.TemporaryDirectory(prefix="tri360-select-fill-") as tmp:
+                results = evaluate(link_frames(args.data_root, args.frames, Path(tmp)), args.out, methods,
+                                   inputs=[args.data_root], **run)
+        else:
+            results = evaluate(args.data_root, args.out, methods, **run)
+        where = f"{len(results) // len(methods)} frames of {args.data_root}"
+        regions = region_table(pd.read_csv(args.out / "regions.csv"), labels)
+        families = family_table(results, labels)
+        choice, worst = choose(families, labels[1:])
+        text = selection_markdown(regions, families, choice, worst, where)
+        payload = {"where": where, "frames": args.frames, "methods": labels, "choice": choice,
+                   "worst_family_ratio": worst, "family_bound": FAMILY_BOUND,
+                   "region_mae_m": {m: {r: float(v) for r, v in row.items()} for m, row in regions.iterrows()},
+                   "family_mae_m": [{"condition": c, "family": f, **{m: float(x) for m, x in row.items()}}
+                                    for (c, f), row in families.iterrows()]}
+        return text, payload
+
+    return run_selection(PROG, args, select)
+
+
+if __name__ == "__main__":
+    sys.exit(startup.run_main(main, PROG))
