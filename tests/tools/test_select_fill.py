@@ -8,7 +8,15 @@ import pytest
 
 from harness.data.errors import UserError
 from reconstruction.methods.presets import fused_mirror
-from tools.research.select_fill import REFERENCE, candidate_methods, choose, family_table, fill_method, region_table
+from tools.research.select_fill import (
+    MAX_LEVELS,
+    REFERENCE,
+    candidate_methods,
+    choose,
+    family_table,
+    fill_method,
+    region_table,
+)
 
 REF = "fused-mirror-160-0-8-inverse"
 # method -> MAE per (condition, family); 1000 pixels per frame, two frames per cell
@@ -33,12 +41,15 @@ def test_family_table_pools_and_the_rule_keeps_every_family_within_the_bound():
     table = family_table(results(), [REF, "x", "y"])
     assert list(table.index)[0] == ("ideal", "a") and list(table.index)[-1] == ("all", "all")
     assert table.loc[("all", "all"), "x"] == pytest.approx((0.15 + 0.30 + 0.20) / 3)
-    choice, worst = choose(table, ["x", "y"])
+    levels = {"x": 200, "y": 200}
+    choice, worst = choose(table, ["x", "y"], levels)
     assert worst["x"] == pytest.approx(1.0) and worst["y"] == pytest.approx(0.31 / 0.30)
     assert choice == "x"  # y is lower pooled but loses on ideal b
+    # more labels than the memory allows: not eligible, however accurate
+    assert choose(table, ["x", "y"], {"x": MAX_LEVELS + 40, "y": 200})[0] == REF
     # a candidate worse everywhere leaves the reference
     table[["x", "y"]] = table[["x", "y"]] * 2
-    assert choose(table, ["x", "y"])[0] == REF
+    assert choose(table, ["x", "y"], levels)[0] == REF
 
 
 def test_region_table_pools_each_region_by_its_pixels():

@@ -43,7 +43,7 @@ from reconstruction.sweep.cost import FEATURES
 from tools.common import ArgumentParser, cell, run_selection
 
 __all__ = ["PROG", "DEFAULT_LABEL", "RAW_LABEL", "feature_method", "candidate_methods", "link_frames",
-           "condition_table", "frame_table", "selection_markdown", "main"]
+           "frames_parser", "evaluate_frames", "condition_table", "frame_table", "selection_markdown", "main"]
 
 PROG = "select_cost"
 DEFAULT_LABEL = "fused-mirror"
@@ -91,6 +91,38 @@ def link_frames(data_root: Path, labels: Sequence[str], into: Path) -> Path:
         link.parent.mkdir(parents=True, exist_ok=True)
         link.symlink_to(source, target_is_directory=True)
     return into
+
+
+def frames_parser(prog: str, description: str) -> ArgumentParser:
+    """The options of a script that evaluates methods on some frames of a data root: ``DATA_ROOT``, ``--out``,
+    ``--frames``, ``--quiet`` and where to run (``--workers N`` | ``--scheduler ADDRESS``); the script adds its
+    own."""
+    parser = ArgumentParser(prog=f"python -m tools.research.{prog}", description=description)
+    parser.add_argument("data_root", type=Path, metavar="DATA_ROOT")
+    parser.add_argument("--out", type=Path, required=True, help="results set to write (with selection.md/json)")
+    parser.add_argument("--frames", nargs="+", default=None, metavar="LABEL",
+                        help="frame directories (<scene>/<viewpoint>) or directories of frames below DATA_ROOT "
+                             "(default: every frame)")
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    where = parser.add_mutually_exclusive_group()
+    where.add_argument("--workers", type=int, default=None, metavar="N",
+                       help="one task per frame on a Dask LocalCluster of N single-threaded workers on 127.0.0.1")
+    where.add_argument("--scheduler", default=None, metavar="ADDRESS", help="an existing Dask scheduler")
+    return parser
+
+
+def evaluate_frames(data_root: Path, frames: Sequence[str] | None, out: Path, methods: Sequence[Method],
+                    ctx) -> pd.DataFrame:
+    """``tri360 evaluate`` without the report into ``out``: ``methods`` on the frames ``frames`` (labels as
+    :func:`link_frames` takes them) below ``data_root``, or on every frame there (``frames`` None); ``ctx``: where
+    to run (:class:`harness.runtime.context.RunContext`).  Returns the results' rows."""
+    if not frames:
+        return evaluate(data_root, out, methods, report=False, ctx=ctx)
+    if not Path(data_root).is_dir():
+        raise UserError(f"{data_root}: data root is not a directory")
+    with tempfile.TemporaryDirectory(prefix="tri360-select-") as tmp:
+        return evaluate(link_frames(data_root, frames, Path(tmp)), out, methods, inputs=[data_root], report=False,
+                        ctx=ctx)
 
 
 def _with_condition(results: pd.DataFrame) -> pd.DataFrame:
@@ -144,35 +176,16 @@ def selection_markdown(conditions: pd.DataFrame, frames: pd.DataFrame, where: st
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = ArgumentParser(prog=f"python -m tools.research.{PROG}", description=__doc__.splitlines()[0])
-    parser.add_argument("data_root", type=Path, metavar="DATA_ROOT")
-    parser.add_argument("--out", type=Path, required=True, help="results set to write (with selection.md/json)")
-    parser.add_argument("--frames", nargs="+", default=None, metavar="LABEL",
-                        help="frame directories (<scene>/<viewpoint>) or directories of frames below DATA_ROOT "
-                             "(default: every frame)")
+    parser = frames_parser(PROG, __doc__.splitlines()[0])
     parser.add_argument("--features", nargs="+", default=None, metavar="FEATURE",
                         help=f"features beside the default intensity ({', '.join(FEATURES[1:])}; default: all)")
-    parser.add_argument("--quiet", action="store_true", help="no progress bar")
-    where = parser.add_mutually_exclusive_group()
-    where.add_argument("--workers", type=int, default=None, metavar="N",
-                       help="one task per frame on a Dask LocalCluster of N single-threaded workers on 127.0.0.1")
-    where.add_argument("--scheduler", default=None, metavar="ADDRESS", help="an existing Dask scheduler")
     args = parser.parse_args(argv)
 
     def select(ctx) -> tuple[str, dict]:
         methods = candidate_methods(args.features)
         labels = [m.label for m in methods]
-        run = dict(report=False, ctx=ctx)
-        if args.frames:
-            if not args.data_root.is_dir():
-                raise UserError(f"{args.data_root}: data root is not a directory")
-            with tempfile.TemporaryDirectory(prefix="tri360-select-cost-") as tmp:
-                results = evaluate(link_frames(args.data_root, args.frames, Path(tmp)), args.out, methods,
-                                   inputs=[args.data_root], **run)
-            where = f"{len(results) // len(methods)} frames of {args.data_root}"
-        else:
-            results = evaluate(args.data_root, args.out, methods, **run)
-            where = f"the {len(results) // len(methods)} frames of {args.data_root}"
+        results = evaluate_frames(args.data_root, args.frames, args.out, methods, ctx)
+        where = f"{'' if args.frames else 'the '}{len(results) // len(methods)} frames of {args.data_root}"
         conditions = condition_table(results, labels)
         frames = frame_table(results, labels)
         text = selection_markdown(conditions, frames, where)

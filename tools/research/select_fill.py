@@ -1,5 +1,4 @@
-"""Choose the default's sweep resolution and how it refills its least confident pixels, per region, room family and
-camera condition.
+"""Choose the default's sweep resolution and refill of its least confident pixels, per region, family and condition.
 
 Run as::
 
@@ -18,8 +17,9 @@ pooled MAE (metres; each frame weighted by its scored pixels, as the leaderboard
 (``reports.regions``), and per method, camera condition and room family; and the choice.
 
 The rule (:func:`choose`): a candidate (the default among them) is *eligible* when its pooled MAE on every
-(condition, room family) is at most :data:`FAMILY_BOUND` times the reference's; the choice is the eligible candidate
-(or the reference) with the lowest pooled MAE over all frames.
+(condition, room family) is at most :data:`FAMILY_BOUND` times the reference's and it has at most :data:`MAX_LEVELS`
+sphere labels (memory); the choice is the eligible candidate (or the reference) with the lowest pooled MAE over all
+frames.
 """
 
 from __future__ import annotations
@@ -31,26 +31,26 @@ if __name__ == "__main__":  # run as a script: Ctrl-C during the imports below i
 
 import dataclasses
 import sys
-import tempfile
 from collections.abc import Sequence
-from pathlib import Path
 
 import pandas as pd
 
-from harness.commands.evaluate import evaluate
 from harness.data.errors import UserError
 from harness.data.suite import IDEAL
 from reconstruction.methods.base import Method
 from reconstruction.methods.presets import fused_mirror
-from tools.common import ArgumentParser, cell, run_selection
-from tools.research.select_cost import link_frames
+from tools.common import cell, run_selection
+from tools.research.select_cost import evaluate_frames, frames_parser
 
-__all__ = ["PROG", "REFERENCE", "FAMILY_BOUND", "CANDIDATES", "fill_method", "candidate_methods",
+__all__ = ["PROG", "REFERENCE", "FAMILY_BOUND", "MAX_LEVELS", "CANDIDATES", "fill_method", "candidate_methods",
            "region_table", "family_table", "choose", "selection_markdown", "main"]
 
 PROG = "select_fill"
 #: a candidate's pooled MAE on every (condition, room family) at most this times the reference's
 FAMILY_BOUND = 1.0
+#: the most sphere labels an eligible candidate may have: the default's peak memory at 1000x500 within the 1 GB a
+#: frame may take (``python -m tools.bench.sweep``: 0.93 GB with 200 labels, 1.01 GB with 240)
+MAX_LEVELS = 200
 #: a configuration: (sphere labels of both sweep costs, min_confidence, fill_sigma_color in 8-bit gray levels,
 #: fill_space); fill_lambda the default's
 Config = tuple[int, float, float, str]
@@ -130,13 +130,13 @@ def family_table(results: pd.DataFrame, methods: Sequence[str]) -> pd.DataFrame:
     return table
 
 
-def choose(families: pd.DataFrame, candidates: Sequence[str]) -> tuple[str, dict[str, float]]:
-    """The rule of the module doc.  Returns ``(label, worst ratio to the reference over the (condition, family)
-    cells per candidate)``."""
+def choose(families: pd.DataFrame, candidates: Sequence[str], levels: dict[str, int]) -> tuple[str, dict[str, float]]:
+    """The rule of the module doc; ``levels``: each candidate's sphere labels.  Returns ``(label, worst ratio to the
+    reference over the (condition, family) cells per candidate)``."""
     cells = families.drop(index=("all", "all"))
     reference = families.columns[0]
     worst = {m: float((cells[m] / cells[reference]).max()) for m in candidates}
-    eligible = [m for m in candidates if worst[m] <= FAMILY_BOUND]
+    eligible = [m for m in candidates if worst[m] <= FAMILY_BOUND and levels[m] <= MAX_LEVELS]
     pooled = families.loc[("all", "all")]
     best = min([reference, *eligible], key=lambda m: pooled[m])
     return best, worst
@@ -158,45 +158,28 @@ def selection_markdown(regions: pd.DataFrame, families: pd.DataFrame, choice: st
               "|---|---|" + "---:|" * len(families.columns)]
     for (c, f), row in families.iterrows():
         lines.append(f"| {c} | {f} | " + " | ".join(cell(x) for x in row) + " |")
-    lines += ["", f"Worst (condition, family) ratio to {ref} (eligible at most {FAMILY_BOUND}):", ""]
+    lines += ["", f"Worst (condition, family) ratio to {ref} (eligible at most {FAMILY_BOUND}, and at most "
+                  f"{MAX_LEVELS} sphere labels):", ""]
     lines += [f"- {m}: {v:.3f}" for m, v in worst.items()]
     lines += ["", f"Choice (lowest pooled MAE among the eligible and the reference): **{choice}**"]
     return "\n".join(lines) + "\n"
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = ArgumentParser(prog=f"python -m tools.research.{PROG}", description=__doc__.splitlines()[0])
-    parser.add_argument("data_root", type=Path, metavar="DATA_ROOT")
-    parser.add_argument("--out", type=Path, required=True, help="results set to write (with selection.md/json)")
-    parser.add_argument("--frames", nargs="+", default=None, metavar="LABEL",
-                        help="frame directories (<scene>/<viewpoint>) or directories of frames below DATA_ROOT "
-                             "(default: every frame)")
+    parser = frames_parser(PROG, __doc__.splitlines()[0])
     parser.add_argument("--candidates", nargs="+", default=None, metavar="NAME",
                         help="candidates as <levels>-<confidence>-<sigma>-<space> (default: all: "
                              + ", ".join(_name(c) for c in CANDIDATES) + ")")
-    parser.add_argument("--quiet", action="store_true", help="no progress bar")
-    where = parser.add_mutually_exclusive_group()
-    where.add_argument("--workers", type=int, default=None, metavar="N",
-                       help="one task per frame on a Dask LocalCluster of N single-threaded workers on 127.0.0.1")
-    where.add_argument("--scheduler", default=None, metavar="ADDRESS", help="an existing Dask scheduler")
     args = parser.parse_args(argv)
 
     def select(ctx) -> tuple[str, dict]:
         methods = candidate_methods(args.candidates)
         labels = [m.label for m in methods]
-        run = dict(report=False, ctx=ctx)
-        if args.frames:
-            if not args.data_root.is_dir():
-                raise UserError(f"{args.data_root}: data root is not a directory")
-            with tempfile.TemporaryDirectory(prefix="tri360-select-fill-") as tmp:
-                results = evaluate(link_frames(args.data_root, args.frames, Path(tmp)), args.out, methods,
-                                   inputs=[args.data_root], **run)
-        else:
-            results = evaluate(args.data_root, args.out, methods, **run)
+        results = evaluate_frames(args.data_root, args.frames, args.out, methods, ctx)
         where = f"{len(results) // len(methods)} frames of {args.data_root}"
         regions = region_table(pd.read_csv(args.out / "regions.csv"), labels)
         families = family_table(results, labels)
-        choice, worst = choose(families, labels[1:])
+        choice, worst = choose(families, labels[1:], {m.label: m.sweep.cost.levels for m in methods})
         text = selection_markdown(regions, families, choice, worst, where)
         payload = {"where": where, "frames": args.frames, "methods": labels, "choice": choice,
                    "worst_family_ratio": worst, "family_bound": FAMILY_BOUND,
