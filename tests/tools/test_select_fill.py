@@ -24,6 +24,7 @@ MAE = {
     REF: {("ideal", "a"): 0.20, ("ideal", "b"): 0.30, ("captured", "a"): 0.25},
     "x": {("ideal", "a"): 0.15, ("ideal", "b"): 0.30, ("captured", "a"): 0.20},  # eligible: no cell above 1.0 x
     "y": {("ideal", "a"): 0.10, ("ideal", "b"): 0.31, ("captured", "a"): 0.10},  # lowest pooled, ideal b 1.03 x
+    "z": {("ideal", "a"): 0.19, ("ideal", "b"): 0.303, ("captured", "a"): 0.25},  # ideal b 1.01 x: within the bound
 }
 
 
@@ -38,13 +39,14 @@ def results() -> pd.DataFrame:
 
 
 def test_family_table_pools_and_the_rule_keeps_every_family_within_the_bound():
-    table = family_table(results(), [REF, "x", "y"])
+    table = family_table(results(), [REF, "x", "y", "z"])
     assert list(table.index)[0] == ("ideal", "a") and list(table.index)[-1] == ("all", "all")
     assert table.loc[("all", "all"), "x"] == pytest.approx((0.15 + 0.30 + 0.20) / 3)
     levels = {"x": 200, "y": 200}
     choice, worst = choose(table, ["x", "y"], levels)
     assert worst["x"] == pytest.approx(1.0) and worst["y"] == pytest.approx(0.31 / 0.30)
-    assert choice == "x"  # y is lower pooled but loses on ideal b
+    assert choice == "x"  # y is lower pooled but loses 3 % on ideal b
+    assert choose(table, ["z", "y"], {"z": 200, "y": 200})[0] == "z"  # z loses 1 %: eligible
     # more labels than the memory allows: not eligible, however accurate
     assert choose(table, ["x", "y"], {"x": MAX_LEVELS + 40, "y": 200})[0] == REF
     # a candidate worse everywhere leaves the reference
