@@ -43,7 +43,8 @@ from reconstruction.sweep.cost import FEATURES
 from tools.common import ArgumentParser, cell, run_selection
 
 __all__ = ["PROG", "DEFAULT_LABEL", "RAW_LABEL", "feature_method", "candidate_methods", "link_frames",
-           "frames_parser", "evaluate_frames", "condition_table", "frame_table", "selection_markdown", "main"]
+           "frames_parser", "evaluate_frames", "with_condition", "pooled_mae", "condition_table", "frame_table",
+           "selection_markdown", "main"]
 
 PROG = "select_cost"
 DEFAULT_LABEL = "fused-mirror"
@@ -125,13 +126,14 @@ def evaluate_frames(data_root: Path, frames: Sequence[str] | None, out: Path, me
                         ctx=ctx)
 
 
-def _with_condition(results: pd.DataFrame) -> pd.DataFrame:
+def with_condition(results: pd.DataFrame) -> pd.DataFrame:
+    """A copy of results rows whose ``condition`` is ``ideal`` where it was empty (frames without a condition)."""
     results = results.copy()
     results["condition"] = results["condition"].fillna("").replace("", IDEAL)
     return results
 
 
-def _pooled(rows: pd.DataFrame) -> float:
+def pooled_mae(rows: pd.DataFrame) -> float:
     """MAE pooled over the rows' scored pixels (each frame weighted by ``valid_px``), metres."""
     n = rows["valid_px"].astype(float)
     return float((rows["mae_m"] * n).sum() / n.sum()) if n.sum() > 0 else float("nan")
@@ -139,22 +141,22 @@ def _pooled(rows: pd.DataFrame) -> float:
 
 def condition_table(results: pd.DataFrame, methods: Sequence[str]) -> pd.DataFrame:
     """Method (index, in ``methods``' order) x condition (``ideal`` first, then as they appear): pooled MAE, metres
-    (:func:`_pooled`), plus ``all`` (every frame) and ``seconds`` (summed over the frames)."""
-    results = _with_condition(results)
+    (:func:`pooled_mae`), plus ``all`` (every frame) and ``seconds`` (summed over the frames)."""
+    results = with_condition(results)
     conds = sorted(dict.fromkeys(results["condition"]), key=lambda c: c != IDEAL)
     table = pd.DataFrame(index=list(methods), columns=[*conds, "all", "seconds"], dtype=float)
     for m in methods:
         mine = results[results["method"] == m]
         for c in conds:
-            table.loc[m, c] = _pooled(mine[mine["condition"] == c])
-        table.loc[m, "all"] = _pooled(mine)
+            table.loc[m, c] = pooled_mae(mine[mine["condition"] == c])
+        table.loc[m, "all"] = pooled_mae(mine)
         table.loc[m, "seconds"] = float(mine["seconds"].sum())
     return table
 
 
 def frame_table(results: pd.DataFrame, methods: Sequence[str]) -> pd.DataFrame:
     """Frame (index ``(condition, scene, viewpoint)``, sorted) x method (``methods``' order): MAE, metres."""
-    results = _with_condition(results)
+    results = with_condition(results)
     table = results.pivot_table(index=["condition", "scene", "viewpoint"], columns="method", values="mae_m")
     return table[[m for m in methods if m in table.columns]].sort_index(
         key=lambda idx: idx.map(lambda v: (v != IDEAL, v)) if idx.name == "condition" else idx)

@@ -40,7 +40,7 @@ from harness.data.suite import IDEAL
 from reconstruction.methods.base import Method
 from reconstruction.methods.presets import fused_mirror
 from tools.common import cell, run_selection
-from tools.research.select_cost import evaluate_frames, frames_parser
+from tools.research.select_cost import evaluate_frames, frames_parser, pooled_mae, with_condition
 
 __all__ = ["PROG", "REFERENCE", "FAMILY_BOUND", "MAX_LEVELS", "CANDIDATES", "fill_method", "candidate_methods",
            "region_table", "family_table", "choose", "selection_markdown", "main"]
@@ -100,11 +100,6 @@ def candidate_methods(names: Sequence[str] | None = None) -> list[Method]:
     return [fill_method(*REFERENCE), *(m for m in chosen if not _same_as_default(m)), fused_mirror()]
 
 
-def _pooled(rows: pd.DataFrame) -> float:
-    n = rows["valid_px"].astype(float)
-    return float((rows["mae_m"] * n).sum() / n.sum()) if n.sum() > 0 else float("nan")
-
-
 def region_table(regions: pd.DataFrame, methods: Sequence[str]) -> pd.DataFrame:
     """Method (index) x region (columns, in ``regions``' order): pooled MAE, metres."""
     names = list(dict.fromkeys(regions["region"]))
@@ -112,22 +107,21 @@ def region_table(regions: pd.DataFrame, methods: Sequence[str]) -> pd.DataFrame:
     for m in methods:
         mine = regions[regions["method"] == m]
         for r in names:
-            table.loc[m, r] = _pooled(mine[mine["region"] == r])
+            table.loc[m, r] = pooled_mae(mine[mine["region"] == r])
     return table
 
 
 def family_table(results: pd.DataFrame, methods: Sequence[str]) -> pd.DataFrame:
     """(condition, family) (index; ``ideal`` first) x method: pooled MAE, metres; plus a row ``("all", "all")``."""
-    results = results.copy()
-    results["condition"] = results["condition"].fillna("").replace("", IDEAL)
+    results = with_condition(results)
     keys = sorted(set(zip(results["condition"], results["family"], strict=True)), key=lambda k: (k[0] != IDEAL, k))
     index = pd.MultiIndex.from_tuples([*keys, ("all", "all")], names=["condition", "family"])
     table = pd.DataFrame(index=index, columns=list(methods), dtype=float)
     for m in methods:
         mine = results[results["method"] == m]
         for c, f in keys:
-            table.loc[(c, f), m] = _pooled(mine[(mine["condition"] == c) & (mine["family"] == f)])
-        table.loc[("all", "all"), m] = _pooled(mine)
+            table.loc[(c, f), m] = pooled_mae(mine[(mine["condition"] == c) & (mine["family"] == f)])
+        table.loc[("all", "all"), m] = pooled_mae(mine)
     return table
 
 
