@@ -89,11 +89,11 @@ def fused_mirror() -> PriorSweepMethod:
         flow=FlowMethod(flow=dis, rectify=True, refine=None, limits=limits, photometric=photometric, rig=rig),
         sweep=SweepMethod(
             pairs=("U", "R"), label="sweep", photometric=photometric,
-            # the cost when the self-calibration changed no image (cameras that agree): the sweep's own
-            # 200 sphere labels (the sweep's 160 before): at 1000 px and the 0.4 m baseline a label is 1.3 px of
-            # parallax at 160 and 1.06 px at 200, which brings far surfaces closer to what the rig resolves; 240
-            # measured better still, but its peak memory at 1000x500 (1.01 GB) misses the 1 GB a frame may take
-            # (python -m tools.research.select_fill, docs/edges.md)
+            # the cost when the self-calibration changed no image (cameras that agree): the sweep's own but for its
+            # 200 sphere labels (the sweep's 160): at 1000 px and the 0.4 m baseline a label is 1.3 px of parallax
+            # at 160 and 1.06 px at 200, which brings far surfaces closer to what the rig resolves; 240 measured
+            # better still, but its peak memory at 1000x500 (1.01 GB) misses the 1 GB a frame may take (python -m
+            # tools.research.select_fill, docs/edges.md)
             cost=CostParams(
                 d_min_m=0.3, d_max_m=30.0, levels=200, blur_px=0.0, gradient_weight=2.0, intensity_weight=1.0,
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=0.0,
