@@ -28,7 +28,8 @@ from scenes.model import choose_viewpoints
 from scenes.registry import get_scene
 
 __all__ = ["EXIT_USAGE", "ArgumentParser", "SCENE", "cell", "read_json_file", "user_error", "goal_line", "goals_status",
-           "report_goals", "synthetic_box_frame", "load_or_render_frame", "selection_parser", "run_selection"]
+           "report_goals", "synthetic_box_frame", "load_or_render_frame", "selection_parser", "add_where_options",
+           "run_selection"]
 
 # ------------------------------------------------------------------------------------------------------ goals
 
@@ -159,11 +160,17 @@ def selection_parser(module: str, description: str, default_suite: Path, suite_h
     parser.add_argument("--split", choices=("dev", "test"), default="dev", help="suite split")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     parser.add_argument("--candidates", nargs="+", default=None, metavar="LABEL", help=candidates_help)
+    add_where_options(parser)
+    return parser
+
+
+def add_where_options(parser: argparse.ArgumentParser) -> None:
+    """Where a script's evaluation runs: ``--workers N`` (a local Dask cluster) or ``--scheduler ADDRESS``, one of
+    them (:func:`run_selection` reads them)."""
     where = parser.add_mutually_exclusive_group()
     where.add_argument("--workers", type=int, default=None, metavar="N",
                        help="one task per frame on a Dask LocalCluster of N single-threaded workers on 127.0.0.1")
     where.add_argument("--scheduler", default=None, metavar="ADDRESS", help="an existing Dask scheduler")
-    return parser
 
 
 def run_selection(prog: str, args: argparse.Namespace,

@@ -20,7 +20,7 @@ from reconstruction.camera.image_ops import periodic_filter
 from reconstruction.methods.base import MethodOutput
 from reconstruction.methods.self_calibration import Calibration, reduced_frame, self_calibrate
 from reconstruction.photometry import PhotometricParams
-from reconstruction.refine.fill import FILL_SPACES, fill_edge_aware
+from reconstruction.refine.fill import check_fill_space, fill_edge_aware
 from reconstruction.refine.triangulate import TriangulationLimits
 from reconstruction.rig_calibration import NO_RIG_CALIBRATION
 from reconstruction.sweep.cost import (
@@ -86,8 +86,7 @@ class PostParams:
     fill_space: str = "inverse"
 
     def __post_init__(self) -> None:
-        if self.fill_space not in FILL_SPACES:
-            raise ValueError(f"unknown fill space {self.fill_space!r} (known: {', '.join(FILL_SPACES)})")
+        check_fill_space(self.fill_space)
 
 
 @dataclass(frozen=True, eq=False)

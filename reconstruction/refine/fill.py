@@ -13,7 +13,7 @@ from collections.abc import Sequence
 import cv2
 import numpy as np
 
-__all__ = ["FILL_SPACES", "fill_invalid", "fill_edge_aware", "fuse_average", "agreed_distance"]
+__all__ = ["FILL_SPACES", "check_fill_space", "fill_invalid", "fill_edge_aware", "fuse_average", "agreed_distance"]
 
 
 def fill_invalid(d: np.ndarray, valid: np.ndarray, max_sigma_px: float = 64.0) -> np.ndarray:
@@ -48,6 +48,12 @@ def fill_invalid(d: np.ndarray, valid: np.ndarray, max_sigma_px: float = 64.0) -
 FILL_SPACES = ("inverse", "log")
 
 
+def check_fill_space(space: str) -> None:
+    """Raise ValueError naming ``space`` and the known ones unless it is one of :data:`FILL_SPACES`."""
+    if space not in FILL_SPACES:
+        raise ValueError(f"unknown fill space {space!r} (known: {', '.join(FILL_SPACES)})")
+
+
 def fill_edge_aware(d: np.ndarray, valid: np.ndarray, guide: np.ndarray, lam: float, sigma_color: float,
                     space: str = "inverse") -> np.ndarray:
     """Interpolate distances from valid pixels without crossing image edges.
@@ -65,8 +71,7 @@ def fill_edge_aware(d: np.ndarray, valid: np.ndarray, guide: np.ndarray, lam: fl
     Returns:
         (H, W) float64 interpolated distances (at every pixel, valid ones included), metres.
     """
-    if space not in FILL_SPACES:
-        raise ValueError(f"unknown fill space {space!r} (known: {', '.join(FILL_SPACES)})")
+    check_fill_space(space)
     fgs = cv2.ximgproc.createFastGlobalSmootherFilter(guide, lam, sigma_color)
     m = valid.astype(np.float32)
     safe = np.maximum(d, 1e-6)

@@ -40,7 +40,7 @@ from reconstruction.methods.base import Method
 from reconstruction.methods.presets import fused_mirror
 from reconstruction.methods.registry import get_methods
 from reconstruction.sweep.cost import FEATURES
-from tools.common import ArgumentParser, cell, run_selection
+from tools.common import ArgumentParser, add_where_options, cell, run_selection
 
 __all__ = ["PROG", "DEFAULT_LABEL", "RAW_LABEL", "feature_method", "candidate_methods", "link_frames",
            "frames_parser", "evaluate_frames", "with_condition", "pooled_mae", "condition_table", "frame_table",
@@ -105,10 +105,7 @@ def frames_parser(prog: str, description: str) -> ArgumentParser:
                         help="frame directories (<scene>/<viewpoint>) or directories of frames below DATA_ROOT "
                              "(default: every frame)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
-    where = parser.add_mutually_exclusive_group()
-    where.add_argument("--workers", type=int, default=None, metavar="N",
-                       help="one task per frame on a Dask LocalCluster of N single-threaded workers on 127.0.0.1")
-    where.add_argument("--scheduler", default=None, metavar="ADDRESS", help="an existing Dask scheduler")
+    add_where_options(parser)
     return parser
 
 
