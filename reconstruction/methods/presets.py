@@ -99,15 +99,20 @@ def fused_mirror() -> PriorSweepMethod:
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=0.0,
                 noise_floor=1.0, max_noise_blur_px=1.5, noise_scale=1),
             planes=PlaneParams(
-                per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_margin=0.25,
-                bound_min_share=0.03, coarse_factor=2, wall_spread=0.1, wall_min_share=0.01,
+                per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_min_share=0.03,
+                coarse_factor=2, wall_spread=0.1, wall_min_share=0.01,
+                # nothing more than 10 % beyond the floor and the ceiling the coarse pass found (the sweep's 25 %
+                # let a glossy floor's reflections and plain floors drift below it; 5 % forbade true floors, which the
+                # coarse pass finds up to 4 % too near on the dev split): chosen by python -m
+                # tools.research.select_planes on the dev split (docs/edges.md)
+                bound_margin=0.1,
                 # the horizontal planes plus 9 labels per wall found by the coarse pass
                 wall_labels=9,
                 # the mirror test of the room bound: a floor found by the coarse pass within 20 % of where the
                 # ceiling's mirror image in a nearer, well-supported plane would be is that mirror image, the nearer
                 # plane is the floor (likewise for the ceiling).  20 % is about two plane-label spacings (the 32
                 # heights per side are 9.5 % apart); on the dev split the mirrored floors it corrects lie 12-14 % off
-                mirror_tolerance=0.2),
+                mirror_tolerance=0.2, room_labels=0, room_spread=0.2),
             sgm=SgmParams(p1=120, p2=800, p3=200, edge=8.0, paths=8),
             # the pixels whose winner is within 10 % of the best other label (SGM confidence below 0.1: weak
             # texture, occlusions, edges) refilled from the confident ones without crossing C's image edges at 4 gray
@@ -189,7 +194,7 @@ def fused() -> PriorSweepMethod:
             planes=PlaneParams(
                 per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_margin=0.25,
                 bound_min_share=0.03, coarse_factor=2, wall_labels=0, wall_spread=0.1, wall_min_share=0.01,
-                mirror_tolerance=0.0),
+                mirror_tolerance=0.0, room_labels=0, room_spread=0.2),
             sgm=SgmParams(p1=120, p2=800, p3=200, edge=8.0, paths=8),
             post=PostParams(min_confidence=0.0, fill_lambda=200.0, fill_sigma_color=8.0, median_px=5,
                             fill_space="inverse")),
@@ -218,7 +223,8 @@ def sweep() -> SweepMethod:
             max_noise_blur_px=1.5, noise_scale=1),
         planes=PlaneParams(
             per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_margin=0.25, bound_min_share=0.03,
-            coarse_factor=2, wall_labels=0, wall_spread=0.1, wall_min_share=0.01, mirror_tolerance=0.0),
+            coarse_factor=2, wall_labels=0, wall_spread=0.1, wall_min_share=0.01, mirror_tolerance=0.0, room_labels=0,
+            room_spread=0.2),
         sgm=SgmParams(p1=120, p2=800, p3=200, edge=8.0, paths=8),
         post=PostParams(min_confidence=0.0, fill_lambda=200.0, fill_sigma_color=8.0, median_px=5, fill_space="inverse"))
 
@@ -254,9 +260,9 @@ def fused_mirror_raw() -> PriorSweepMethod:
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=0.0,
                 noise_floor=1.0, max_noise_blur_px=1.5, noise_scale=1),
             planes=PlaneParams(
-                per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_margin=0.25,
+                per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_margin=0.1,
                 bound_min_share=0.03, coarse_factor=2, wall_labels=9, wall_spread=0.1, wall_min_share=0.01,
-                mirror_tolerance=0.2),
+                mirror_tolerance=0.2, room_labels=0, room_spread=0.2),
             sgm=SgmParams(p1=120, p2=800, p3=200, edge=8.0, paths=8),
             post=PostParams(min_confidence=0.1, fill_lambda=200.0, fill_sigma_color=4.0, median_px=5,
                             fill_space="inverse")),
@@ -300,9 +306,9 @@ def fused_mirror_told_rig() -> PriorSweepMethod:
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=0.0,
                 noise_floor=1.0, max_noise_blur_px=1.5, noise_scale=1),
             planes=PlaneParams(
-                per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_margin=0.25,
+                per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_margin=0.1,
                 bound_min_share=0.03, coarse_factor=2, wall_labels=9, wall_spread=0.1, wall_min_share=0.01,
-                mirror_tolerance=0.2),
+                mirror_tolerance=0.2, room_labels=0, room_spread=0.2),
             sgm=SgmParams(p1=120, p2=800, p3=200, edge=8.0, paths=8),
             post=PostParams(min_confidence=0.1, fill_lambda=200.0, fill_sigma_color=4.0, median_px=5,
                             fill_space="inverse"),
@@ -351,9 +357,9 @@ def fused_mirror_raw_images() -> PriorSweepMethod:
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=0.0,
                 noise_floor=1.0, max_noise_blur_px=1.5, noise_scale=1),
             planes=PlaneParams(
-                per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_margin=0.25,
+                per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_margin=0.1,
                 bound_min_share=0.03, coarse_factor=2, wall_labels=9, wall_spread=0.1, wall_min_share=0.01,
-                mirror_tolerance=0.2),
+                mirror_tolerance=0.2, room_labels=0, room_spread=0.2),
             sgm=SgmParams(p1=120, p2=800, p3=200, edge=8.0, paths=8),
             post=PostParams(min_confidence=0.1, fill_lambda=200.0, fill_sigma_color=4.0, median_px=5,
                             fill_space="inverse")),
@@ -398,9 +404,9 @@ def fused_mirror_shared_falloff() -> PriorSweepMethod:
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=0.0,
                 noise_floor=1.0, max_noise_blur_px=1.5, noise_scale=1),
             planes=PlaneParams(
-                per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_margin=0.25,
+                per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_margin=0.1,
                 bound_min_share=0.03, coarse_factor=2, wall_labels=9, wall_spread=0.1, wall_min_share=0.01,
-                mirror_tolerance=0.2),
+                mirror_tolerance=0.2, room_labels=0, room_spread=0.2),
             sgm=SgmParams(p1=120, p2=800, p3=200, edge=8.0, paths=8),
             post=PostParams(min_confidence=0.1, fill_lambda=200.0, fill_sigma_color=4.0, median_px=5,
                             fill_space="inverse"),
@@ -452,7 +458,7 @@ def fused_gated() -> PriorSweepMethod:
             planes=PlaneParams(
                 per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_margin=0.25,
                 bound_min_share=0.03, coarse_factor=2, wall_labels=9, wall_spread=0.1, wall_min_share=0.01,
-                mirror_tolerance=0.0),
+                mirror_tolerance=0.0, room_labels=0, room_spread=0.2),
             sgm=SgmParams(p1=120, p2=800, p3=200, edge=8.0, paths=8),
             post=PostParams(min_confidence=0.0, fill_lambda=200.0, fill_sigma_color=8.0, median_px=5,
                             fill_space="inverse")),
@@ -509,7 +515,7 @@ def fused_adaptive() -> PriorSweepMethod:
             planes=PlaneParams(
                 per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_margin=0.25,
                 bound_min_share=0.03, coarse_factor=2, wall_labels=9, wall_spread=0.1, wall_min_share=0.01,
-                mirror_tolerance=0.0),
+                mirror_tolerance=0.0, room_labels=0, room_spread=0.2),
             sgm=SgmParams(p1=120, p2=800, p3=200, edge=8.0, paths=8),
             post=PostParams(min_confidence=0.0, fill_lambda=200.0, fill_sigma_color=8.0, median_px=5,
                             fill_space="inverse")),

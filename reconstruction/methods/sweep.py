@@ -40,6 +40,7 @@ from reconstruction.sweep.planes import (
     dominant_walls,
     fill_plane_costs,
     plane_heights,
+    room_planes,
 )
 from reconstruction.sweep.sgm import aggregate, winner_take_all
 
@@ -249,9 +250,10 @@ def _aggregate(frame, cost, heights, inv_d, sweep: SweepMethod, seconds, bounds=
 def room_bounds(frame, sweep: SweepMethod, seconds):
     """From a coarse pass of ``sweep`` (the plain sweep on images ``coarse_factor`` times smaller): floor and
     ceiling heights relative to C (metres, -inf / inf if not found or without ``room_bound``; widened by
-    ``bound_margin``), the walls' yaw (radians or None), the walls found
-    (:func:`reconstruction.sweep.planes.dominant_walls`; none without ``wall_labels``) and the coarse pass's
-    (distance (m), confidence) maps."""
+    ``bound_margin``), the walls' yaw (radians or None), the label families of the walls found
+    (:func:`reconstruction.sweep.planes.dominant_walls`; none without ``wall_labels``) followed by those of the
+    floor and ceiling found (:func:`reconstruction.sweep.planes.room_planes`; none without ``room_labels``), and the
+    coarse pass's (distance (m), confidence) maps."""
     cost_params, plane_params = sweep.cost, sweep.planes
     coarse = reduced_frame(frame, plane_params.coarse_factor)
     cost, heights, inv_d = _sphere_costs(coarse, sweep, seconds, prefix="coarse_")
@@ -263,6 +265,7 @@ def room_bounds(frame, sweep: SweepMethod, seconds):
     if plane_params.wall_labels > 0:
         bearings = bearing_grid(coarse.width, coarse.height, coarse.cameras["C"].rotation)
         yaw, walls = dominant_walls(d[..., None] * bearings, plane_params)
+    walls = [*walls, *room_planes(z_floor, z_ceil, plane_params)]
     m = 1.0 + plane_params.bound_margin
     if not plane_params.room_bound:
         z_floor, z_ceil, m = -np.inf, np.inf, 1.0
@@ -307,7 +310,8 @@ def sweep_distances(frame, sweep: SweepMethod, priors: Sequence[Prior | PriorFro
     cost_params, plane_params, post = sweep.cost, sweep.planes, sweep.post
     bounds, yaw, walls, coarse = (-np.inf, np.inf), None, [], None
     from_sweep = any(isinstance(p, PriorFromSweep) for p in priors)
-    if (plane_params.room_bound or plane_params.wall_labels > 0 or from_sweep) and plane_params.per_side > 0:
+    if ((plane_params.room_bound or plane_params.wall_labels > 0 or plane_params.room_labels > 0 or from_sweep)
+            and plane_params.per_side > 0):
         z_floor, z_ceil, yaw, walls, coarse = room_bounds(frame, sweep, shared)
         bounds = (z_floor, z_ceil)
         if from_sweep:  # only the priors made from the plain sweep read the coarse maps
@@ -348,7 +352,8 @@ def sweep_distances(frame, sweep: SweepMethod, priors: Sequence[Prior | PriorFro
         info = {"plane_share": float(((label >= cost_params.levels - 0.5) & (label < n_h - 0.5)).mean()),
                 "wall_share": float((label >= n_h - 0.5).mean()),
                 "wall_yaw_deg": None if yaw is None else float(np.degrees(yaw)),
-                "walls_m": [float(np.median(o)) for _, o in walls],
+                "walls_m": [float(np.median(o)) for n, o in walls if n[2] == 0],
+                "room_planes_m": [float(np.median(o)) for n, o in walls if n[2] != 0],
                 "floor_m": float(bounds[0]), "ceiling_m": float(bounds[1]), "cpu_seconds": cpu,
                 "copy_seconds": copy_seconds, "blur_px": float(cost_params.blur_px),
                 **({"noise_grey_levels": noise} if noise is not None else {}),

@@ -218,8 +218,9 @@ def test_a_configuration_written_before_a_parameter_was_added_reads_as_its_earli
     assert config_difference(old, uncalibrated(presets.fused_gated()).config()) is None
     assert config_difference(old, presets.fused_gated().config()) == "flow.photometric.mode: 'none' vs 'gain-field'"
     raw_mirror = uncalibrated(presets.fused_mirror()).config()
-    # the mirror test is where they differ once the raw default's sweep labels and refill are fused-gated's
+    # the mirror test is where they differ once the raw default's sweep labels, room bound and refill are fused-gated's
     raw_mirror["sweep"]["cost"]["levels"] = old["sweep"]["cost"]["levels"]
+    raw_mirror["sweep"]["planes"]["bound_margin"] = old["sweep"]["planes"]["bound_margin"]
     raw_mirror["sweep"]["post"] = old["sweep"]["post"]
     assert config_difference(old, raw_mirror) == "sweep.planes.mirror_tolerance: 0.0 vs 0.2"
     assert config_difference(presets.fused_gated().config(), old) == "flow.photometric: present vs absent"
@@ -227,8 +228,9 @@ def test_a_configuration_written_before_a_parameter_was_added_reads_as_its_earli
 
 def test_a_configuration_from_before_the_constants_became_parameters_reads_as_their_values():
     """Results sets written before the pre-pass flow, the fits' limits, the evidence's blocks, the rig fit's
-    iterations, the noise blur's cap, the fill's space and DeepFlow's and DeepMatching's parameters were recorded ran
-    with the values they have by default: usable for the default and the paper's set-up, not for other values."""
+    iterations, the noise blur's cap, the fill's space, the floor and ceiling families and DeepFlow's and DeepMatching's
+    parameters were recorded ran with the values they have by default: usable for the default and the paper's set-up,
+    not for other values."""
     now = presets.fused_mirror().config()
     old = json.loads(json.dumps(now))
     for key in ("prepass_flow", "max_fit_pixels", "longitude_blocks", "min_block_samples"):
@@ -237,6 +239,7 @@ def test_a_configuration_from_before_the_constants_became_parameters_reads_as_th
         del old["flow"]["rig"][key]
     del old["sweep"]["cost"]["max_noise_blur_px"], old["sweep"]["corrected_cost"]["max_noise_blur_px"]
     del old["sweep"]["post"]["fill_space"]
+    del old["sweep"]["planes"]["room_labels"], old["sweep"]["planes"]["room_spread"]
     assert config_difference(old, now) is None
     tighter = dataclasses.replace(presets.fused_mirror().flow.rig, iterations=3)
     changed = dataclasses.replace(presets.fused_mirror(), flow=dataclasses.replace(presets.fused_mirror().flow,

@@ -43,7 +43,7 @@ from tools.common import cell, run_selection
 from tools.research.select_cost import evaluate_frames, frames_parser, pooled_mae, with_condition
 
 __all__ = ["PROG", "REFERENCE", "FAMILY_BOUND", "MAX_LEVELS", "CANDIDATES", "fill_method", "candidate_methods",
-           "region_table", "family_table", "choose", "selection_markdown", "main"]
+           "region_table", "family_table", "choose", "selection_markdown", "select", "main"]
 
 PROG = "select_fill"
 #: a candidate's pooled MAE on every (condition, room family) at most this times the reference's (1.0 at first; the
@@ -138,10 +138,10 @@ def choose(families: pd.DataFrame, candidates: Sequence[str], levels: dict[str, 
 
 
 def selection_markdown(regions: pd.DataFrame, families: pd.DataFrame, choice: str, worst: dict[str, float],
-                       where: str) -> str:
-    """The tables and the choice as Markdown."""
+                       where: str, title: str) -> str:
+    """The tables and the choice as Markdown, under ``# <title>, on <where>``."""
     ref = regions.index[0]
-    lines = [f"# Sweep resolution and the refill of the least confident pixels, on {where}", "",
+    lines = [f"# {title}, on {where}", "",
              "Pooled MAE (m; each frame weighted by its scored pixels) per method and region, and as a multiple "
              f"of {ref}'s:", "", "| method | " + " | ".join(regions.columns) + " |",
              "|---|" + "---:|" * len(regions.columns)]
@@ -167,23 +167,26 @@ def main(argv: Sequence[str] | None = None) -> int:
                              + ", ".join(_name(c) for c in CANDIDATES) + ")")
     args = parser.parse_args(argv)
 
-    def select(ctx) -> tuple[str, dict]:
-        methods = candidate_methods(args.candidates)
-        labels = [m.label for m in methods]
-        results = evaluate_frames(args.data_root, args.frames, args.out, methods, ctx)
-        where = f"{len(results) // len(methods)} frames of {args.data_root}"
-        regions = region_table(pd.read_csv(args.out / "regions.csv"), labels)
-        families = family_table(results, labels)
-        choice, worst = choose(families, labels[1:], {m.label: m.sweep.cost.levels for m in methods})
-        text = selection_markdown(regions, families, choice, worst, where)
-        payload = {"where": where, "frames": args.frames, "methods": labels, "choice": choice,
-                   "worst_family_ratio": worst, "family_bound": FAMILY_BOUND,
-                   "region_mae_m": {m: {r: float(v) for r, v in row.items()} for m, row in regions.iterrows()},
-                   "family_mae_m": [{"condition": c, "family": f, **{m: float(x) for m, x in row.items()}}
-                                    for (c, f), row in families.iterrows()]}
-        return text, payload
+    return run_selection(PROG, args, lambda ctx: select(args, candidate_methods(args.candidates), ctx))
 
-    return run_selection(PROG, args, select)
+
+def select(args, methods: Sequence[Method], ctx, title: str = "Sweep resolution and the refill of the least "
+           "confident pixels") -> tuple[str, dict]:
+    """Evaluate ``methods`` (the reference first) as ``args`` (:func:`frames_parser`'s) say, on ``ctx``; returns
+    ``selection.md``'s text (under ``title``) and ``selection.json``'s payload (the choice of :func:`choose`)."""
+    labels = [m.label for m in methods]
+    results = evaluate_frames(args.data_root, args.frames, args.out, methods, ctx)
+    where = f"{len(results) // len(methods)} frames of {args.data_root}"
+    regions = region_table(pd.read_csv(args.out / "regions.csv"), labels)
+    families = family_table(results, labels)
+    choice, worst = choose(families, labels[1:], {m.label: m.sweep.cost.levels for m in methods})
+    text = selection_markdown(regions, families, choice, worst, where, title)
+    payload = {"where": where, "frames": args.frames, "methods": labels, "choice": choice,
+               "worst_family_ratio": worst, "family_bound": FAMILY_BOUND,
+               "region_mae_m": {m: {r: float(v) for r, v in row.items()} for m, row in regions.iterrows()},
+               "family_mae_m": [{"condition": c, "family": f, **{m: float(x) for m, x in row.items()}}
+                                for (c, f), row in families.iterrows()]}
+    return text, payload
 
 
 if __name__ == "__main__":

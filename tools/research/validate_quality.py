@@ -172,14 +172,15 @@ def _without_labels(config) -> object:
 #: the values that were module constants or fixed defaults before they became parameters: the pre-pass flow (DIS
 #: with its built-in parameters), the fits' pixel and match limits, the evidence's blocks, the rig fit's iterations,
 #: the noise blur's cap and scale, DeepFlow's and DeepMatching's; a sweep's ``post.fill_space``: the inverse
-#: distance).  A key ``parent.key`` applies only inside a mapping
-#: stored under ``parent``.
+#: distance; its ``planes.room_labels``: no floor or ceiling family).  A key ``parent.key`` applies only inside a
+#: mapping stored under ``parent``.
 _ADDED_KEYS = {"mirror_tolerance": 0.0, "intensity_weight": 1.0, "feature": "intensity",
                "photometric": NO_CALIBRATION.config(),
                "photometric.prepass_flow": NO_CALIBRATION.prepass_flow.config(), "photometric.max_fit_pixels": 15000,
                "photometric.longitude_blocks": 16, "photometric.min_block_samples": 50,
                "rig.iterations": 6, "rig.tukey_c": 4.685, "rig.max_matches": 40000, "rig.longitude_blocks": 16,
                "rig.min_block_samples": 50, "max_noise_blur_px": 1.5, "noise_scale": 1, "post.fill_space": "inverse",
+               "planes.room_labels": 0, "planes.room_spread": 0.2,
                **{f"params.{k}": v for k, v in {
                    "presmooth_sigma": 1.0, "mid_smoothing": 1.0, "post_smoothing": 1.0, "hog_sigmoid": 0.2,
                    "ninth_dim": 0.3, "cell_px": 4, "nlpow": 1.4, "reciprocal_px": 4.0, "alpha": 6.0, "beta": 390.0,

@@ -1,0 +1,99 @@
+"""Choose the default's floor and ceiling label families and its room bound, per region, family and condition.
+
+Run as::
+
+    python -m tools.research.select_planes DATA_ROOT --out DIR [--frames LABEL ...] [--candidates NAME ...]
+        [--quiet] [--workers N | --scheduler ADDRESS]
+
+``LABEL`` is a frame directory (``<scene>/<viewpoint>``) or a directory of frames (``<scene>``) relative to
+``DATA_ROOT``; without ``--frames`` every frame under ``DATA_ROOT`` (choose on a suite's ``dev`` split).  The
+methods: the reference :data:`REFERENCE` (``fused-mirror-planes-0-0.2-0.25``: no floor or ceiling family and the
+room bound 25 % beyond the floor and ceiling, as the default was before this choice), one
+``fused-mirror-planes-<room_labels>-<room_spread>-<bound_margin>`` per candidate of :data:`CANDIDATES`
+(``--candidates``: these only, as ``<room_labels>-<room_spread>-<bound_margin>``; everything but the sweep's
+``PlaneParams.room_labels``, ``room_spread`` and ``bound_margin`` the default's) and the default ``fused-mirror``
+as registered (a candidate configured as the default is the default, not run twice).  ``DIR`` becomes a results
+set (``tri360 evaluate``'s, without the report) plus ``selection.md`` and ``selection.json``, as
+``python -m tools.research.select_fill`` writes them, with the same rule
+(:func:`tools.research.select_fill.choose`): eligible when no (condition, room family) is more than
+``FAMILY_BOUND`` times the reference's; the choice is the eligible candidate (or the reference) with the lowest
+pooled MAE over all frames.
+"""
+
+from __future__ import annotations
+
+from harness.runtime import startup
+
+if __name__ == "__main__":  # run as a script: Ctrl-C during the imports below is one line and 130
+    startup.guard("select_planes")
+
+import dataclasses
+import sys
+from collections.abc import Sequence
+
+from harness.data.errors import UserError
+from reconstruction.methods.base import Method
+from reconstruction.methods.presets import fused_mirror
+from tools.common import run_selection
+from tools.research.select_cost import frames_parser
+from tools.research.select_fill import select
+
+__all__ = ["PROG", "REFERENCE", "CANDIDATES", "planes_method", "candidate_methods", "main"]
+
+PROG = "select_planes"
+#: a configuration: (labels of the floor's and of the ceiling's family, their relative half-width, the room bound's
+#: margin)
+Config = tuple[int, float, float]
+#: the reference: the default as it was before this choice
+REFERENCE: Config = (0, 0.2, 0.25)
+#: the candidates
+CANDIDATES: tuple[Config, ...] = ((9, 0.1, 0.25), (17, 0.2, 0.25), (0, 0.2, 0.05), (0, 0.2, 0.1), (0, 0.2, 0.15),
+                                  (9, 0.1, 0.1))
+TITLE = "The floor and ceiling label families and the room bound"
+
+
+def _name(config: Config) -> str:
+    return "-".join(f"{x:g}" for x in config)
+
+
+def planes_method(room_labels: int, room_spread: float, bound_margin: float) -> Method:
+    """The default method whose sweep has ``room_labels`` labels for the floor and as many for the ceiling spanning
+    +- ``room_spread`` (:class:`reconstruction.sweep.planes.PlaneParams`) and the room bound ``bound_margin``
+    beyond them, everything else the default's; labelled
+    ``fused-mirror-planes-<room_labels>-<room_spread>-<bound_margin>``."""
+    base = fused_mirror()
+    planes = dataclasses.replace(base.sweep.planes, room_labels=room_labels, room_spread=room_spread,
+                                 bound_margin=bound_margin)
+    return dataclasses.replace(base, sweep=dataclasses.replace(base.sweep, planes=planes),
+                               label=f"{base.label}-planes-{_name((room_labels, room_spread, bound_margin))}")
+
+
+def _same_as_default(method: Method) -> bool:
+    mine, default = method.config(), fused_mirror().config()
+    return {**mine, "label": None} == {**default, "label": None}
+
+
+def candidate_methods(names: Sequence[str] | None = None) -> list[Method]:
+    """The reference (:data:`REFERENCE`), one :func:`planes_method` per candidate (``names``: these only, as
+    ``<room_labels>-<room_spread>-<bound_margin>``; UserError for an unknown one; one configured as the default is
+    left out) and the default as registered."""
+    known = {_name(c): c for c in CANDIDATES}
+    unknown = [n for n in (names or ()) if n not in known]
+    if unknown:
+        raise UserError(f"unknown candidate(s) {', '.join(unknown)} (candidates: {', '.join(known)})")
+    chosen = [planes_method(*known[n]) for n in (names if names else known)]
+    return [planes_method(*REFERENCE), *(m for m in chosen if not _same_as_default(m)), fused_mirror()]
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = frames_parser(PROG, __doc__.splitlines()[0])
+    parser.add_argument("--candidates", nargs="+", default=None, metavar="NAME",
+                        help="candidates as <room_labels>-<room_spread>-<bound_margin> (default: all: "
+                             + ", ".join(_name(c) for c in CANDIDATES) + ")")
+    args = parser.parse_args(argv)
+
+    return run_selection(PROG, args, lambda ctx: select(args, candidate_methods(args.candidates), ctx, TITLE))
+
+
+if __name__ == "__main__":
+    sys.exit(startup.run_main(main, PROG))
