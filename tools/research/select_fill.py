@@ -31,7 +31,7 @@ if __name__ == "__main__":  # run as a script: Ctrl-C during the imports below i
 
 import dataclasses
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import pandas as pd
 
@@ -43,7 +43,7 @@ from tools.common import cell, run_selection
 from tools.research.select_cost import evaluate_frames, frames_parser, pooled_mae, with_condition
 
 __all__ = ["PROG", "REFERENCE", "FAMILY_BOUND", "MAX_LEVELS", "CANDIDATES", "fill_method", "candidate_methods",
-           "region_table", "family_table", "choose", "selection_markdown", "select", "main"]
+           "methods_to_compare", "region_table", "family_table", "choose", "selection_markdown", "select", "main"]
 
 PROG = "select_fill"
 #: a candidate's pooled MAE on every (condition, room family) at most this times the reference's (1.0 at first; the
@@ -88,16 +88,23 @@ def _same_as_default(method: Method) -> bool:
     return {**mine, "label": None} == {**default, "label": None}
 
 
-def candidate_methods(names: Sequence[str] | None = None) -> list[Method]:
-    """The reference (:data:`REFERENCE`), one :func:`fill_method` per candidate (``names``: these only, as
-    ``<levels>-<confidence>-<sigma>-<space>``; UserError for an unknown one; one configured as the default is left
-    out) and the default as registered."""
-    known = {_name(c): c for c in CANDIDATES}
+def methods_to_compare(build: Callable[..., Method], reference: tuple, candidates: Sequence[tuple],
+                       name: Callable[[tuple], str], names: Sequence[str] | None = None) -> list[Method]:
+    """``build(*reference)``, ``build(*config)`` per candidate configuration (``names``: only those whose
+    ``name(config)`` is listed; UserError for an unknown one; one configured as the default is left out) and the
+    default as registered."""
+    known = {name(c): c for c in candidates}
     unknown = [n for n in (names or ()) if n not in known]
     if unknown:
         raise UserError(f"unknown candidate(s) {', '.join(unknown)} (candidates: {', '.join(known)})")
-    chosen = [fill_method(*known[n]) for n in (names if names else known)]
-    return [fill_method(*REFERENCE), *(m for m in chosen if not _same_as_default(m)), fused_mirror()]
+    chosen = [build(*known[n]) for n in (names if names else known)]
+    return [build(*reference), *(m for m in chosen if not _same_as_default(m)), fused_mirror()]
+
+
+def candidate_methods(names: Sequence[str] | None = None) -> list[Method]:
+    """The reference (:data:`REFERENCE`), one :func:`fill_method` per candidate (``names``: these only, as
+    ``<levels>-<confidence>-<sigma>-<space>``) and the default (:func:`methods_to_compare`)."""
+    return methods_to_compare(fill_method, REFERENCE, CANDIDATES, _name, names)
 
 
 def region_table(regions: pd.DataFrame, methods: Sequence[str]) -> pd.DataFrame:

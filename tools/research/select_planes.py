@@ -31,12 +31,11 @@ import dataclasses
 import sys
 from collections.abc import Sequence
 
-from harness.data.errors import UserError
 from reconstruction.methods.base import Method
 from reconstruction.methods.presets import fused_mirror
 from tools.common import run_selection
 from tools.research.select_cost import frames_parser
-from tools.research.select_fill import select
+from tools.research.select_fill import methods_to_compare, select
 
 __all__ = ["PROG", "REFERENCE", "CANDIDATES", "planes_method", "candidate_methods", "main"]
 
@@ -68,21 +67,11 @@ def planes_method(room_labels: int, room_spread: float, bound_margin: float) -> 
                                label=f"{base.label}-planes-{_name((room_labels, room_spread, bound_margin))}")
 
 
-def _same_as_default(method: Method) -> bool:
-    mine, default = method.config(), fused_mirror().config()
-    return {**mine, "label": None} == {**default, "label": None}
-
-
 def candidate_methods(names: Sequence[str] | None = None) -> list[Method]:
     """The reference (:data:`REFERENCE`), one :func:`planes_method` per candidate (``names``: these only, as
-    ``<room_labels>-<room_spread>-<bound_margin>``; UserError for an unknown one; one configured as the default is
-    left out) and the default as registered."""
-    known = {_name(c): c for c in CANDIDATES}
-    unknown = [n for n in (names or ()) if n not in known]
-    if unknown:
-        raise UserError(f"unknown candidate(s) {', '.join(unknown)} (candidates: {', '.join(known)})")
-    chosen = [planes_method(*known[n]) for n in (names if names else known)]
-    return [planes_method(*REFERENCE), *(m for m in chosen if not _same_as_default(m)), fused_mirror()]
+    ``<room_labels>-<room_spread>-<bound_margin>``) and the default
+    (:func:`tools.research.select_fill.methods_to_compare`)."""
+    return methods_to_compare(planes_method, REFERENCE, CANDIDATES, _name, names)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
