@@ -102,8 +102,8 @@ def fused_mirror() -> PriorSweepMethod:
                 per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_min_share=0.03,
                 coarse_factor=2, wall_spread=0.1, wall_min_share=0.01,
                 # nothing more than 10 % beyond the floor and the ceiling the coarse pass found (the sweep's 25 %
-                # let a glossy floor's reflections and plain floors drift below it; 5 % forbade true floors, which the
-                # coarse pass finds up to 4 % too near on the dev split): chosen by python -m
+                # lets a glossy floor's reflections and plain floors drift below it; 5 % cuts off true floors and
+                # tiers: the coarse pass finds floors up to 3.3 % too near on the dev split): chosen by python -m
                 # tools.research.select_planes on the dev split (docs/edges.md)
                 bound_margin=0.1,
                 # the horizontal planes plus 9 labels per wall found by the coarse pass
