@@ -122,7 +122,7 @@ def test_the_default_and_the_previous_one_are_within_2_percent_on_small_exact_fr
         assert np.abs(out.distance[ok] - gt[ok]).mean() <= 0.02 * gt[ok].mean(), method.label
 
 
-def test_the_default_is_fused_gated_with_the_mirror_test_a_lighter_intensity_term_more_labels_and_the_refill():
+def test_the_default_is_fused_gated_with_its_mirror_test_cost_labels_room_bound_and_refill():
     """What the default is made of; its values are in the reviewed snapshot (test_presets_snapshot.py)."""
     cfg = json.loads(json.dumps(presets.fused_mirror().config()))
     gated = json.loads(json.dumps(presets.fused_gated().config()))
@@ -144,6 +144,9 @@ def test_the_default_is_fused_gated_with_the_mirror_test_a_lighter_intensity_ter
     assert corrected["blur_px"] > 0 and corrected["noise_blur"] > 0 and corrected["noise_scale"] > 1
     assert corrected["intensity_weight"] < gated["sweep"]["cost"]["intensity_weight"]
     cfg["sweep"]["planes"]["mirror_tolerance"] = 0.0
+    # the room bound closer to the floor and ceiling the coarse pass found
+    assert cfg["sweep"]["planes"]["bound_margin"] < gated["sweep"]["planes"]["bound_margin"]
+    cfg["sweep"]["planes"]["bound_margin"] = gated["sweep"]["planes"]["bound_margin"]
     assert {**cfg, "label": "fused-gated"} == gated
 
 
