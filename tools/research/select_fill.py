@@ -43,9 +43,11 @@ from tools.common import cell, run_selection
 from tools.research.select_cost import evaluate_frames, frames_parser, pooled_mae, with_condition
 
 __all__ = ["PROG", "REFERENCE", "FAMILY_BOUND", "MAX_LEVELS", "CANDIDATES", "fill_method", "candidate_methods",
-           "methods_to_compare", "region_table", "family_table", "choose", "selection_markdown", "select", "main"]
+           "methods_to_compare", "region_table", "family_table", "choose", "selection_markdown", "select",
+           "candidates_main", "main"]
 
 PROG = "select_fill"
+TITLE = "Sweep resolution and the refill of the least confident pixels"
 #: a candidate's pooled MAE on every (condition, room family) at most this times the reference's (1.0 at first; the
 #: captured classroom frames at 1.002 x, 0.001 m, made it 1.02: docs/edges.md)
 FAMILY_BOUND = 1.02
@@ -167,18 +169,24 @@ def selection_markdown(regions: pd.DataFrame, families: pd.DataFrame, choice: st
     return "\n".join(lines) + "\n"
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    parser = frames_parser(PROG, __doc__.splitlines()[0])
+def candidates_main(prog: str, doc: str, argv: Sequence[str] | None, candidates: Callable[..., list[Method]],
+                    form: str, names: Sequence[str], title: str) -> int:
+    """A selection script's ``main``: ``frames_parser(prog, ...)`` plus ``--candidates`` (names written as ``form``;
+    ``names``: all of them), then :func:`select` of ``candidates(chosen names or None)`` under ``title``."""
+    parser = frames_parser(prog, doc.splitlines()[0])
     parser.add_argument("--candidates", nargs="+", default=None, metavar="NAME",
-                        help="candidates as <levels>-<confidence>-<sigma>-<space> (default: all: "
-                             + ", ".join(_name(c) for c in CANDIDATES) + ")")
+                        help=f"candidates as {form} (default: all: " + ", ".join(names) + ")")
     args = parser.parse_args(argv)
 
-    return run_selection(PROG, args, lambda ctx: select(args, candidate_methods(args.candidates), ctx))
+    return run_selection(prog, args, lambda ctx: select(args, candidates(args.candidates), ctx, title))
 
 
-def select(args, methods: Sequence[Method], ctx, title: str = "Sweep resolution and the refill of the least "
-           "confident pixels") -> tuple[str, dict]:
+def main(argv: Sequence[str] | None = None) -> int:
+    return candidates_main(PROG, __doc__, argv, candidate_methods, "<levels>-<confidence>-<sigma>-<space>",
+                           [_name(c) for c in CANDIDATES], TITLE)
+
+
+def select(args, methods: Sequence[Method], ctx, title: str) -> tuple[str, dict]:
     """Evaluate ``methods`` (the reference first) as ``args`` (:func:`frames_parser`'s) say, on ``ctx``; returns
     ``selection.md``'s text (under ``title``) and ``selection.json``'s payload (the choice of :func:`choose`)."""
     labels = [m.label for m in methods]

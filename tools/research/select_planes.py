@@ -33,9 +33,7 @@ from collections.abc import Sequence
 
 from reconstruction.methods.base import Method
 from reconstruction.methods.presets import fused_mirror
-from tools.common import run_selection
-from tools.research.select_cost import frames_parser
-from tools.research.select_fill import methods_to_compare, select
+from tools.research.select_fill import candidates_main, methods_to_compare
 
 __all__ = ["PROG", "REFERENCE", "CANDIDATES", "planes_method", "candidate_methods", "main"]
 
@@ -75,13 +73,8 @@ def candidate_methods(names: Sequence[str] | None = None) -> list[Method]:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = frames_parser(PROG, __doc__.splitlines()[0])
-    parser.add_argument("--candidates", nargs="+", default=None, metavar="NAME",
-                        help="candidates as <room_labels>-<room_spread>-<bound_margin> (default: all: "
-                             + ", ".join(_name(c) for c in CANDIDATES) + ")")
-    args = parser.parse_args(argv)
-
-    return run_selection(PROG, args, lambda ctx: select(args, candidate_methods(args.candidates), ctx, TITLE))
+    return candidates_main(PROG, __doc__, argv, candidate_methods, "<room_labels>-<room_spread>-<bound_margin>",
+                           [_name(c) for c in CANDIDATES], TITLE)
 
 
 if __name__ == "__main__":

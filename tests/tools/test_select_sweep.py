@@ -1,0 +1,63 @@
+"""The selections of the default's sweep: its floor and ceiling families and room bound, its SGM jump penalty and
+plane preference: the candidates, and bad input."""
+
+from __future__ import annotations
+
+import pytest
+
+from harness.data.errors import UserError
+from reconstruction.methods.presets import fused_mirror
+from tools.research import select_planes, select_sgm
+from tools.research.select_planes import CANDIDATES, REFERENCE, candidate_methods, planes_method
+from tools.research.select_sgm import sgm_method
+
+
+def test_candidates_the_reference_first_and_the_default_once():
+    methods = candidate_methods()
+    labels = [m.label for m in methods]
+    assert labels[0] == "fused-mirror-planes-0-0.2-0.25" and labels[-1] == "fused-mirror"
+    assert len(set(labels)) == len(labels) and len(methods) <= len(CANDIDATES) + 2
+    ref = methods[0]
+    p = ref.sweep.planes
+    assert (p.room_labels, p.room_spread, p.bound_margin) == REFERENCE
+    # everything but the three values is the default's
+    default = fused_mirror()
+    m = planes_method(9, 0.1, 0.15)
+    p = m.sweep.planes
+    assert (p.room_labels, p.room_spread, p.bound_margin) == (9, 0.1, 0.15)
+    assert m.flow == default.flow and m.prior == default.prior and m.sweep.cost == default.sweep.cost
+    assert m.sweep.sgm == default.sweep.sgm and m.sweep.post == default.sweep.post
+    assert m.sweep.planes.wall_labels == default.sweep.planes.wall_labels
+    assert [x.label for x in candidate_methods(["9-0.1-0.25"])][1:-1] in ([], ["fused-mirror-planes-9-0.1-0.25"])
+    with pytest.raises(UserError, match="unknown candidate"):
+        candidate_methods(["9-0.1-0.3"])
+
+
+def test_sgm_candidates_the_reference_first_and_the_default_once():
+    methods = select_sgm.candidate_methods()
+    labels = [m.label for m in methods]
+    assert labels[0] == "fused-mirror-sgm-800-4" and labels[-1] == "fused-mirror"
+    assert len(set(labels)) == len(labels) and len(methods) <= len(select_sgm.CANDIDATES) + 2
+    ref = methods[0]
+    assert (ref.sweep.sgm.p2, ref.sweep.planes.bias) == select_sgm.REFERENCE
+    # everything but the two values is the default's
+    default = fused_mirror()
+    m = sgm_method(1600, 2)
+    assert (m.sweep.sgm.p2, m.sweep.planes.bias) == (1600, 2)
+    assert m.flow == default.flow and m.prior == default.prior and m.sweep.cost == default.sweep.cost
+    assert m.sweep.post == default.sweep.post
+    assert (m.sweep.sgm.p1, m.sweep.sgm.p3, m.sweep.sgm.edge) == (default.sweep.sgm.p1, default.sweep.sgm.p3,
+                                                                  default.sweep.sgm.edge)
+    assert m.sweep.planes.bound_margin == default.sweep.planes.bound_margin
+    assert [x.label for x in select_sgm.candidate_methods(["1200-8"])][1:-1] in ([], ["fused-mirror-sgm-1200-8"])
+    with pytest.raises(UserError, match="unknown candidate"):
+        select_sgm.candidate_methods(["1200-3"])
+
+
+@pytest.mark.parametrize("main", [select_planes.main, select_sgm.main], ids=["planes", "sgm"])
+def test_a_missing_data_root_is_one_line_and_writes_nothing(main, tmp_path, capsys):
+    out = tmp_path / "sel"
+    assert main([str(tmp_path / "nope"), "--out", str(out), "--quiet", "--frames", "a/vp000"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "nope" in err[0]
+    assert not out.exists()
