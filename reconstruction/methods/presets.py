@@ -93,11 +93,13 @@ def fused_mirror() -> PriorSweepMethod:
             # 200 sphere labels (the sweep's 160): at 1000 px and the 0.4 m baseline a label is 1.3 px of parallax
             # at 160 and 1.06 px at 200, which brings far surfaces closer to what the rig resolves; 240 measured
             # better still, but its peak memory at 1000x500 (1.01 GB) misses the 1 GB a frame may take (python -m
-            # tools.research.select_fill, docs/edges.md)
+            # tools.research.select_fill, docs/edges.md); every pair votes everywhere (occlusion 0: visibility from
+            # the coarse pass's distances cut the occluded pixels' error to 0.86x but cost lecture halls 1.10x,
+            # docs/edges.md)
             cost=CostParams(
                 d_min_m=0.3, d_max_m=30.0, levels=200, blur_px=0.0, gradient_weight=2.0, intensity_weight=1.0,
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=0.0,
-                noise_floor=1.0, max_noise_blur_px=1.5, noise_scale=1),
+                noise_floor=1.0, max_noise_blur_px=1.5, noise_scale=1, occlusion=0.0, occlusion_min_share=0.25),
             planes=PlaneParams(
                 per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_min_share=0.03,
                 coarse_factor=2, wall_spread=0.1, wall_min_share=0.01,
@@ -137,7 +139,7 @@ def fused_mirror() -> PriorSweepMethod:
                 # matches at): rendered frames measure 0.1-0.4 gray levels there, the suite's other camera families
                 # 0.9-2.9 and its low-light ones 3.1-6.5 (reconstruction.sweep.cost.image_noise; chosen on tri360-v3
                 # dev's low-light family, docs/photometry.md)
-                noise_blur=1.0, noise_floor=2.0, noise_scale=2)),
+                noise_blur=1.0, noise_floor=2.0, noise_scale=2, occlusion=0.0, occlusion_min_share=0.25)),
         # fused's weight (16), times a ramp of C's local contrast (0 below 0.5, full above 2 gray levels: no prior
         # where there is no texture for the flow to follow), times 1 - c_sweep where the flow and the plain coarse
         # sweep disagree by more than 5 % (a confident sweep keeps its answer), times the frame's agreement share
@@ -189,7 +191,7 @@ def fused() -> PriorSweepMethod:
             cost=CostParams(
                 d_min_m=0.3, d_max_m=30.0, levels=160, blur_px=0.0, gradient_weight=2.0, intensity_weight=1.0,
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=0.0,
-                noise_floor=1.0, max_noise_blur_px=1.5, noise_scale=1),
+                noise_floor=1.0, max_noise_blur_px=1.5, noise_scale=1, occlusion=0.0, occlusion_min_share=0.25),
             # spheres and floor/ceiling planes, no wall planes
             planes=PlaneParams(
                 per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_margin=0.25,
@@ -220,7 +222,7 @@ def sweep() -> SweepMethod:
         cost=CostParams(
             d_min_m=0.3, d_max_m=30.0, levels=160, blur_px=0.0, gradient_weight=2.0, intensity_weight=1.0,
             truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=0.0, noise_floor=1.0,
-            max_noise_blur_px=1.5, noise_scale=1),
+            max_noise_blur_px=1.5, noise_scale=1, occlusion=0.0, occlusion_min_share=0.25),
         planes=PlaneParams(
             per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_margin=0.25, bound_min_share=0.03,
             coarse_factor=2, wall_labels=0, wall_spread=0.1, wall_min_share=0.01, mirror_tolerance=0.0, room_labels=0,
@@ -258,7 +260,7 @@ def fused_mirror_raw() -> PriorSweepMethod:
             cost=CostParams(
                 d_min_m=0.3, d_max_m=30.0, levels=200, blur_px=0.0, gradient_weight=2.0, intensity_weight=1.0,
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=0.0,
-                noise_floor=1.0, max_noise_blur_px=1.5, noise_scale=1),
+                noise_floor=1.0, max_noise_blur_px=1.5, noise_scale=1, occlusion=0.0, occlusion_min_share=0.25),
             planes=PlaneParams(
                 per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_margin=0.1,
                 bound_min_share=0.03, coarse_factor=2, wall_labels=9, wall_spread=0.1, wall_min_share=0.01,
@@ -304,7 +306,7 @@ def fused_mirror_told_rig() -> PriorSweepMethod:
             cost=CostParams(
                 d_min_m=0.3, d_max_m=30.0, levels=200, blur_px=0.0, gradient_weight=2.0, intensity_weight=1.0,
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=0.0,
-                noise_floor=1.0, max_noise_blur_px=1.5, noise_scale=1),
+                noise_floor=1.0, max_noise_blur_px=1.5, noise_scale=1, occlusion=0.0, occlusion_min_share=0.25),
             planes=PlaneParams(
                 per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_margin=0.1,
                 bound_min_share=0.03, coarse_factor=2, wall_labels=9, wall_spread=0.1, wall_min_share=0.01,
@@ -315,7 +317,7 @@ def fused_mirror_told_rig() -> PriorSweepMethod:
             corrected_cost=CostParams(
                 d_min_m=0.3, d_max_m=30.0, levels=200, blur_px=0.7, gradient_weight=2.0, intensity_weight=0.25,
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=1.0,
-                noise_floor=2.0, max_noise_blur_px=1.5, noise_scale=2)),
+                noise_floor=2.0, max_noise_blur_px=1.5, noise_scale=2, occlusion=0.0, occlusion_min_share=0.25)),
         prior=PriorParams(
             weight=16.0, truncate_levels=16.0, use_confidence=False, contrast_low=0.5, contrast_high=2.0,
             contrast_sigma_px=3.0, sweep_confidence_power=1.0, agree_tolerance=0.05, frame_agreement_low=0.5,
@@ -355,7 +357,7 @@ def fused_mirror_raw_images() -> PriorSweepMethod:
             cost=CostParams(
                 d_min_m=0.3, d_max_m=30.0, levels=200, blur_px=0.0, gradient_weight=2.0, intensity_weight=1.0,
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=0.0,
-                noise_floor=1.0, max_noise_blur_px=1.5, noise_scale=1),
+                noise_floor=1.0, max_noise_blur_px=1.5, noise_scale=1, occlusion=0.0, occlusion_min_share=0.25),
             planes=PlaneParams(
                 per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_margin=0.1,
                 bound_min_share=0.03, coarse_factor=2, wall_labels=9, wall_spread=0.1, wall_min_share=0.01,
@@ -402,7 +404,7 @@ def fused_mirror_shared_falloff() -> PriorSweepMethod:
             cost=CostParams(
                 d_min_m=0.3, d_max_m=30.0, levels=200, blur_px=0.0, gradient_weight=2.0, intensity_weight=1.0,
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=0.0,
-                noise_floor=1.0, max_noise_blur_px=1.5, noise_scale=1),
+                noise_floor=1.0, max_noise_blur_px=1.5, noise_scale=1, occlusion=0.0, occlusion_min_share=0.25),
             planes=PlaneParams(
                 per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_margin=0.1,
                 bound_min_share=0.03, coarse_factor=2, wall_labels=9, wall_spread=0.1, wall_min_share=0.01,
@@ -413,7 +415,7 @@ def fused_mirror_shared_falloff() -> PriorSweepMethod:
             corrected_cost=CostParams(
                 d_min_m=0.3, d_max_m=30.0, levels=200, blur_px=0.7, gradient_weight=2.0, intensity_weight=0.25,
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=1.0,
-                noise_floor=2.0, max_noise_blur_px=1.5, noise_scale=2)),
+                noise_floor=2.0, max_noise_blur_px=1.5, noise_scale=2, occlusion=0.0, occlusion_min_share=0.25)),
         prior=PriorParams(
             weight=16.0, truncate_levels=16.0, use_confidence=False, contrast_low=0.5, contrast_high=2.0,
             contrast_sigma_px=3.0, sweep_confidence_power=1.0, agree_tolerance=0.05, frame_agreement_low=0.5,
@@ -453,7 +455,7 @@ def fused_gated() -> PriorSweepMethod:
             cost=CostParams(
                 d_min_m=0.3, d_max_m=30.0, levels=160, blur_px=0.0, gradient_weight=2.0, intensity_weight=1.0,
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=0.0,
-                noise_floor=1.0, max_noise_blur_px=1.5, noise_scale=1),
+                noise_floor=1.0, max_noise_blur_px=1.5, noise_scale=1, occlusion=0.0, occlusion_min_share=0.25),
             # the horizontal planes plus 9 labels per wall found by the coarse pass
             planes=PlaneParams(
                 per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_margin=0.25,
@@ -510,7 +512,7 @@ def fused_adaptive() -> PriorSweepMethod:
             cost=CostParams(
                 d_min_m=0.3, d_max_m=30.0, levels=160, blur_px=0.0, gradient_weight=2.0, intensity_weight=1.0,
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=0.0,
-                noise_floor=1.0, max_noise_blur_px=1.5, noise_scale=1),
+                noise_floor=1.0, max_noise_blur_px=1.5, noise_scale=1, occlusion=0.0, occlusion_min_share=0.25),
             # the horizontal planes plus 9 labels per wall found by the coarse pass
             planes=PlaneParams(
                 per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_margin=0.25,

@@ -186,7 +186,7 @@ def _median_wrap(d: np.ndarray, k: int) -> np.ndarray:
     return periodic_filter(d.astype(np.float32), k // 2, lambda x: cv2.medianBlur(x, k))
 
 
-def _sphere_costs(frame, sweep: SweepMethod, seconds, prefix="", wall_labels: int = 0):
+def _sphere_costs(frame, sweep: SweepMethod, seconds, prefix="", wall_labels: int = 0, estimate=None):
     """The sphere cost volume of ``sweep`` with room for the plane family and ``wall_labels`` wall labels (stage
     ``cost``).
 
@@ -196,7 +196,8 @@ def _sphere_costs(frame, sweep: SweepMethod, seconds, prefix="", wall_labels: in
     """
     t = _clock()
     heights = plane_heights(sweep.planes)
-    cost, _ = build_cost_volume(frame, sweep.cost, extra_labels=heights.size + wall_labels, pairs=sweep.pairs)
+    cost, _ = build_cost_volume(frame, sweep.cost, extra_labels=heights.size + wall_labels, pairs=sweep.pairs,
+                                estimate=estimate)
     _lap(seconds, prefix + "cost", t)
     return cost, heights, inverse_distances(sweep.cost)
 
@@ -318,7 +319,12 @@ def sweep_distances(frame, sweep: SweepMethod, priors: Sequence[Prior | PriorFro
             size = (frame.width, frame.height)
             coarse = tuple(cv2.resize(np.asarray(a, np.float32), size, interpolation=cv2.INTER_LINEAR)
                            for a in coarse)
-    cost, heights, inv_d = _sphere_costs(frame, sweep, shared, wall_labels=sum(o.size for _, o in walls))
+    estimate = None
+    if cost_params.occlusion > 0 and coarse is not None:  # the coarse pass's distances decide what each pair sees
+        estimate = cv2.resize(np.asarray(coarse[0], np.float32), (frame.width, frame.height),
+                              interpolation=cv2.INTER_NEAREST)
+    cost, heights, inv_d = _sphere_costs(frame, sweep, shared, wall_labels=sum(o.size for _, o in walls),
+                                         estimate=estimate)
     out = []
     for i, prior in enumerate(priors):
         seconds = dict(shared)

@@ -46,8 +46,9 @@ from reconstruction.camera.image_ops import central_differences, grey, periodic_
 from reconstruction.camera.resample import WRAP_PAD, rectifying_rotation, rotation_maps, warp_equirect
 
 __all__ = ["CostParams", "PairWarp", "FEATURES", "RANK_RADIUS_PX", "NORM_SIGMA_PX", "NORM_EPS", "NORM_SCALE",
-           "inverse_distances", "gray_float", "rank_transform", "local_normalize", "feature_image", "prepare_pair",
-           "build_cost_volume", "source_rows", "rect_row", "image_noise", "noise_blur_px"]
+           "inverse_distances", "visibility_buffer", "gray_float", "rank_transform", "local_normalize",
+           "feature_image", "prepare_pair", "build_cost_volume", "source_rows", "rect_row", "image_noise",
+           "noise_blur_px"]
 
 #: the per-pixel features of the cost (``CostParams.feature``; module doc)
 FEATURES = ("intensity", "rank", "normalized")
@@ -90,6 +91,12 @@ class CostParams:
         max_noise_blur_px: the largest blur the images' noise raises ``blur_px`` to, pixels.
         noise_scale: the scale at which the noise is estimated (:func:`image_noise`'s ``scale``): 1 = the images'
             pixels; 2 = images reduced by 2, where noise that JPEG coding flattened at the pixel scale still shows.
+        occlusion: visibility from the hypothesis (0 = off): given a first estimate of C's distances, a pair does not
+            vote for a hypothesis whose point that estimate puts more than this fraction of its range behind a
+            surface seen from the pair's other camera (:func:`visibility_buffer`); the pairs that see it stand for
+            both (their weighted cost scaled to the summed weight).
+        occlusion_min_share: a hypothesis keeps every pair's vote unless the pairs that see it hold at least this
+            share of the summed pair weight.
     """
 
     d_min_m: float = 0.3
@@ -107,6 +114,8 @@ class CostParams:
     noise_floor: float = 1.0
     max_noise_blur_px: float = 1.5
     noise_scale: int = 1
+    occlusion: float = 0.0
+    occlusion_min_share: float = 0.25
 
     def __post_init__(self) -> None:
         if self.feature not in FEATURES:
@@ -117,6 +126,9 @@ class CostParams:
             raise ValueError(f"cost max_noise_blur_px must be >= 0, got {self.max_noise_blur_px}")
         if type(self.noise_scale) is not int or self.noise_scale < 1:
             raise ValueError(f"cost noise_scale must be an integer >= 1, got {self.noise_scale!r}")
+        if not (self.occlusion >= 0 and 0 <= self.occlusion_min_share <= 1):
+            raise ValueError(f"cost occlusion {self.occlusion} must be >= 0 and occlusion_min_share "
+                             f"{self.occlusion_min_share} within [0, 1]")
 
     def max_cost(self) -> int:
         """Largest possible summed cost, uint16 units (both pairs' weights sum to at most 2)."""
@@ -323,7 +335,7 @@ def _pair_arrays(pw: PairWarp, frame):
 
 
 def build_cost_volume(frame, params: CostParams, extra_labels: int = 0, pairs=("U", "R"),
-                      out: np.ndarray | None = None):
+                      out: np.ndarray | None = None, estimate: np.ndarray | None = None):
     """The sphere-sweep cost volume of camera C.
 
     For every pixel of C and pair, C's rectified features at the pixel are compared with K's rectified features
@@ -337,6 +349,8 @@ def build_cost_volume(frame, params: CostParams, extra_labels: int = 0, pairs=("
         extra_labels: further labels to allocate after the sphere hypotheses (filled by other families).
         pairs: which pairs to use (ablation).
         out: optional preallocated (H, W, levels + extra_labels) uint16 array.
+        estimate: (H, W) a first estimate of C's distances, metres, for ``params.occlusion`` (None: every pair
+            votes everywhere).
     Returns:
         ``(cost, pairs)``: (H, W, levels + extra_labels) uint16 costs (sphere labels filled, ``scale`` units per
         gray level, at most :meth:`CostParams.max_cost`) and the :class:`PairWarp` of each pair.
@@ -356,29 +370,85 @@ def build_cost_volume(frame, params: CostParams, extra_labels: int = 0, pairs=("
                      for pw in warps]).astype(np.float32)
     weight = np.stack([pw.weight * np.float32(params.scale) for pw in warps]).astype(np.float32)
     del arrays
-    _sweep_costs(cost, params.levels, other_t, ref, ur, vr, rows, weight, np.float32(params.truncate))
+    occlusion = params.occlusion if estimate is not None else 0.0
+    zbuf = (np.stack([visibility_buffer(estimate, ur[k], vr[k], pw.baseline_m, other_t.shape[1], other_t.shape[2])
+                      for k, pw in enumerate(warps)]) if occlusion > 0 else np.zeros((len(warps), 1, 1), np.float32))
+    baselines = np.array([pw.baseline_m for pw in warps], np.float64)
+    _sweep_costs(cost, params.levels, other_t, ref, ur, vr, rows, weight, np.float32(params.truncate), zbuf,
+                 inv_d, baselines, np.float32(occlusion), np.float32(params.occlusion_min_share))
     box = int(params.box_px)
     if box > 1:
         _box_lines(cost, params.levels, box // 2, True, np.float32(1.0))  # along longitude, which wraps
         _box_lines(cost.transpose(1, 0, 2), params.levels, box // 2, False, np.float32(1.0 / (box * box)))
     return cost, warps
 
+def visibility_buffer(estimate: np.ndarray, ur: np.ndarray, vr: np.ndarray, baseline_m: float, width: int,
+                      height: int) -> np.ndarray:
+    """The range from the pair's other camera K to the nearest surface of C's distance estimate along each of K's
+    rectified rays: C's pixels moved to where K sees them, each covering the 2 x 2 rectified pixels around it.
+
+    Args:
+        estimate: (H, W) C's distances, metres (not finite or <= 0: left out).
+        ur, vr: (H, W) rectified column and row of C's pixels, pixels.
+        baseline_m: |K - C|, metres; width, height: the rectified grid's size, pixels.
+    Returns:
+        (width, height) float32 ranges from K, metres (columns first, as K's rectified features in
+        :func:`_sweep_costs`); inf where no pixel of C lands.
+    """
+    zbuf = np.full((width, height), np.inf, np.float32)
+    _splat_ranges(zbuf, np.asarray(estimate, np.float64), ur, vr, float(baseline_m))
+    return zbuf
+
+
+@numba.njit(cache=True)
+def _splat_ranges(zbuf, d, ur, vr, b):
+    wr, hr = zbuf.shape
+    h, w = d.shape
+    for y in range(h):
+        for x in range(w):
+            dist = d[y, x]
+            if not (dist > 0.0 and dist < np.inf):
+                continue
+            theta = np.pi * (vr[y, x] + 0.5) / hr
+            st, ct = np.sin(theta), np.cos(theta) - b / dist
+            row = np.arctan2(st, ct) * hr / np.pi - 0.5
+            rng = np.float32(dist * np.sqrt(st * st + ct * ct))
+            c0 = int(np.floor(ur[y, x]))
+            r0 = int(np.floor(row))
+            for dc in range(2):
+                c = (c0 + dc) % wr
+                for dr in range(2):
+                    r = r0 + dr
+                    if 0 <= r < hr and rng < zbuf[c, r]:
+                        zbuf[c, r] = rng
+
+
 @numba.njit(parallel=True, cache=True, fastmath=True)
-def _sweep_costs(cost, n_levels, other_t, ref, ur, vr, rows, weight, truncate):
+def _sweep_costs(cost, n_levels, other_t, ref, ur, vr, rows, weight, truncate, zbuf, inv_d, baselines, occlusion,
+                 min_share):
     # cost: (H, W, >= n_levels) uint16 out; other_t: (P, W, H, 3) K's rectified features, columns contiguous;
     # ref: (P, H, W, 3) C's rectified features at C's pixels; ur, vr: (P, H, W) rectified column / row of C's
     # pixels; rows: (P, H, n_levels) K's rectified row seen by each integer rectified row of C per hypothesis;
-    # weight: (P, H, W) pair weight times the cost scale.
+    # weight: (P, H, W) pair weight times the cost scale; zbuf: (P, W, H) visibility_buffer per pair (used when
+    # occlusion > 0); inv_d: (n_levels,) 1/m; baselines: (P,) metres.
     h, w, _ = cost.shape
     n_pairs, wr, hr, _ = other_t.shape
     for y in numba.prange(h):
         acc = np.empty(n_levels, np.float32)
+        pair = np.empty(n_levels, np.float32)
+        seen = np.empty(n_levels, np.float32)
+        seen_w = np.empty(n_levels, np.float32)
         for x in range(w):
             acc[:] = 0.0
+            if occlusion > 0.0:
+                seen[:] = 0.0
+                seen_w[:] = 0.0
+            total_w = np.float32(0.0)
             for p in range(n_pairs):
                 wt = weight[p, y, x]
                 if wt <= 0.0:
                     continue
+                total_w += wt
                 r0 = ref[p, y, x, 0]
                 r1 = ref[p, y, x, 1]
                 r2 = ref[p, y, x, 2]
@@ -392,6 +462,10 @@ def _sweep_costs(cost, n_levels, other_t, ref, ur, vr, rows, weight, truncate):
                 t = np.float32(v - v0)
                 ra = rows[p, v0]
                 rb = rows[p, v0 + 1]
+                theta = np.pi * (v + 0.5) / hr
+                st = np.sin(theta)
+                ct = np.cos(theta)
+                b = baselines[p]
                 for i in range(n_levels):
                     row = ra[i] + t * (rb[i] - ra[i])
                     j0 = min(int(row), hr - 2)
@@ -404,7 +478,24 @@ def _sweep_costs(cost, n_levels, other_t, ref, ur, vr, rows, weight, truncate):
                     b2 = other_t[p, c1, j0, 2] + tv * (other_t[p, c1, j0 + 1, 2] - other_t[p, c1, j0, 2])
                     s = (abs(a0 + tu * (b0 - a0) - r0) + abs(a1 + tu * (b1 - a1) - r1)
                          + abs(a2 + tu * (b2 - a2) - r2))
-                    acc[i] += wt * min(s, truncate)
+                    pair[i] = wt * min(s, truncate)
+                for i in range(n_levels):
+                    acc[i] += pair[i]
+                if occlusion > 0.0:  # the hypotheses the estimate lets K see, and this pair's vote for them
+                    for i in range(n_levels):
+                        q = inv_d[i]
+                        dz = ct - b * q
+                        rng = np.sqrt(st * st + dz * dz) / q
+                        row = ra[i] + t * (rb[i] - ra[i])
+                        j0 = min(int(row), hr - 2)
+                        z = max(max(zbuf[p, c0, j0], zbuf[p, c0, j0 + 1]), max(zbuf[p, c1, j0], zbuf[p, c1, j0 + 1]))
+                        if rng <= z * (1.0 + occlusion):
+                            seen[i] += pair[i]
+                            seen_w[i] += wt
+            if occlusion > 0.0:
+                for i in range(n_levels):
+                    if seen_w[i] < total_w and seen_w[i] >= min_share * total_w:
+                        acc[i] = seen[i] * total_w / seen_w[i]
             for i in range(n_levels):
                 cost[y, x, i] = np.uint16(acc[i] + 0.5)
 
