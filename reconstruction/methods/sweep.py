@@ -321,8 +321,9 @@ def sweep_distances(frame, sweep: SweepMethod, priors: Sequence[Prior | PriorFro
                            for a in coarse)
     estimate = None
     if cost_params.occlusion > 0 and coarse is not None:  # the coarse pass's distances decide what each pair sees
+        # (upsampled bilinearly, as the priors read them: a no-op when they already did)
         estimate = cv2.resize(np.asarray(coarse[0], np.float32), (frame.width, frame.height),
-                              interpolation=cv2.INTER_NEAREST)
+                              interpolation=cv2.INTER_LINEAR)
     cost, heights, inv_d = _sphere_costs(frame, sweep, shared, wall_labels=sum(o.size for _, o in walls),
                                          estimate=estimate)
     out = []

@@ -382,6 +382,7 @@ def build_cost_volume(frame, params: CostParams, extra_labels: int = 0, pairs=("
         _box_lines(cost.transpose(1, 0, 2), params.levels, box // 2, False, np.float32(1.0 / (box * box)))
     return cost, warps
 
+
 def visibility_buffer(estimate: np.ndarray, ur: np.ndarray, vr: np.ndarray, baseline_m: float, width: int,
                       height: int) -> np.ndarray:
     """The range from the pair's other camera K to the nearest surface of C's distance estimate along each of K's
