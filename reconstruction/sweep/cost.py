@@ -463,10 +463,6 @@ def _sweep_costs(cost, n_levels, other_t, ref, ur, vr, rows, weight, truncate, z
                 t = np.float32(v - v0)
                 ra = rows[p, v0]
                 rb = rows[p, v0 + 1]
-                theta = np.pi * (v + 0.5) / hr
-                st = np.sin(theta)
-                ct = np.cos(theta)
-                b = baselines[p]
                 for i in range(n_levels):
                     row = ra[i] + t * (rb[i] - ra[i])
                     j0 = min(int(row), hr - 2)
@@ -483,6 +479,10 @@ def _sweep_costs(cost, n_levels, other_t, ref, ur, vr, rows, weight, truncate, z
                 for i in range(n_levels):
                     acc[i] += pair[i]
                 if occlusion > 0.0:  # the hypotheses the estimate lets K see, and this pair's vote for them
+                    theta = np.pi * (v + 0.5) / hr
+                    st = np.sin(theta)
+                    ct = np.cos(theta)
+                    b = baselines[p]
                     for i in range(n_levels):
                         q = inv_d[i]
                         dz = ct - b * q
