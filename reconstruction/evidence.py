@@ -65,15 +65,22 @@ def jackknife_linear(design: np.ndarray, target: np.ndarray, weights: np.ndarray
     design = np.asarray(design, np.float64)
     p = design.shape[1]
     w = np.asarray(weights, np.float64)
-    wa = design * w[:, None]
-    blocks = np.asarray(blocks)
-    ids = np.unique(blocks)
-    ata_b = np.stack([wa[blocks == b].T @ design[blocks == b] for b in ids]) if ids.size else np.zeros((0, p, p))
-    atb_b = np.stack([wa[blocks == b].T @ target[blocks == b] for b in ids]) if ids.size else np.zeros((0, p))
+    # the rows grouped by block (stable: each block's rows in their order), each block's normal equations from its
+    # contiguous slice of the rows scaled by the weights' square roots
+    order = np.argsort(np.asarray(blocks), kind="stable")
+    sorted_blocks = np.asarray(blocks)[order]
+    ids, starts = np.unique(sorted_blocks, return_index=True)
+    ends = np.append(starts[1:], sorted_blocks.size)[:starts.size]
+    root = np.sqrt(w[order])
+    scaled = design[order] * root[:, None]
+    scaled_target = np.asarray(target, np.float64)[order] * root
+    spans = list(zip(starts, ends, strict=True))
+    ata_b = np.stack([scaled[s:e].T @ scaled[s:e] for s, e in spans]) if spans else np.zeros((0, p, p))
+    atb_b = np.stack([scaled[s:e].T @ scaled_target[s:e] for s, e in spans]) if spans else np.zeros((0, p))
     ata, atb = ata_b.sum(axis=0), atb_b.sum(axis=0)
     reg = np.full(p, 1e-9 * max(float(np.trace(ata)), 1e-12)) if ridge is None else np.asarray(ridge, np.float64)
     theta = np.linalg.solve(ata + np.diag(reg), atb)
-    counts = np.array([int(np.count_nonzero(w[blocks == b] > 0)) for b in ids])
+    counts = np.add.reduceat((w[order] > 0).astype(np.int64), starts) if ids.size else np.zeros(0, np.int64)
     leave = [i for i in range(ids.size) if counts[i] >= min_samples]
     if len(leave) < 2:
         return theta, np.full((p, p), np.nan), 0

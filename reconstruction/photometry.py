@@ -209,9 +209,14 @@ _S = np.arange(256, dtype=np.float64) / 255.0
 _SRGB_TABLE = np.where(_S <= 0.04045, _S / 12.92, ((_S + 0.055) / 1.055) ** 2.4)
 
 
-def srgb_to_linear(img: np.ndarray) -> np.ndarray:
-    """(...) uint8 sRGB -> float64 linear light in [0, 1] (IEC 61966-2-1), through a 256-entry table."""
-    return _SRGB_TABLE[np.asarray(img, dtype=np.uint8)]
+_SRGB_TABLE32 = _SRGB_TABLE.astype(np.float32)
+
+
+def srgb_to_linear(img: np.ndarray, dtype=np.float64) -> np.ndarray:
+    """(...) uint8 sRGB -> linear light in [0, 1] (IEC 61966-2-1), through a 256-entry table of ``dtype`` (float64
+    or float32: the float64 values rounded)."""
+    table = _SRGB_TABLE32 if np.dtype(dtype) == np.float32 else _SRGB_TABLE
+    return table[np.asarray(img, dtype=np.uint8)]
 
 
 def linear_to_srgb(linear: np.ndarray, dtype=np.float64) -> np.ndarray:
@@ -349,12 +354,12 @@ def align_images(images: dict, cameras: dict, params: PhotometricParams = Photom
     if params.mode == "none":
         return out, {}
     f = params.factor
-    lin_c = _reduce(srgb_to_linear(images["C"]).astype(np.float32), f)
+    lin_c = _reduce(srgb_to_linear(images["C"], np.float32), f)
     h, w = lin_c.shape[:2]
     info = {}
     phi_small = basis(bearing_grid(w, h), params.pixel_degree, params.even, params.central)
     for k in others:
-        lin_k_full = srgb_to_linear(images[k]).astype(np.float32)
+        lin_k_full = srgb_to_linear(images[k], np.float32)
         sample = _reduce(lin_k_full, f)
         usable = np.all((lin_c > params.dark) & (lin_c < params.bright), axis=-1) \
             & np.all((sample > params.dark) & (sample < params.bright), axis=-1)
@@ -364,10 +369,15 @@ def align_images(images: dict, cameras: dict, params: PhotometricParams = Photom
         field = phi_small @ beta if beta.size else np.zeros((h, w))
         field = np.clip(field, -params.max_log_gain, params.max_log_gain)
         mean_field = float(np.mean(field))
-        full_h, full_w = images[k].shape[:2]
-        field_full = cv2.resize(field.astype(np.float32), (full_w, full_h), interpolation=cv2.INTER_LINEAR)
-        gain = np.exp(-(field_full[..., None] + a.astype(np.float32)))
-        out[k] = linear_to_srgb(lin_k_full * gain, np.float32)
+        if beta.size:
+            full_h, full_w = images[k].shape[:2]
+            field_full = cv2.resize(field.astype(np.float32), (full_w, full_h), interpolation=cv2.INTER_LINEAR)
+            gain = np.exp(-(field_full[..., None] + a.astype(np.float32)))
+            out[k] = linear_to_srgb(lin_k_full * gain, np.float32)
+        else:  # one gain per channel: the same arithmetic on each of the 256 codes, looked up
+            gain = np.exp(-(np.float32(0.0) + a.astype(np.float32)))
+            table = linear_to_srgb(_SRGB_TABLE32[:, None] * gain, np.float32)
+            out[k] = cv2.LUT(np.ascontiguousarray(images[k]), table.reshape(256, 1, 3))
         info[k] = {"gain_rgb": np.exp(a + mean_field).tolist(),
                    "field_range": [float(np.exp(field.min() - mean_field)), float(np.exp(field.max() - mean_field))],
                    **fit}
@@ -411,18 +421,36 @@ def _irls(design: np.ndarray, target: np.ndarray, coef: np.ndarray, params: Phot
     """Tukey-reweighted least squares from ``coef`` (``params.iterations`` steps; none: ``coef`` as it is):
     ``(coef, weights, sigma)``.  ``tied`` > 0: the rows are ``tied`` blocks of the same pixels in the same order
     (each pixel's 3 channels consecutive), and a pixel's weight in every row is its smallest over its rows (a pixel
-    whose views do not all agree is left out of all of them); 0: each row its own weight."""
+    whose views do not all agree is left out of all of them); 0: each row its own weight.  The normal equations are
+    summed block by block over the columns each block touches (a camera's rows are zero in the other camera's
+    columns): the dense solution up to rounding."""
     w = np.ones(target.size)
     sigma = float("nan")
+    if not params.iterations:
+        return coef, w, sigma
+    # each of the ``tied`` row blocks (a camera's rows) touches only some columns (its own and the shared ones):
+    # the normal equations are summed from those narrow blocks
+    n_blocks = max(tied, 1)
+    rows = target.size // n_blocks
+    blocks = []
+    for i in range(n_blocks):
+        part = design[i * rows:(i + 1) * rows]
+        cols = np.flatnonzero(np.any(part != 0, axis=0))
+        blocks.append((slice(i * rows, (i + 1) * rows), cols, np.ascontiguousarray(part[:, cols])))
     for _ in range(params.iterations):
-        res = target - design @ coef
+        res = target - np.concatenate([narrow @ coef[cols] for _, cols, narrow in blocks])
         sigma = robust_scale(res, 1e-6, "add")
         w = tukey_weights(res, params.tukey_c, sigma)
         if tied:
-            per_pixel = w.reshape(tied, -1, 3).min(axis=(0, 2))
+            per_pixel = w.reshape(tied, -1, 3).min(axis=2).min(axis=0)
             w = np.broadcast_to(per_pixel[None, :, None], (tied, per_pixel.size, 3)).reshape(-1)
-        a = design * w[:, None]
-        coef = np.linalg.solve(a.T @ design + np.diag(ridge), a.T @ target)
+        normal, rhs = np.diag(ridge).astype(np.float64), np.zeros(coef.size)
+        for part, cols, narrow in blocks:
+            root = np.sqrt(w[part])
+            weighted = narrow * root[:, None]
+            normal[np.ix_(cols, cols)] += weighted.T @ weighted
+            rhs[cols] += weighted.T @ (target[part] * root)
+        coef = np.linalg.solve(normal, rhs)
     return coef, w, sigma
 
 
@@ -464,7 +492,7 @@ def fit_photometric(images: dict, cameras: dict, distance: np.ndarray,
     if params.mode == "none":
         return IDENTITY, {}
     f = params.factor
-    lin_c = _reduce(srgb_to_linear(images["C"]).astype(np.float32), f)
+    lin_c = _reduce(srgb_to_linear(images["C"], np.float32), f)
     h, w = lin_c.shape[:2]
     b_c = bearing_grid(w, h)
     phi_c = basis(b_c, params.degree, params.even, params.central)
@@ -482,7 +510,7 @@ def fit_photometric(images: dict, cameras: dict, distance: np.ndarray,
     n_cols = common_first + (n_j if params.common_field else 0)
     samples, bearings, usable = {}, {}, ok_c
     for k in others:
-        lin_k = _reduce(srgb_to_linear(images[k]).astype(np.float32), f)
+        lin_k = _reduce(srgb_to_linear(images[k], np.float32), f)
         u, row, bearings[k] = _project(np.asarray(cameras[k].rotation, np.float64),
                                        np.asarray(cameras[k].position, np.float64), world, w, h)
         samples[k] = _sample(lin_k, u, row)
@@ -621,7 +649,7 @@ def apply_photometric(images: dict, model: PhotometricModel, max_log_gain: float
         field = cv2.resize(np.clip(field, -max_log_gain, max_log_gain).astype(np.float32), (w, h),
                            interpolation=cv2.INTER_LINEAR)
         log_gain = field[..., None] + np.asarray(model.gains.get(k, np.zeros(3)), np.float32)
-        lin = srgb_to_linear(img).astype(np.float32)
+        lin = srgb_to_linear(img, np.float32)
         if model.responses.get(k) is not None:  # of K's own level: a table of its 256 codes
             coef = np.asarray(model.responses[k], np.float64)
             table = response_basis(np.log(np.maximum(_SRGB_TABLE, 1e-4)), coef.size) @ coef

@@ -95,8 +95,14 @@ def bearing_grid(width: int, height: int, rotation=None, dtype=np.float64):
     Args:
         rotation: optional (3, 3) world-from-camera matrix; if given, bearings are in world coordinates.
     """
-    v, u = np.mgrid[0:height, 0:width]
-    b = pixel_to_bearing(u, v, width, height)
+    # separable: longitude by column, latitude by row (the same values as pixel_to_bearing of every pixel)
+    lam, _ = pixel_to_lonlat(np.arange(width), np.zeros(width), width, height)
+    _, phi = pixel_to_lonlat(np.zeros(height), np.arange(height), width, height)
+    cphi = np.cos(phi)[:, None]
+    b = np.empty((height, width, 3))
+    b[..., 0] = cphi * np.sin(lam)[None, :]
+    b[..., 1] = cphi * np.cos(lam)[None, :]
+    b[..., 2] = np.sin(phi)[:, None]
     if rotation is not None:
         b = b @ np.asarray(rotation, dtype=np.float64).T
     return b.astype(dtype, copy=False)

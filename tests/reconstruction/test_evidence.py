@@ -47,6 +47,30 @@ def test_jackknife_of_a_constant_offset_rejects_only_a_real_one():
     assert hotelling(theta, cov, used)["supported"]
 
 
+def test_jackknife_equals_refitting_without_each_block():
+    """Against the definition: the weighted fit without each block's rows solved anew (1e-10), blocks given in any
+    order; a block with fewer than ``min_samples`` weighted rows stays in every fit."""
+    rng = np.random.default_rng(3)
+    n, p = 3000, 4
+    design = rng.normal(size=(n, p))
+    target = design @ rng.normal(size=p) + rng.normal(scale=0.1, size=n)
+    weights = rng.uniform(0.0, 1.0, n) * (rng.uniform(size=n) > 0.1)
+    blocks = rng.integers(0, 9, n)
+    blocks[rng.choice(n, 5, replace=False)] = 9  # a block too small to leave out
+    ridge = np.full(p, 1e-6)
+
+    def solve(rows):
+        a = design[rows] * weights[rows, None]
+        return np.linalg.solve(a.T @ design[rows] + np.diag(ridge), a.T @ target[rows])
+
+    theta, cov, used = jackknife_linear(design, target, weights, blocks, ridge, min_samples=50)
+    np.testing.assert_allclose(theta, solve(np.arange(n)), rtol=0, atol=1e-10)
+    est = np.stack([solve(blocks != b) for b in range(9)])
+    dev = est - est.mean(axis=0)
+    assert used == 9
+    np.testing.assert_allclose(cov, 8 / 9 * dev.T @ dev, rtol=1e-8, atol=1e-14)
+
+
 def test_a_block_effect_is_not_a_camera_effect():
     """An offset that only one block of the sphere shows (a scene's, not a camera's) is not supported, though it
     moves the full-data mean by many standard errors."""

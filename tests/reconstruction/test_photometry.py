@@ -9,12 +9,14 @@ import numpy as np
 import pytest
 
 from reconstruction.camera.equirect import bearing_grid
+from reconstruction.camera.image_ops import robust_scale, tukey_weights
 from reconstruction.flow.backends import FlowBackend, builtin_flow, get_flow
 from reconstruction.methods.presets import fused_mirror
 from reconstruction.photometry import (
     NO_CALIBRATION,
     FrameView,
     PhotometricParams,
+    _irls,
     align_images,
     basis,
     fit_gain,
@@ -60,6 +62,48 @@ def test_fit_recovers_gains_and_field_despite_outliers():
     np.testing.assert_allclose(a_fit + field.mean(), a + (phi @ beta).mean(), atol=0.003)
     assert np.abs((field - field.mean()) - (phi @ beta - (phi @ beta).mean())).max() < 0.01
     assert info["sigma"] < 0.01 and 0.7 < info["inliers"] < 0.9
+
+
+def test_the_block_wise_robust_fit_equals_the_dense_one():
+    """``_irls`` sums the normal equations over each camera's columns only: against the same Tukey iterations on
+    the whole design (1e-10), two cameras' rows that share a column, their weights tied per pixel."""
+    rng = np.random.default_rng(5)
+    n, own, shared = 2000, 5, 3  # pixels; each camera's own columns; columns both share
+    cols = 2 * own + shared
+    design = np.zeros((2, n, 3, cols))
+    for i in range(2):
+        design[i, :, :, i * own:(i + 1) * own] = rng.normal(size=(n, 3, own))
+    design[:, :, :, 2 * own:] = rng.normal(size=(2, n, 3, shared))
+    design = design.reshape(-1, cols)
+    target = design @ rng.normal(scale=0.1, size=cols) + rng.normal(scale=0.01, size=design.shape[0])
+    target[::7] += 0.5  # outliers
+    params = PhotometricParams(iterations=5)
+    ridge = np.full(cols, 1e-6)
+    w = np.ones(target.size)
+    coef = np.zeros(cols)
+    for _ in range(params.iterations):  # the dense reference
+        res = target - design @ coef
+        w = tukey_weights(res, params.tukey_c, robust_scale(res, 1e-6, "add"))
+        w = np.broadcast_to(w.reshape(2, -1, 3).min(axis=(0, 2))[None, :, None], (2, n, 3)).reshape(-1)
+        a = design * w[:, None]
+        coef = np.linalg.solve(a.T @ design + np.diag(ridge), a.T @ target)
+    got, got_w, _ = _irls(design, target, np.zeros(cols), params, ridge, tied=2)
+    np.testing.assert_allclose(got, coef, rtol=0, atol=1e-10)
+    np.testing.assert_allclose(got_w, w, rtol=0, atol=1e-10)
+
+
+def test_one_gain_per_channel_is_corrected_through_a_table():
+    """Without a field the same-pixel alignment looks each code up: the per-pixel arithmetic's bytes (the gain is
+    read back from the record, so a code at a rounding boundary may differ by one)."""
+    rng = np.random.default_rng(6)
+    c = rng.integers(10, 230, size=(40, 80, 3), dtype=np.uint8)
+    u = linear_to_srgb(srgb_to_linear(c) * np.array([1.3, 1.1, 0.9]))
+    out, info = align_images({"C": c, "U": u}, {}, PhotometricParams(iterations=0, pixel_degree=0), others=("U",))
+    gain = np.exp(-np.log(np.asarray(info["U"]["gain_rgb"])).astype(np.float32))
+    expect = linear_to_srgb(srgb_to_linear(u, np.float32) * gain, np.float32)
+    diff = np.abs(out["U"].astype(int) - expect)
+    assert diff.max() <= 1 and (diff == 0).mean() > 0.999
+    assert np.abs(out["U"].astype(int) - c).max() <= 2
 
 
 def test_too_few_pixels_give_the_identity():

@@ -59,6 +59,17 @@ def test_grid_round_trip_every_pixel():
     np.testing.assert_allclose(np.linalg.norm(b, axis=-1), 1.0, atol=1e-12)
 
 
+@pytest.mark.parametrize("w, h", [(W, H), (7, 3), (360, 180)])
+def test_grid_is_pixel_to_bearing_of_every_pixel(w, h):
+    """The separable grid (longitude by column, latitude by row) against the bearing of each pixel, with and without
+    a rotation (1e-15: the same values up to rounding)."""
+    vv, uu = np.mgrid[0:h, 0:w]
+    rot = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+    np.testing.assert_allclose(bearing_grid(w, h), pixel_to_bearing(uu, vv, w, h), rtol=0, atol=1e-15)
+    np.testing.assert_allclose(bearing_grid(w, h, rot), pixel_to_bearing(uu, vv, w, h) @ rot.T, rtol=0, atol=1e-15)
+    assert bearing_grid(w, h, dtype=np.float32).dtype == np.float32
+
+
 @settings(max_examples=200, deadline=None)
 @given(st.floats(-0.49, W - 0.51), st.floats(-0.49, H - 0.51))
 def test_round_trip_continuous(u, v):
