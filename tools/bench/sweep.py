@@ -1,8 +1,8 @@
-"""Benchmark of the sweep-based methods: time of each stage at 1000x500 (median of 3 runs), the whole method's
+"""Benchmark of the sweep-based methods: time of each stage at 1000x500 (median of 5 runs), the whole method's
 time, and peak memory (RSS) at 1000x500 and 4000x2000, each run in a child process; beside it the same at
 1000x500 for a comparison method, measured in the same run, and the goals.
 
-    python -m tools.bench.sweep [--runs 3] [--big-width 4000] [--method LABEL] [--compare-with LABEL|none]
+    python -m tools.bench.sweep [--runs 5] [--big-width 4000] [--method LABEL] [--compare-with LABEL|none]
 
 ``--method`` is any registered label (default: the default method) or a fused method's label with ``-raw``
 (:func:`reconstruction.methods.registry.uncalibrated`: no photometric self-calibration); ``--compare-with`` (default
@@ -10,10 +10,12 @@ time, and peak memory (RSS) at 1000x500 and 4000x2000, each run in a child proce
 in turn, so that both see the same load.  Goals, printed as ``[PASS]`` / ``[FAIL]`` lines (exit status 1 when one
 is missed):
 
-- the method's median wall time at 1000x500 at most :data:`GOAL_TIME_FACTOR` x the comparison method's in the same
-  run: what the default adds to its matching (the self-calibration stage: a reduced flow pass, the rig and
-  photometric fits and their tests) costs at most a tenth of it.  Both are timed on the same machine in the same
-  minutes, so no absolute time is needed;
+- the method's wall time at 1000x500 at most :data:`GOAL_TIME_FACTOR` x the comparison method's in the same run:
+  what the default adds to its matching (the self-calibration stage: a reduced flow pass, the rig and photometric
+  fits and their tests) costs at most a tenth of it.  The runs are paired (one of each, back to back) and the goal
+  reads the median of the pairs' ratios: a shared machine's speed drifts by 10-20 % over minutes (the SGM stage of
+  one method alone took 3.5-5.0 s within ten minutes on a 2-core machine), and a pair sees one speed.  Both are
+  timed on the same machine in the same minutes, so no absolute time is needed;
 - its peak RSS at 1000x500 at most :data:`GOAL_PEAK_GB`: a frame of the default size fits in the memory a
   ``--workers`` task is given (``harness.runtime.cluster.BASE_BYTES``, 1 GiB); measured 0.78-0.86 GB.  Memory does
   not depend on the machine's speed, so this stays absolute.
@@ -105,7 +107,8 @@ def run_child(width: int, runs: int, method_name: str = DEFAULT_METHOD) -> tuple
 def main(argv=None) -> int:
     ap = ArgumentParser(prog="python -m tools.bench.sweep", description=__doc__,
                         formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--runs", type=int, default=3, help="timed runs at 1000x500 (the median is reported)")
+    ap.add_argument("--runs", type=int, default=5,
+                    help="timed runs (pairs, with a comparison) at 1000x500 (medians are reported)")
     ap.add_argument("--big-width", type=int, default=4000, help="width of the memory run (0 = skip)")
     ap.add_argument("--method", default=DEFAULT_METHOD,
                     help=f"the method to time, by label (default: {DEFAULT_METHOD}, what `tri360 reconstruct` runs)")
@@ -153,10 +156,12 @@ def main(argv=None) -> int:
               f"{peak[args.method]:.2f} GB")]
     if len(labels) > 1:
         t, b = med(args.method, "wall"), med(args.compare_with, "wall")
-        goals.append((t <= GOAL_TIME_FACTOR * b,
+        ratios = [x["wall"] / y["wall"] for x, y in zip(runs[args.method], runs[args.compare_with], strict=True)]
+        ratio = float(np.median(ratios))
+        goals.append((ratio <= GOAL_TIME_FACTOR,
                       f"{args.method} at {BASE_WIDTH}x{BASE_WIDTH // 2} at most {GOAL_TIME_FACTOR:g} x "
-                      f"{args.compare_with} "
-                      f"(same run, median wall): {t:.2f} s vs {b:.2f} s ({t / b:.2f} x)"))
+                      f"{args.compare_with} (same run, median of {len(ratios)} paired wall ratios): {ratio:.2f} x "
+                      f"(pairs {min(ratios):.2f}-{max(ratios):.2f} x; medians {t:.2f} s vs {b:.2f} s)"))
     print("goals vs measured:")
     return report_goals(goals)
 
