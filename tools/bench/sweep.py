@@ -1,8 +1,8 @@
-"""Benchmark of the sweep-based methods: time of each stage at 1000x500 (median of 5 runs), the whole method's
+"""Benchmark of the sweep-based methods: time of each stage at 1000x500 (median of 6 runs), the whole method's
 time, and peak memory (RSS) at 1000x500 and 4000x2000, each run in a child process; beside it the same at
 1000x500 for a comparison method, measured in the same run, and the goals.
 
-    python -m tools.bench.sweep [--runs 5] [--big-width 4000] [--method LABEL] [--compare-with LABEL|none]
+    python -m tools.bench.sweep [--runs 6] [--big-width 4000] [--method LABEL] [--compare-with LABEL|none]
 
 ``--method`` is any registered label (default: the default method) or a fused method's label with ``-raw``
 (:func:`reconstruction.methods.registry.uncalibrated`: no photometric self-calibration); ``--compare-with`` (default
@@ -12,10 +12,11 @@ is missed):
 
 - the method's wall time at 1000x500 at most :data:`GOAL_TIME_FACTOR` x the comparison method's in the same run:
   what the default adds to its matching (the self-calibration stage: a reduced flow pass, the rig and photometric
-  fits and their tests) costs at most a tenth of it.  The runs are paired (one of each, back to back) and the goal
-  reads the median of the pairs' ratios: a shared machine's speed drifts by 10-20 % over minutes (the SGM stage of
-  one method alone took 3.5-5.0 s within ten minutes on a 2-core machine), and a pair sees one speed.  Both are
-  timed on the same machine in the same minutes, so no absolute time is needed;
+  fits and their tests) costs at most a tenth of it.  The runs are paired (one of each, back to back, which goes
+  first alternating from pair to pair) and the goal reads the median of the pairs' ratios: a shared machine's speed
+  drifts by 10-20 % over minutes (the SGM stage of one method alone took 3.5-5.0 s within ten minutes on a 2-core
+  machine), a pair sees one speed, and the first of a pair ran slower (the same method against itself: 1.00-1.20 x,
+  five pairs out of five).  Both are timed on the same machine in the same minutes, so no absolute time is needed;
 - its peak RSS at 1000x500 at most :data:`GOAL_PEAK_GB`: a frame of the default size fits in the memory a
   ``--workers`` task is given (``harness.runtime.cluster.BASE_BYTES``, 1 GiB); measured 0.78-0.86 GB.  Memory does
   not depend on the machine's speed, so this stays absolute.
@@ -107,7 +108,7 @@ def run_child(width: int, runs: int, method_name: str = DEFAULT_METHOD) -> tuple
 def main(argv=None) -> int:
     ap = ArgumentParser(prog="python -m tools.bench.sweep", description=__doc__,
                         formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--runs", type=int, default=5,
+    ap.add_argument("--runs", type=int, default=6,
                     help="timed runs (pairs, with a comparison) at 1000x500 (medians are reported)")
     ap.add_argument("--big-width", type=int, default=4000, help="width of the memory run (0 = skip)")
     ap.add_argument("--method", default=DEFAULT_METHOD,
@@ -131,8 +132,8 @@ def main(argv=None) -> int:
         run_child(320, 1, label)
     runs: dict[str, list[dict]] = {label: [] for label in labels}
     peak: dict[str, float] = {label: 0.0 for label in labels}
-    for _ in range(args.runs):  # one run of each in turn: both see the same load
-        for label in labels:
+    for i in range(args.runs):  # one run of each in turn, the order alternating: both see the same load and places
+        for label in (labels if i % 2 == 0 else labels[::-1]):
             res, gb = run_child(BASE_WIDTH, 1, label)
             runs[label].extend(res["runs"])
             peak[label] = max(peak[label], gb)
