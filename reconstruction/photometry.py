@@ -428,8 +428,6 @@ def _irls(design: np.ndarray, target: np.ndarray, coef: np.ndarray, params: Phot
     sigma = float("nan")
     if not params.iterations:
         return coef, w, sigma
-    # each of the ``tied`` row blocks (a camera's rows) touches only some columns (its own and the shared ones):
-    # the normal equations are summed from those narrow blocks
     n_blocks = max(tied, 1)
     rows = target.size // n_blocks
     blocks = []

@@ -14,9 +14,9 @@ is missed):
   what the default adds to its matching (the self-calibration stage: a reduced flow pass, the rig and photometric
   fits and their tests) costs at most a tenth of it.  The runs are paired (one of each, back to back, which goes
   first alternating from pair to pair) and the goal reads the median of the pairs' ratios: a shared machine's speed
-  drifts by 10-20 % over minutes (the SGM stage of one method alone took 3.5-5.0 s within ten minutes on a 2-core
-  machine), a pair sees one speed, and the first of a pair ran slower (the same method against itself: 1.00-1.20 x,
-  five pairs out of five).  Both are timed on the same machine in the same minutes, so no absolute time is needed;
+  drifts over minutes, a pair sees one speed, and the first of two back-to-back runs tends to be the slower
+  (measured in docs/photometry.md).  Both are timed on the same machine in the same minutes, so no absolute time is
+  needed;
 - its peak RSS at 1000x500 at most :data:`GOAL_PEAK_GB`: a frame of the default size fits in the memory a
   ``--workers`` task is given (``harness.runtime.cluster.BASE_BYTES``, 1 GiB); measured 0.78-0.86 GB.  Memory does
   not depend on the machine's speed, so this stays absolute.
