@@ -21,14 +21,14 @@ def add_method_options(parser: argparse.ArgumentParser, multiple: bool) -> None:
     if multiple:
         named = [m.label for m in evaluate_default_methods() if not isinstance(m, FlowMethod)]
         configs = ", ".join(f"{config_label(f, r)}:*" for f, r in DEFAULT_CONFIGS)
-        parser.add_argument("--method", nargs="+", default=None, metavar="LABEL",
+        parser.add_argument("--method", nargs="+", action="extend", default=None, metavar="LABEL",
                             help="methods by label, e.g. fused-mirror dis-rect:gradient deepflow-rect:average, or "
                                  f"plugins' labels; 'tri360 methods' lists them (default: {', '.join(named)}, then "
                                  f"{configs}: tri360's flow pipeline and the paper's set-up, each with the variants "
                                  f"{', '.join(DEFAULT_VARIANTS)})")
-        parser.add_argument("--flow", nargs="+", default=None, metavar="NAME",
+        parser.add_argument("--flow", nargs="+", action="extend", default=None, metavar="NAME",
                             help=f"instead of --method: flow-pipeline methods with these flows ({flows})")
-        parser.add_argument("--variants", nargs="+", default=None, metavar="NAME",
+        parser.add_argument("--variants", nargs="+", action="extend", default=None, metavar="NAME",
                             help=f"with --flow: these variants (default: all of {variants})")
     else:
         parser.add_argument("--method", default=None, metavar="LABEL",
@@ -49,7 +49,8 @@ def add_results_options(parser: argparse.ArgumentParser, what: str) -> None:
                         help="results directory, replaced as a whole: it must be absent, empty or a results set "
                              "tri360 wrote (holding nothing else); never the data root, a frame or predictions "
                              "root, inside one or a parent of one")
-    parser.add_argument("--scene", nargs="+", default=None, metavar="NAME", help=f"{what} only these scenes")
+    parser.add_argument("--scene", nargs="+", action="extend", default=None, metavar="NAME",
+                        help=f"{what} only these scenes")
     parser.add_argument("--report", action=argparse.BooleanOptionalAction, default=True,
                         help="write the report with the results (--no-report: results only)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")

@@ -21,7 +21,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="predictions roots: PRED_ROOT/<scene>/<viewpoint>/distance.exr (+ confidence.exr)")
     parser.add_argument("--data", type=Path, required=True, metavar="DATA_ROOT",
                         help="the frames with ground truth (<scene>/<viewpoint>/, or one frame directory)")
-    parser.add_argument("--method", nargs="+", default=None, metavar="NAME",
+    parser.add_argument("--method", nargs="+", action="extend", default=None, metavar="NAME",
                         help="one name per PRED_ROOT, in order (default: method.json's name, else the folder name); "
                              "a name becomes part of the maps' paths, so it may use only letters, digits and "
                              "_ . : + = - (no leading dot, no '..', at most 100 characters)")

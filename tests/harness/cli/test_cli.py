@@ -8,7 +8,7 @@ import sys
 import pandas as pd
 import pytest
 
-from harness.cli import main
+from harness.cli import build_parser, main
 from harness.data.exr import read_float_map
 from reconstruction.methods.registry import DEFAULT_METHOD, PRESETS, get_methods
 from reports.schema import RESULT_COLUMNS
@@ -67,6 +67,18 @@ def test_errors_are_one_line_and_non_zero(argv, culprit, synthetic_root, capsys)
     assert main(argv) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and culprit in err[0] and "error" in err[0]
+
+
+def test_a_repeated_list_option_adds_to_the_list():
+    """``--method a --method b`` asks for both (as ``--method a b``), not only the last."""
+    args = build_parser().parse_args(["evaluate", "data", "--method", "fused-mirror", "--method", "sweep",
+                                      "--scene", "a", "--scene", "b", "c"])
+    assert args.method == ["fused-mirror", "sweep"] and args.scene == ["a", "b", "c"]
+    args = build_parser().parse_args(["evaluate", "data", "--flow", "dis", "--flow", "deepflow", "--variants",
+                                      "average", "--variants", "gradient"])
+    assert args.flow == ["dis", "deepflow"] and args.variants == ["average", "gradient"] and args.method is None
+    args = build_parser().parse_args(["score", "p1", "p2", "--data", "d", "--method", "a", "--method", "b"])
+    assert args.method == ["a", "b"]
 
 
 def test_empty_root_is_an_error(tmp_path, capsys):
