@@ -7,7 +7,8 @@ and weight residuals robustly (Tukey's biweight over a MAD scale).
 
 * Padding and filters: :func:`periodic_pad` (columns from the opposite edge, rows ``"edge"``, ``"reflect"``,
   ``"symmetric"`` or ``"constant"``), :func:`periodic_filter` (any filter on the padded image, cropped back),
-  :func:`periodic_gaussian_blur`, :func:`periodic_box_filter`.
+  :func:`periodic_gaussian_blur`, :func:`periodic_box_filter`, :func:`local_contrast` (the standard
+  deviation in a Gaussian window).
 * Differences: :func:`central_differences` (columns periodic), :func:`sobel_gradient` (3x3 Sobel per pixel,
   columns periodic, rows replicated).
 * Grey: :func:`grey` (OpenCV's 8-bit BT.601, float BT.601, the channel mean or BT.709 luminance of linear light).
@@ -27,7 +28,7 @@ import cv2
 import numpy as np
 
 __all__ = ["ROW_MODES", "periodic_pad", "periodic_filter", "periodic_gaussian_blur", "periodic_box_filter",
-           "central_differences", "sobel_gradient", "GREY_MODES", "grey", "axis_angle_matrix",
+           "local_contrast", "central_differences", "sobel_gradient", "GREY_MODES", "grey", "axis_angle_matrix",
            "rotation_vector_matrix", "vector_angle_deg", "rotation_angle_deg", "MAD_TO_SIGMA", "robust_scale",
            "tukey_weights"]
 
@@ -107,6 +108,24 @@ def periodic_gaussian_blur(x: np.ndarray, sigma_px: float, *, cols: int | None =
     pad = int(np.ceil(3 * sigma_px)) if cols is None else int(cols)
     return periodic_filter(x, pad, lambda p: cv2.GaussianBlur(p, (ksize, ksize), sigma_px, borderType=border),
                            rows, row_mode)
+
+
+def local_contrast(gray: np.ndarray, sigma_px: float) -> np.ndarray:
+    """Local standard deviation of intensity in a Gaussian window (wrapping in longitude; rows as OpenCV's reflect
+    border).
+
+    Args:
+        gray: (H, W) float32 gray, 0-255.
+        sigma_px: window sigma, pixels (> 0).
+    Returns:
+        (H, W) float32 contrast, gray levels.
+    """
+    pad = int(np.ceil(3 * sigma_px))
+    # float64 and centred (on the mean of the padded image): E[x^2] - E[x]^2 without cancellation
+    g = gray.astype(np.float64) - periodic_pad(gray, pad).astype(np.float64).mean()
+    mean = periodic_gaussian_blur(g, sigma_px, cols=pad)
+    var = periodic_gaussian_blur(g * g, sigma_px, cols=pad) - mean * mean
+    return np.sqrt(np.maximum(var, 0.0)).astype(np.float32)
 
 
 def periodic_box_filter(x: np.ndarray, window: int, *, normalize: bool = True, rows: int = 0,

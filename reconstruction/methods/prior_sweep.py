@@ -26,14 +26,14 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from reconstruction.camera.image_ops import periodic_gaussian_blur, periodic_pad
+from reconstruction.camera.image_ops import local_contrast
 from reconstruction.methods.base import MethodOutput
 from reconstruction.methods.flow_pipeline import FlowMethod, run_flow_group
 from reconstruction.methods.self_calibration import Calibration
 from reconstruction.methods.sweep import Prior, PriorFromSweep, SgmParams, SweepMethod, sweep_distances
 from reconstruction.sweep.cost import CostParams, gray_float
 
-__all__ = ["PriorParams", "PriorSweepMethod", "default_sweep", "local_contrast", "prior_weight", "sweep_gate"]
+__all__ = ["PriorParams", "PriorSweepMethod", "default_sweep", "prior_weight", "sweep_gate"]
 
 
 def default_sweep() -> SweepMethod:
@@ -94,23 +94,6 @@ class PriorParams:
     def needs_plain_sweep(self) -> bool:
         """Whether the weight depends on the plain sweep's result (the coarse pass's, upsampled)."""
         return self.sweep_confidence_power > 0 or self.frame_agreement_high > 0
-
-
-def local_contrast(gray: np.ndarray, sigma_px: float) -> np.ndarray:
-    """Local standard deviation of intensity in a Gaussian window (wrapping in longitude).
-
-    Args:
-        gray: (H, W) float32 gray, 0-255.
-        sigma_px: window sigma, pixels (> 0).
-    Returns:
-        (H, W) float32 contrast, gray levels.
-    """
-    pad = int(np.ceil(3 * sigma_px))
-    # float64 and centred (on the mean of the padded image): E[x^2] - E[x]^2 without cancellation
-    g = gray.astype(np.float64) - periodic_pad(gray, pad).astype(np.float64).mean()
-    mean = periodic_gaussian_blur(g, sigma_px, cols=pad)
-    var = periodic_gaussian_blur(g * g, sigma_px, cols=pad) - mean * mean
-    return np.sqrt(np.maximum(var, 0.0)).astype(np.float32)
 
 
 def prior_weight(params: PriorParams, image: np.ndarray, confidence: np.ndarray | None) -> np.ndarray:

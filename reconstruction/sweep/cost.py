@@ -42,16 +42,25 @@ import numba
 import numpy as np
 
 from reconstruction.camera.equirect import bearing_grid
-from reconstruction.camera.image_ops import central_differences, grey, periodic_gaussian_blur, periodic_pad
+from reconstruction.camera.image_ops import (
+    central_differences,
+    grey,
+    local_contrast,
+    periodic_gaussian_blur,
+    periodic_pad,
+)
 from reconstruction.camera.resample import WRAP_PAD, rectifying_rotation, rotation_maps, warp_equirect
 
 __all__ = ["CostParams", "PairWarp", "FEATURES", "RANK_RADIUS_PX", "NORM_SIGMA_PX", "NORM_EPS", "NORM_SCALE",
            "inverse_distances", "visibility_buffer", "gray_float", "rank_transform", "local_normalize",
            "feature_image", "prepare_pair", "build_cost_volume", "source_rows", "rect_row", "image_noise",
-           "noise_blur_px"]
+           "noise_blur_px", "FLAT_NOISE_SCALE", "untextured", "flatten_untextured"]
 
 #: the per-pixel features of the cost (``CostParams.feature``; module doc)
 FEATURES = ("intensity", "rank", "normalized")
+#: the scale of the noise estimate behind ``CostParams.flat_contrast`` (:func:`image_noise`): 2, where the noise
+#: that JPEG coding flattened at the pixel scale still shows
+FLAT_NOISE_SCALE = 2
 #: radius of the rank transform's square window, pixels of the rectified image (7 x 7: 48 neighbours)
 RANK_RADIUS_PX = 3
 #: sigma of the Gaussian window of the local normalisation, pixels of the rectified image
@@ -97,6 +106,15 @@ class CostParams:
             both (their weighted cost scaled to the summed weight).
         occlusion_min_share: a hypothesis keeps every pair's vote unless the pairs that see it hold at least this
             share of the summed pair weight.
+        flat_contrast: no preference where C shows no texture (0 = off): C's pixels whose local contrast
+            (:func:`reconstruction.camera.image_ops.local_contrast` of C's gray image, sigma ``flat_sigma_px``) is
+            below ``flat_contrast`` times C's noise (:func:`image_noise` at :data:`FLAT_NOISE_SCALE`, at least
+            ``flat_min_noise`` gray levels) give every sphere hypothesis the same cost, the mean of theirs
+            (:func:`flatten_untextured`): what the pairs say there is the noise's and the cameras' differences, so
+            the aggregation fills them from their textured neighbours.
+        flat_sigma_px: the contrast window's sigma, pixels (> 0).
+        flat_min_noise: the least noise the threshold assumes, gray levels (noise-free renders still have
+            quantisation and aliasing).
     """
 
     d_min_m: float = 0.3
@@ -116,6 +134,9 @@ class CostParams:
     noise_scale: int = 1
     occlusion: float = 0.0
     occlusion_min_share: float = 0.25
+    flat_contrast: float = 0.0
+    flat_sigma_px: float = 2.0
+    flat_min_noise: float = 0.5
 
     def __post_init__(self) -> None:
         if self.feature not in FEATURES:
@@ -129,6 +150,9 @@ class CostParams:
         if not (self.occlusion >= 0 and 0 <= self.occlusion_min_share <= 1):
             raise ValueError(f"cost occlusion {self.occlusion} must be >= 0 and occlusion_min_share "
                              f"{self.occlusion_min_share} within [0, 1]")
+        if not (self.flat_contrast >= 0 and self.flat_sigma_px > 0 and self.flat_min_noise >= 0):
+            raise ValueError(f"cost flat_contrast {self.flat_contrast} and flat_min_noise {self.flat_min_noise} must "
+                             f"be >= 0 and flat_sigma_px {self.flat_sigma_px} > 0")
 
     def max_cost(self) -> int:
         """Largest possible summed cost, uint16 units (both pairs' weights sum to at most 2)."""
@@ -380,7 +404,53 @@ def build_cost_volume(frame, params: CostParams, extra_labels: int = 0, pairs=("
     if box > 1:
         _box_lines(cost, params.levels, box // 2, True, np.float32(1.0))  # along longitude, which wraps
         _box_lines(cost.transpose(1, 0, 2), params.levels, box // 2, False, np.float32(1.0 / (box * box)))
+    if params.flat_contrast > 0:
+        flatten_untextured(cost, params.levels, untextured(frame.images["C"], params))
     return cost, warps
+
+
+def untextured(image: np.ndarray, params: CostParams) -> np.ndarray:
+    """Where C shows no texture above its noise (``CostParams.flat_contrast``).
+
+    Args:
+        image: (H, W, 3) uint8 RGB of C.
+        params: ``flat_contrast``, ``flat_sigma_px`` and ``flat_min_noise`` are read.
+    Returns:
+        (H, W) bool: local contrast below ``flat_contrast * max(noise, flat_min_noise)`` (gray levels); all False
+        when ``flat_contrast`` is 0.
+    """
+    if params.flat_contrast <= 0:
+        return np.zeros(image.shape[:2], bool)
+    noise = max(image_noise(image, FLAT_NOISE_SCALE), params.flat_min_noise)
+    return local_contrast(gray_float(image, 0.0), params.flat_sigma_px) < params.flat_contrast * noise
+
+
+def flatten_untextured(cost: np.ndarray, levels: int, mask: np.ndarray) -> None:
+    """Give the pixels of ``mask`` the same cost for every sphere hypothesis, in place: the floor of the mean of
+    their first ``levels`` costs (the labels after them, planes and walls, are not touched).
+
+    Args:
+        cost: (H, W, L) uint16 cost volume, L >= ``levels``.
+        levels: the number of sphere hypotheses (the first labels).
+        mask: (H, W) bool.
+    """
+    if mask.shape != cost.shape[:2] or not 0 < levels <= cost.shape[2]:
+        raise ValueError(f"mask {mask.shape} and levels {levels} do not fit a cost volume of shape {cost.shape}")
+    _flatten_rows(cost, int(levels), np.ascontiguousarray(mask))
+
+
+@numba.njit(parallel=True, cache=True)
+def _flatten_rows(cost, levels, mask):
+    h, w, _ = cost.shape
+    for y in numba.prange(h):
+        for x in range(w):
+            if mask[y, x]:
+                total = 0
+                for i in range(levels):
+                    total += np.int64(cost[y, x, i])
+                mean = np.uint16(total // levels)
+                for i in range(levels):
+                    cost[y, x, i] = mean
 
 
 def visibility_buffer(estimate: np.ndarray, ur: np.ndarray, vr: np.ndarray, baseline_m: float, width: int,

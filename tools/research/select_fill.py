@@ -94,13 +94,15 @@ def methods_to_compare(build: Callable[..., Method], reference: tuple, candidate
                        name: Callable[[tuple], str], names: Sequence[str] | None = None) -> list[Method]:
     """``build(*reference)``, ``build(*config)`` per candidate configuration (``names``: only those whose
     ``name(config)`` is listed; UserError for an unknown one; one configured as the default is left out) and the
-    default as registered."""
+    default as registered (left out too when the reference is configured as it: the reference stands for it)."""
     known = {name(c): c for c in candidates}
     unknown = [n for n in (names or ()) if n not in known]
     if unknown:
         raise UserError(f"unknown candidate(s) {', '.join(unknown)} (candidates: {', '.join(known)})")
     chosen = [build(*known[n]) for n in (names if names else known)]
-    return [build(*reference), *(m for m in chosen if not _same_as_default(m)), fused_mirror()]
+    first = build(*reference)
+    default = [] if _same_as_default(first) else [fused_mirror()]
+    return [first, *(m for m in chosen if not _same_as_default(m)), *default]
 
 
 def candidate_methods(names: Sequence[str] | None = None) -> list[Method]:

@@ -10,11 +10,12 @@ import numpy as np
 import pytest
 
 import reconstruction.methods.flow_pipeline as pipeline
+from reconstruction.camera.image_ops import local_contrast
 from reconstruction.methods import presets
 from reconstruction.methods.base import method_groups, run_methods
 from reconstruction.methods.flow_refine import refine_variant
 from reconstruction.methods.flow_stages import flow_confidence, prepare
-from reconstruction.methods.prior_sweep import PriorParams, PriorSweepMethod, local_contrast, prior_weight
+from reconstruction.methods.prior_sweep import PriorParams, PriorSweepMethod, prior_weight
 from reconstruction.methods.registry import DEFAULT_METHOD, evaluate_default_methods, flow_methods
 from reconstruction.methods.sweep import Prior, sweep_distance, sweep_distances
 from reconstruction.photometry import NO_CALIBRATION

@@ -1,0 +1,77 @@
+"""Choose where the default's sweep gives no matching preference: C's pixels without texture above its noise.
+
+Run as::
+
+    python -m tools.research.select_flat DATA_ROOT --out DIR [--frames LABEL ...] [--candidates NAME ...]
+        [--quiet] [--workers N | --scheduler ADDRESS]
+
+``LABEL`` is a frame directory (``<scene>/<viewpoint>``) or a directory of frames (``<scene>``) relative to
+``DATA_ROOT``; without ``--frames`` every frame under ``DATA_ROOT`` (choose on a suite's ``dev`` split).  The
+methods: the reference :data:`REFERENCE` (``fused-mirror-flat-0``: a preference everywhere, as the default was
+before this choice), one ``fused-mirror-flat-<k>`` per candidate of :data:`CANDIDATES` (``--candidates``: these
+only, as ``<k>``; both sweep costs' ``CostParams.flat_contrast`` set to ``k``, everything else the default's) and the
+default ``fused-mirror`` as registered (a candidate or the reference configured as the default stands for it, not
+run twice).  ``DIR`` becomes a results set (``tri360 evaluate``'s, without the report) plus ``selection.md`` and
+``selection.json``, as ``python -m tools.research.select_fill`` writes them, with the same rule
+(:func:`tools.research.select_fill.choose`): eligible when no (condition, room family) is more than
+``FAMILY_BOUND`` times the reference's; the choice is the eligible candidate (or the reference) with the lowest
+pooled MAE over all frames.
+"""
+
+from __future__ import annotations
+
+from harness.runtime import startup
+
+if __name__ == "__main__":  # run as a script: Ctrl-C during the imports below is one line and 130
+    startup.guard("select_flat")
+
+import dataclasses
+import sys
+from collections.abc import Sequence
+
+from reconstruction.methods.base import Method
+from reconstruction.methods.presets import fused_mirror
+from tools.research.select_fill import candidates_main, methods_to_compare
+
+__all__ = ["PROG", "REFERENCE", "CANDIDATES", "flat_method", "candidate_methods", "main"]
+
+PROG = "select_flat"
+#: a configuration: (``CostParams.flat_contrast``: local contrast below this many times C's noise gives no
+#: preference; 0 = never)
+Config = tuple[float]
+#: the reference: the default as it was before this choice
+REFERENCE: Config = (0.0,)
+#: the candidates
+CANDIDATES: tuple[Config, ...] = ((0.7,), (1.0,))
+TITLE = "No matching preference where C shows no texture above its noise"
+
+
+def _name(config: Config) -> str:
+    return f"{config[0]:g}"
+
+
+def flat_method(flat_contrast: float) -> Method:
+    """The default method whose sweep costs (``cost`` and ``corrected_cost``) give no preference below
+    ``flat_contrast`` times C's noise (:class:`reconstruction.sweep.cost.CostParams`), everything else the
+    default's; labelled ``fused-mirror-flat-<k>``."""
+    base = fused_mirror()
+    sweep = base.sweep
+    corrected = (None if sweep.corrected_cost is None
+                 else dataclasses.replace(sweep.corrected_cost, flat_contrast=flat_contrast))
+    sweep = dataclasses.replace(sweep, cost=dataclasses.replace(sweep.cost, flat_contrast=flat_contrast),
+                                corrected_cost=corrected)
+    return dataclasses.replace(base, sweep=sweep, label=f"{base.label}-flat-{_name((flat_contrast,))}")
+
+
+def candidate_methods(names: Sequence[str] | None = None) -> list[Method]:
+    """The reference (:data:`REFERENCE`), one :func:`flat_method` per candidate (``names``: these only, as ``<k>``)
+    and the default (:func:`tools.research.select_fill.methods_to_compare`)."""
+    return methods_to_compare(flat_method, REFERENCE, CANDIDATES, _name, names)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    return candidates_main(PROG, __doc__, argv, candidate_methods, "<k>", [_name(c) for c in CANDIDATES], TITLE)
+
+
+if __name__ == "__main__":
+    sys.exit(startup.run_main(main, PROG))
