@@ -1,13 +1,15 @@
 """The selections of the default's sweep: its floor and ceiling families and room bound, its SGM jump penalty and
-plane preference: the candidates, and bad input."""
+plane preference, where it gives no matching preference: the candidates, and bad input."""
 
 from __future__ import annotations
+
+import dataclasses
 
 import pytest
 
 from harness.data.errors import UserError
 from reconstruction.methods.presets import fused_mirror
-from tools.research import select_planes, select_sgm
+from tools.research import select_flat, select_planes, select_sgm
 from tools.research.select_planes import CANDIDATES, REFERENCE, candidate_methods, planes_method
 from tools.research.select_sgm import sgm_method
 
@@ -36,12 +38,15 @@ def test_candidates_the_reference_first_and_the_default_once():
 def test_sgm_candidates_the_reference_first_and_the_default_once():
     methods = select_sgm.candidate_methods()
     labels = [m.label for m in methods]
-    assert labels[0] == "fused-mirror-sgm-800-4" and labels[-1] == "fused-mirror"
+    assert labels[0] == "fused-mirror-sgm-800-4"
     assert len(set(labels)) == len(labels) and len(methods) <= len(select_sgm.CANDIDATES) + 2
     ref = methods[0]
     assert (ref.sweep.sgm.p2, ref.sweep.planes.bias) == select_sgm.REFERENCE
-    # everything but the two values is the default's
+    # the default runs once: as itself, last, unless the reference is configured as it
     default = fused_mirror()
+    same = [m for m in methods if {**m.config(), "label": None} == {**default.config(), "label": None}]
+    assert len(same) == 1 and (labels[-1] == "fused-mirror") == (same[0] is not ref)
+    # everything but the two values is the default's
     m = sgm_method(1600, 2)
     assert (m.sweep.sgm.p2, m.sweep.planes.bias) == (1600, 2)
     assert m.flow == default.flow and m.prior == default.prior and m.sweep.cost == default.sweep.cost
@@ -49,12 +54,38 @@ def test_sgm_candidates_the_reference_first_and_the_default_once():
     assert (m.sweep.sgm.p1, m.sweep.sgm.p3, m.sweep.sgm.edge) == (default.sweep.sgm.p1, default.sweep.sgm.p3,
                                                                   default.sweep.sgm.edge)
     assert m.sweep.planes.bound_margin == default.sweep.planes.bound_margin
-    assert [x.label for x in select_sgm.candidate_methods(["1200-8"])][1:-1] in ([], ["fused-mirror-sgm-1200-8"])
+    assert [x.label for x in select_sgm.candidate_methods(["1200-8"])][1:] in (
+        [], ["fused-mirror-sgm-1200-8"], ["fused-mirror"], ["fused-mirror-sgm-1200-8", "fused-mirror"])
     with pytest.raises(UserError, match="unknown candidate"):
         select_sgm.candidate_methods(["1200-3"])
 
 
-@pytest.mark.parametrize("main", [select_planes.main, select_sgm.main], ids=["planes", "sgm"])
+def test_flat_candidates_the_reference_first_and_the_default_once():
+    methods = select_flat.candidate_methods()
+    labels = [m.label for m in methods]
+    assert labels[0] == "fused-mirror-flat-0"
+    assert len(set(labels)) == len(labels) and len(methods) <= len(select_flat.CANDIDATES) + 2
+    # the default is run once: as itself, or as the reference or the candidate configured as it
+    default = fused_mirror()
+    same = [m for m in methods if {**m.config(), "label": None} == {**default.config(), "label": None}]
+    assert len(same) == 1
+    assert (labels[-1] == "fused-mirror") == (same[0].label == "fused-mirror")
+    assert methods[0].sweep.cost.flat_contrast == methods[0].sweep.corrected_cost.flat_contrast == 0.0
+    # everything but the one value, in both sweep costs, is the default's
+    m = select_flat.flat_method(2.5)
+    assert m.sweep.cost.flat_contrast == m.sweep.corrected_cost.flat_contrast == 2.5
+    assert m.sweep.cost == dataclasses.replace(default.sweep.cost, flat_contrast=2.5)
+    assert m.sweep.corrected_cost == dataclasses.replace(default.sweep.corrected_cost, flat_contrast=2.5)
+    assert m.flow == default.flow and m.prior == default.prior and m.sweep.sgm == default.sweep.sgm
+    assert m.sweep.planes == default.sweep.planes and m.sweep.post == default.sweep.post
+    assert [x.label for x in select_flat.candidate_methods(["1"])][1:] in (
+        [], ["fused-mirror-flat-1"], ["fused-mirror"], ["fused-mirror-flat-1", "fused-mirror"])
+    with pytest.raises(UserError, match="unknown candidate"):
+        select_flat.candidate_methods(["3"])
+
+
+@pytest.mark.parametrize("main", [select_planes.main, select_sgm.main, select_flat.main],
+                         ids=["planes", "sgm", "flat"])
 def test_a_missing_data_root_is_one_line_and_writes_nothing(main, tmp_path, capsys):
     out = tmp_path / "sel"
     assert main([str(tmp_path / "nope"), "--out", str(out), "--quiet", "--frames", "a/vp000"]) == 2

@@ -13,6 +13,7 @@ from reconstruction.camera.image_ops import (
     axis_angle_matrix,
     central_differences,
     grey,
+    local_contrast,
     periodic_box_filter,
     periodic_filter,
     periodic_gaussian_blur,
@@ -206,3 +207,18 @@ def test_tukey_refit_ignores_a_planted_outlier():
         coef = np.linalg.solve(design.T @ (design * w[:, None]), design.T @ (w * y))
     assert w[17] == 0.0
     np.testing.assert_allclose(coef, [2.0, 3.0], rtol=0, atol=0.02)
+
+
+def test_local_contrast_is_the_windowed_standard_deviation_and_wraps_in_longitude():
+    h, w = 64, 128
+    flat = np.full((h, w), 100.0, np.float32)
+    np.testing.assert_allclose(local_contrast(flat, 3.0), 0.0, atol=1e-3)
+    # a fine checkerboard of +-a has standard deviation a in any window much wider than its period
+    yy, xx = np.mgrid[0:h, 0:w]
+    board = (100.0 + 10.0 * np.where((yy + xx) % 2 == 0, 1.0, -1.0)).astype(np.float32)
+    np.testing.assert_allclose(local_contrast(board, 3.0)[8:-8], 10.0, rtol=0.02)
+    # a step at the seam (column 0 | W-1) looks like the same step in the middle of the image
+    step = np.where(xx < w // 2, 0.0, 50.0).astype(np.float32)
+    c = local_contrast(step, 3.0)
+    np.testing.assert_allclose(c[:, 0], c[:, w // 2], atol=1e-3)
+    assert c[:, 0].min() > 20.0 and c[:, w // 4].max() < 1e-2
