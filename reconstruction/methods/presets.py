@@ -99,8 +99,8 @@ def fused_mirror() -> PriorSweepMethod:
             cost=CostParams(
                 d_min_m=0.3, d_max_m=30.0, levels=200, blur_px=0.0, gradient_weight=2.0, intensity_weight=1.0,
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=0.0,
-                noise_floor=1.0, max_noise_blur_px=1.5, noise_scale=1, occlusion=0.0, occlusion_min_share=0.25, flat_contrast=0.0,
-                flat_sigma_px=2.0, flat_min_noise=0.5),
+                noise_floor=1.0, max_noise_blur_px=1.5, noise_scale=1, occlusion=0.0, occlusion_min_share=0.25,
+                flat_contrast=0.0, flat_weight=1.0, flat_sigma_px=2.0, flat_min_noise=0.5),
             planes=PlaneParams(
                 per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_min_share=0.03,
                 coarse_factor=2, wall_spread=0.1, wall_min_share=0.01,
@@ -140,8 +140,8 @@ def fused_mirror() -> PriorSweepMethod:
                 # matches at): rendered frames measure 0.1-0.4 gray levels there, the suite's other camera families
                 # 0.9-2.9 and its low-light ones 3.1-6.5 (reconstruction.sweep.cost.image_noise; chosen on tri360-v3
                 # dev's low-light family, docs/photometry.md)
-                noise_blur=1.0, noise_floor=2.0, noise_scale=2, occlusion=0.0, occlusion_min_share=0.25, flat_contrast=0.0,
-                flat_sigma_px=2.0, flat_min_noise=0.5)),
+                noise_blur=1.0, noise_floor=2.0, noise_scale=2, occlusion=0.0, occlusion_min_share=0.25,
+                flat_contrast=0.0, flat_weight=1.0, flat_sigma_px=2.0, flat_min_noise=0.5)),
         # fused's weight (16), times a ramp of C's local contrast (0 below 0.5, full above 2 gray levels: no prior
         # where there is no texture for the flow to follow), times 1 - c_sweep where the flow and the plain coarse
         # sweep disagree by more than 5 % (a confident sweep keeps its answer), times the frame's agreement share
@@ -193,8 +193,8 @@ def fused() -> PriorSweepMethod:
             cost=CostParams(
                 d_min_m=0.3, d_max_m=30.0, levels=160, blur_px=0.0, gradient_weight=2.0, intensity_weight=1.0,
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=0.0,
-                noise_floor=1.0, max_noise_blur_px=1.5, noise_scale=1, occlusion=0.0, occlusion_min_share=0.25, flat_contrast=0.0,
-                flat_sigma_px=2.0, flat_min_noise=0.5),
+                noise_floor=1.0, max_noise_blur_px=1.5, noise_scale=1, occlusion=0.0, occlusion_min_share=0.25,
+                flat_contrast=0.0, flat_weight=1.0, flat_sigma_px=2.0, flat_min_noise=0.5),
             # spheres and floor/ceiling planes, no wall planes
             planes=PlaneParams(
                 per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_margin=0.25,
@@ -225,8 +225,8 @@ def sweep() -> SweepMethod:
         cost=CostParams(
             d_min_m=0.3, d_max_m=30.0, levels=160, blur_px=0.0, gradient_weight=2.0, intensity_weight=1.0,
             truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=0.0, noise_floor=1.0,
-            max_noise_blur_px=1.5, noise_scale=1, occlusion=0.0, occlusion_min_share=0.25, flat_contrast=0.0,
-                flat_sigma_px=2.0, flat_min_noise=0.5),
+            max_noise_blur_px=1.5, noise_scale=1, occlusion=0.0, occlusion_min_share=0.25,
+                flat_contrast=0.0, flat_weight=1.0, flat_sigma_px=2.0, flat_min_noise=0.5),
         planes=PlaneParams(
             per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_margin=0.25, bound_min_share=0.03,
             coarse_factor=2, wall_labels=0, wall_spread=0.1, wall_min_share=0.01, mirror_tolerance=0.0, room_labels=0,
@@ -264,8 +264,8 @@ def fused_mirror_raw() -> PriorSweepMethod:
             cost=CostParams(
                 d_min_m=0.3, d_max_m=30.0, levels=200, blur_px=0.0, gradient_weight=2.0, intensity_weight=1.0,
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=0.0,
-                noise_floor=1.0, max_noise_blur_px=1.5, noise_scale=1, occlusion=0.0, occlusion_min_share=0.25, flat_contrast=0.0,
-                flat_sigma_px=2.0, flat_min_noise=0.5),
+                noise_floor=1.0, max_noise_blur_px=1.5, noise_scale=1, occlusion=0.0, occlusion_min_share=0.25,
+                flat_contrast=0.0, flat_weight=1.0, flat_sigma_px=2.0, flat_min_noise=0.5),
             planes=PlaneParams(
                 per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_margin=0.1,
                 bound_min_share=0.03, coarse_factor=2, wall_labels=9, wall_spread=0.1, wall_min_share=0.01,
@@ -311,8 +311,8 @@ def fused_mirror_told_rig() -> PriorSweepMethod:
             cost=CostParams(
                 d_min_m=0.3, d_max_m=30.0, levels=200, blur_px=0.0, gradient_weight=2.0, intensity_weight=1.0,
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=0.0,
-                noise_floor=1.0, max_noise_blur_px=1.5, noise_scale=1, occlusion=0.0, occlusion_min_share=0.25, flat_contrast=0.0,
-                flat_sigma_px=2.0, flat_min_noise=0.5),
+                noise_floor=1.0, max_noise_blur_px=1.5, noise_scale=1, occlusion=0.0, occlusion_min_share=0.25,
+                flat_contrast=0.0, flat_weight=1.0, flat_sigma_px=2.0, flat_min_noise=0.5),
             planes=PlaneParams(
                 per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_margin=0.1,
                 bound_min_share=0.03, coarse_factor=2, wall_labels=9, wall_spread=0.1, wall_min_share=0.01,
@@ -323,8 +323,8 @@ def fused_mirror_told_rig() -> PriorSweepMethod:
             corrected_cost=CostParams(
                 d_min_m=0.3, d_max_m=30.0, levels=200, blur_px=0.7, gradient_weight=2.0, intensity_weight=0.25,
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=1.0,
-                noise_floor=2.0, max_noise_blur_px=1.5, noise_scale=2, occlusion=0.0, occlusion_min_share=0.25, flat_contrast=0.0,
-                flat_sigma_px=2.0, flat_min_noise=0.5)),
+                noise_floor=2.0, max_noise_blur_px=1.5, noise_scale=2, occlusion=0.0, occlusion_min_share=0.25,
+                flat_contrast=0.0, flat_weight=1.0, flat_sigma_px=2.0, flat_min_noise=0.5)),
         prior=PriorParams(
             weight=16.0, truncate_levels=16.0, use_confidence=False, contrast_low=0.5, contrast_high=2.0,
             contrast_sigma_px=3.0, sweep_confidence_power=1.0, agree_tolerance=0.05, frame_agreement_low=0.5,
@@ -364,8 +364,8 @@ def fused_mirror_raw_images() -> PriorSweepMethod:
             cost=CostParams(
                 d_min_m=0.3, d_max_m=30.0, levels=200, blur_px=0.0, gradient_weight=2.0, intensity_weight=1.0,
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=0.0,
-                noise_floor=1.0, max_noise_blur_px=1.5, noise_scale=1, occlusion=0.0, occlusion_min_share=0.25, flat_contrast=0.0,
-                flat_sigma_px=2.0, flat_min_noise=0.5),
+                noise_floor=1.0, max_noise_blur_px=1.5, noise_scale=1, occlusion=0.0, occlusion_min_share=0.25,
+                flat_contrast=0.0, flat_weight=1.0, flat_sigma_px=2.0, flat_min_noise=0.5),
             planes=PlaneParams(
                 per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_margin=0.1,
                 bound_min_share=0.03, coarse_factor=2, wall_labels=9, wall_spread=0.1, wall_min_share=0.01,
@@ -412,8 +412,8 @@ def fused_mirror_shared_falloff() -> PriorSweepMethod:
             cost=CostParams(
                 d_min_m=0.3, d_max_m=30.0, levels=200, blur_px=0.0, gradient_weight=2.0, intensity_weight=1.0,
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=0.0,
-                noise_floor=1.0, max_noise_blur_px=1.5, noise_scale=1, occlusion=0.0, occlusion_min_share=0.25, flat_contrast=0.0,
-                flat_sigma_px=2.0, flat_min_noise=0.5),
+                noise_floor=1.0, max_noise_blur_px=1.5, noise_scale=1, occlusion=0.0, occlusion_min_share=0.25,
+                flat_contrast=0.0, flat_weight=1.0, flat_sigma_px=2.0, flat_min_noise=0.5),
             planes=PlaneParams(
                 per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_margin=0.1,
                 bound_min_share=0.03, coarse_factor=2, wall_labels=9, wall_spread=0.1, wall_min_share=0.01,
@@ -424,8 +424,8 @@ def fused_mirror_shared_falloff() -> PriorSweepMethod:
             corrected_cost=CostParams(
                 d_min_m=0.3, d_max_m=30.0, levels=200, blur_px=0.7, gradient_weight=2.0, intensity_weight=0.25,
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=1.0,
-                noise_floor=2.0, max_noise_blur_px=1.5, noise_scale=2, occlusion=0.0, occlusion_min_share=0.25, flat_contrast=0.0,
-                flat_sigma_px=2.0, flat_min_noise=0.5)),
+                noise_floor=2.0, max_noise_blur_px=1.5, noise_scale=2, occlusion=0.0, occlusion_min_share=0.25,
+                flat_contrast=0.0, flat_weight=1.0, flat_sigma_px=2.0, flat_min_noise=0.5)),
         prior=PriorParams(
             weight=16.0, truncate_levels=16.0, use_confidence=False, contrast_low=0.5, contrast_high=2.0,
             contrast_sigma_px=3.0, sweep_confidence_power=1.0, agree_tolerance=0.05, frame_agreement_low=0.5,
@@ -465,8 +465,8 @@ def fused_gated() -> PriorSweepMethod:
             cost=CostParams(
                 d_min_m=0.3, d_max_m=30.0, levels=160, blur_px=0.0, gradient_weight=2.0, intensity_weight=1.0,
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=0.0,
-                noise_floor=1.0, max_noise_blur_px=1.5, noise_scale=1, occlusion=0.0, occlusion_min_share=0.25, flat_contrast=0.0,
-                flat_sigma_px=2.0, flat_min_noise=0.5),
+                noise_floor=1.0, max_noise_blur_px=1.5, noise_scale=1, occlusion=0.0, occlusion_min_share=0.25,
+                flat_contrast=0.0, flat_weight=1.0, flat_sigma_px=2.0, flat_min_noise=0.5),
             # the horizontal planes plus 9 labels per wall found by the coarse pass
             planes=PlaneParams(
                 per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_margin=0.25,
@@ -523,8 +523,8 @@ def fused_adaptive() -> PriorSweepMethod:
             cost=CostParams(
                 d_min_m=0.3, d_max_m=30.0, levels=160, blur_px=0.0, gradient_weight=2.0, intensity_weight=1.0,
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=0.0,
-                noise_floor=1.0, max_noise_blur_px=1.5, noise_scale=1, occlusion=0.0, occlusion_min_share=0.25, flat_contrast=0.0,
-                flat_sigma_px=2.0, flat_min_noise=0.5),
+                noise_floor=1.0, max_noise_blur_px=1.5, noise_scale=1, occlusion=0.0, occlusion_min_share=0.25,
+                flat_contrast=0.0, flat_weight=1.0, flat_sigma_px=2.0, flat_min_noise=0.5),
             # the horizontal planes plus 9 labels per wall found by the coarse pass
             planes=PlaneParams(
                 per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_margin=0.25,

@@ -109,9 +109,11 @@ class CostParams:
         flat_contrast: no preference where C shows no texture (0 = off): C's pixels whose local contrast
             (:func:`reconstruction.camera.image_ops.local_contrast` of C's gray image, sigma ``flat_sigma_px``) is
             below ``flat_contrast`` times C's noise (:func:`image_noise` at :data:`FLAT_NOISE_SCALE`, at least
-            ``flat_min_noise`` gray levels) give every sphere hypothesis the same cost, the mean of theirs
-            (:func:`flatten_untextured`): what the pairs say there is the noise's and the cameras' differences, so
-            the aggregation fills them from their textured neighbours.
+            ``flat_min_noise`` gray levels) have their sphere hypotheses' costs moved towards the mean of theirs
+            (``flat_weight``; :func:`flatten_untextured`): what the pairs say there is the noise's and the cameras'
+            differences, so the aggregation fills them from their textured neighbours.
+        flat_weight: how far those pixels' costs move to their mean, in [0, 1]: ``(1 - w) cost + w mean`` (1 = no
+            preference left, 0.5 = half of it).
         flat_sigma_px: the contrast window's sigma, pixels (> 0).
         flat_min_noise: the least noise the threshold assumes, gray levels (noise-free renders still have
             quantisation and aliasing).
@@ -135,6 +137,7 @@ class CostParams:
     occlusion: float = 0.0
     occlusion_min_share: float = 0.25
     flat_contrast: float = 0.0
+    flat_weight: float = 1.0
     flat_sigma_px: float = 2.0
     flat_min_noise: float = 0.5
 
@@ -150,9 +153,11 @@ class CostParams:
         if not (self.occlusion >= 0 and 0 <= self.occlusion_min_share <= 1):
             raise ValueError(f"cost occlusion {self.occlusion} must be >= 0 and occlusion_min_share "
                              f"{self.occlusion_min_share} within [0, 1]")
-        if not (self.flat_contrast >= 0 and self.flat_sigma_px > 0 and self.flat_min_noise >= 0):
+        if not (self.flat_contrast >= 0 and self.flat_sigma_px > 0 and self.flat_min_noise >= 0
+                and 0 <= self.flat_weight <= 1):
             raise ValueError(f"cost flat_contrast {self.flat_contrast} and flat_min_noise {self.flat_min_noise} must "
-                             f"be >= 0 and flat_sigma_px {self.flat_sigma_px} > 0")
+                             f"be >= 0, flat_sigma_px {self.flat_sigma_px} > 0 and flat_weight {self.flat_weight} "
+                             f"within [0, 1]")
 
     def max_cost(self) -> int:
         """Largest possible summed cost, uint16 units (both pairs' weights sum to at most 2)."""
@@ -405,7 +410,7 @@ def build_cost_volume(frame, params: CostParams, extra_labels: int = 0, pairs=("
         _box_lines(cost, params.levels, box // 2, True, np.float32(1.0))  # along longitude, which wraps
         _box_lines(cost.transpose(1, 0, 2), params.levels, box // 2, False, np.float32(1.0 / (box * box)))
     if params.flat_contrast > 0:
-        flatten_untextured(cost, params.levels, untextured(frame.images["C"], params))
+        flatten_untextured(cost, params.levels, untextured(frame.images["C"], params), params.flat_weight)
     return cost, warps
 
 
@@ -425,22 +430,25 @@ def untextured(image: np.ndarray, params: CostParams) -> np.ndarray:
     return local_contrast(gray_float(image, 0.0), params.flat_sigma_px) < params.flat_contrast * noise
 
 
-def flatten_untextured(cost: np.ndarray, levels: int, mask: np.ndarray) -> None:
-    """Give the pixels of ``mask`` the same cost for every sphere hypothesis, in place: the floor of the mean of
-    their first ``levels`` costs (the labels after them, planes and walls, are not touched).
+def flatten_untextured(cost: np.ndarray, levels: int, mask: np.ndarray, weight: float = 1.0) -> None:
+    """Move the first ``levels`` costs of the pixels of ``mask`` towards their mean, in place: each becomes
+    ``floor((1 - weight) cost + weight mean)`` (the labels after them, planes and walls, are not touched).
 
     Args:
         cost: (H, W, L) uint16 cost volume, L >= ``levels``.
         levels: the number of sphere hypotheses (the first labels).
         mask: (H, W) bool.
+        weight: in [0, 1]; 1 gives every hypothesis the floor of the mean (no preference left).
     """
     if mask.shape != cost.shape[:2] or not 0 < levels <= cost.shape[2]:
         raise ValueError(f"mask {mask.shape} and levels {levels} do not fit a cost volume of shape {cost.shape}")
-    _flatten_rows(cost, int(levels), np.ascontiguousarray(mask))
+    if not 0 <= weight <= 1:
+        raise ValueError(f"weight {weight} is not within [0, 1]")
+    _flatten_rows(cost, int(levels), np.ascontiguousarray(mask), float(weight))
 
 
 @numba.njit(parallel=True, cache=True)
-def _flatten_rows(cost, levels, mask):
+def _flatten_rows(cost, levels, mask, weight):
     h, w, _ = cost.shape
     for y in numba.prange(h):
         for x in range(w):
@@ -448,9 +456,14 @@ def _flatten_rows(cost, levels, mask):
                 total = 0
                 for i in range(levels):
                     total += np.int64(cost[y, x, i])
-                mean = np.uint16(total // levels)
-                for i in range(levels):
-                    cost[y, x, i] = mean
+                if weight >= 1.0:
+                    mean = np.uint16(total // levels)
+                    for i in range(levels):
+                        cost[y, x, i] = mean
+                else:
+                    pull = weight * (total / levels)
+                    for i in range(levels):
+                        cost[y, x, i] = np.uint16(np.floor((1.0 - weight) * cost[y, x, i] + pull))
 
 
 def visibility_buffer(estimate: np.ndarray, ur: np.ndarray, vr: np.ndarray, baseline_m: float, width: int,

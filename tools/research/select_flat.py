@@ -7,9 +7,10 @@ Run as::
 
 ``LABEL`` is a frame directory (``<scene>/<viewpoint>``) or a directory of frames (``<scene>``) relative to
 ``DATA_ROOT``; without ``--frames`` every frame under ``DATA_ROOT`` (choose on a suite's ``dev`` split).  The
-methods: the reference :data:`REFERENCE` (``fused-mirror-flat-0``: a preference everywhere, as the default was
-before this choice), one ``fused-mirror-flat-<k>`` per candidate of :data:`CANDIDATES` (``--candidates``: these
-only, as ``<k>``; both sweep costs' ``CostParams.flat_contrast`` set to ``k``, everything else the default's) and the
+methods: the reference :data:`REFERENCE` (``fused-mirror-flat-0-1``: a preference everywhere, as the default was
+before this choice), one ``fused-mirror-flat-<k>-<w>`` per candidate of :data:`CANDIDATES` (``--candidates``: these
+only, as ``<k>-<w>``; both sweep costs' ``CostParams.flat_contrast`` set to ``k`` and ``flat_weight`` to ``w``,
+everything else the default's) and the
 default ``fused-mirror`` as registered (a candidate or the reference configured as the default stands for it, not
 run twice).  ``DIR`` becomes a results set (``tri360 evaluate``'s, without the report) plus ``selection.md`` and
 ``selection.json``, as ``python -m tools.research.select_fill`` writes them, with the same rule
@@ -36,41 +37,41 @@ from tools.research.select_fill import candidates_main, methods_to_compare
 __all__ = ["PROG", "REFERENCE", "CANDIDATES", "flat_method", "candidate_methods", "main"]
 
 PROG = "select_flat"
-#: a configuration: (``CostParams.flat_contrast``: local contrast below this many times C's noise gives no
-#: preference; 0 = never)
-Config = tuple[float]
+#: a configuration: (``CostParams.flat_contrast``: local contrast below this many times C's noise marks a pixel
+#: (0 = none); ``CostParams.flat_weight``: how far its costs move to their mean, 1 = no preference left)
+Config = tuple[float, float]
 #: the reference: the default as it was before this choice
-REFERENCE: Config = (0.0,)
+REFERENCE: Config = (0.0, 1.0)
 #: the candidates
-CANDIDATES: tuple[Config, ...] = ((0.7,), (1.0,))
+CANDIDATES: tuple[Config, ...] = ((0.7, 1.0), (1.0, 1.0), (1.0, 0.5))
 TITLE = "No matching preference where C shows no texture above its noise"
 
 
 def _name(config: Config) -> str:
-    return f"{config[0]:g}"
+    return "-".join(f"{x:g}" for x in config)
 
 
-def flat_method(flat_contrast: float) -> Method:
-    """The default method whose sweep costs (``cost`` and ``corrected_cost``) give no preference below
-    ``flat_contrast`` times C's noise (:class:`reconstruction.sweep.cost.CostParams`), everything else the
-    default's; labelled ``fused-mirror-flat-<k>``."""
+def flat_method(flat_contrast: float, flat_weight: float) -> Method:
+    """The default method whose sweep costs (``cost`` and ``corrected_cost``) move the costs of the pixels below
+    ``flat_contrast`` times C's noise ``flat_weight`` of the way to their mean
+    (:class:`reconstruction.sweep.cost.CostParams`), everything else the default's; labelled
+    ``fused-mirror-flat-<k>-<w>``."""
     base = fused_mirror()
     sweep = base.sweep
-    corrected = (None if sweep.corrected_cost is None
-                 else dataclasses.replace(sweep.corrected_cost, flat_contrast=flat_contrast))
-    sweep = dataclasses.replace(sweep, cost=dataclasses.replace(sweep.cost, flat_contrast=flat_contrast),
-                                corrected_cost=corrected)
-    return dataclasses.replace(base, sweep=sweep, label=f"{base.label}-flat-{_name((flat_contrast,))}")
+    values = {"flat_contrast": flat_contrast, "flat_weight": flat_weight}
+    corrected = None if sweep.corrected_cost is None else dataclasses.replace(sweep.corrected_cost, **values)
+    sweep = dataclasses.replace(sweep, cost=dataclasses.replace(sweep.cost, **values), corrected_cost=corrected)
+    return dataclasses.replace(base, sweep=sweep, label=f"{base.label}-flat-{_name((flat_contrast, flat_weight))}")
 
 
 def candidate_methods(names: Sequence[str] | None = None) -> list[Method]:
-    """The reference (:data:`REFERENCE`), one :func:`flat_method` per candidate (``names``: these only, as ``<k>``)
-    and the default (:func:`tools.research.select_fill.methods_to_compare`)."""
+    """The reference (:data:`REFERENCE`), one :func:`flat_method` per candidate (``names``: these only, as
+    ``<k>-<w>``) and the default (:func:`tools.research.select_fill.methods_to_compare`)."""
     return methods_to_compare(flat_method, REFERENCE, CANDIDATES, _name, names)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    return candidates_main(PROG, __doc__, argv, candidate_methods, "<k>", [_name(c) for c in CANDIDATES], TITLE)
+    return candidates_main(PROG, __doc__, argv, candidate_methods, "<k>-<w>", [_name(c) for c in CANDIDATES], TITLE)
 
 
 if __name__ == "__main__":
