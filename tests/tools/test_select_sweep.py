@@ -63,7 +63,7 @@ def test_sgm_candidates_the_reference_first_and_the_default_once():
 def test_flat_candidates_the_reference_first_and_the_default_once():
     methods = select_flat.candidate_methods()
     labels = [m.label for m in methods]
-    assert labels[0] == "fused-mirror-flat-0"
+    assert labels[0] == "fused-mirror-flat-0-1"
     assert len(set(labels)) == len(labels) and len(methods) <= len(select_flat.CANDIDATES) + 2
     # the default is run once: as itself, or as the reference or the candidate configured as it
     default = fused_mirror()
@@ -71,17 +71,18 @@ def test_flat_candidates_the_reference_first_and_the_default_once():
     assert len(same) == 1
     assert (labels[-1] == "fused-mirror") == (same[0].label == "fused-mirror")
     assert methods[0].sweep.cost.flat_contrast == methods[0].sweep.corrected_cost.flat_contrast == 0.0
-    # everything but the one value, in both sweep costs, is the default's
-    m = select_flat.flat_method(2.5)
-    assert m.sweep.cost.flat_contrast == m.sweep.corrected_cost.flat_contrast == 2.5
-    assert m.sweep.cost == dataclasses.replace(default.sweep.cost, flat_contrast=2.5)
-    assert m.sweep.corrected_cost == dataclasses.replace(default.sweep.corrected_cost, flat_contrast=2.5)
+    # everything but the two values, in both sweep costs, is the default's
+    m = select_flat.flat_method(2.5, 0.25)
+    assert m.label == "fused-mirror-flat-2.5-0.25"
+    assert m.sweep.cost == dataclasses.replace(default.sweep.cost, flat_contrast=2.5, flat_weight=0.25)
+    assert m.sweep.corrected_cost == dataclasses.replace(default.sweep.corrected_cost, flat_contrast=2.5,
+                                                         flat_weight=0.25)
     assert m.flow == default.flow and m.prior == default.prior and m.sweep.sgm == default.sweep.sgm
     assert m.sweep.planes == default.sweep.planes and m.sweep.post == default.sweep.post
-    assert [x.label for x in select_flat.candidate_methods(["1"])][1:] in (
-        [], ["fused-mirror-flat-1"], ["fused-mirror"], ["fused-mirror-flat-1", "fused-mirror"])
+    assert [x.label for x in select_flat.candidate_methods(["1-0.5"])][1:] in (
+        [], ["fused-mirror-flat-1-0.5"], ["fused-mirror"], ["fused-mirror-flat-1-0.5", "fused-mirror"])
     with pytest.raises(UserError, match="unknown candidate"):
-        select_flat.candidate_methods(["3"])
+        select_flat.candidate_methods(["3-1"])
 
 
 @pytest.mark.parametrize("main", [select_planes.main, select_sgm.main, select_flat.main],

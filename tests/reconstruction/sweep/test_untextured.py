@@ -22,6 +22,17 @@ def test_flatten_gives_the_masked_pixels_the_floor_of_their_mean_and_leaves_the_
     np.testing.assert_array_equal(cost[mask][:, :8], np.repeat(means[mask][:, None], 8, axis=1))
     np.testing.assert_array_equal(cost[~mask], before[~mask])
     np.testing.assert_array_equal(cost[..., 8:], before[..., 8:])  # plane and wall labels are not touched
+    # half way: the mean's share 0.5, each cost's the rest, floored
+    half = before.copy()
+    flatten_untextured(half, 8, mask, 0.5)
+    expected = np.floor(0.5 * before[..., :8] + 0.5 * (before[..., :8].astype(np.int64).sum(axis=2) / 8)[..., None])
+    np.testing.assert_array_equal(half[mask][:, :8], expected[mask])
+    np.testing.assert_array_equal(half[~mask], before[~mask])
+    unchanged = before.copy()
+    flatten_untextured(unchanged, 8, mask, 0.0)
+    np.testing.assert_array_equal(unchanged, before)
+    with pytest.raises(ValueError, match="within"):
+        flatten_untextured(cost, 8, mask, 1.5)
     with pytest.raises(ValueError, match="do not fit"):
         flatten_untextured(cost, 8, mask[:, :10])
     with pytest.raises(ValueError, match="do not fit"):
@@ -56,7 +67,8 @@ def test_untextured_is_below_the_threshold_times_the_noise():
 
 
 def test_the_parameters_are_checked():
-    for bad in ({"flat_contrast": -1.0}, {"flat_sigma_px": 0.0}, {"flat_min_noise": -0.1}):
+    for bad in ({"flat_contrast": -1.0}, {"flat_sigma_px": 0.0}, {"flat_min_noise": -0.1}, {"flat_weight": 1.2},
+                {"flat_weight": -0.5}):
         with pytest.raises(ValueError, match="flat_"):
             CostParams(**bad)
 
