@@ -69,7 +69,8 @@ def fused_mirror() -> PriorSweepMethod:
     """``fused-mirror``, the default (:data:`DEFAULT_METHOD`): ``fused-gated`` whose room bound tells a polished
     floor's mirror image of the ceiling from the floor, and whose sweep matches images the self-calibration changed
     with a cost of its own (chosen on the dev split of suites/tri360-v2.toml under both conditions and of tri360-v3
-    under its low-light family, docs/photometry.md)."""
+    under its low-light family, docs/photometry.md), and whose sweep keeps only half its preference where C shows no
+    texture above its noise (docs/edges.md)."""
     dis = builtin_flow("dis", {
         "preset": "medium", "finest_scale": 0, "patch_size": 8, "patch_stride": 3, "gd_iterations": 25,
         "var_iterations": 10, "var_alpha": 10.0, "spatial_propagation": True})
@@ -95,12 +96,15 @@ def fused_mirror() -> PriorSweepMethod:
             # better still, but its peak memory at 1000x500 (1.01 GB) misses the 1 GB a frame may take (python -m
             # tools.research.select_fill, docs/edges.md); every pair votes everywhere (occlusion 0: visibility from
             # the coarse pass's distances cut the occluded pixels' error to 0.86x but cost lecture halls 1.10x,
-            # docs/edges.md)
+            # docs/edges.md); where C's local contrast is below its noise (flat_contrast 1), both costs move half
+            # way to their mean (flat_weight 0.5): the plain floors and ceilings follow their textured neighbours
+            # (chosen by python -m tools.research.select_flat among none, 0.7-1, 1-1 and 1-0.5 on tri360-v3 dev
+            # under all seven camera conditions, docs/edges.md)
             cost=CostParams(
                 d_min_m=0.3, d_max_m=30.0, levels=200, blur_px=0.0, gradient_weight=2.0, intensity_weight=1.0,
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=0.0,
                 noise_floor=1.0, max_noise_blur_px=1.5, noise_scale=1, occlusion=0.0, occlusion_min_share=0.25,
-                flat_contrast=0.0, flat_weight=1.0, flat_sigma_px=2.0, flat_min_noise=0.5),
+                flat_contrast=1.0, flat_weight=0.5, flat_sigma_px=2.0, flat_min_noise=0.5),
             planes=PlaneParams(
                 per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_min_share=0.03,
                 coarse_factor=2, wall_spread=0.1, wall_min_share=0.01,
@@ -141,7 +145,7 @@ def fused_mirror() -> PriorSweepMethod:
                 # 0.9-2.9 and its low-light ones 3.1-6.5 (reconstruction.sweep.cost.image_noise; chosen on tri360-v3
                 # dev's low-light family, docs/photometry.md)
                 noise_blur=1.0, noise_floor=2.0, noise_scale=2, occlusion=0.0, occlusion_min_share=0.25,
-                flat_contrast=0.0, flat_weight=1.0, flat_sigma_px=2.0, flat_min_noise=0.5)),
+                flat_contrast=1.0, flat_weight=0.5, flat_sigma_px=2.0, flat_min_noise=0.5)),
         # fused's weight (16), times a ramp of C's local contrast (0 below 0.5, full above 2 gray levels: no prior
         # where there is no texture for the flow to follow), times 1 - c_sweep where the flow and the plain coarse
         # sweep disagree by more than 5 % (a confident sweep keeps its answer), times the frame's agreement share
@@ -265,7 +269,7 @@ def fused_mirror_raw() -> PriorSweepMethod:
                 d_min_m=0.3, d_max_m=30.0, levels=200, blur_px=0.0, gradient_weight=2.0, intensity_weight=1.0,
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=0.0,
                 noise_floor=1.0, max_noise_blur_px=1.5, noise_scale=1, occlusion=0.0, occlusion_min_share=0.25,
-                flat_contrast=0.0, flat_weight=1.0, flat_sigma_px=2.0, flat_min_noise=0.5),
+                flat_contrast=1.0, flat_weight=0.5, flat_sigma_px=2.0, flat_min_noise=0.5),
             planes=PlaneParams(
                 per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_margin=0.1,
                 bound_min_share=0.03, coarse_factor=2, wall_labels=9, wall_spread=0.1, wall_min_share=0.01,
@@ -312,7 +316,7 @@ def fused_mirror_told_rig() -> PriorSweepMethod:
                 d_min_m=0.3, d_max_m=30.0, levels=200, blur_px=0.0, gradient_weight=2.0, intensity_weight=1.0,
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=0.0,
                 noise_floor=1.0, max_noise_blur_px=1.5, noise_scale=1, occlusion=0.0, occlusion_min_share=0.25,
-                flat_contrast=0.0, flat_weight=1.0, flat_sigma_px=2.0, flat_min_noise=0.5),
+                flat_contrast=1.0, flat_weight=0.5, flat_sigma_px=2.0, flat_min_noise=0.5),
             planes=PlaneParams(
                 per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_margin=0.1,
                 bound_min_share=0.03, coarse_factor=2, wall_labels=9, wall_spread=0.1, wall_min_share=0.01,
@@ -324,7 +328,7 @@ def fused_mirror_told_rig() -> PriorSweepMethod:
                 d_min_m=0.3, d_max_m=30.0, levels=200, blur_px=0.7, gradient_weight=2.0, intensity_weight=0.25,
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=1.0,
                 noise_floor=2.0, max_noise_blur_px=1.5, noise_scale=2, occlusion=0.0, occlusion_min_share=0.25,
-                flat_contrast=0.0, flat_weight=1.0, flat_sigma_px=2.0, flat_min_noise=0.5)),
+                flat_contrast=1.0, flat_weight=0.5, flat_sigma_px=2.0, flat_min_noise=0.5)),
         prior=PriorParams(
             weight=16.0, truncate_levels=16.0, use_confidence=False, contrast_low=0.5, contrast_high=2.0,
             contrast_sigma_px=3.0, sweep_confidence_power=1.0, agree_tolerance=0.05, frame_agreement_low=0.5,
@@ -365,7 +369,7 @@ def fused_mirror_raw_images() -> PriorSweepMethod:
                 d_min_m=0.3, d_max_m=30.0, levels=200, blur_px=0.0, gradient_weight=2.0, intensity_weight=1.0,
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=0.0,
                 noise_floor=1.0, max_noise_blur_px=1.5, noise_scale=1, occlusion=0.0, occlusion_min_share=0.25,
-                flat_contrast=0.0, flat_weight=1.0, flat_sigma_px=2.0, flat_min_noise=0.5),
+                flat_contrast=1.0, flat_weight=0.5, flat_sigma_px=2.0, flat_min_noise=0.5),
             planes=PlaneParams(
                 per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_margin=0.1,
                 bound_min_share=0.03, coarse_factor=2, wall_labels=9, wall_spread=0.1, wall_min_share=0.01,
@@ -413,7 +417,7 @@ def fused_mirror_shared_falloff() -> PriorSweepMethod:
                 d_min_m=0.3, d_max_m=30.0, levels=200, blur_px=0.0, gradient_weight=2.0, intensity_weight=1.0,
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=0.0,
                 noise_floor=1.0, max_noise_blur_px=1.5, noise_scale=1, occlusion=0.0, occlusion_min_share=0.25,
-                flat_contrast=0.0, flat_weight=1.0, flat_sigma_px=2.0, flat_min_noise=0.5),
+                flat_contrast=1.0, flat_weight=0.5, flat_sigma_px=2.0, flat_min_noise=0.5),
             planes=PlaneParams(
                 per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_margin=0.1,
                 bound_min_share=0.03, coarse_factor=2, wall_labels=9, wall_spread=0.1, wall_min_share=0.01,
@@ -425,7 +429,7 @@ def fused_mirror_shared_falloff() -> PriorSweepMethod:
                 d_min_m=0.3, d_max_m=30.0, levels=200, blur_px=0.7, gradient_weight=2.0, intensity_weight=0.25,
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=1.0,
                 noise_floor=2.0, max_noise_blur_px=1.5, noise_scale=2, occlusion=0.0, occlusion_min_share=0.25,
-                flat_contrast=0.0, flat_weight=1.0, flat_sigma_px=2.0, flat_min_noise=0.5)),
+                flat_contrast=1.0, flat_weight=0.5, flat_sigma_px=2.0, flat_min_noise=0.5)),
         prior=PriorParams(
             weight=16.0, truncate_levels=16.0, use_confidence=False, contrast_low=0.5, contrast_high=2.0,
             contrast_sigma_px=3.0, sweep_confidence_power=1.0, agree_tolerance=0.05, frame_agreement_low=0.5,
