@@ -218,10 +218,13 @@ def test_a_configuration_written_before_a_parameter_was_added_reads_as_its_earli
     assert config_difference(old, uncalibrated(presets.fused_gated()).config()) is None
     assert config_difference(old, presets.fused_gated().config()) == "flow.photometric.mode: 'none' vs 'gain-field'"
     raw_mirror = uncalibrated(presets.fused_mirror()).config()
-    # the mirror test is where they differ once the raw default's sweep labels, room bound and refill are fused-gated's
+    # the mirror test is where they differ once the raw default's sweep labels, room bound, refill and untextured
+    # pixels' cost are fused-gated's
     raw_mirror["sweep"]["cost"]["levels"] = old["sweep"]["cost"]["levels"]
     raw_mirror["sweep"]["planes"]["bound_margin"] = old["sweep"]["planes"]["bound_margin"]
     raw_mirror["sweep"]["post"] = old["sweep"]["post"]
+    for k in ("flat_contrast", "flat_weight"):
+        raw_mirror["sweep"]["cost"][k] = old["sweep"]["cost"][k]
     assert config_difference(old, raw_mirror) == "sweep.planes.mirror_tolerance: 0.0 vs 0.2"
     assert config_difference(presets.fused_gated().config(), old) == "flow.photometric: present vs absent"
 

@@ -133,6 +133,13 @@ def test_the_default_is_fused_gated_with_its_mirror_test_cost_labels_room_bound_
     assert cfg["sweep"]["cost"]["levels"] > gated["sweep"]["cost"]["levels"]
     assert cfg["sweep"]["post"]["min_confidence"] > 0 == gated["sweep"]["post"]["min_confidence"]
     cfg["sweep"]["post"] = gated["sweep"]["post"]
+    # both its costs keep only part of their preference where C shows no texture above its noise (gated: all)
+    flat = ("flat_contrast", "flat_weight")
+    assert cfg["sweep"]["cost"]["flat_contrast"] > 0 == gated["sweep"]["cost"]["flat_contrast"]
+    assert cfg["sweep"]["cost"]["flat_weight"] < 1 == gated["sweep"]["cost"]["flat_weight"]
+    assert all(cfg["sweep"]["corrected_cost"][k] == cfg["sweep"]["cost"][k] for k in flat)
+    for cost in (cfg["sweep"]["cost"], cfg["sweep"]["corrected_cost"]):
+        cost.update({k: gated["sweep"]["cost"][k] for k in flat})
     # otherwise its own cost is gated's; the lighter intensity term, the blur and the noise's blur only when the
     # self-calibration corrected the images
     assert cfg["sweep"]["cost"] == {**gated["sweep"]["cost"], "levels": cfg["sweep"]["cost"]["levels"]}
