@@ -229,8 +229,8 @@ def sweep() -> SweepMethod:
         cost=CostParams(
             d_min_m=0.3, d_max_m=30.0, levels=160, blur_px=0.0, gradient_weight=2.0, intensity_weight=1.0,
             truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=0.0, noise_floor=1.0,
-            max_noise_blur_px=1.5, noise_scale=1, occlusion=0.0, occlusion_min_share=0.25,
-                flat_contrast=0.0, flat_weight=1.0, flat_sigma_px=2.0, flat_min_noise=0.5),
+            max_noise_blur_px=1.5, noise_scale=1, occlusion=0.0, occlusion_min_share=0.25, flat_contrast=0.0,
+            flat_weight=1.0, flat_sigma_px=2.0, flat_min_noise=0.5),
         planes=PlaneParams(
             per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_margin=0.25, bound_min_share=0.03,
             coarse_factor=2, wall_labels=0, wall_spread=0.1, wall_min_share=0.01, mirror_tolerance=0.0, room_labels=0,

@@ -106,7 +106,7 @@ class CostParams:
             both (their weighted cost scaled to the summed weight).
         occlusion_min_share: a hypothesis keeps every pair's vote unless the pairs that see it hold at least this
             share of the summed pair weight.
-        flat_contrast: no preference where C shows no texture (0 = off): C's pixels whose local contrast
+        flat_contrast: less preference where C shows no texture (0 = off): C's pixels whose local contrast
             (:func:`reconstruction.camera.image_ops.local_contrast` of C's gray image, sigma ``flat_sigma_px``) is
             below ``flat_contrast`` times C's noise (:func:`image_noise` at :data:`FLAT_NOISE_SCALE`, at least
             ``flat_min_noise`` gray levels) have their sphere hypotheses' costs moved towards the mean of theirs

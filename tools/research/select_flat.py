@@ -1,4 +1,4 @@
-"""Choose where the default's sweep gives no matching preference: C's pixels without texture above its noise.
+"""Choose how far the default's sweep gives up its matching preference where C shows no texture above noise.
 
 Run as::
 
@@ -44,7 +44,7 @@ Config = tuple[float, float]
 REFERENCE: Config = (0.0, 1.0)
 #: the candidates
 CANDIDATES: tuple[Config, ...] = ((0.7, 1.0), (1.0, 1.0), (1.0, 0.5))
-TITLE = "No matching preference where C shows no texture above its noise"
+TITLE = "Less matching preference where C shows no texture above its noise"
 
 
 def _name(config: Config) -> str:
