@@ -1,5 +1,6 @@
 """The selections of the default's sweep: its floor and ceiling families and room bound, its SGM jump penalty and
-plane preference, where it gives no matching preference: the candidates, and bad input."""
+plane preference, how far it gives up its matching preference where C shows no texture: the candidates, and bad
+input."""
 
 from __future__ import annotations
 
