@@ -456,14 +456,9 @@ def _flatten_rows(cost, levels, mask, weight):
                 total = 0
                 for i in range(levels):
                     total += np.int64(cost[y, x, i])
-                if weight >= 1.0:
-                    mean = np.uint16(total // levels)
-                    for i in range(levels):
-                        cost[y, x, i] = mean
-                else:
-                    pull = weight * (total / levels)
-                    for i in range(levels):
-                        cost[y, x, i] = np.uint16(np.floor((1.0 - weight) * cost[y, x, i] + pull))
+                pull = weight * (total / levels)
+                for i in range(levels):
+                    cost[y, x, i] = np.uint16(np.floor((1.0 - weight) * cost[y, x, i] + pull))
 
 
 def visibility_buffer(estimate: np.ndarray, ur: np.ndarray, vr: np.ndarray, baseline_m: float, width: int,
