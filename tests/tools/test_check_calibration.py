@@ -43,7 +43,16 @@ def test_bounds_pass_and_fail_where_they_should():
     assert "[PASS] captured: fused-mirror pooled MAE over its ideal at most 1.15: 1.093" in text
     assert "[FAIL] tone: fused-mirror pooled MAE over its ideal at most 1.15: 1.358" in text
     assert "[FAIL] tone: worst room family at most 1.3: a 1.500" in text and not ok
-    assert "| fused-mirror | tone | 0.205 | 0.300 | 0.110 |" in text
+    assert "| fused-mirror | tone | 0.205 | - | 0.300 | 0.110 |" in text
+
+
+def test_the_table_gives_the_pooled_mae_as_a_multiple_of_the_pooled_floor():
+    table = results()
+    table["floor_m"] = 0.05
+    table.loc[table["family"] == "b", "floor_m"] = 0.01  # tone: (0.30 + 0.11) / 2 over (0.05 + 0.01) / 2
+    text, _ = check(table, "fused-mirror", "fused-mirror-raw")
+    assert "| fused-mirror | tone | 0.205 | 6.83 | 0.300 | 0.110 |" in text
+    assert pooled(table.iloc[:2], "floor_m") == pytest.approx(0.05, abs=1e-12)
 
 
 def test_one_bad_ideal_frame_fails_the_per_frame_bound():

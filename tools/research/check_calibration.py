@@ -11,7 +11,9 @@ Run as::
 with ``--suite suites/tri360-v3.toml``); several results sets are read as one (e.g. the ideal frames with both
 methods in one, the twins of other conditions with the method alone in another).  Prints, as Markdown:
 
-- per method the MAE (m) per condition (camera family) x room family, pooled over scored pixels;
+- per method the MAE (m) per condition (camera family) x room family, pooled over scored pixels, and the pooled MAE
+  as a multiple of the pooled floor (``floor_m``: the MAE an ideal matcher with 0.25 px angular error per pair makes
+  over the same pixels; "-" for results without it);
 - **ideal**: the method's MAE over the reference's (the default without self-calibration), pooled per room family
   (bound :data:`IDEAL_FAMILY`) and per frame (bound :data:`IDEAL_FRAME`), with the worst frames;
 - **each other condition**: its pooled MAE over the same method's on the ideal frames of the same groups (bound
@@ -38,7 +40,8 @@ from harness.data.results import read_results
 from harness.data.suite import IDEAL
 from tools.common import ArgumentParser, cell, goal_line, user_error
 
-__all__ = ["IDEAL_FAMILY", "IDEAL_FRAME", "CONDITION_POOLED", "CONDITION_FAMILY", "pooled", "check", "main"]
+__all__ = ["IDEAL_FAMILY", "IDEAL_FRAME", "CONDITION_POOLED", "CONDITION_FAMILY", "pooled", "times_floor", "check",
+           "main"]
 
 PROG = "python -m tools.research.check_calibration"
 IDEAL_FAMILY, IDEAL_FRAME = 1.03, 1.10
@@ -50,10 +53,19 @@ def _group(scene: str) -> str:
     return scene.split(".", 1)[0]
 
 
-def pooled(rows: pd.DataFrame) -> float:
-    """MAE over the rows' scored pixels together (each frame weighted by ``valid_px``), metres."""
+def pooled(rows: pd.DataFrame, column: str = "mae_m") -> float:
+    """``column`` (an MAE in metres: ``mae_m``, ``floor_m``) over the rows' scored pixels together (each frame
+    weighted by ``valid_px``), metres; NaN without scored pixels or without the column."""
     n = rows["valid_px"].to_numpy(np.float64)
-    return float((rows["mae_m"].to_numpy(np.float64) * n).sum() / n.sum()) if n.sum() > 0 else float("nan")
+    if column not in rows or n.sum() <= 0:
+        return float("nan")
+    return float((rows[column].to_numpy(np.float64) * n).sum() / n.sum())
+
+
+def times_floor(rows: pd.DataFrame) -> str:
+    """The rows' pooled MAE over their pooled floor, as a table cell ("-" without the floor)."""
+    ratio = pooled(rows) / pooled(rows, "floor_m")
+    return f"{ratio:.2f}" if np.isfinite(ratio) else "-"
 
 
 def check(results: pd.DataFrame, method: str, reference: str) -> tuple[str, bool]:
@@ -69,15 +81,15 @@ def check(results: pd.DataFrame, method: str, reference: str) -> tuple[str, bool
     conditions = [IDEAL, *sorted(c for c in set(r["condition"]) if c != IDEAL)]
     families = sorted(set(r["family"]))
     lines = ["## MAE (m) per condition x room family", "",
-             "| method | condition | all | " + " | ".join(families) + " |",
-             "|---|---|---:|" + "---:|" * len(families)]
+             "| method | condition | all | x floor | " + " | ".join(families) + " |",
+             "|---|---|---:|---:|" + "---:|" * len(families)]
     for m in sorted(set(r["method"])):
         for c in conditions:
             part = r[(r["method"] == m) & (r["condition"] == c)]
             if part.empty:
                 continue
             cells = [cell(pooled(part[part["family"] == f])) if (part["family"] == f).any() else "-" for f in families]
-            lines.append(f"| {m} | {c} | {cell(pooled(part))} | " + " | ".join(cells) + " |")
+            lines.append(f"| {m} | {c} | {cell(pooled(part))} | {times_floor(part)} | " + " | ".join(cells) + " |")
     goals = []
     ideal = r[r["condition"] == IDEAL]
     mine = ideal[ideal["method"] == method].set_index(["group", "viewpoint"])
