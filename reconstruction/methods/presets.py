@@ -125,7 +125,8 @@ def fused_mirror() -> PriorSweepMethod:
             # texture, occlusions, edges) refilled from the confident ones without crossing C's image edges at 4 gray
             # levels (chosen by python -m tools.research.select_fill on the dev split, docs/edges.md)
             post=PostParams(min_confidence=0.1, fill_lambda=200.0, fill_sigma_color=4.0, median_px=5,
-                            fill_space="inverse"),
+                            fill_space="inverse", edge_radius_px=0, edge_sigma_color=10.0, edge_sigma_px=5.0,
+                            edge_jump=0.05, edge_reach_px=4),
             # the cost when the self-calibration changed the images
             corrected_cost=CostParams(
                 d_min_m=0.3, d_max_m=30.0, levels=200, gradient_weight=2.0, truncate=30.0, box_px=1, scale=8.0,
@@ -206,7 +207,8 @@ def fused() -> PriorSweepMethod:
                 mirror_tolerance=0.0, room_labels=0, room_spread=0.2),
             sgm=SgmParams(p1=120, p2=800, p3=200, edge=8.0, paths=8),
             post=PostParams(min_confidence=0.0, fill_lambda=200.0, fill_sigma_color=8.0, median_px=5,
-                            fill_space="inverse")),
+                            fill_space="inverse", edge_radius_px=0, edge_sigma_color=10.0, edge_sigma_px=5.0,
+                            edge_jump=0.05, edge_reach_px=4)),
         prior=PriorParams(
             weight=16.0, truncate_levels=16.0, use_confidence=False, contrast_low=0.0, contrast_high=0.0,
             contrast_sigma_px=3.0, sweep_confidence_power=0.0, agree_tolerance=0.05, frame_agreement_low=0.0,
@@ -236,7 +238,8 @@ def sweep() -> SweepMethod:
             coarse_factor=2, wall_labels=0, wall_spread=0.1, wall_min_share=0.01, mirror_tolerance=0.0, room_labels=0,
             room_spread=0.2),
         sgm=SgmParams(p1=120, p2=800, p3=200, edge=8.0, paths=8),
-        post=PostParams(min_confidence=0.0, fill_lambda=200.0, fill_sigma_color=8.0, median_px=5, fill_space="inverse"))
+        post=PostParams(min_confidence=0.0, fill_lambda=200.0, fill_sigma_color=8.0, median_px=5, fill_space="inverse",
+                        edge_radius_px=0, edge_sigma_color=10.0, edge_sigma_px=5.0, edge_jump=0.05, edge_reach_px=4))
 
 
 # ----------------------------------------------------------------------------------------------- the ablations
@@ -276,7 +279,8 @@ def fused_mirror_raw() -> PriorSweepMethod:
                 mirror_tolerance=0.2, room_labels=0, room_spread=0.2),
             sgm=SgmParams(p1=120, p2=800, p3=200, edge=8.0, paths=8),
             post=PostParams(min_confidence=0.1, fill_lambda=200.0, fill_sigma_color=4.0, median_px=5,
-                            fill_space="inverse")),
+                            fill_space="inverse", edge_radius_px=0, edge_sigma_color=10.0, edge_sigma_px=5.0,
+                            edge_jump=0.05, edge_reach_px=4)),
         prior=PriorParams(
             weight=16.0, truncate_levels=16.0, use_confidence=False, contrast_low=0.5, contrast_high=2.0,
             contrast_sigma_px=3.0, sweep_confidence_power=1.0, agree_tolerance=0.05, frame_agreement_low=0.5,
@@ -323,7 +327,8 @@ def fused_mirror_told_rig() -> PriorSweepMethod:
                 mirror_tolerance=0.2, room_labels=0, room_spread=0.2),
             sgm=SgmParams(p1=120, p2=800, p3=200, edge=8.0, paths=8),
             post=PostParams(min_confidence=0.1, fill_lambda=200.0, fill_sigma_color=4.0, median_px=5,
-                            fill_space="inverse"),
+                            fill_space="inverse", edge_radius_px=0, edge_sigma_color=10.0, edge_sigma_px=5.0,
+                            edge_jump=0.05, edge_reach_px=4),
             corrected_cost=CostParams(
                 d_min_m=0.3, d_max_m=30.0, levels=200, blur_px=0.7, gradient_weight=2.0, intensity_weight=0.25,
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=1.0,
@@ -376,7 +381,8 @@ def fused_mirror_raw_images() -> PriorSweepMethod:
                 mirror_tolerance=0.2, room_labels=0, room_spread=0.2),
             sgm=SgmParams(p1=120, p2=800, p3=200, edge=8.0, paths=8),
             post=PostParams(min_confidence=0.1, fill_lambda=200.0, fill_sigma_color=4.0, median_px=5,
-                            fill_space="inverse")),
+                            fill_space="inverse", edge_radius_px=0, edge_sigma_color=10.0, edge_sigma_px=5.0,
+                            edge_jump=0.05, edge_reach_px=4)),
         prior=PriorParams(
             weight=16.0, truncate_levels=16.0, use_confidence=False, contrast_low=0.5, contrast_high=2.0,
             contrast_sigma_px=3.0, sweep_confidence_power=1.0, agree_tolerance=0.05, frame_agreement_low=0.5,
@@ -424,7 +430,8 @@ def fused_mirror_shared_falloff() -> PriorSweepMethod:
                 mirror_tolerance=0.2, room_labels=0, room_spread=0.2),
             sgm=SgmParams(p1=120, p2=800, p3=200, edge=8.0, paths=8),
             post=PostParams(min_confidence=0.1, fill_lambda=200.0, fill_sigma_color=4.0, median_px=5,
-                            fill_space="inverse"),
+                            fill_space="inverse", edge_radius_px=0, edge_sigma_color=10.0, edge_sigma_px=5.0,
+                            edge_jump=0.05, edge_reach_px=4),
             corrected_cost=CostParams(
                 d_min_m=0.3, d_max_m=30.0, levels=200, blur_px=0.7, gradient_weight=2.0, intensity_weight=0.25,
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=1.0,
@@ -478,7 +485,8 @@ def fused_gated() -> PriorSweepMethod:
                 mirror_tolerance=0.0, room_labels=0, room_spread=0.2),
             sgm=SgmParams(p1=120, p2=800, p3=200, edge=8.0, paths=8),
             post=PostParams(min_confidence=0.0, fill_lambda=200.0, fill_sigma_color=8.0, median_px=5,
-                            fill_space="inverse")),
+                            fill_space="inverse", edge_radius_px=0, edge_sigma_color=10.0, edge_sigma_px=5.0,
+                            edge_jump=0.05, edge_reach_px=4)),
         # fused's weight (16), times a ramp of C's local contrast (0 below 0.5, full above 2 gray levels), times
         # 1 - c_sweep where the flow and the plain coarse sweep disagree by more than 5 %, times the frame's
         # agreement share ramped from 0 at 50 % to full at 70 % (as fused-mirror's, which took it from here)
@@ -536,7 +544,8 @@ def fused_adaptive() -> PriorSweepMethod:
                 mirror_tolerance=0.0, room_labels=0, room_spread=0.2),
             sgm=SgmParams(p1=120, p2=800, p3=200, edge=8.0, paths=8),
             post=PostParams(min_confidence=0.0, fill_lambda=200.0, fill_sigma_color=8.0, median_px=5,
-                            fill_space="inverse")),
+                            fill_space="inverse", edge_radius_px=0, edge_sigma_color=10.0, edge_sigma_px=5.0,
+                            edge_jump=0.05, edge_reach_px=4)),
         # fused's weight (16), scaled by the share of pixels where the flow and the plain coarse sweep agree within
         # 5 %: 0 below 60 %, full above 80 %
         prior=PriorParams(

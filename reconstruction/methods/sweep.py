@@ -20,6 +20,7 @@ from reconstruction.camera.image_ops import periodic_filter
 from reconstruction.methods.base import MethodOutput
 from reconstruction.methods.self_calibration import Calibration, reduced_frame, self_calibrate
 from reconstruction.photometry import PhotometricParams
+from reconstruction.refine.edges import snap_depth_edges
 from reconstruction.refine.fill import check_fill_space, fill_edge_aware
 from reconstruction.refine.triangulate import TriangulationLimits
 from reconstruction.rig_calibration import NO_RIG_CALIBRATION
@@ -78,6 +79,12 @@ class PostParams:
         fill_space: what the fill interpolates: ``"inverse"`` distance or ``"log"`` distance
             (:data:`reconstruction.refine.fill.FILL_SPACES`).
         median_px: median filter side, pixels (0, 3 or 5; wraps in longitude).
+        edge_radius_px: after the median, the pixels near the estimate's depth edges take the joint weighted
+            median of the log distances within this half side, pixels (0 = none;
+            :func:`reconstruction.refine.edges.snap_depth_edges`).
+        edge_sigma_color, edge_sigma_px: its weights' colour scale (C's 0-255 levels) and spatial scale (pixels).
+        edge_jump, edge_reach_px: the pixels it changes: within ``edge_reach_px`` pixels of one whose 3 x 3 log
+            distances span more than ``edge_jump``.
     """
 
     min_confidence: float = 0.0
@@ -85,9 +92,20 @@ class PostParams:
     fill_sigma_color: float = 8.0
     median_px: int = 5
     fill_space: str = "inverse"
+    edge_radius_px: int = 0
+    edge_sigma_color: float = 10.0
+    edge_sigma_px: float = 5.0
+    edge_jump: float = 0.05
+    edge_reach_px: int = 4
 
     def __post_init__(self) -> None:
         check_fill_space(self.fill_space)
+        if self.edge_radius_px < 0 or self.edge_reach_px < 0:
+            raise ValueError(f"edge_radius_px and edge_reach_px must be >= 0, got {self.edge_radius_px} and "
+                             f"{self.edge_reach_px}")
+        for name in ("edge_sigma_color", "edge_sigma_px", "edge_jump"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
 
 
 @dataclass(frozen=True, eq=False)
@@ -351,6 +369,9 @@ def sweep_distances(frame, sweep: SweepMethod, priors: Sequence[Prior | PriorFro
                 d = np.where(ok, d, fill_edge_aware(d, ok, frame.images["C"], post.fill_lambda,
                                                     post.fill_sigma_color, post.fill_space))
         d = _median_wrap(d, post.median_px)
+        if post.edge_radius_px > 0:
+            d = snap_depth_edges(d, conf, frame.images["C"], post.edge_radius_px, post.edge_sigma_color,
+                                 post.edge_sigma_px, post.edge_jump, post.edge_reach_px)
         _lap(seconds, "post", t)
         cpu = {k[:-4]: seconds.pop(k) for k in [k for k in seconds if k.endswith("_cpu")]}
         seconds["total"] = sum(seconds.values())

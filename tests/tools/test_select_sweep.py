@@ -10,7 +10,7 @@ import pytest
 
 from harness.data.errors import UserError
 from reconstruction.methods.presets import fused_mirror
-from tools.research import select_flat, select_planes, select_sgm
+from tools.research import select_edges, select_flat, select_planes, select_sgm
 from tools.research.select_planes import CANDIDATES, REFERENCE, candidate_methods, planes_method
 from tools.research.select_sgm import sgm_method
 
@@ -86,8 +86,27 @@ def test_flat_candidates_the_reference_first_and_the_default_once():
         select_flat.candidate_methods(["3-1"])
 
 
-@pytest.mark.parametrize("main", [select_planes.main, select_sgm.main, select_flat.main],
-                         ids=["planes", "sgm", "flat"])
+def test_edges_candidates_the_reference_first_and_the_default_once():
+    methods = select_edges.candidate_methods()
+    labels = [m.label for m in methods]
+    assert labels[0] == "fused-mirror-edges-0-10-5-4" and methods[0].sweep.post.edge_radius_px == 0
+    assert len(set(labels)) == len(labels) and len(methods) <= len(select_edges.CANDIDATES) + 2
+    default = fused_mirror()
+    same = [m for m in methods if {**m.config(), "label": None} == {**default.config(), "label": None}]
+    assert len(same) == 1
+    # everything but the four post-processing values is the default's
+    m = select_edges.edges_method(6, 15.0, 4.0, 3)
+    assert m.label == "fused-mirror-edges-6-15-4-3"
+    assert m.sweep.post == dataclasses.replace(default.sweep.post, edge_radius_px=6, edge_sigma_color=15.0,
+                                               edge_sigma_px=4.0, edge_reach_px=3)
+    assert m.sweep.cost == default.sweep.cost and m.sweep.corrected_cost == default.sweep.corrected_cost
+    assert m.flow == default.flow and m.prior == default.prior and m.sweep.sgm == default.sweep.sgm
+    with pytest.raises(UserError, match="unknown candidate"):
+        select_edges.candidate_methods(["3-1-1-1"])
+
+
+@pytest.mark.parametrize("main", [select_planes.main, select_sgm.main, select_flat.main, select_edges.main],
+                         ids=["planes", "sgm", "flat", "edges"])
 def test_a_missing_data_root_is_one_line_and_writes_nothing(main, tmp_path, capsys):
     out = tmp_path / "sel"
     assert main([str(tmp_path / "nope"), "--out", str(out), "--quiet", "--frames", "a/vp000"]) == 2

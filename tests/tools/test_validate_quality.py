@@ -231,7 +231,7 @@ def test_a_configuration_written_before_a_parameter_was_added_reads_as_its_earli
 
 def test_a_configuration_from_before_the_constants_became_parameters_reads_as_their_values():
     """Results sets written before the pre-pass flow, the fits' limits, the evidence's blocks, the rig fit's
-    iterations, the noise blur's cap, the fill's space, the floor and ceiling families and DeepFlow's and DeepMatching's
+    iterations, the noise blur's cap, the fill's space, the edge snapping, the floor and ceiling families and DeepFlow's and DeepMatching's
     parameters were recorded ran with the values they have by default: usable for the default and the paper's set-up,
     not for other values."""
     now = presets.fused_mirror().config()
@@ -241,7 +241,8 @@ def test_a_configuration_from_before_the_constants_became_parameters_reads_as_th
     for key in ("iterations", "tukey_c", "max_matches", "longitude_blocks", "min_block_samples"):
         del old["flow"]["rig"][key]
     del old["sweep"]["cost"]["max_noise_blur_px"], old["sweep"]["corrected_cost"]["max_noise_blur_px"]
-    del old["sweep"]["post"]["fill_space"]
+    for key in ("fill_space", "edge_radius_px", "edge_sigma_color", "edge_sigma_px", "edge_jump", "edge_reach_px"):
+        del old["sweep"]["post"][key]
     del old["sweep"]["planes"]["room_labels"], old["sweep"]["planes"]["room_spread"]
     assert config_difference(old, now) is None
     tighter = dataclasses.replace(presets.fused_mirror().flow.rig, iterations=3)
