@@ -231,9 +231,9 @@ def test_a_configuration_written_before_a_parameter_was_added_reads_as_its_earli
 
 def test_a_configuration_from_before_the_constants_became_parameters_reads_as_their_values():
     """Results sets written before the pre-pass flow, the fits' limits, the evidence's blocks, the rig fit's
-    iterations, the noise blur's cap, the fill's space, the edge snapping, the floor and ceiling families and DeepFlow's and DeepMatching's
-    parameters were recorded ran with the values they have by default: usable for the default and the paper's set-up,
-    not for other values."""
+    iterations, the noise blur's cap, the fill's space, the edge snapping, the floor and ceiling families and
+    DeepFlow's and DeepMatching's parameters were recorded ran with the values they have by default: usable for the
+    default and the paper's set-up, not for other values."""
     now = presets.fused_mirror().config()
     old = json.loads(json.dumps(now))
     for key in ("prepass_flow", "max_fit_pixels", "longitude_blocks", "min_block_samples"):
