@@ -38,11 +38,12 @@ def edge_pixels(log_d: np.ndarray, jump: float, reach_px: int) -> np.ndarray:
     Returns:
         (H, W) bool.
     """
-    x = np.nan_to_num(np.asarray(log_d, np.float32), nan=0.0)
+    x = np.asarray(log_d, np.float32)
+    known = np.isfinite(x)
     box = np.ones((3, 3), np.uint8)
-    hi = periodic_filter(x, 1, lambda a: cv2.dilate(a, box), 1)
-    lo = periodic_filter(x, 1, lambda a: cv2.erode(a, box), 1)
-    edge = ((hi - lo) > jump) & np.isfinite(log_d)
+    hi = periodic_filter(np.where(known, x, -np.inf).astype(np.float32), 1, lambda a: cv2.dilate(a, box), 1)
+    lo = periodic_filter(np.where(known, x, np.inf).astype(np.float32), 1, lambda a: cv2.erode(a, box), 1)
+    edge = known & ((hi - lo) > jump)
     if reach_px <= 0 or not edge.any():
         return edge
     grow = np.ones((2 * reach_px + 1, 2 * reach_px + 1), np.uint8)

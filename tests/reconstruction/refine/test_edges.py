@@ -74,6 +74,10 @@ def test_no_estimate_stays_none_and_is_never_a_neighbour():
     out = snap_depth_edges(d, conf, image, **PARAMS)
     assert np.isnan(out[:, 61]).all() and out[5, 58] == -1.0
     np.testing.assert_allclose(out[:, [60, 62]], FAR, rtol=1e-6)
+    # a hole in a smooth surface is no depth edge for its neighbours
+    flat = np.full((H, W), np.log(2.0))
+    flat[10:12, 20:22] = np.nan
+    assert not edge_pixels(flat, PARAMS["jump"], 0).any()
 
 
 def test_radius_zero_changes_nothing_and_bad_input_is_named():
