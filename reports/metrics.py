@@ -23,11 +23,10 @@ import math
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
-import cv2
 import numpy as np
 
 from reconstruction.camera.equirect import bearing_grid, pixel_to_lonlat
-from reconstruction.camera.image_ops import grey, periodic_filter, sobel_gradient
+from reconstruction.camera.image_ops import dilate_wrapped, grey, sobel_gradient
 
 __all__ = [
     "ANGLE_EDGES_DEG",
@@ -54,7 +53,6 @@ __all__ = [
     "pooled_sparsification_curves",
     "ause",
     "depth_edges",
-    "dilate_wrapped",
     "breakdown",
     "angle_to_baseline_deg",
     "texture_magnitude",
@@ -199,30 +197,6 @@ def depth_edges(distance, log_jump: float = EDGE_LOG_JUMP) -> np.ndarray:
     edges[:-1] |= vert
     edges[1:] |= vert
     return edges
-
-
-def dilate_wrapped(mask, radius_px: int) -> np.ndarray:
-    """Dilate a bool map by a (2r+1) x (2r+1) square, wrapping around in longitude (columns), not in rows.
-
-    Args:
-        mask: (H, W) bool.
-        radius_px: r >= 0, pixels (Chebyshev radius).
-    Returns:
-        (H, W) bool: True wherever a True pixel of ``mask`` lies within ``r`` rows and ``r`` columns
-        (columns counted modulo W).
-    """
-    mask = np.asarray(mask, dtype=bool)
-    r = int(radius_px)
-    if r < 0:
-        raise ValueError(f"radius_px must be >= 0, got {radius_px}")
-    if r == 0 or not mask.any():
-        return mask.copy()
-    kernel = np.ones((2 * r + 1, 2 * r + 1), np.uint8)
-
-    def dilate(padded):
-        return cv2.dilate(padded, kernel, borderType=cv2.BORDER_CONSTANT, borderValue=0)
-
-    return periodic_filter(mask.astype(np.uint8), r, dilate, r, "constant").astype(bool)
 
 
 @dataclass

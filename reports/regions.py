@@ -24,13 +24,12 @@ import cv2
 import numpy as np
 
 from reconstruction.camera.equirect import bearing_grid, pixel_to_lonlat, project
-from reconstruction.camera.image_ops import grey, periodic_box_filter, periodic_gaussian_blur
+from reconstruction.camera.image_ops import dilate_wrapped, grey, periodic_box_filter, periodic_gaussian_blur
 from reports.metrics import (
     EDGE_LOG_JUMP,
     ScoredMaps,
     angle_to_baseline_deg,
     depth_edges,
-    dilate_wrapped,
     scored_pixels,
     texture_magnitude,
 )

@@ -8,7 +8,7 @@ and weight residuals robustly (Tukey's biweight over a MAD scale).
 * Padding and filters: :func:`periodic_pad` (columns from the opposite edge, rows ``"edge"``, ``"reflect"``,
   ``"symmetric"`` or ``"constant"``), :func:`periodic_filter` (any filter on the padded image, cropped back),
   :func:`periodic_gaussian_blur`, :func:`periodic_box_filter`, :func:`local_contrast` (the standard
-  deviation in a Gaussian window).
+  deviation in a Gaussian window), :func:`dilate_wrapped` (a bool map grown by a square, columns wrapped).
 * Differences: :func:`central_differences` (columns periodic), :func:`sobel_gradient` (3x3 Sobel per pixel,
   columns periodic, rows replicated).
 * Grey: :func:`grey` (OpenCV's 8-bit BT.601, float BT.601, the channel mean or BT.709 luminance of linear light).
@@ -30,7 +30,7 @@ import numpy as np
 __all__ = ["ROW_MODES", "periodic_pad", "periodic_filter", "periodic_gaussian_blur", "periodic_box_filter",
            "local_contrast", "central_differences", "sobel_gradient", "GREY_MODES", "grey", "axis_angle_matrix",
            "rotation_vector_matrix", "vector_angle_deg", "rotation_angle_deg", "MAD_TO_SIGMA", "robust_scale",
-           "tukey_weights"]
+           "tukey_weights", "dilate_wrapped"]
 
 ROW_MODES = ("edge", "reflect", "symmetric", "constant")
 """How :func:`periodic_pad` fills the rows beyond the poles (``numpy.pad`` modes): ``edge`` repeats the first/last
@@ -309,3 +309,27 @@ def tukey_weights(residuals: np.ndarray, c: float, sigma: float) -> np.ndarray:
     """
     u = residuals / (c * sigma)
     return np.where(np.abs(u) < 1.0, (1.0 - u * u) ** 2, 0.0)
+
+
+def dilate_wrapped(mask, radius_px: int) -> np.ndarray:
+    """Dilate a bool map by a (2r+1) x (2r+1) square, wrapping around in longitude (columns), not in rows.
+
+    Args:
+        mask: (H, W) bool.
+        radius_px: r >= 0, pixels (Chebyshev radius).
+    Returns:
+        (H, W) bool: True wherever a True pixel of ``mask`` lies within ``r`` rows and ``r`` columns
+        (columns counted modulo W).
+    """
+    mask = np.asarray(mask, dtype=bool)
+    r = int(radius_px)
+    if r < 0:
+        raise ValueError(f"radius_px must be >= 0, got {radius_px}")
+    if r == 0 or not mask.any():
+        return mask.copy()
+    kernel = np.ones((2 * r + 1, 2 * r + 1), np.uint8)
+
+    def dilate(padded):
+        return cv2.dilate(padded, kernel, borderType=cv2.BORDER_CONSTANT, borderValue=0)
+
+    return periodic_filter(mask.astype(np.uint8), r, dilate, r, "constant").astype(bool)

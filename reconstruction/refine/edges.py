@@ -20,7 +20,7 @@ import cv2
 import numba
 import numpy as np
 
-from reconstruction.camera.image_ops import periodic_filter
+from reconstruction.camera.image_ops import dilate_wrapped, periodic_filter
 
 __all__ = ["CONFIDENCE_FLOOR", "edge_pixels", "snap_depth_edges"]
 
@@ -44,11 +44,7 @@ def edge_pixels(log_d: np.ndarray, jump: float, reach_px: int) -> np.ndarray:
     hi = periodic_filter(np.where(known, x, -np.inf).astype(np.float32), 1, lambda a: cv2.dilate(a, box), 1)
     lo = periodic_filter(np.where(known, x, np.inf).astype(np.float32), 1, lambda a: cv2.erode(a, box), 1)
     edge = known & ((hi - lo) > jump)
-    if reach_px <= 0 or not edge.any():
-        return edge
-    grow = np.ones((2 * reach_px + 1, 2 * reach_px + 1), np.uint8)
-    return periodic_filter(edge.astype(np.uint8), reach_px, lambda a: cv2.dilate(a, grow), reach_px,
-                           "constant").astype(bool)
+    return dilate_wrapped(edge, max(int(reach_px), 0))
 
 
 @numba.njit(cache=True)

@@ -8,12 +8,12 @@ import math
 import numpy as np
 import pytest
 
+from reconstruction.camera.image_ops import dilate_wrapped
 from reports.metrics import (
     AUSE_STEPS,
     SUMMARY_KEYS,
     ScoredMaps,
     depth_edges,
-    dilate_wrapped,
     pooled_summary,
     sparsification_curves,
     summary,

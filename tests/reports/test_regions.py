@@ -11,8 +11,9 @@ import pytest
 from harness.data.frame import Frame
 from harness.render.raycast import raycast
 from reconstruction.camera.equirect import bearing_grid
+from reconstruction.camera.image_ops import dilate_wrapped
 from reconstruction.camera.rig import CameraPose, Rig
-from reports.metrics import depth_edges, dilate_wrapped, summary
+from reports.metrics import depth_edges, summary
 from reports.regions import (
     DISTANCE_BANDS_M,
     OCCLUSION_ABS_TOL_M,
