@@ -11,6 +11,12 @@ each part left out (the delete-one-block jackknife), and the spread of those fit
 correction is *supported* when Hotelling's test rejects "no correction" at level :data:`ALPHA` (F distribution with
 ``p`` and ``B - p`` degrees of freedom, ``B`` the blocks that hold data, ``p`` the parameters tested): a model
 selection between the cameras as told and the cameras corrected, decided by the frame's own evidence.
+
+The jackknife cannot tell a camera's property from a scene effect that is the same in every block of one
+hemisphere: a polished floor's view-dependent reflection fills every block below the horizon.  A camera's property
+(its gain, a fall-off symmetric about its centre, its rotation) is seen as well from either hemisphere alone, so a
+correction can also be asked to be as large when fitted from each hemisphere alone
+(:func:`jackknife_hemispheres`).
 """
 
 from __future__ import annotations
@@ -19,7 +25,7 @@ import numpy as np
 from scipy import stats
 
 __all__ = ["LONGITUDE_BLOCKS", "BLOCKS", "ALPHA", "MIN_BLOCK_SAMPLES", "sphere_blocks", "jackknife_linear", "Evidence",
-           "hotelling"]
+           "hotelling", "hemisphere_rows", "jackknife_hemispheres"]
 
 LONGITUDE_BLOCKS = 16
 BLOCKS = 2 * LONGITUDE_BLOCKS
@@ -88,6 +94,33 @@ def jackknife_linear(design: np.ndarray, target: np.ndarray, weights: np.ndarray
     dev = est - est.mean(axis=0)
     cov = (len(leave) - 1) / len(leave) * dev.T @ dev
     return theta, cov, len(leave)
+
+
+def hemisphere_rows(blocks: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(N,) bool masks of the rows whose :func:`sphere_blocks` block lies above the horizon and below it."""
+    b = np.asarray(blocks)
+    return b % 2 == 0, b % 2 == 1
+
+
+def jackknife_hemispheres(design: np.ndarray, target: np.ndarray, weights: np.ndarray, blocks: np.ndarray,
+                          ridge: np.ndarray | None = None,
+                          min_samples: int = MIN_BLOCK_SAMPLES) -> list[tuple[np.ndarray, np.ndarray, int]]:
+    """:func:`jackknife_linear` of the rows above the horizon alone and of those below it alone (same arguments).
+
+    Returns:
+        ``[(theta, cov, used) above, (theta, cov, used) below]``; a hemisphere without rows gives zeros, a NaN
+        covariance and 0 blocks (no evidence).
+    """
+    design = np.asarray(design, np.float64)
+    target, weights, blocks = np.asarray(target), np.asarray(weights), np.asarray(blocks)
+    out = []
+    for rows in hemisphere_rows(blocks):
+        if not rows.any():
+            p = design.shape[1]
+            out.append((np.zeros(p), np.full((p, p), np.nan), 0))
+            continue
+        out.append(jackknife_linear(design[rows], target[rows], weights[rows], blocks[rows], ridge, min_samples))
+    return out
 
 
 class Evidence(dict):

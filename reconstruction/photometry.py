@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import dataclasses
 import itertools
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import cv2
@@ -41,6 +42,7 @@ from reconstruction.evidence import (
     MIN_BLOCK_SAMPLES,
     Evidence,
     hotelling,
+    jackknife_hemispheres,
     jackknife_linear,
     sphere_blocks,
 )
@@ -124,6 +126,16 @@ class PhotometricParams:
             a smooth gain field and the rotations, fast.  :meth:`config` records its name and parameters.
         max_fit_pixels: the fits use at most this many pixels (evenly strided): the field of degree 2 has 11
             coefficients.
+        hemispheres: a correction is applied only when it is also at least this share of its floor (``min_gain``,
+            ``min_field``, ``min_response``, ``min_common``) as fitted from the pixels above C's horizon alone and
+            from those below alone (:func:`reconstruction.evidence.jackknife_hemispheres`; the significance stays
+            the whole sphere's test), and the record gives each hemisphere's size and p-value; 0 (the default): not
+            asked.  A camera's gain, a central fall-off and a response curve are seen from either hemisphere, a
+            scene effect of one hemisphere (a polished floor's view-dependent reflection) from that one only.  Off,
+            as measured on tri360-v3 dev (docs/photometry.md): at 1 it drops real corrections on the camera families
+            (a third of the fields; up to 1.4x the MAE on single frames, 1.18x pooled over the off-axis frames it
+            changes) while no ideal dev frame has a correction it would drop; at 0.5 it changes almost nothing, and
+            no longer drops a gain that only the lower hemisphere's pixels show.
         longitude_blocks, min_block_samples: the blocks of the sphere over which each correction is tested
             (:func:`reconstruction.evidence.sphere_blocks`: sectors of longitude, each cut at the horizon) and the
             fewest samples of a block left out on its own (:func:`reconstruction.evidence.jackknife_linear`).
@@ -153,6 +165,7 @@ class PhotometricParams:
     min_response: float = 0.10
     prepass_flow: FlowBackend = field(default_factory=lambda: _builtin_flow("dis"))
     max_fit_pixels: int = 15000
+    hemispheres: float = 0.0
     longitude_blocks: int = LONGITUDE_BLOCKS
     min_block_samples: int = MIN_BLOCK_SAMPLES
 
@@ -177,6 +190,8 @@ class PhotometricParams:
         if not (self.min_gain >= 0 and self.min_field >= 0 and self.min_common >= 0):
             raise ValueError(f"photometric min_gain {self.min_gain}, min_field {self.min_field} and min_common "
                              f"{self.min_common} must be >= 0")
+        if not 0.0 <= self.hemispheres <= 1.0:
+            raise ValueError(f"photometric hemispheres must be in [0, 1], got {self.hemispheres}")
         if not 0 <= self.response <= 4:
             raise ValueError(f"photometric response must be in 0..4, got {self.response}")
         if not self.min_response >= 0:
@@ -547,9 +562,19 @@ def fit_photometric(images: dict, cameras: dict, distance: np.ndarray,
     phi_mean = phi_c.reshape(-1, n_j).mean(axis=0)
     phi_all = phi_c.reshape(-1, n_j)
 
-    def test(lin_map: np.ndarray, size: float, floor: float) -> Evidence:
+    halves = jackknife_hemispheres(design, target, weights, blocks, ridge, params.min_block_samples) \
+        if params.hemispheres > 0 else []
+
+    def test(lin_map: np.ndarray, size_of: Callable[[np.ndarray], float], floor: float) -> Evidence:
         ev = hotelling(lin_map @ theta, lin_map @ cov @ lin_map.T, n_blocks, params.alpha)
-        ev["supported"] = bool(ev["supported"] and size >= floor)
+        ev["supported"] = bool(ev["supported"] and size_of(theta) >= floor)
+        if halves:  # a share of the floor when fitted from each hemisphere alone (significance: the whole sphere's)
+            ev["hemispheres"] = []
+            for th, cv, nb in halves:
+                size = size_of(th)
+                ev["hemispheres"].append({"size": size, "p_value": hotelling(lin_map @ th, lin_map @ cv @ lin_map.T, nb,
+                                                                             params.alpha)["p_value"], "blocks": nb})
+                ev["supported"] = bool(ev["supported"] and size >= params.hemispheres * floor)
         return ev
 
     # the levels most of the fit's pixels have (C's 5th to 95th percentile)
@@ -564,6 +589,10 @@ def fit_photometric(images: dict, cameras: dict, distance: np.ndarray,
         v = v - v.mean()
         return float(np.exp(v.min())), float(np.exp(v.max()))
 
+    def field_size(beta: np.ndarray) -> float:
+        lo, hi = field_range(beta)
+        return float(np.log(hi / lo))
+
     record = {"pixels": int(n_samples), "sigma": sigma, "inliers": float((weights > 0).mean()),
               "blocks": n_blocks}
     keep = np.zeros(n_cols, bool)
@@ -575,15 +604,15 @@ def fit_photometric(images: dict, cameras: dict, distance: np.ndarray,
         mean_gain[np.arange(3), a_cols] = 1.0
         mean_gain[:, f_cols] = phi_mean
         gains = mean_gain @ theta
-        gain_ev = test(mean_gain, float(np.abs(gains).max()), params.min_gain)
+        gain_ev = test(mean_gain, lambda t, m=mean_gain: float(np.abs(m @ t).max()), params.min_gain)
         lo, hi = field_range(theta[f_cols]) if n_j else (1.0, 1.0)
-        field_ev = test(np.eye(n_cols)[f_cols], float(np.log(hi / lo)), params.min_field) if n_j else \
+        field_ev = test(np.eye(n_cols)[f_cols], lambda t, c=f_cols: field_size(t[c]), params.min_field) if n_j else \
             Evidence(statistic=float("nan"), p_value=1.0, blocks=n_blocks, supported=False)
         record[k] = {"gain_rgb": np.exp(gains).tolist(), "gain": {**gain_ev, "applied": gain_ev["supported"]},
                      "field_range": [lo, hi], "field": {**field_ev, "applied": field_ev["supported"]}}
         if n_r:
             size = response_range(theta[r_cols])
-            response_ev = test(np.eye(n_cols)[r_cols], size, params.min_response)
+            response_ev = test(np.eye(n_cols)[r_cols], lambda t, c=r_cols: response_range(t[c]), params.min_response)
             record[k]["response_range"] = size
             record[k]["response"] = {**response_ev, "applied": response_ev["supported"]}
             keep[r_cols] = response_ev["supported"]
@@ -595,7 +624,7 @@ def fit_photometric(images: dict, cameras: dict, distance: np.ndarray,
     if params.common_field and n_j:
         c_cols = np.arange(common_first, n_cols)
         lo, hi = field_range(theta[c_cols])
-        ev = test(np.eye(n_cols)[c_cols], float(np.log(hi / lo)), params.min_common)
+        ev = test(np.eye(n_cols)[c_cols], lambda t: field_size(t[c_cols]), params.min_common)
         record["common"] = {"field_range": [lo, hi], "field": {**ev, "applied": ev["supported"]}}
         keep[c_cols] = ev["supported"]
     if not keep.any():

@@ -39,6 +39,7 @@ from reconstruction.evidence import (
     ALPHA,
     LONGITUDE_BLOCKS,
     MIN_BLOCK_SAMPLES,
+    hemisphere_rows,
     hotelling,
     jackknife_linear,
     sphere_blocks,
@@ -67,6 +68,13 @@ class RigParams:
             a false one is at least ``min_degrees`` and none passed on the ideal dev frames that did not at 0.001.
         min_degrees: a smaller correction is not applied however significant: a tenth of a pixel of the pre-pass
             (500 px around at 1000x500), about what its flow resolves.
+        hemispheres: a rotation is applied only when the rotations fitted from the matches above the horizon alone
+            and from those below alone are each at least this share of ``min_degrees`` (:func:`fit_rotation`'s
+            ``hemispheres``); 0 (the default): not asked.  A told rotation that is off turns every match, a scene
+            effect of one hemisphere (a polished floor's blurred reflection matched as a surface) only that
+            hemisphere's.  Off with the photometric one (:class:`reconstruction.photometry.PhotometricParams`); every
+            rotation applied on the camera families of tri360-v3 dev was found at least 0.78 of ``min_degrees`` from
+            each hemisphere.
         iterations, tukey_c, max_matches, longitude_blocks, min_block_samples: the fit's
             (:func:`fit_rotation`).
     """
@@ -81,6 +89,7 @@ class RigParams:
     iterations: int = 6
     tukey_c: float = 4.685
     max_matches: int = 40000
+    hemispheres: float = 0.0
     longitude_blocks: int = LONGITUDE_BLOCKS
     min_block_samples: int = MIN_BLOCK_SAMPLES
 
@@ -97,6 +106,8 @@ class RigParams:
             raise ValueError(f"rig calibration alpha must be in (0, 1), got {self.alpha}")
         if not 0 <= self.min_degrees < self.max_degrees:
             raise ValueError(f"rig calibration min_degrees {self.min_degrees} must be in [0, max_degrees)")
+        if not 0.0 <= self.hemispheres <= 1.0:
+            raise ValueError(f"rig calibration hemispheres must be in [0, 1], got {self.hemispheres}")
         if not self.max_degrees > 0:
             raise ValueError(f"rig calibration max_degrees must be > 0, got {self.max_degrees}")
         if not (self.iterations >= 0 and self.tukey_c > 0 and self.max_matches >= 1 and self.longitude_blocks >= 1
@@ -119,7 +130,7 @@ class RigFit(dict):
 def fit_rotation(c: np.ndarray, k: np.ndarray, baseline: np.ndarray, *, min_sin: float = 0.3,
                  iterations: int = 6, tukey_c: float = 4.685, max_matches: int = 40000,
                  alpha: float = ALPHA, longitude_blocks: int = LONGITUDE_BLOCKS,
-                 min_block_samples: int = MIN_BLOCK_SAMPLES) -> RigFit:
+                 min_block_samples: int = MIN_BLOCK_SAMPLES, hemispheres: bool = False) -> RigFit:
     """The rotation that puts K's matched bearings back onto C's epipolar planes (module doc).
 
     Args:
@@ -138,6 +149,10 @@ def fit_rotation(c: np.ndarray, k: np.ndarray, baseline: np.ndarray, *, min_sin:
             ``alpha``.
         longitude_blocks, min_block_samples: those blocks (:func:`reconstruction.evidence.sphere_blocks`) and the
             fewest matches of one left out on its own (:func:`reconstruction.evidence.jackknife_linear`).
+        hemispheres: ``evidence`` also holds ``hemispheres``: for the matches above the horizon and those below,
+            each alone, the rotation fitted the same way from them alone (``degrees``) and its test (``p_value``,
+            ``blocks``), for the caller's
+            decision (the self-calibration applies a rotation only when each is at least ``RigParams.min_degrees``).
     Returns:
         A :class:`RigFit`; ``omega`` is zero and nothing supported when fewer than 100 matches are usable.
     """
@@ -157,8 +172,29 @@ def fit_rotation(c: np.ndarray, k: np.ndarray, baseline: np.ndarray, *, min_sin:
     blocks = sphere_blocks(c[idx], longitude_blocks)
     n = n[idx] / sin[idx, None]
     k = k[idx]
+    omega, sigma, done, cov, used = _robust_fit(n, k, blocks, iterations, tukey_c, min_block_samples)
+    evidence = hotelling(omega, cov, used, alpha)
+    if hemispheres:
+        evidence["hemispheres"] = []
+        for rows in hemisphere_rows(blocks):
+            omega_h, _, _, cov_h, used_h = _robust_fit(n[rows], k[rows], blocks[rows], iterations, tukey_c,
+                                                       min_block_samples)
+            evidence["hemispheres"].append({"degrees": float(np.degrees(np.linalg.norm(omega_h))),
+                                            "p_value": hotelling(omega_h, cov_h, used_h, alpha)["p_value"],
+                                            "blocks": used_h})
+    return RigFit(omega=omega.tolist(), degrees=float(np.degrees(np.linalg.norm(omega))), matches=int(idx.size),
+                  sigma_deg=float(np.degrees(sigma)), iterations=done, evidence=evidence)
+
+
+def _robust_fit(n: np.ndarray, k: np.ndarray, blocks: np.ndarray, iterations: int, tukey_c: float,
+                min_block_samples: int) -> tuple[np.ndarray, float, int, np.ndarray, int]:
+    """Gauss-Newton with Tukey weights on ``r = n . Rot(omega) k`` ((M, 3) unit normals and bearings), then the
+    jackknife over ``blocks`` at the solution: ``(omega, sigma, iterations done, cov, blocks used)``."""
+    omega = np.zeros(3)
     sigma = float("nan")
     done = 0
+    if n.shape[0] < 100:
+        return omega, sigma, done, np.full((3, 3), np.nan), 0
     while done < iterations:
         done += 1
         kk = k @ rotation_vector_matrix(omega).T
@@ -176,8 +212,7 @@ def fit_rotation(c: np.ndarray, k: np.ndarray, baseline: np.ndarray, *, min_sin:
     r = np.einsum("ij,ij->i", n, kk)
     wts = tukey_weights(r, tukey_c, sigma)
     _, cov, used = jackknife_linear(np.cross(kk, n), -r, wts, blocks, min_samples=min_block_samples)
-    return RigFit(omega=omega.tolist(), degrees=float(np.degrees(np.linalg.norm(omega))), matches=int(idx.size),
-                  sigma_deg=float(np.degrees(sigma)), iterations=done, evidence=hotelling(omega, cov, used, alpha))
+    return omega, sigma, done, cov, used
 
 
 def usable_matches(image_c: np.ndarray, bearing: np.ndarray, fb_error_px: np.ndarray, valid: np.ndarray,

@@ -79,10 +79,12 @@ def fused_mirror() -> PriorSweepMethod:
         mode="gain-field", degree=2, pixel_degree=0, prepass_factor=2, ridge=0.0, factor=4, dark=0.01, bright=0.9,
         tukey_c=4.685, iterations=8, max_log_gain=2.0, even=False, central=True, common_field=False, min_gain=0.05,
         min_field=0.1, min_common=0.5, flat_log_gradient=0.1, alpha=0.001, agreement=0.05, response=1,
-        min_response=0.1, prepass_flow=dis, max_fit_pixels=15000, longitude_blocks=16, min_block_samples=50)
+        min_response=0.1, prepass_flow=dis, max_fit_pixels=15000, hemispheres=0.0,
+        longitude_blocks=16, min_block_samples=50)
     rig = RigParams(
         mode="rotation", max_fb_px=0.5, texture_quantile=0.7, min_sin=0.3, max_degrees=2.0, alpha=0.01,
-        min_degrees=0.072, iterations=6, tukey_c=4.685, max_matches=40000, longitude_blocks=16, min_block_samples=50)
+        min_degrees=0.072, iterations=6, tukey_c=4.685, max_matches=40000, hemispheres=0.0,
+        longitude_blocks=16, min_block_samples=50)
     return PriorSweepMethod(
         label="fused-mirror",
         # the prior is the unrefined flow: the flow pipeline without its LM, about 0.6 s less per 1000x500 frame
@@ -179,10 +181,12 @@ def fused() -> PriorSweepMethod:
         mode="gain-field", degree=2, pixel_degree=0, prepass_factor=2, ridge=0.0, factor=4, dark=0.01, bright=0.9,
         tukey_c=4.685, iterations=8, max_log_gain=2.0, even=False, central=True, common_field=False, min_gain=0.05,
         min_field=0.1, min_common=0.5, flat_log_gradient=0.1, alpha=0.001, agreement=0.05, response=1,
-        min_response=0.1, prepass_flow=dis, max_fit_pixels=15000, longitude_blocks=16, min_block_samples=50)
+        min_response=0.1, prepass_flow=dis, max_fit_pixels=15000, hemispheres=0.0,
+        longitude_blocks=16, min_block_samples=50)
     rig = RigParams(
         mode="rotation", max_fb_px=0.5, texture_quantile=0.7, min_sin=0.3, max_degrees=2.0, alpha=0.01,
-        min_degrees=0.072, iterations=6, tukey_c=4.685, max_matches=40000, longitude_blocks=16, min_block_samples=50)
+        min_degrees=0.072, iterations=6, tukey_c=4.685, max_matches=40000, hemispheres=0.0,
+        longitude_blocks=16, min_block_samples=50)
     return PriorSweepMethod(
         label="fused", quality_flow=None,
         flow=FlowMethod(
@@ -225,7 +229,8 @@ def sweep() -> SweepMethod:
         mode="gain-field", degree=2, pixel_degree=0, prepass_factor=2, ridge=0.0, factor=4, dark=0.01, bright=0.9,
         tukey_c=4.685, iterations=8, max_log_gain=2.0, even=False, central=True, common_field=False, min_gain=0.05,
         min_field=0.1, min_common=0.5, flat_log_gradient=0.1, alpha=0.001, agreement=0.05, response=1,
-        min_response=0.1, prepass_flow=dis, max_fit_pixels=15000, longitude_blocks=16, min_block_samples=50)
+        min_response=0.1, prepass_flow=dis, max_fit_pixels=15000, hemispheres=0.0,
+        longitude_blocks=16, min_block_samples=50)
     return SweepMethod(
         pairs=("U", "R"), label="sweep", photometric=photometric, corrected_cost=None,
         cost=CostParams(
@@ -258,11 +263,12 @@ def fused_mirror_raw() -> PriorSweepMethod:
         mode="none", degree=2, pixel_degree=0, prepass_factor=2, ridge=0.0, factor=4, dark=0.01, bright=0.9,
         tukey_c=4.685, iterations=8, max_log_gain=2.0, even=False, central=True, common_field=False, min_gain=0.05,
         min_field=0.1, min_common=0.5, flat_log_gradient=0.1, alpha=0.001, agreement=0.05, response=1,
-        min_response=0.1, prepass_flow=dis, max_fit_pixels=15000, longitude_blocks=16, min_block_samples=50)
+        min_response=0.1, prepass_flow=dis, max_fit_pixels=15000, hemispheres=0.0,
+        longitude_blocks=16, min_block_samples=50)
     # mode "none": the told poses as they are (the other fields are not used)
     rig = RigParams(
         mode="none", max_fb_px=0.5, texture_quantile=0.7, min_sin=0.3, max_degrees=2.0, alpha=0.01, min_degrees=0.072,
-        iterations=6, tukey_c=4.685, max_matches=40000, longitude_blocks=16, min_block_samples=50)
+        iterations=6, tukey_c=4.685, max_matches=40000, hemispheres=0.0, longitude_blocks=16, min_block_samples=50)
     return PriorSweepMethod(
         label="fused-mirror-raw",
         flow=FlowMethod(flow=dis, rectify=True, refine=None, limits=limits, photometric=photometric, rig=rig),
@@ -306,11 +312,12 @@ def fused_mirror_told_rig() -> PriorSweepMethod:
         mode="gain-field", degree=2, pixel_degree=0, prepass_factor=2, ridge=0.0, factor=4, dark=0.01, bright=0.9,
         tukey_c=4.685, iterations=8, max_log_gain=2.0, even=False, central=True, common_field=False, min_gain=0.05,
         min_field=0.1, min_common=0.5, flat_log_gradient=0.1, alpha=0.001, agreement=0.05, response=1,
-        min_response=0.1, prepass_flow=dis, max_fit_pixels=15000, longitude_blocks=16, min_block_samples=50)
+        min_response=0.1, prepass_flow=dis, max_fit_pixels=15000, hemispheres=0.0,
+        longitude_blocks=16, min_block_samples=50)
     # mode "none": the told poses as they are (the other fields are not used)
     rig = RigParams(
         mode="none", max_fb_px=0.5, texture_quantile=0.7, min_sin=0.3, max_degrees=2.0, alpha=0.01, min_degrees=0.072,
-        iterations=6, tukey_c=4.685, max_matches=40000, longitude_blocks=16, min_block_samples=50)
+        iterations=6, tukey_c=4.685, max_matches=40000, hemispheres=0.0, longitude_blocks=16, min_block_samples=50)
     return PriorSweepMethod(
         label="fused-mirror-told-rig",
         flow=FlowMethod(flow=dis, rectify=True, refine=None, limits=limits, photometric=photometric, rig=rig),
@@ -361,10 +368,12 @@ def fused_mirror_raw_images() -> PriorSweepMethod:
         mode="none", degree=2, pixel_degree=0, prepass_factor=2, ridge=0.0, factor=4, dark=0.01, bright=0.9,
         tukey_c=4.685, iterations=8, max_log_gain=2.0, even=False, central=True, common_field=False, min_gain=0.05,
         min_field=0.1, min_common=0.5, flat_log_gradient=0.1, alpha=0.001, agreement=0.05, response=1,
-        min_response=0.1, prepass_flow=dis, max_fit_pixels=15000, longitude_blocks=16, min_block_samples=50)
+        min_response=0.1, prepass_flow=dis, max_fit_pixels=15000, hemispheres=0.0,
+        longitude_blocks=16, min_block_samples=50)
     rig = RigParams(
         mode="rotation", max_fb_px=0.5, texture_quantile=0.7, min_sin=0.3, max_degrees=2.0, alpha=0.01,
-        min_degrees=0.072, iterations=6, tukey_c=4.685, max_matches=40000, longitude_blocks=16, min_block_samples=50)
+        min_degrees=0.072, iterations=6, tukey_c=4.685, max_matches=40000, hemispheres=0.0,
+        longitude_blocks=16, min_block_samples=50)
     return PriorSweepMethod(
         label="fused-mirror-raw-images",
         flow=FlowMethod(flow=dis, rectify=True, refine=None, limits=limits, photometric=photometric, rig=rig),
@@ -408,12 +417,13 @@ def fused_mirror_shared_falloff() -> PriorSweepMethod:
         mode="gain-field", degree=2, pixel_degree=0, prepass_factor=2, ridge=0.0, factor=4, dark=0.01, bright=0.9,
         tukey_c=4.685, iterations=8, max_log_gain=2.0, even=False, central=True, min_gain=0.05, min_field=0.1,
         min_common=0.5, flat_log_gradient=0.1, alpha=0.001, agreement=0.05, response=1, min_response=0.1,
-        prepass_flow=dis, max_fit_pixels=15000, longitude_blocks=16, min_block_samples=50,
+        prepass_flow=dis, max_fit_pixels=15000, hemispheres=0.0, longitude_blocks=16, min_block_samples=50,
         # what this ablation switches on
         common_field=True)
     rig = RigParams(
         mode="rotation", max_fb_px=0.5, texture_quantile=0.7, min_sin=0.3, max_degrees=2.0, alpha=0.01,
-        min_degrees=0.072, iterations=6, tukey_c=4.685, max_matches=40000, longitude_blocks=16, min_block_samples=50)
+        min_degrees=0.072, iterations=6, tukey_c=4.685, max_matches=40000, hemispheres=0.0,
+        longitude_blocks=16, min_block_samples=50)
     return PriorSweepMethod(
         label="fused-mirror-shared-falloff",
         flow=FlowMethod(flow=dis, rectify=True, refine=None, limits=limits, photometric=photometric, rig=rig),
@@ -463,10 +473,12 @@ def fused_gated() -> PriorSweepMethod:
         mode="gain-field", degree=2, pixel_degree=0, prepass_factor=2, ridge=0.0, factor=4, dark=0.01, bright=0.9,
         tukey_c=4.685, iterations=8, max_log_gain=2.0, even=False, central=True, common_field=False, min_gain=0.05,
         min_field=0.1, min_common=0.5, flat_log_gradient=0.1, alpha=0.001, agreement=0.05, response=1,
-        min_response=0.1, prepass_flow=dis, max_fit_pixels=15000, longitude_blocks=16, min_block_samples=50)
+        min_response=0.1, prepass_flow=dis, max_fit_pixels=15000, hemispheres=0.0,
+        longitude_blocks=16, min_block_samples=50)
     rig = RigParams(
         mode="rotation", max_fb_px=0.5, texture_quantile=0.7, min_sin=0.3, max_degrees=2.0, alpha=0.01,
-        min_degrees=0.072, iterations=6, tukey_c=4.685, max_matches=40000, longitude_blocks=16, min_block_samples=50)
+        min_degrees=0.072, iterations=6, tukey_c=4.685, max_matches=40000, hemispheres=0.0,
+        longitude_blocks=16, min_block_samples=50)
     return PriorSweepMethod(
         label="fused-gated",
         # the flow pipeline without its LM: about 0.6 s less per 1000x500 frame than fused's
@@ -516,10 +528,12 @@ def fused_adaptive() -> PriorSweepMethod:
         mode="gain-field", degree=2, pixel_degree=0, prepass_factor=2, ridge=0.0, factor=4, dark=0.01, bright=0.9,
         tukey_c=4.685, iterations=8, max_log_gain=2.0, even=False, central=True, common_field=False, min_gain=0.05,
         min_field=0.1, min_common=0.5, flat_log_gradient=0.1, alpha=0.001, agreement=0.05, response=1,
-        min_response=0.1, prepass_flow=dis, max_fit_pixels=15000, longitude_blocks=16, min_block_samples=50)
+        min_response=0.1, prepass_flow=dis, max_fit_pixels=15000, hemispheres=0.0,
+        longitude_blocks=16, min_block_samples=50)
     rig = RigParams(
         mode="rotation", max_fb_px=0.5, texture_quantile=0.7, min_sin=0.3, max_degrees=2.0, alpha=0.01,
-        min_degrees=0.072, iterations=6, tukey_c=4.685, max_matches=40000, longitude_blocks=16, min_block_samples=50)
+        min_degrees=0.072, iterations=6, tukey_c=4.685, max_matches=40000, hemispheres=0.0,
+        longitude_blocks=16, min_block_samples=50)
     return PriorSweepMethod(
         label="fused-adaptive", quality_flow=None,
         flow=FlowMethod(

@@ -122,9 +122,12 @@ def self_calibrate(frame, photometric: PhotometricParams, rig: RigParams, limits
                                                              prep.valid[k], rig), m.baseline,
                                min_sin=rig.min_sin, iterations=rig.iterations, tukey_c=rig.tukey_c,
                                max_matches=rig.max_matches, alpha=rig.alpha, longitude_blocks=rig.longitude_blocks,
-                               min_block_samples=rig.min_block_samples)
+                               min_block_samples=rig.min_block_samples, hemispheres=rig.hemispheres > 0)
+            # a share of the floor from each hemisphere alone too (RigParams.hemispheres)
+            halves_ok = all(h["degrees"] >= rig.hemispheres * rig.min_degrees
+                            for h in fit["evidence"].get("hemispheres", []))
             fit["applied"] = bool(fit["evidence"]["supported"] and rig.min_degrees <= fit["degrees"] <= rig.max_degrees
-                                  and fit["degrees"] > 0)
+                                  and fit["degrees"] > 0 and halves_ok)
             fits[k] = fit
             omega = np.asarray(fit["omega"]) if fit["applied"] else np.zeros(3)
             cameras[k] = corrected_pose(frame.cameras[k], omega)

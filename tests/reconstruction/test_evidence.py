@@ -8,7 +8,14 @@ import numpy as np
 import pytest
 
 from reconstruction.camera.equirect import bearing_grid
-from reconstruction.evidence import BLOCKS, hotelling, jackknife_linear, sphere_blocks
+from reconstruction.evidence import (
+    BLOCKS,
+    hemisphere_rows,
+    hotelling,
+    jackknife_hemispheres,
+    jackknife_linear,
+    sphere_blocks,
+)
 from reconstruction.photometry import (
     PhotometricParams,
     apply_photometric,
@@ -82,6 +89,42 @@ def test_a_block_effect_is_not_a_camera_effect():
     assert theta[0] > 0.01 and not hotelling(theta, cov, used)["supported"]
 
 
+def test_each_hemisphere_alone_is_the_jackknife_of_its_rows():
+    """:func:`jackknife_hemispheres` is :func:`jackknife_linear` of the rows above the horizon and of those below
+    (1e-12); a hemisphere without rows carries no evidence."""
+    rng = np.random.default_rng(4)
+    b = _unit(rng, 6000)
+    blocks = sphere_blocks(b)
+    design = np.column_stack([np.ones(b.shape[0]), b[:, 0] ** 2])
+    target = design @ np.array([0.1, -0.2]) + rng.normal(scale=0.05, size=b.shape[0])
+    weights = rng.uniform(0.5, 1.0, b.shape[0])
+    up, down = hemisphere_rows(blocks)
+    assert up.sum() + down.sum() == b.shape[0] and np.array_equal(up, b[:, 2] >= 0)
+    for (theta, cov, used), rows in zip(jackknife_hemispheres(design, target, weights, blocks), (up, down),
+                                        strict=True):
+        ref = jackknife_linear(design[rows], target[rows], weights[rows], blocks[rows])
+        np.testing.assert_allclose(theta, ref[0], rtol=0, atol=1e-12)
+        np.testing.assert_allclose(cov, ref[1], rtol=1e-10, atol=1e-15)
+        assert used == ref[2] == BLOCKS // 2
+    theta, cov, used = jackknife_hemispheres(design[up], target[up], weights[up], blocks[up])[1]
+    assert used == 0 and not hotelling(theta, cov, used)["supported"]
+
+
+def test_an_offset_in_every_block_below_the_horizon_is_not_seen_from_above():
+    """A polished floor's reflection: an offset of 0.1 in every block below the horizon passes the whole sphere's
+    jackknife test (every block is alike within its hemisphere), but the fit of the rows above the horizon alone
+    finds under a tenth of it."""
+    rng = np.random.default_rng(5)
+    b = _unit(rng, 20000)
+    blocks = sphere_blocks(b)
+    design, weights = np.ones((b.shape[0], 1)), np.ones(b.shape[0])
+    y = rng.normal(scale=0.01, size=b.shape[0]) + np.where(b[:, 2] < 0, 0.1, 0.0)
+    theta, cov, used = jackknife_linear(design, y, weights, blocks)
+    assert hotelling(theta, cov, used)["supported"] and theta[0] > 0.04
+    (above, _, _), (below, _, _) = jackknife_hemispheres(design, y, weights, blocks)
+    assert abs(above[0]) < 0.01 and below[0] > 0.09
+
+
 def test_hotelling_needs_more_blocks_than_quantities():
     ev = hotelling(np.ones(3), np.eye(3), 3)
     assert not ev["supported"] and ev["p_value"] == 1.0
@@ -107,19 +150,39 @@ def test_cameras_that_agree_get_no_correction():
 
 
 @pytest.mark.slow
-def test_cameras_that_differ_are_corrected_to_c():
-    """U and R with other gains (0.8-1.2) and fall-off (20 %, 30 %): both are applied, and the corrected images are
-    within 1 grey level of the originals on 95 % of the pixels."""
+@pytest.mark.parametrize("share", [0.0, 0.5, 1.0])
+def test_cameras_that_differ_are_corrected_to_c(share):
+    """U and R with other gains (0.8-1.2) and fall-off (20 %, 30 %): both are applied, also when each must be at
+    least its floor (or half of it) as fitted from each hemisphere alone (``hemispheres``), and the corrected
+    images are within 1 grey level of the originals on 95 % of the pixels."""
     frame = make_synthetic_frame(width=480)
     images = _relit(frame, {"U": ((1.2, 1.1, 0.9), 0.2), "R": ((0.8, 0.85, 0.9), 0.3)})
-    model, record = fit_photometric(images, frame.cameras, frame.distance["C"], PhotometricParams())
+    model, record = fit_photometric(images, frame.cameras, frame.distance["C"], PhotometricParams(hemispheres=share))
     for k in ("U", "R"):
         assert record[k]["gain"]["applied"] and record[k]["field"]["applied"]
+        assert ("hemispheres" in record[k]["field"]) == (share > 0)
     out = apply_photometric(images, model)
     assert out["C"] is images["C"]
     for k in ("U", "R"):
         diff = np.abs(out[k].astype(int) - frame.images[k].astype(int))
         assert np.percentile(diff, 95) <= 1.0
+
+
+@pytest.mark.slow
+def test_a_brighter_lower_hemisphere_is_not_a_camera_gain_from_both_hemispheres():
+    """U sees everything below the horizon 25 % brighter (a polished floor's view-dependent reflection seen from U
+    only): the whole sphere's fit applies a gain to U; with ``hemispheres`` 1 nothing is applied, since the pixels
+    above the horizon alone find a gain below the floor (0.05), those below one four times it."""
+    frame = make_synthetic_frame(width=480)
+    h = frame.height
+    images = dict(frame.images)
+    lower = (np.arange(h) >= h // 2)[:, None, None]
+    images["U"] = linear_to_srgb(srgb_to_linear(frame.images["U"]) * np.where(lower, 1.25, 1.0))
+    _, record = fit_photometric(images, frame.cameras, frame.distance["C"], PhotometricParams())
+    assert record["U"]["gain"]["applied"] and "hemispheres" not in record["U"]["gain"]
+    model, record = fit_photometric(images, frame.cameras, frame.distance["C"], PhotometricParams(hemispheres=1.0))
+    above, below = record["U"]["gain"]["hemispheres"]
+    assert model.is_identity and above["size"] < 0.05 and below["size"] > 0.2
 
 
 @pytest.mark.slow

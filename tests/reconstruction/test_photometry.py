@@ -145,7 +145,8 @@ def test_no_calibration_and_the_frame_view():
 
 
 @pytest.mark.parametrize("bad", [dict(mode="auto"), dict(degree=7), dict(pixel_degree=-1), dict(factor=0),
-                                 dict(dark=0.5, bright=0.4), dict(prepass_factor=0), dict(ridge=-1.0)])
+                                 dict(dark=0.5, bright=0.4), dict(prepass_factor=0), dict(ridge=-1.0),
+                                 dict(hemispheres=-0.1), dict(hemispheres=1.5)])
 def test_bad_parameters_are_refused(bad):
     with pytest.raises(ValueError):
         PhotometricParams(**bad)

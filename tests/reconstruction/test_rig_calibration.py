@@ -76,6 +76,30 @@ def test_fit_holds_against_noise_and_outliers():
     assert np.degrees(np.linalg.norm(np.array(fit["omega"]) - omega)) < 0.005
 
 
+def test_each_hemisphere_sees_a_told_rotation_but_not_an_effect_of_one_hemisphere():
+    """With ``hemispheres``: a rotation of the whole camera is found from the matches above the horizon and from
+    those below alone (each within 1e-6 degrees of the fit's), while matches turned below the horizon only (a
+    scene's effect there, not the camera's; 0.1 degrees of noise on every match) give the whole fit a rotation of at
+    least ``RigParams.min_degrees`` but the matches above it none (under 0.02 degrees); without it nothing is
+    added."""
+    baseline = np.array([0.4, 0.0, 0.0])
+    omega = np.radians([0.1, -0.15, 0.2])
+    c, k = _scene(20000, omega, baseline, seed=3)
+    assert "hemispheres" not in fit_rotation(c, k, baseline)["evidence"]
+    fit = fit_rotation(c, k, baseline, hemispheres=True)
+    halves = fit["evidence"]["hemispheres"]
+    assert len(halves) == 2 and all(h["blocks"] == 16 for h in halves)
+    for h in halves:
+        assert h["degrees"] == pytest.approx(fit["degrees"], abs=1e-6) and h["p_value"] < 1e-3
+    c, exact = _scene(20000, np.zeros(3), baseline, seed=3)
+    k = np.where((c[:, 2] < 0)[:, None], k, exact)
+    k = k + np.random.default_rng(4).normal(scale=np.radians(0.1), size=k.shape)  # the turn within the noise
+    k /= np.linalg.norm(k, axis=1, keepdims=True)
+    fit = fit_rotation(c, k, baseline, hemispheres=True)
+    above, lower = fit["evidence"]["hemispheres"]
+    assert fit["degrees"] > 0.072 and lower["degrees"] > 0.2 and above["degrees"] < 0.02
+
+
 def test_fit_skips_non_finite_matches_and_gives_up_on_too_few():
     baseline = np.array([0.4, 0.0, 0.0])
     c, k = _scene(2000, np.radians([0.1, 0.0, 0.0]), baseline)
@@ -95,7 +119,7 @@ def test_corrected_pose_turns_about_world_axes_and_keeps_the_position():
 
 
 @pytest.mark.parametrize("kwargs", [{"mode": "affine"}, {"max_fb_px": 0.0}, {"texture_quantile": 1.0},
-                                    {"min_sin": -0.1}, {"max_degrees": 0.0}])
+                                    {"min_sin": -0.1}, {"max_degrees": 0.0}, {"hemispheres": 2.0}])
 def test_rig_params_refuse_bad_values(kwargs):
     with pytest.raises(ValueError, match="rig calibration"):
         RigParams(**kwargs)
@@ -118,22 +142,25 @@ def test_usable_matches_drop_inconsistent_invalid_and_untextured_pixels():
 
 
 @pytest.mark.slow
-def test_self_calibration_corrects_a_told_rotation_that_is_off():
+@pytest.mark.parametrize("share", [0.0, 1.0])
+def test_self_calibration_corrects_a_told_rotation_that_is_off(share):
     """A ray-cast frame whose told U and R rotations are off by 0.4 degrees: the pre-pass's matches bring both
-    within 0.15 degrees of the truth; the told poses of an exact frame are moved by less than 0.1 degrees."""
+    within 0.15 degrees of the truth, also when each hemisphere's matches alone must find the floor
+    (``RigParams.hemispheres`` 1); the told poses of an exact frame are moved by less than 0.1 degrees."""
     frame = make_synthetic_frame(width=480)
     told = dict(frame.cameras)
     turns = {"U": np.radians([0.2, -0.3, 0.15]), "R": np.radians([-0.25, 0.1, 0.3])}
     for k, omega in turns.items():
         told[k] = corrected_pose(frame.cameras[k], omega / np.linalg.norm(omega) * np.radians(0.4))
     off = dataclasses.replace(frame, cameras=told)
-    params = RigParams()
+    params = RigParams(hemispheres=share)
     calibration = self_calibrate(off, NO_CALIBRATION, params, TriangulationLimits())
     matched, fits = calibration.frame, calibration.record["rig"]
     assert "rig" in calibration.seconds and set(fits) == {"U", "R"}
     assert calibration.applied == ["U rotation", "R rotation"]
     for k in ("U", "R"):
         assert fits[k]["applied"] and fits[k]["evidence"]["p_value"] < 1e-3
+        assert len(fits[k]["evidence"].get("hemispheres", [])) == (2 if share else 0)
         assert _angle_deg(matched.cameras[k].rotation, frame.cameras[k].rotation) < 0.15
         assert _angle_deg(told[k].rotation, frame.cameras[k].rotation) == pytest.approx(0.4, abs=1e-6)
         np.testing.assert_array_equal(matched.cameras[k].position, told[k].position)
