@@ -41,7 +41,6 @@ from reconstruction.evidence import (
     LONGITUDE_BLOCKS,
     MIN_BLOCK_SAMPLES,
     Evidence,
-    hemisphere_rows,
     hotelling,
     jackknife_hemispheres,
     jackknife_linear,
@@ -137,12 +136,6 @@ class PhotometricParams:
             (a third of the fields; up to 1.4x the MAE on single frames, 1.18x pooled over the off-axis frames it
             changes) while no ideal dev frame has a correction it would drop; at 0.5 it changes almost nothing, and
             no longer drops a gain that only the lower hemisphere's pixels show.
-        hemisphere_residuals: after the tests, a camera's corrections (and the shared fall-off) are kept only if
-            they lower the median absolute residual of the fit's pixels both above C's horizon and below it;
-            otherwise they are all dropped and the rest fitted again.  A camera that differs differs on either side
-            of the horizon; a correction fitted to a difference only one hemisphere's scene shows (a polished floor
-            seen brighter from one camera) makes the other hemisphere's pixels agree worse.  The camera's record
-            gives ``hemispheres_lower`` (per hemisphere, whether its correction lowers the residual there).
         longitude_blocks, min_block_samples: the blocks of the sphere over which each correction is tested
             (:func:`reconstruction.evidence.sphere_blocks`: sectors of longitude, each cut at the horizon) and the
             fewest samples of a block left out on its own (:func:`reconstruction.evidence.jackknife_linear`).
@@ -173,7 +166,6 @@ class PhotometricParams:
     prepass_flow: FlowBackend = field(default_factory=lambda: _builtin_flow("dis"))
     max_fit_pixels: int = 15000
     hemispheres: float = 0.0
-    hemisphere_residuals: bool = False
     longitude_blocks: int = LONGITUDE_BLOCKS
     min_block_samples: int = MIN_BLOCK_SAMPLES
 
@@ -642,14 +634,6 @@ def fit_photometric(images: dict, cameras: dict, distance: np.ndarray,
                                  len(others))
     full = np.zeros(n_cols)
     full[keep] = coef
-    if params.hemisphere_residuals and _drop_one_sided(design, target, blocks, full, keep, record, others, cols_per,
-                                                       common_first):
-        if not keep.any():
-            record["applied"] = False
-            return IDENTITY, record
-        coef, weights, sigma = _irls(design[:, keep], target, full[keep], params, ridge[keep], len(others))
-        full = np.zeros(n_cols)
-        full[keep] = coef
     gains, fields, responses = {}, {}, {}
     for i, k in enumerate(others):
         if keep[i * cols_per]:
@@ -663,49 +647,6 @@ def fit_photometric(images: dict, cameras: dict, distance: np.ndarray,
     record["applied"] = True
     record["sigma_applied"] = sigma
     return PhotometricModel(gains, fields, common, params.degree, params.even, params.central, responses), record
-
-
-def _drop_one_sided(design: np.ndarray, target: np.ndarray, blocks: np.ndarray, full: np.ndarray, keep: np.ndarray,
-                    record: dict, others, cols_per: int, common_first: int) -> bool:
-    """Drop (in place: ``keep`` and the record's ``applied``) every correction of a camera, and the shared fall-off,
-    without which the median absolute residual of its rows (the camera's; every row for the shared fall-off) would
-    not be larger in both hemispheres (:func:`reconstruction.evidence.hemisphere_rows` of ``blocks``): a camera's
-    correction lowers the residual on either side of the horizon, one fitted to what only a hemisphere's scene shows
-    raises it on the other.  The camera's (the shared fall-off's) record gets ``hemispheres_lower``: per hemisphere,
-    whether the correction lowers the residual there.  Returns whether anything was dropped.  A hemisphere with
-    fewer than 100 rows counts as lowered (nothing to tell)."""
-    resid = target - design @ full
-    halves = hemisphere_rows(blocks)
-    n_rows = target.size // len(others)
-
-    def lowers(rows: np.ndarray, cols: np.ndarray) -> list[bool]:
-        without = resid + design[:, cols] @ full[cols]
-        return [bool((rows & half).sum() < 100
-                     or np.median(np.abs(resid[rows & half])) < np.median(np.abs(without[rows & half])))
-                for half in halves]
-
-    dropped = False
-    for i, k in enumerate(others):
-        cols = np.arange(i * cols_per, (i + 1) * cols_per)
-        if not keep[cols].any() or k not in record:
-            continue
-        rows = np.zeros(target.size, bool)
-        rows[i * n_rows:(i + 1) * n_rows] = True
-        record[k]["hemispheres_lower"] = lowers(rows, cols[keep[cols]])
-        if not all(record[k]["hemispheres_lower"]):
-            keep[cols] = False
-            for what in ("gain", "field", "response"):
-                if what in record[k]:
-                    record[k][what]["applied"] = False
-            dropped = True
-    if record.get("common", {}).get("field", {}).get("applied"):
-        cols = np.arange(common_first, full.size)
-        record["common"]["hemispheres_lower"] = lowers(np.ones(target.size, bool), cols)
-        if not all(record["common"]["hemispheres_lower"]):
-            keep[cols] = False
-            record["common"]["field"]["applied"] = False
-            dropped = True
-    return dropped
 
 
 def apply_photometric(images: dict, model: PhotometricModel, max_log_gain: float = 2.0) -> dict:

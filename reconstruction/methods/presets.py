@@ -79,7 +79,7 @@ def fused_mirror() -> PriorSweepMethod:
         mode="gain-field", degree=2, pixel_degree=0, prepass_factor=2, ridge=0.0, factor=4, dark=0.01, bright=0.9,
         tukey_c=4.685, iterations=8, max_log_gain=2.0, even=False, central=True, common_field=False, min_gain=0.05,
         min_field=0.1, min_common=0.5, flat_log_gradient=0.1, alpha=0.001, agreement=0.05, response=1,
-        min_response=0.1, prepass_flow=dis, max_fit_pixels=15000, hemispheres=0.0, hemisphere_residuals=False,
+        min_response=0.1, prepass_flow=dis, max_fit_pixels=15000, hemispheres=0.0,
         longitude_blocks=16, min_block_samples=50)
     rig = RigParams(
         mode="rotation", max_fb_px=0.5, texture_quantile=0.7, min_sin=0.3, max_degrees=2.0, alpha=0.01,
@@ -181,7 +181,7 @@ def fused() -> PriorSweepMethod:
         mode="gain-field", degree=2, pixel_degree=0, prepass_factor=2, ridge=0.0, factor=4, dark=0.01, bright=0.9,
         tukey_c=4.685, iterations=8, max_log_gain=2.0, even=False, central=True, common_field=False, min_gain=0.05,
         min_field=0.1, min_common=0.5, flat_log_gradient=0.1, alpha=0.001, agreement=0.05, response=1,
-        min_response=0.1, prepass_flow=dis, max_fit_pixels=15000, hemispheres=0.0, hemisphere_residuals=False,
+        min_response=0.1, prepass_flow=dis, max_fit_pixels=15000, hemispheres=0.0,
         longitude_blocks=16, min_block_samples=50)
     rig = RigParams(
         mode="rotation", max_fb_px=0.5, texture_quantile=0.7, min_sin=0.3, max_degrees=2.0, alpha=0.01,
@@ -229,7 +229,7 @@ def sweep() -> SweepMethod:
         mode="gain-field", degree=2, pixel_degree=0, prepass_factor=2, ridge=0.0, factor=4, dark=0.01, bright=0.9,
         tukey_c=4.685, iterations=8, max_log_gain=2.0, even=False, central=True, common_field=False, min_gain=0.05,
         min_field=0.1, min_common=0.5, flat_log_gradient=0.1, alpha=0.001, agreement=0.05, response=1,
-        min_response=0.1, prepass_flow=dis, max_fit_pixels=15000, hemispheres=0.0, hemisphere_residuals=False,
+        min_response=0.1, prepass_flow=dis, max_fit_pixels=15000, hemispheres=0.0,
         longitude_blocks=16, min_block_samples=50)
     return SweepMethod(
         pairs=("U", "R"), label="sweep", photometric=photometric, corrected_cost=None,
@@ -263,7 +263,7 @@ def fused_mirror_raw() -> PriorSweepMethod:
         mode="none", degree=2, pixel_degree=0, prepass_factor=2, ridge=0.0, factor=4, dark=0.01, bright=0.9,
         tukey_c=4.685, iterations=8, max_log_gain=2.0, even=False, central=True, common_field=False, min_gain=0.05,
         min_field=0.1, min_common=0.5, flat_log_gradient=0.1, alpha=0.001, agreement=0.05, response=1,
-        min_response=0.1, prepass_flow=dis, max_fit_pixels=15000, hemispheres=0.0, hemisphere_residuals=False,
+        min_response=0.1, prepass_flow=dis, max_fit_pixels=15000, hemispheres=0.0,
         longitude_blocks=16, min_block_samples=50)
     # mode "none": the told poses as they are (the other fields are not used)
     rig = RigParams(
@@ -312,7 +312,7 @@ def fused_mirror_told_rig() -> PriorSweepMethod:
         mode="gain-field", degree=2, pixel_degree=0, prepass_factor=2, ridge=0.0, factor=4, dark=0.01, bright=0.9,
         tukey_c=4.685, iterations=8, max_log_gain=2.0, even=False, central=True, common_field=False, min_gain=0.05,
         min_field=0.1, min_common=0.5, flat_log_gradient=0.1, alpha=0.001, agreement=0.05, response=1,
-        min_response=0.1, prepass_flow=dis, max_fit_pixels=15000, hemispheres=0.0, hemisphere_residuals=False,
+        min_response=0.1, prepass_flow=dis, max_fit_pixels=15000, hemispheres=0.0,
         longitude_blocks=16, min_block_samples=50)
     # mode "none": the told poses as they are (the other fields are not used)
     rig = RigParams(
@@ -368,7 +368,7 @@ def fused_mirror_raw_images() -> PriorSweepMethod:
         mode="none", degree=2, pixel_degree=0, prepass_factor=2, ridge=0.0, factor=4, dark=0.01, bright=0.9,
         tukey_c=4.685, iterations=8, max_log_gain=2.0, even=False, central=True, common_field=False, min_gain=0.05,
         min_field=0.1, min_common=0.5, flat_log_gradient=0.1, alpha=0.001, agreement=0.05, response=1,
-        min_response=0.1, prepass_flow=dis, max_fit_pixels=15000, hemispheres=0.0, hemisphere_residuals=False,
+        min_response=0.1, prepass_flow=dis, max_fit_pixels=15000, hemispheres=0.0,
         longitude_blocks=16, min_block_samples=50)
     rig = RigParams(
         mode="rotation", max_fb_px=0.5, texture_quantile=0.7, min_sin=0.3, max_degrees=2.0, alpha=0.01,
@@ -417,8 +417,7 @@ def fused_mirror_shared_falloff() -> PriorSweepMethod:
         mode="gain-field", degree=2, pixel_degree=0, prepass_factor=2, ridge=0.0, factor=4, dark=0.01, bright=0.9,
         tukey_c=4.685, iterations=8, max_log_gain=2.0, even=False, central=True, min_gain=0.05, min_field=0.1,
         min_common=0.5, flat_log_gradient=0.1, alpha=0.001, agreement=0.05, response=1, min_response=0.1,
-        prepass_flow=dis, max_fit_pixels=15000, hemispheres=0.0, hemisphere_residuals=False, longitude_blocks=16,
-        min_block_samples=50,
+        prepass_flow=dis, max_fit_pixels=15000, hemispheres=0.0, longitude_blocks=16, min_block_samples=50,
         # what this ablation switches on
         common_field=True)
     rig = RigParams(
@@ -474,7 +473,7 @@ def fused_gated() -> PriorSweepMethod:
         mode="gain-field", degree=2, pixel_degree=0, prepass_factor=2, ridge=0.0, factor=4, dark=0.01, bright=0.9,
         tukey_c=4.685, iterations=8, max_log_gain=2.0, even=False, central=True, common_field=False, min_gain=0.05,
         min_field=0.1, min_common=0.5, flat_log_gradient=0.1, alpha=0.001, agreement=0.05, response=1,
-        min_response=0.1, prepass_flow=dis, max_fit_pixels=15000, hemispheres=0.0, hemisphere_residuals=False,
+        min_response=0.1, prepass_flow=dis, max_fit_pixels=15000, hemispheres=0.0,
         longitude_blocks=16, min_block_samples=50)
     rig = RigParams(
         mode="rotation", max_fb_px=0.5, texture_quantile=0.7, min_sin=0.3, max_degrees=2.0, alpha=0.01,
@@ -529,7 +528,7 @@ def fused_adaptive() -> PriorSweepMethod:
         mode="gain-field", degree=2, pixel_degree=0, prepass_factor=2, ridge=0.0, factor=4, dark=0.01, bright=0.9,
         tukey_c=4.685, iterations=8, max_log_gain=2.0, even=False, central=True, common_field=False, min_gain=0.05,
         min_field=0.1, min_common=0.5, flat_log_gradient=0.1, alpha=0.001, agreement=0.05, response=1,
-        min_response=0.1, prepass_flow=dis, max_fit_pixels=15000, hemispheres=0.0, hemisphere_residuals=False,
+        min_response=0.1, prepass_flow=dis, max_fit_pixels=15000, hemispheres=0.0,
         longitude_blocks=16, min_block_samples=50)
     rig = RigParams(
         mode="rotation", max_fb_px=0.5, texture_quantile=0.7, min_sin=0.3, max_degrees=2.0, alpha=0.01,

@@ -180,7 +180,6 @@ _ADDED_KEYS = {"mirror_tolerance": 0.0, "intensity_weight": 1.0, "feature": "int
                "photometric.longitude_blocks": 16, "photometric.min_block_samples": 50,
                "rig.iterations": 6, "rig.tukey_c": 4.685, "rig.max_matches": 40000, "rig.longitude_blocks": 16,
                "rig.min_block_samples": 50, "rig.hemispheres": 0.0, "photometric.hemispheres": 0.0,
-               "photometric.hemisphere_residuals": False,
                "max_noise_blur_px": 1.5, "noise_scale": 1, "post.fill_space": "inverse",
                "planes.room_labels": 0, "planes.room_spread": 0.2, "occlusion": 0.0, "occlusion_min_share": 0.25,
                "flat_contrast": 0.0, "flat_weight": 1.0, "flat_sigma_px": 2.0, "flat_min_noise": 0.5,
