@@ -72,9 +72,9 @@ class RigParams:
             and from those below alone are each at least this share of ``min_degrees`` (:func:`fit_rotation`'s
             ``hemispheres``); 0 (the default): not asked.  A told rotation that is off turns every match, a scene
             effect of one hemisphere (a polished floor's blurred reflection matched as a surface) only that
-            hemisphere's.  Off with the photometric one (:class:`reconstruction.photometry.PhotometricParams`); every
-            rotation applied on the camera families of tri360-v3 dev was found at least 0.78 of ``min_degrees`` from
-            each hemisphere.
+            hemisphere's.  Off with the photometric one (:class:`reconstruction.photometry.PhotometricParams`); at 1
+            it drops 2 of the 232 rotations applied on the camera families of tri360-v3 dev (vp000), and it keeps
+            the false rotations of ideal dev frames, which each hemisphere finds alike (docs/photometry.md).
         iterations, tukey_c, max_matches, longitude_blocks, min_block_samples: the fit's
             (:func:`fit_rotation`).
     """
