@@ -231,14 +231,14 @@ def test_a_configuration_written_before_a_parameter_was_added_reads_as_its_earli
 
 def test_a_configuration_from_before_the_constants_became_parameters_reads_as_their_values():
     """Results sets written before the pre-pass flow, the fits' limits, the evidence's blocks, the rig fit's
-    iterations, the noise blur's cap, the fill's space, the edge snapping, the floor and ceiling families and
-    DeepFlow's and DeepMatching's parameters were recorded ran with the values they have by default: usable for the
-    default and the paper's set-up, not for other values."""
+    iterations, the noise blur's cap, the fill's space, the edge snapping, the floor and ceiling families, the
+    hemisphere checks and DeepFlow's and DeepMatching's parameters were recorded ran with the values they have by
+    default: usable for the default and the paper's set-up, not for other values."""
     now = presets.fused_mirror().config()
     old = json.loads(json.dumps(now))
-    for key in ("prepass_flow", "max_fit_pixels", "longitude_blocks", "min_block_samples"):
+    for key in ("prepass_flow", "max_fit_pixels", "longitude_blocks", "min_block_samples", "hemispheres"):
         del old["flow"]["photometric"][key], old["sweep"]["photometric"][key]
-    for key in ("iterations", "tukey_c", "max_matches", "longitude_blocks", "min_block_samples"):
+    for key in ("iterations", "tukey_c", "max_matches", "longitude_blocks", "min_block_samples", "hemispheres"):
         del old["flow"]["rig"][key]
     del old["sweep"]["cost"]["max_noise_blur_px"], old["sweep"]["corrected_cost"]["max_noise_blur_px"]
     for key in ("fill_space", "edge_radius_px", "edge_sigma_color", "edge_sigma_px", "edge_jump", "edge_reach_px"):
@@ -249,6 +249,10 @@ def test_a_configuration_from_before_the_constants_became_parameters_reads_as_th
     changed = dataclasses.replace(presets.fused_mirror(), flow=dataclasses.replace(presets.fused_mirror().flow,
                                                                                    rig=tighter))
     assert config_difference(old, changed.config()) == "flow.rig.iterations: 6 vs 3"
+    halves = dataclasses.replace(presets.fused_mirror().flow.rig, hemispheres=1.0)
+    changed = dataclasses.replace(presets.fused_mirror(), flow=dataclasses.replace(presets.fused_mirror().flow,
+                                                                                   rig=halves))
+    assert config_difference(old, changed.config()) == "flow.rig.hemispheres: 0.0 vs 1.0"
     paper = get_methods(["deepflow-rect:gradient"])[0]
     old = json.loads(json.dumps(paper.config()))
     old["flow"]["params"] = {k: old["flow"]["params"][k] for k in ("downscale", "ngh_rad_x", "ngh_rad_y", "wrap")}
