@@ -75,6 +75,15 @@ class RigParams:
             hemisphere's.  Off with the photometric one (:class:`reconstruction.photometry.PhotometricParams`); at 1
             it drops 2 of the 232 rotations applied on the camera families of tri360-v3 dev (vp000), and it keeps
             the false rotations of ideal dev frames, which each hemisphere finds alike (docs/photometry.md).
+        confirm_factor: a rotation the pre-pass's matches would apply is fitted again from a flow pass on images
+            reduced by this factor (1: full resolution, the default) and applied only when that fit passes the
+            same test and bounds too; the pre-pass's rotation is the one applied.  0: not asked.  The pre-pass's
+            half-size flow is biased on weak texture by a fraction of its pixel, which its jackknife cannot see (it
+            is the same bias in every block): three ideal frames of tri360-v3 dev had a false rotation of 0.11-0.27
+            degrees (up to 1.13x the uncalibrated MAE) which the full-resolution fit does not support, while it
+            confirms all but 6 of the 530 rotations the pre-pass applies to the camera families' frames, and those
+            6 frames' MAE went 0.62-1.09x (docs/photometry.md).  It costs a full-resolution flow pass of each pair
+            whose rotation is to be applied.
         iterations, tukey_c, max_matches, longitude_blocks, min_block_samples: the fit's
             (:func:`fit_rotation`).
     """
@@ -90,6 +99,7 @@ class RigParams:
     tukey_c: float = 4.685
     max_matches: int = 40000
     hemispheres: float = 0.0
+    confirm_factor: int = 1
     longitude_blocks: int = LONGITUDE_BLOCKS
     min_block_samples: int = MIN_BLOCK_SAMPLES
 
@@ -108,6 +118,8 @@ class RigParams:
             raise ValueError(f"rig calibration min_degrees {self.min_degrees} must be in [0, max_degrees)")
         if not 0.0 <= self.hemispheres <= 1.0:
             raise ValueError(f"rig calibration hemispheres must be in [0, 1], got {self.hemispheres}")
+        if not (isinstance(self.confirm_factor, int) and self.confirm_factor >= 0):
+            raise ValueError(f"rig calibration confirm_factor must be an integer >= 0, got {self.confirm_factor!r}")
         if not self.max_degrees > 0:
             raise ValueError(f"rig calibration max_degrees must be > 0, got {self.max_degrees}")
         if not (self.iterations >= 0 and self.tukey_c > 0 and self.max_matches >= 1 and self.longitude_blocks >= 1

@@ -84,7 +84,7 @@ def fused_mirror() -> PriorSweepMethod:
     rig = RigParams(
         mode="rotation", max_fb_px=0.5, texture_quantile=0.7, min_sin=0.3, max_degrees=2.0, alpha=0.01,
         min_degrees=0.072, iterations=6, tukey_c=4.685, max_matches=40000, hemispheres=0.0,
-        longitude_blocks=16, min_block_samples=50)
+        confirm_factor=1, longitude_blocks=16, min_block_samples=50)
     return PriorSweepMethod(
         label="fused-mirror",
         # the prior is the unrefined flow: the flow pipeline without its LM, about 0.6 s less per 1000x500 frame
@@ -186,7 +186,7 @@ def fused() -> PriorSweepMethod:
     rig = RigParams(
         mode="rotation", max_fb_px=0.5, texture_quantile=0.7, min_sin=0.3, max_degrees=2.0, alpha=0.01,
         min_degrees=0.072, iterations=6, tukey_c=4.685, max_matches=40000, hemispheres=0.0,
-        longitude_blocks=16, min_block_samples=50)
+        confirm_factor=1, longitude_blocks=16, min_block_samples=50)
     return PriorSweepMethod(
         label="fused", quality_flow=None,
         flow=FlowMethod(
@@ -268,7 +268,8 @@ def fused_mirror_raw() -> PriorSweepMethod:
     # mode "none": the told poses as they are (the other fields are not used)
     rig = RigParams(
         mode="none", max_fb_px=0.5, texture_quantile=0.7, min_sin=0.3, max_degrees=2.0, alpha=0.01, min_degrees=0.072,
-        iterations=6, tukey_c=4.685, max_matches=40000, hemispheres=0.0, longitude_blocks=16, min_block_samples=50)
+        iterations=6, tukey_c=4.685, max_matches=40000, hemispheres=0.0, confirm_factor=1,
+        longitude_blocks=16, min_block_samples=50)
     return PriorSweepMethod(
         label="fused-mirror-raw",
         flow=FlowMethod(flow=dis, rectify=True, refine=None, limits=limits, photometric=photometric, rig=rig),
@@ -317,7 +318,8 @@ def fused_mirror_told_rig() -> PriorSweepMethod:
     # mode "none": the told poses as they are (the other fields are not used)
     rig = RigParams(
         mode="none", max_fb_px=0.5, texture_quantile=0.7, min_sin=0.3, max_degrees=2.0, alpha=0.01, min_degrees=0.072,
-        iterations=6, tukey_c=4.685, max_matches=40000, hemispheres=0.0, longitude_blocks=16, min_block_samples=50)
+        iterations=6, tukey_c=4.685, max_matches=40000, hemispheres=0.0, confirm_factor=1,
+        longitude_blocks=16, min_block_samples=50)
     return PriorSweepMethod(
         label="fused-mirror-told-rig",
         flow=FlowMethod(flow=dis, rectify=True, refine=None, limits=limits, photometric=photometric, rig=rig),
@@ -373,7 +375,7 @@ def fused_mirror_raw_images() -> PriorSweepMethod:
     rig = RigParams(
         mode="rotation", max_fb_px=0.5, texture_quantile=0.7, min_sin=0.3, max_degrees=2.0, alpha=0.01,
         min_degrees=0.072, iterations=6, tukey_c=4.685, max_matches=40000, hemispheres=0.0,
-        longitude_blocks=16, min_block_samples=50)
+        confirm_factor=1, longitude_blocks=16, min_block_samples=50)
     return PriorSweepMethod(
         label="fused-mirror-raw-images",
         flow=FlowMethod(flow=dis, rectify=True, refine=None, limits=limits, photometric=photometric, rig=rig),
@@ -423,7 +425,7 @@ def fused_mirror_shared_falloff() -> PriorSweepMethod:
     rig = RigParams(
         mode="rotation", max_fb_px=0.5, texture_quantile=0.7, min_sin=0.3, max_degrees=2.0, alpha=0.01,
         min_degrees=0.072, iterations=6, tukey_c=4.685, max_matches=40000, hemispheres=0.0,
-        longitude_blocks=16, min_block_samples=50)
+        confirm_factor=1, longitude_blocks=16, min_block_samples=50)
     return PriorSweepMethod(
         label="fused-mirror-shared-falloff",
         flow=FlowMethod(flow=dis, rectify=True, refine=None, limits=limits, photometric=photometric, rig=rig),
@@ -478,7 +480,7 @@ def fused_gated() -> PriorSweepMethod:
     rig = RigParams(
         mode="rotation", max_fb_px=0.5, texture_quantile=0.7, min_sin=0.3, max_degrees=2.0, alpha=0.01,
         min_degrees=0.072, iterations=6, tukey_c=4.685, max_matches=40000, hemispheres=0.0,
-        longitude_blocks=16, min_block_samples=50)
+        confirm_factor=1, longitude_blocks=16, min_block_samples=50)
     return PriorSweepMethod(
         label="fused-gated",
         # the flow pipeline without its LM: about 0.6 s less per 1000x500 frame than fused's
@@ -533,7 +535,7 @@ def fused_adaptive() -> PriorSweepMethod:
     rig = RigParams(
         mode="rotation", max_fb_px=0.5, texture_quantile=0.7, min_sin=0.3, max_degrees=2.0, alpha=0.01,
         min_degrees=0.072, iterations=6, tukey_c=4.685, max_matches=40000, hemispheres=0.0,
-        longitude_blocks=16, min_block_samples=50)
+        confirm_factor=1, longitude_blocks=16, min_block_samples=50)
     return PriorSweepMethod(
         label="fused-adaptive", quality_flow=None,
         flow=FlowMethod(

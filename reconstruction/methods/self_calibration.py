@@ -18,7 +18,9 @@ from types import SimpleNamespace
 import cv2
 import numpy as np
 
+from reconstruction.camera.equirect import bearing_grid
 from reconstruction.camera.image_ops import rotation_vector_matrix
+from reconstruction.flow.matching import match_pair
 from reconstruction.methods.flow_stages import PAIRS, prepare
 from reconstruction.photometry import (
     IDENTITY,
@@ -85,7 +87,9 @@ def self_calibrate(frame, photometric: PhotometricParams, rig: RigParams, limits
 
     A flow pass (``photometric.prepass_flow`` on rectified images reduced by ``photometric.prepass_factor``, after each
     channel's median gain from the same pixels so that it matches across an exposure difference) gives the
-    correspondences; the rig fit (:func:`reconstruction.rig_calibration.fit_rotation`) runs on its matches, the
+    correspondences; the rig fit (:func:`reconstruction.rig_calibration.fit_rotation`) runs on its matches (a
+    rotation it would apply is fitted again from a flow pass on images reduced by ``rig.confirm_factor``, 1: full
+    resolution, and applied only when that fit supports it too; the record keeps that fit as ``confirm``), the
     matches are triangulated again with the applied poses, and the photometric fit
     (:func:`reconstruction.photometry.fit_photometric`) runs on the correspondences of the pixels whose two pairs
     triangulate alike (:func:`~reconstruction.refine.fill.agreed_distance` within ``photometric.agreement``).
@@ -115,21 +119,21 @@ def self_calibrate(frame, photometric: PhotometricParams, rig: RigParams, limits
     cameras = dict(frame.cameras)
     if rig.mode != "none":
         t_rig = time.perf_counter()
-        fits = {}
+        fits = {k: _fit_pair(prep.bearings, small.images["C"], prep.matches[k], prep.valid[k], rig) for k in PAIRS}
+        if rig.confirm_factor and any(fit["applied"] for fit in fits.values()):
+            # the rotations the pre-pass would apply, fitted again from matches at another resolution
+            fine = reduced_frame(matched, rig.confirm_factor)
+            fine_bearings = bearing_grid(fine.width, fine.height, frame.cameras["C"].rotation).reshape(-1, 3)
+            for k in (k for k in PAIRS if fits[k]["applied"]):
+                m = match_pair(fine, k, photometric.prepass_flow, True)
+                _, fine_valid = triangulate_sines(
+                    pair_geometry(fine_bearings, m.baseline, m.bearing.reshape(-1, 3)), limits)
+                confirm = _fit_pair(fine_bearings, fine.images["C"], m, fine_valid, rig)
+                fits[k]["confirm"] = confirm
+                fits[k]["applied"] = confirm["applied"]
         for i, k in enumerate(PAIRS):
             m = prep.matches[k]
-            fit = fit_rotation(prep.bearings, usable_matches(small.images["C"], m.bearing, m.fb_error_px,
-                                                             prep.valid[k], rig), m.baseline,
-                               min_sin=rig.min_sin, iterations=rig.iterations, tukey_c=rig.tukey_c,
-                               max_matches=rig.max_matches, alpha=rig.alpha, longitude_blocks=rig.longitude_blocks,
-                               min_block_samples=rig.min_block_samples, hemispheres=rig.hemispheres > 0)
-            # a share of the floor from each hemisphere alone too (RigParams.hemispheres)
-            halves_ok = all(h["degrees"] >= rig.hemispheres * rig.min_degrees
-                            for h in fit["evidence"].get("hemispheres", []))
-            fit["applied"] = bool(fit["evidence"]["supported"] and rig.min_degrees <= fit["degrees"] <= rig.max_degrees
-                                  and fit["degrees"] > 0 and halves_ok)
-            fits[k] = fit
-            omega = np.asarray(fit["omega"]) if fit["applied"] else np.zeros(3)
+            omega = np.asarray(fits[k]["omega"]) if fits[k]["applied"] else np.zeros(3)
             cameras[k] = corrected_pose(frame.cameras[k], omega)
             # the pre-pass's matches seen from the applied pose, triangulated again
             g = pair_geometry(prep.bearings, m.baseline, m.bearing.reshape(-1, 3) @ rotation_vector_matrix(omega).T)
@@ -150,6 +154,21 @@ def self_calibrate(frame, photometric: PhotometricParams, rig: RigParams, limits
         replaced["images"] = apply_photometric(frame.images, model, photometric.max_log_gain)
     seconds["photometric"] = time.perf_counter() - start - seconds.get("rig", 0.0)
     return Calibration(FrameView(frame, **replaced) if replaced else frame, model, record, seconds)
+
+
+def _fit_pair(bearings: np.ndarray, image_c: np.ndarray, m, valid: np.ndarray, rig: RigParams) -> dict:
+    """One pair's rotation fit (:func:`reconstruction.rig_calibration.fit_rotation`) from its matches ``m`` (a
+    :class:`reconstruction.flow.matching.PairMatch`) and C's ``(N, 3)`` bearings and image at their resolution, with
+    ``applied``: the test passed, the size within ``rig``'s bounds, and (``rig.hemispheres``) found from each
+    hemisphere alone at that share of ``min_degrees``."""
+    fit = fit_rotation(bearings, usable_matches(image_c, m.bearing, m.fb_error_px, valid, rig), m.baseline,
+                       min_sin=rig.min_sin, iterations=rig.iterations, tukey_c=rig.tukey_c,
+                       max_matches=rig.max_matches, alpha=rig.alpha, longitude_blocks=rig.longitude_blocks,
+                       min_block_samples=rig.min_block_samples, hemispheres=rig.hemispheres > 0)
+    halves_ok = all(h["degrees"] >= rig.hemispheres * rig.min_degrees for h in fit["evidence"].get("hemispheres", []))
+    fit["applied"] = bool(fit["evidence"]["supported"] and rig.min_degrees <= fit["degrees"] <= rig.max_degrees
+                          and fit["degrees"] > 0 and halves_ok)
+    return fit
 
 
 def reduced_frame(frame, factor: int):

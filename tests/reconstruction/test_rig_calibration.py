@@ -119,7 +119,8 @@ def test_corrected_pose_turns_about_world_axes_and_keeps_the_position():
 
 
 @pytest.mark.parametrize("kwargs", [{"mode": "affine"}, {"max_fb_px": 0.0}, {"texture_quantile": 1.0},
-                                    {"min_sin": -0.1}, {"max_degrees": 0.0}, {"hemispheres": 2.0}])
+                                    {"min_sin": -0.1}, {"max_degrees": 0.0}, {"hemispheres": 2.0},
+                                    {"confirm_factor": -1}, {"confirm_factor": 1.5}])
 def test_rig_params_refuse_bad_values(kwargs):
     with pytest.raises(ValueError, match="rig calibration"):
         RigParams(**kwargs)
@@ -142,18 +143,19 @@ def test_usable_matches_drop_inconsistent_invalid_and_untextured_pixels():
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("share", [0.0, 1.0])
-def test_self_calibration_corrects_a_told_rotation_that_is_off(share):
+@pytest.mark.parametrize("share, confirm", [(0.0, 0), (1.0, 0), (0.0, 1)])
+def test_self_calibration_corrects_a_told_rotation_that_is_off(share, confirm):
     """A ray-cast frame whose told U and R rotations are off by 0.4 degrees: the pre-pass's matches bring both
     within 0.15 degrees of the truth, also when each hemisphere's matches alone must find the floor
-    (``RigParams.hemispheres`` 1); the told poses of an exact frame are moved by less than 0.1 degrees."""
+    (``RigParams.hemispheres`` 1) and whether or not a flow pass at full resolution must find it again
+    (``confirm_factor`` 1, the default, or 0); the told poses of an exact frame are left as they are."""
     frame = make_synthetic_frame(width=480)
     told = dict(frame.cameras)
     turns = {"U": np.radians([0.2, -0.3, 0.15]), "R": np.radians([-0.25, 0.1, 0.3])}
     for k, omega in turns.items():
         told[k] = corrected_pose(frame.cameras[k], omega / np.linalg.norm(omega) * np.radians(0.4))
     off = dataclasses.replace(frame, cameras=told)
-    params = RigParams(hemispheres=share)
+    params = RigParams(hemispheres=share, confirm_factor=confirm)
     calibration = self_calibrate(off, NO_CALIBRATION, params, TriangulationLimits())
     matched, fits = calibration.frame, calibration.record["rig"]
     assert "rig" in calibration.seconds and set(fits) == {"U", "R"}
@@ -161,12 +163,36 @@ def test_self_calibration_corrects_a_told_rotation_that_is_off(share):
     for k in ("U", "R"):
         assert fits[k]["applied"] and fits[k]["evidence"]["p_value"] < 1e-3
         assert len(fits[k]["evidence"].get("hemispheres", [])) == (2 if share else 0)
+        assert ("confirm" in fits[k]) == bool(confirm)
+        if confirm:
+            confirmed = fits[k]["confirm"]
+            assert confirmed["applied"] and confirmed["matches"] > fits[k]["matches"] / 2
+            assert abs(confirmed["degrees"] - 0.4) < 0.15
         assert _angle_deg(matched.cameras[k].rotation, frame.cameras[k].rotation) < 0.15
         assert _angle_deg(told[k].rotation, frame.cameras[k].rotation) == pytest.approx(0.4, abs=1e-6)
         np.testing.assert_array_equal(matched.cameras[k].position, told[k].position)
     np.testing.assert_array_equal(matched.cameras["C"].rotation, frame.cameras["C"].rotation)
     exact = self_calibrate(frame, NO_CALIBRATION, params, TriangulationLimits())
     assert exact.applied == [] and exact.frame is frame  # the told poses are right: nothing is applied
+
+
+@pytest.mark.slow
+def test_a_rotation_the_confirming_pass_cannot_support_is_not_applied():
+    """``confirm_factor`` 8 on a 480 px frame: the confirming flow pass has 60x30 pixels, too few good matches to
+    support the rotation, so the rotation the pre-pass finds (0.4 degrees off) is recorded and not applied: the
+    told poses are matched."""
+    frame = make_synthetic_frame(width=480)
+    told = dict(frame.cameras)
+    told["U"] = corrected_pose(frame.cameras["U"], np.radians([0.0, 0.4, 0.0]))
+    off = dataclasses.replace(frame, cameras=told)
+    calibration = self_calibrate(off, NO_CALIBRATION, RigParams(confirm_factor=8), TriangulationLimits())
+    fit = calibration.record["rig"]["U"]
+    assert fit["evidence"]["supported"] and fit["degrees"] > 0.25  # the pre-pass's own fit would apply it
+    confirmed = fit["confirm"]
+    assert not fit["applied"] and not confirmed["applied"] and confirmed["matches"] < fit["matches"] / 4
+    assert not (confirmed["evidence"]["supported"] and confirmed["degrees"] >= RigParams().min_degrees)
+    assert "confirm" not in calibration.record["rig"]["R"]  # R's told pose is right: nothing to confirm
+    np.testing.assert_array_equal(calibration.frame.cameras["U"].rotation, told["U"].rotation)
 
 
 @pytest.mark.slow

@@ -23,7 +23,8 @@ def test_rows_say_what_was_applied(tmp_path, capsys):
         images[k] = linear_to_srgb(srgb_to_linear(frame.images[k]) * np.asarray(gain))
     write_frame(dataclasses.replace(frame, scene=frame.scene + ".gains", images=images), tmp_path)
     rows = calibration_rows(tmp_path, progress=False).set_index("scene")
-    assert rows.loc[frame.scene, "applied"] == "none"
+    assert rows.loc[frame.scene, "applied"] == "none" and rows.loc[frame.scene, "not_confirmed"] == "none"
+    assert np.isnan(rows.loc[frame.scene, "U_confirm_deg"])  # no rotation to confirm
     assert rows.loc[frame.scene + ".gains", "applied"] == "U gain; R gain"
     # the fitted gains: ln 1.3 = 0.262 (U's largest channel), ln 0.75 = -0.288 (R's); within 0.01
     assert abs(rows.loc[frame.scene + ".gains", "U_log_gain"] - np.log(1.3)) < 0.01

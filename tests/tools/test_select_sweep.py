@@ -10,7 +10,7 @@ import pytest
 
 from harness.data.errors import UserError
 from reconstruction.methods.presets import fused_mirror
-from tools.research import select_edges, select_flat, select_planes, select_sgm
+from tools.research import select_confirm, select_edges, select_flat, select_planes, select_sgm
 from tools.research.select_planes import CANDIDATES, REFERENCE, candidate_methods, planes_method
 from tools.research.select_sgm import sgm_method
 
@@ -105,8 +105,26 @@ def test_edges_candidates_the_reference_first_and_the_default_once():
         select_edges.candidate_methods(["3-1-1-1"])
 
 
-@pytest.mark.parametrize("main", [select_planes.main, select_sgm.main, select_flat.main, select_edges.main],
-                         ids=["planes", "sgm", "flat", "edges"])
+def test_confirm_candidates_the_reference_first_and_the_default_once():
+    methods = select_confirm.candidate_methods()
+    labels = [m.label for m in methods]
+    assert labels[0] == "fused-mirror-confirm-0" and methods[0].flow.rig.confirm_factor == 0
+    assert len(set(labels)) == len(labels) and len(methods) <= len(select_confirm.CANDIDATES) + 2
+    default = fused_mirror()
+    same = [m for m in methods if {**m.config(), "label": None} == {**default.config(), "label": None}]
+    assert len(same) == 1
+    # everything but the rig fit's confirming pass is the default's
+    m = select_confirm.confirm_method(2)
+    assert m.label == "fused-mirror-confirm-2"
+    assert m.flow == dataclasses.replace(default.flow, rig=dataclasses.replace(default.flow.rig, confirm_factor=2))
+    assert m.sweep == default.sweep and m.prior == default.prior
+    assert m.quality_flow is None or m.quality_flow.rig.confirm_factor == 2
+    with pytest.raises(UserError, match="unknown candidate"):
+        select_confirm.candidate_methods(["3"])
+
+
+@pytest.mark.parametrize("main", [select_planes.main, select_sgm.main, select_flat.main, select_edges.main,
+                                  select_confirm.main], ids=["planes", "sgm", "flat", "edges", "confirm"])
 def test_a_missing_data_root_is_one_line_and_writes_nothing(main, tmp_path, capsys):
     out = tmp_path / "sel"
     assert main([str(tmp_path / "nope"), "--out", str(out), "--quiet", "--frames", "a/vp000"]) == 2

@@ -253,6 +253,8 @@ def test_a_configuration_from_before_the_constants_became_parameters_reads_as_th
     changed = dataclasses.replace(presets.fused_mirror(), flow=dataclasses.replace(presets.fused_mirror().flow,
                                                                                    rig=halves))
     assert config_difference(old, changed.config()) == "flow.rig.hemispheres: 0.0 vs 1.0"
+    del old["flow"]["rig"]["confirm_factor"]  # stored before the confirming pass: it ran without one
+    assert config_difference(old, now) == "flow.rig.confirm_factor: 0 vs 1"
     paper = get_methods(["deepflow-rect:gradient"])[0]
     old = json.loads(json.dumps(paper.config()))
     old["flow"]["params"] = {k: old["flow"]["params"][k] for k in ("downscale", "ngh_rad_x", "ngh_rad_y", "wrap")}

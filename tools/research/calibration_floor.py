@@ -7,8 +7,11 @@ Run as::
 For every frame (``frame.json`` below ``DATA_ROOT``) the self-calibration of ``fused-mirror``
 (:func:`reconstruction.methods.self_calibration.self_calibrate`, on the frame's images and told poses only) runs once;
 one row per frame: its condition (``ideal`` or the twin's), per camera U and R the fitted rotation (degrees) and
-its test's p-value, the largest mean channel log gain, the field's log range and the response's log range (over C's
-5th-95th percentile of levels) with theirs, and what was applied.
+its test's p-value (and those of the full-resolution fit that must confirm a rotation before it is applied,
+``RigParams.confirm_factor``; empty where none ran), the largest mean channel log gain, the field's log range and the
+response's log range (over C's 5th-95th percentile of levels) with theirs, what was applied and which rotations the
+pre-pass would have applied but the confirming fit did not support (``not_confirmed``: on those frames the default
+answers differently from the same method without the confirming pass).
 The floors ``PhotometricParams.min_gain`` / ``min_field`` and ``RigParams.min_degrees`` are read against the
 ``ideal`` rows: cameras that agree, whose fitted differences are the fit's own error.  Prints the table and, per
 condition, the largest of each figure; ``--out`` also writes the rows as CSV.
@@ -66,6 +69,9 @@ def calibration_rows(data_root: Path, progress: bool = True) -> pd.DataFrame:
                 rig = cal.record.get("rig", {}).get(k, {})
                 row[f"{k}_rotation_deg"] = rig.get("degrees", np.nan)
                 row[f"{k}_rotation_p"] = rig.get("evidence", {}).get("p_value", np.nan)
+                confirm = rig.get("confirm", {})
+                row[f"{k}_confirm_deg"] = confirm.get("degrees", np.nan)
+                row[f"{k}_confirm_p"] = confirm.get("evidence", {}).get("p_value", np.nan)
                 fit = photo.get(k, {})
                 row[f"{k}_log_gain"] = float(np.abs(np.log(fit["gain_rgb"])).max()) if fit else np.nan
                 row[f"{k}_gain_p"] = fit.get("gain", {}).get("p_value", np.nan)
@@ -74,6 +80,8 @@ def calibration_rows(data_root: Path, progress: bool = True) -> pd.DataFrame:
                 row[f"{k}_log_response"] = fit.get("response_range", np.nan)
                 row[f"{k}_response_p"] = fit.get("response", {}).get("p_value", np.nan)
             row["applied"] = "; ".join(cal.applied) or "none"
+            row["not_confirmed"] = "; ".join(f"{k} rotation" for k, fit in cal.record.get("rig", {}).items()
+                                             if "confirm" in fit and not fit["applied"]) or "none"
             rows.append(row)
             bar.update(1)
     return pd.DataFrame(rows)

@@ -171,7 +171,8 @@ def _without_labels(config) -> object:
 #: cost's ``intensity_weight``: 1 and ``feature``: the intensity; a method's ``photometric``: the images as they are;
 #: the values that were module constants or fixed defaults before they became parameters: the pre-pass flow (DIS
 #: with its built-in parameters), the fits' pixel and match limits, the evidence's blocks, the rig fit's iterations,
-#: the noise blur's cap and scale, DeepFlow's and DeepMatching's; a sweep's ``post.fill_space``: the inverse
+#: the noise blur's cap and scale, DeepFlow's and DeepMatching's; the rig fit's ``confirm_factor``: no confirming
+#: pass; a sweep's ``post.fill_space``: the inverse
 #: distance; its ``planes.room_labels``: no floor or ceiling family).  A key ``parent.key`` applies only inside a
 #: mapping stored under ``parent``.
 _ADDED_KEYS = {"mirror_tolerance": 0.0, "intensity_weight": 1.0, "feature": "intensity",
@@ -180,6 +181,7 @@ _ADDED_KEYS = {"mirror_tolerance": 0.0, "intensity_weight": 1.0, "feature": "int
                "photometric.longitude_blocks": 16, "photometric.min_block_samples": 50,
                "rig.iterations": 6, "rig.tukey_c": 4.685, "rig.max_matches": 40000, "rig.longitude_blocks": 16,
                "rig.min_block_samples": 50, "rig.hemispheres": 0.0, "photometric.hemispheres": 0.0,
+               "rig.confirm_factor": 0,
                "max_noise_blur_px": 1.5, "noise_scale": 1, "post.fill_space": "inverse",
                "planes.room_labels": 0, "planes.room_spread": 0.2, "occlusion": 0.0, "occlusion_min_share": 0.25,
                "flat_contrast": 0.0, "flat_weight": 1.0, "flat_sigma_px": 2.0, "flat_min_noise": 0.5,
