@@ -9,8 +9,9 @@ Run as::
 ``LABEL`` is a frame directory (``<scene>/<viewpoint>``) or a directory of frames (``<scene>``) relative to
 ``DATA_ROOT``; without ``--frames`` every frame under ``DATA_ROOT`` (choose on a suite's ``dev`` split).  A frame
 whose pre-pass rotations are all confirmed (or that has none) gets the same answer from every candidate, to the
-digit, so ``--frames`` may list only the frames whose ``not_confirmed`` column in ``calibration_floor``'s rows is not
-``none``; the choice on them is the choice on every frame.  The methods: the reference :data:`REFERENCE`
+digit, so ``--frames`` may list only the scenes (every viewpoint) of the (condition, room family) cells that hold a
+frame whose ``not_confirmed`` column in ``calibration_floor``'s rows is not ``none``: the rule below reads each
+cell's pooled MAE, and every other cell is the same for every candidate.  The methods: the reference :data:`REFERENCE`
 (``fused-mirror-confirm-0``: no confirming pass, as the default was before this choice), one
 ``fused-mirror-confirm-<f>`` per candidate of :data:`CANDIDATES` (``--candidates``: these only; the rig fit's
 ``RigParams.confirm_factor`` ``f``, everything else the default's) and the default ``fused-mirror`` as registered
