@@ -61,16 +61,22 @@ def test_sgm_candidates_the_reference_first_and_the_default_once():
         select_sgm.candidate_methods(["1200-3"])
 
 
-def test_flat_candidates_the_reference_first_and_the_default_once():
-    methods = select_flat.candidate_methods()
+def _candidates(script, reference: str):
+    """``script``'s methods (the reference, labelled ``reference``, first; each once), the default and the one method
+    configured as it: the default is run once, as itself, or as the reference or a candidate configured as it."""
+    methods = script.candidate_methods()
     labels = [m.label for m in methods]
-    assert labels[0] == "fused-mirror-flat-0-1"
-    assert len(set(labels)) == len(labels) and len(methods) <= len(select_flat.CANDIDATES) + 2
-    # the default is run once: as itself, or as the reference or the candidate configured as it
+    assert labels[0] == reference
+    assert len(set(labels)) == len(labels) and len(methods) <= len(script.CANDIDATES) + 2
     default = fused_mirror()
     same = [m for m in methods if {**m.config(), "label": None} == {**default.config(), "label": None}]
     assert len(same) == 1
-    assert (labels[-1] == "fused-mirror") == (same[0].label == "fused-mirror")
+    return methods, default, same[0]
+
+
+def test_flat_candidates_the_reference_first_and_the_default_once():
+    methods, default, same = _candidates(select_flat, "fused-mirror-flat-0-1")
+    assert (methods[-1].label == "fused-mirror") == (same.label == "fused-mirror")
     assert methods[0].sweep.cost.flat_contrast == methods[0].sweep.corrected_cost.flat_contrast == 0.0
     # everything but the two values, in both sweep costs, is the default's
     m = select_flat.flat_method(2.5, 0.25)
@@ -87,13 +93,8 @@ def test_flat_candidates_the_reference_first_and_the_default_once():
 
 
 def test_edges_candidates_the_reference_first_and_the_default_once():
-    methods = select_edges.candidate_methods()
-    labels = [m.label for m in methods]
-    assert labels[0] == "fused-mirror-edges-0-10-5-4" and methods[0].sweep.post.edge_radius_px == 0
-    assert len(set(labels)) == len(labels) and len(methods) <= len(select_edges.CANDIDATES) + 2
-    default = fused_mirror()
-    same = [m for m in methods if {**m.config(), "label": None} == {**default.config(), "label": None}]
-    assert len(same) == 1
+    methods, default, _ = _candidates(select_edges, "fused-mirror-edges-0-10-5-4")
+    assert methods[0].sweep.post.edge_radius_px == 0
     # everything but the four post-processing values is the default's
     m = select_edges.edges_method(6, 15.0, 4.0, 3)
     assert m.label == "fused-mirror-edges-6-15-4-3"
@@ -106,13 +107,8 @@ def test_edges_candidates_the_reference_first_and_the_default_once():
 
 
 def test_confirm_candidates_the_reference_first_and_the_default_once():
-    methods = select_confirm.candidate_methods()
-    labels = [m.label for m in methods]
-    assert labels[0] == "fused-mirror-confirm-0" and methods[0].flow.rig.confirm_factor == 0
-    assert len(set(labels)) == len(labels) and len(methods) <= len(select_confirm.CANDIDATES) + 2
-    default = fused_mirror()
-    same = [m for m in methods if {**m.config(), "label": None} == {**default.config(), "label": None}]
-    assert len(same) == 1
+    methods, default, _ = _candidates(select_confirm, "fused-mirror-confirm-0")
+    assert methods[0].flow.rig.confirm_factor == 0
     # everything but the rig fit's confirming pass is the default's
     m = select_confirm.confirm_method(2)
     assert m.label == "fused-mirror-confirm-2"
