@@ -47,17 +47,21 @@ def edge_pixels(log_d: np.ndarray, jump: float, reach_px: int) -> np.ndarray:
     return dilate_wrapped(edge, max(int(reach_px), 0))
 
 
-@numba.njit(cache=True)
+@numba.njit(parallel=True, cache=True)
 def _weighted_median(log_d, weight, image, mask, radius, sigma_color, sigma_px):  # pragma: no cover - numba
     h, w = log_d.shape
     out = log_d.copy()
-    n = (2 * radius + 1) ** 2
-    vals = np.empty(n)
-    wts = np.empty(n)
+    side = 2 * radius + 1
     inv_c = 1.0 / (2.0 * sigma_color * sigma_color)
     inv_s = 1.0 / (2.0 * sigma_px * sigma_px)
+    spatial = np.empty((side, side))  # the exponent's spatial term, the same product for every pixel
+    for dy in range(-radius, radius + 1):
+        for dx in range(-radius, radius + 1):
+            spatial[dy + radius, dx + radius] = (dx * dx + dy * dy) * inv_s
     channels = image.shape[2]
-    for y in range(h):
+    for y in numba.prange(h):  # rows are independent: each writes only its own pixels of ``out``
+        vals = np.empty(side * side)
+        wts = np.empty(side * side)
         for x in range(w):
             if not mask[y, x]:
                 continue
@@ -83,7 +87,7 @@ def _weighted_median(log_d, weight, image, mask, radius, sigma_color, sigma_px):
                     for c in range(channels):
                         t = image[y, x, c] - image[yy, xx, c]
                         dc += t * t
-                    wt = np.exp(-dc * inv_c - (dx * dx + dy * dy) * inv_s) * weight[yy, xx]
+                    wt = np.exp(-dc * inv_c - spatial[dy + radius, dx + radius]) * weight[yy, xx]
                     vals[k] = v
                     wts[k] = wt
                     total += wt

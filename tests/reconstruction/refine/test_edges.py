@@ -3,6 +3,7 @@ image's edge, nothing away from depth edges changes, windows wrap in longitude a
 
 import dataclasses
 
+import numba
 import numpy as np
 import pytest
 
@@ -97,3 +98,18 @@ def test_post_params_check_the_edge_settings():
         dataclasses.replace(PostParams(), edge_jump=0.0)
     with pytest.raises(ValueError, match="edge_radius_px and edge_reach_px"):
         dataclasses.replace(PostParams(), edge_radius_px=-2)
+
+
+def test_the_answer_does_not_depend_on_the_number_of_threads():
+    # the rows are filtered in parallel, each writing only its own pixels: one thread gives the same answer
+    rng = np.random.default_rng(1)
+    d, conf, image = fattened()
+    d = d * np.exp(rng.uniform(-0.05, 0.05, d.shape))  # edges everywhere: every row has pixels to filter
+    conf = rng.uniform(0.0, 1.0, d.shape)
+    threads = numba.get_num_threads()
+    try:
+        numba.set_num_threads(1)
+        one = snap_depth_edges(d, conf, image, **PARAMS)
+    finally:
+        numba.set_num_threads(threads)
+    np.testing.assert_allclose(snap_depth_edges(d, conf, image, **PARAMS), one, rtol=1e-6)
