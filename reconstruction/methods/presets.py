@@ -70,7 +70,7 @@ def fused_mirror() -> PriorSweepMethod:
     floor's mirror image of the ceiling from the floor, and whose sweep matches images the self-calibration changed
     with a cost of its own (chosen on the dev split of suites/tri360-v2.toml under both conditions and of tri360-v3
     under its low-light family, docs/photometry.md), and whose sweep keeps only half its preference where C shows no
-    texture above its noise and moves its depth edges onto C's image edges (docs/edges.md)."""
+    texture above its noise (docs/edges.md)."""
     dis = builtin_flow("dis", {
         "preset": "medium", "finest_scale": 0, "patch_size": 8, "patch_stride": 3, "gd_iterations": 25,
         "var_iterations": 10, "var_alpha": 10.0, "spatial_propagation": True})
@@ -125,13 +125,9 @@ def fused_mirror() -> PriorSweepMethod:
             sgm=SgmParams(p1=120, p2=800, p3=200, edge=8.0, paths=8),
             # the pixels whose winner is within 10 % of the best other label (SGM confidence below 0.1: weak
             # texture, occlusions, edges) refilled from the confident ones without crossing C's image edges at 4 gray
-            # levels (chosen by python -m tools.research.select_fill on the dev split, docs/edges.md); after the
-            # median, the pixels within 4 px of a depth edge take the weighted median of their 15 x 15 window, each
-            # neighbour weighted by its likeness in C's colour (10 levels), closeness (5 px) and confidence, so the
-            # depth edges move onto C's image edges (chosen by python -m tools.research.select_edges on the dev
-            # split under all seven camera conditions, docs/edges.md)
+            # levels (chosen by python -m tools.research.select_fill on the dev split, docs/edges.md)
             post=PostParams(min_confidence=0.1, fill_lambda=200.0, fill_sigma_color=4.0, median_px=5,
-                            fill_space="inverse", edge_radius_px=7, edge_sigma_color=10.0, edge_sigma_px=5.0,
+                            fill_space="inverse", edge_radius_px=0, edge_sigma_color=10.0, edge_sigma_px=5.0,
                             edge_jump=0.05, edge_reach_px=4),
             # the cost when the self-calibration changed the images
             corrected_cost=CostParams(
@@ -290,7 +286,7 @@ def fused_mirror_raw() -> PriorSweepMethod:
                 mirror_tolerance=0.2, room_labels=0, room_spread=0.2),
             sgm=SgmParams(p1=120, p2=800, p3=200, edge=8.0, paths=8),
             post=PostParams(min_confidence=0.1, fill_lambda=200.0, fill_sigma_color=4.0, median_px=5,
-                            fill_space="inverse", edge_radius_px=7, edge_sigma_color=10.0, edge_sigma_px=5.0,
+                            fill_space="inverse", edge_radius_px=0, edge_sigma_color=10.0, edge_sigma_px=5.0,
                             edge_jump=0.05, edge_reach_px=4)),
         prior=PriorParams(
             weight=16.0, truncate_levels=16.0, use_confidence=False, contrast_low=0.5, contrast_high=2.0,
@@ -340,7 +336,7 @@ def fused_mirror_told_rig() -> PriorSweepMethod:
                 mirror_tolerance=0.2, room_labels=0, room_spread=0.2),
             sgm=SgmParams(p1=120, p2=800, p3=200, edge=8.0, paths=8),
             post=PostParams(min_confidence=0.1, fill_lambda=200.0, fill_sigma_color=4.0, median_px=5,
-                            fill_space="inverse", edge_radius_px=7, edge_sigma_color=10.0, edge_sigma_px=5.0,
+                            fill_space="inverse", edge_radius_px=0, edge_sigma_color=10.0, edge_sigma_px=5.0,
                             edge_jump=0.05, edge_reach_px=4),
             corrected_cost=CostParams(
                 d_min_m=0.3, d_max_m=30.0, levels=200, blur_px=0.7, gradient_weight=2.0, intensity_weight=0.25,
@@ -396,7 +392,7 @@ def fused_mirror_raw_images() -> PriorSweepMethod:
                 mirror_tolerance=0.2, room_labels=0, room_spread=0.2),
             sgm=SgmParams(p1=120, p2=800, p3=200, edge=8.0, paths=8),
             post=PostParams(min_confidence=0.1, fill_lambda=200.0, fill_sigma_color=4.0, median_px=5,
-                            fill_space="inverse", edge_radius_px=7, edge_sigma_color=10.0, edge_sigma_px=5.0,
+                            fill_space="inverse", edge_radius_px=0, edge_sigma_color=10.0, edge_sigma_px=5.0,
                             edge_jump=0.05, edge_reach_px=4)),
         prior=PriorParams(
             weight=16.0, truncate_levels=16.0, use_confidence=False, contrast_low=0.5, contrast_high=2.0,
@@ -446,7 +442,7 @@ def fused_mirror_shared_falloff() -> PriorSweepMethod:
                 mirror_tolerance=0.2, room_labels=0, room_spread=0.2),
             sgm=SgmParams(p1=120, p2=800, p3=200, edge=8.0, paths=8),
             post=PostParams(min_confidence=0.1, fill_lambda=200.0, fill_sigma_color=4.0, median_px=5,
-                            fill_space="inverse", edge_radius_px=7, edge_sigma_color=10.0, edge_sigma_px=5.0,
+                            fill_space="inverse", edge_radius_px=0, edge_sigma_color=10.0, edge_sigma_px=5.0,
                             edge_jump=0.05, edge_reach_px=4),
             corrected_cost=CostParams(
                 d_min_m=0.3, d_max_m=30.0, levels=200, blur_px=0.7, gradient_weight=2.0, intensity_weight=0.25,
