@@ -42,6 +42,17 @@ def _children(pid: int) -> list[int]:
         return []
 
 
+def _cycles_workers(pid: int) -> list[int]:
+    """``pid``'s children that run the Cycles worker (not another short-lived child, such as one a library's import
+    starts while the command is still starting)."""
+    found = []
+    for child in _children(pid):
+        with contextlib.suppress(FileNotFoundError, ProcessLookupError):
+            if b"harness.render.cycles_worker" in Path(f"/proc/{child}/cmdline").read_bytes():
+                found.append(child)
+    return found
+
+
 def _alive(pid: int) -> bool:
     try:
         return Path(f"/proc/{pid}/stat").read_text().split(")")[-1].split()[0] != "Z"
@@ -90,9 +101,9 @@ def test_ctrl_c_stops_a_cycles_render_within_seconds(tmp_path, target):
     with _command(["render", "--scene", "classroom", "--width", "400", "--samples", "128", "--out", str(out),
                    "--quiet"], env={**os.environ, "TMPDIR": str(tmp)}) as proc:
         deadline = time.monotonic() + 60
-        while not _children(proc.pid) and proc.poll() is None and time.monotonic() < deadline:
+        while not _cycles_workers(proc.pid) and proc.poll() is None and time.monotonic() < deadline:
             time.sleep(0.05)
-        (worker,) = _children(proc.pid)
+        (worker,) = _cycles_workers(proc.pid)
         time.sleep(3.0)  # the worker builds the scene (~1 s) and is rendering camera C
         assert proc.poll() is None, "the render finished before it could be interrupted"
         stdout, stderr, seconds = _interrupt(proc, target == "group", timeout=30)
