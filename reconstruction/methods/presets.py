@@ -24,6 +24,7 @@ from reconstruction.methods.prior_sweep import PriorParams, PriorSweepMethod
 from reconstruction.methods.sweep import PostParams, SgmParams, SweepMethod
 from reconstruction.photometry import PhotometricParams
 from reconstruction.refine.lm import RefineConfig
+from reconstruction.refine.planes import PlaneRefineParams
 from reconstruction.refine.triangulate import TriangulationLimits
 from reconstruction.rig_calibration import RigParams
 from reconstruction.sweep.cost import CostParams
@@ -92,6 +93,14 @@ def fused_mirror() -> PriorSweepMethod:
         flow=FlowMethod(flow=dis, rectify=True, refine=None, limits=limits, photometric=photometric, rig=rig),
         sweep=SweepMethod(
             pairs=("U", "R"), label="sweep", photometric=photometric,
+            # the floor and the ceiling the coarse pass found searched again from the images at 0.5 % steps over
+            # +-15 %, applied where the search is sure (jackknife standard error at most 0.5 %, its basin at most 3 %
+            # wide, of two minima within 5 % the farther: chair bases and mats lie above a floor), and the pixels
+            # within 6 % of it put on it (chosen on tri360-v3 dev's ideal frames, docs/edges.md)
+            refine_planes=PlaneRefineParams(
+                select=0.12, search=0.15, steps=61, truncate=20.0, min_gradient=1.0, max_pixels=40000, min_cos=0.1,
+                max_se=0.005, longitude_blocks=32, min_block_pixels=50, snap=0.06, rise=0.05, max_basin=0.03,
+                far_share=0.05),
             # the cost when the self-calibration changed no image (cameras that agree): the sweep's own but for its
             # 200 sphere labels (the sweep's 160): at 1000 px and the 0.4 m baseline a label is 1.3 px of parallax
             # at 160 and 1.06 px at 200, which brings far surfaces closer to what the rig resolves; 240 measured
@@ -199,6 +208,7 @@ def fused() -> PriorSweepMethod:
                 tol_m=1e-7, description="LM, angle x epipolar-gradient weights (paper eq. 1)")),
         sweep=SweepMethod(
             pairs=("U", "R"), label="sweep", photometric=photometric, corrected_cost=None,
+            refine_planes=None,
             cost=CostParams(
                 d_min_m=0.3, d_max_m=30.0, levels=160, blur_px=0.0, gradient_weight=2.0, intensity_weight=1.0,
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=0.0,
@@ -233,6 +243,7 @@ def sweep() -> SweepMethod:
         longitude_blocks=16, min_block_samples=50)
     return SweepMethod(
         pairs=("U", "R"), label="sweep", photometric=photometric, corrected_cost=None,
+        refine_planes=None,
         cost=CostParams(
             d_min_m=0.3, d_max_m=30.0, levels=160, blur_px=0.0, gradient_weight=2.0, intensity_weight=1.0,
             truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=0.0, noise_floor=1.0,
@@ -275,6 +286,10 @@ def fused_mirror_raw() -> PriorSweepMethod:
         flow=FlowMethod(flow=dis, rectify=True, refine=None, limits=limits, photometric=photometric, rig=rig),
         sweep=SweepMethod(
             pairs=("U", "R"), label="sweep", photometric=photometric, corrected_cost=None,
+            refine_planes=PlaneRefineParams(
+                select=0.12, search=0.15, steps=61, truncate=20.0, min_gradient=1.0, max_pixels=40000, min_cos=0.1,
+                max_se=0.005, longitude_blocks=32, min_block_pixels=50, snap=0.06, rise=0.05, max_basin=0.03,
+                far_share=0.05),
             cost=CostParams(
                 d_min_m=0.3, d_max_m=30.0, levels=200, blur_px=0.0, gradient_weight=2.0, intensity_weight=1.0,
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=0.0,
@@ -325,6 +340,10 @@ def fused_mirror_told_rig() -> PriorSweepMethod:
         flow=FlowMethod(flow=dis, rectify=True, refine=None, limits=limits, photometric=photometric, rig=rig),
         sweep=SweepMethod(
             pairs=("U", "R"), label="sweep", photometric=photometric,
+            refine_planes=PlaneRefineParams(
+                select=0.12, search=0.15, steps=61, truncate=20.0, min_gradient=1.0, max_pixels=40000, min_cos=0.1,
+                max_se=0.005, longitude_blocks=32, min_block_pixels=50, snap=0.06, rise=0.05, max_basin=0.03,
+                far_share=0.05),
             cost=CostParams(
                 d_min_m=0.3, d_max_m=30.0, levels=200, blur_px=0.0, gradient_weight=2.0, intensity_weight=1.0,
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=0.0,
@@ -381,6 +400,10 @@ def fused_mirror_raw_images() -> PriorSweepMethod:
         flow=FlowMethod(flow=dis, rectify=True, refine=None, limits=limits, photometric=photometric, rig=rig),
         sweep=SweepMethod(
             pairs=("U", "R"), label="sweep", photometric=photometric, corrected_cost=None,
+            refine_planes=PlaneRefineParams(
+                select=0.12, search=0.15, steps=61, truncate=20.0, min_gradient=1.0, max_pixels=40000, min_cos=0.1,
+                max_se=0.005, longitude_blocks=32, min_block_pixels=50, snap=0.06, rise=0.05, max_basin=0.03,
+                far_share=0.05),
             cost=CostParams(
                 d_min_m=0.3, d_max_m=30.0, levels=200, blur_px=0.0, gradient_weight=2.0, intensity_weight=1.0,
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=0.0,
@@ -431,6 +454,10 @@ def fused_mirror_shared_falloff() -> PriorSweepMethod:
         flow=FlowMethod(flow=dis, rectify=True, refine=None, limits=limits, photometric=photometric, rig=rig),
         sweep=SweepMethod(
             pairs=("U", "R"), label="sweep", photometric=photometric,
+            refine_planes=PlaneRefineParams(
+                select=0.12, search=0.15, steps=61, truncate=20.0, min_gradient=1.0, max_pixels=40000, min_cos=0.1,
+                max_se=0.005, longitude_blocks=32, min_block_pixels=50, snap=0.06, rise=0.05, max_basin=0.03,
+                far_share=0.05),
             cost=CostParams(
                 d_min_m=0.3, d_max_m=30.0, levels=200, blur_px=0.0, gradient_weight=2.0, intensity_weight=1.0,
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=0.0,
@@ -487,6 +514,7 @@ def fused_gated() -> PriorSweepMethod:
         flow=FlowMethod(flow=dis, rectify=True, refine=None, limits=limits, photometric=photometric, rig=rig),
         sweep=SweepMethod(
             pairs=("U", "R"), label="sweep", photometric=photometric, corrected_cost=None,
+            refine_planes=None,
             cost=CostParams(
                 d_min_m=0.3, d_max_m=30.0, levels=160, blur_px=0.0, gradient_weight=2.0, intensity_weight=1.0,
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=0.0,
@@ -548,6 +576,7 @@ def fused_adaptive() -> PriorSweepMethod:
                 tol_m=1e-7, description="LM, angle x epipolar-gradient weights (paper eq. 1)")),
         sweep=SweepMethod(
             pairs=("U", "R"), label="sweep", photometric=photometric, corrected_cost=None,
+            refine_planes=None,
             cost=CostParams(
                 d_min_m=0.3, d_max_m=30.0, levels=160, blur_px=0.0, gradient_weight=2.0, intensity_weight=1.0,
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=0.0,

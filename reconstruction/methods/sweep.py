@@ -22,6 +22,7 @@ from reconstruction.methods.self_calibration import Calibration, reduced_frame, 
 from reconstruction.photometry import PhotometricParams
 from reconstruction.refine.edges import snap_depth_edges
 from reconstruction.refine.fill import check_fill_space, fill_edge_aware
+from reconstruction.refine.planes import PlaneRefineParams, refine_plane, snap_to_planes
 from reconstruction.refine.triangulate import TriangulationLimits
 from reconstruction.rig_calibration import NO_RIG_CALIBRATION
 from reconstruction.sweep.cost import (
@@ -33,6 +34,7 @@ from reconstruction.sweep.cost import (
     noise_blur_px,
 )
 from reconstruction.sweep.planes import (
+    UP,
     PlaneParams,
     add_prior,
     bound_costs,
@@ -272,7 +274,8 @@ def room_bounds(frame, sweep: SweepMethod, seconds):
     ``bound_margin``), the walls' yaw (radians or None), the label families of the walls found
     (:func:`reconstruction.sweep.planes.dominant_walls`; none without ``wall_labels``) followed by those of the
     floor and ceiling found (:func:`reconstruction.sweep.planes.room_planes`; none without ``room_labels``), and the
-    coarse pass's (distance (m), confidence) maps."""
+    coarse pass's (distance (m), confidence) maps, and the floor's and ceiling's heights as found (metres, -inf /
+    inf if not found; no margin)."""
     cost_params, plane_params = sweep.cost, sweep.planes
     coarse = reduced_frame(frame, plane_params.coarse_factor)
     cost, heights, inv_d = _sphere_costs(coarse, sweep, seconds, prefix="coarse_")
@@ -286,9 +289,33 @@ def room_bounds(frame, sweep: SweepMethod, seconds):
         yaw, walls = dominant_walls(d[..., None] * bearings, plane_params)
     walls = [*walls, *room_planes(z_floor, z_ceil, plane_params)]
     m = 1.0 + plane_params.bound_margin
+    found = (z_floor, z_ceil)
     if not plane_params.room_bound:
         z_floor, z_ceil, m = -np.inf, np.inf, 1.0
-    return z_floor * m, z_ceil * m, yaw, walls, (d, conf)
+    return z_floor * m, z_ceil * m, yaw, walls, (d, conf), found
+
+
+class _PlaneRefiner:
+    """The floor and the ceiling of a frame refined on a distance map (``sweep.refine_planes``): the gray images
+    and C's world bearings made once for every prior's map."""
+
+    def __init__(self, frame, sweep: SweepMethod, found: tuple[float, float]):
+        self.frame, self.sweep = frame, sweep
+        self.starts = [z for z in found if np.isfinite(z) and z != 0]
+        self.active = sweep.refine_planes is not None and bool(self.starts)
+        self._gray = self._bearings = None
+
+    def __call__(self, d: np.ndarray) -> tuple[np.ndarray, list[dict]]:
+        """(H, W) distance (m) -> the distance with the refined planes' pixels on them, and each plane's record
+        (:meth:`reconstruction.refine.planes.PlaneFit.record`)."""
+        frame, params = self.frame, self.sweep.refine_planes
+        if self._gray is None:
+            self._gray = {k: gray_float(frame.images[k], 0.0) for k in ("C", *self.sweep.pairs)}
+            self._bearings = bearing_grid(frame.width, frame.height, frame.cameras["C"].rotation)
+        fits = [refine_plane(self._gray, frame.cameras, self._bearings, d, UP, z, params, self.sweep.pairs)
+                for z in self.starts]
+        cost = self.sweep.cost
+        return snap_to_planes(d, self._bearings, fits, params, (cost.d_min_m, cost.d_max_m)), [f.record() for f in fits]
 
 
 def sweep_distances(frame, sweep: SweepMethod, priors: Sequence[Prior | PriorFromSweep | None] = (None,),
@@ -327,11 +354,11 @@ def sweep_distances(frame, sweep: SweepMethod, priors: Sequence[Prior | PriorFro
         sweep = dataclasses.replace(sweep, cost=dataclasses.replace(sweep.cost,
                                                                     blur_px=noise_blur_px(sweep.cost, noise)))
     cost_params, plane_params, post = sweep.cost, sweep.planes, sweep.post
-    bounds, yaw, walls, coarse = (-np.inf, np.inf), None, [], None
+    bounds, yaw, walls, coarse, found = (-np.inf, np.inf), None, [], None, (-np.inf, np.inf)
     from_sweep = any(isinstance(p, PriorFromSweep) for p in priors)
-    if ((plane_params.room_bound or plane_params.wall_labels > 0 or plane_params.room_labels > 0 or from_sweep)
-            and plane_params.per_side > 0):
-        z_floor, z_ceil, yaw, walls, coarse = room_bounds(frame, sweep, shared)
+    if ((plane_params.room_bound or plane_params.wall_labels > 0 or plane_params.room_labels > 0 or from_sweep
+         or sweep.refine_planes is not None) and plane_params.per_side > 0):
+        z_floor, z_ceil, yaw, walls, coarse, found = room_bounds(frame, sweep, shared)
         bounds = (z_floor, z_ceil)
         if from_sweep:  # only the priors made from the plain sweep read the coarse maps
             size = (frame.width, frame.height)
@@ -345,6 +372,7 @@ def sweep_distances(frame, sweep: SweepMethod, priors: Sequence[Prior | PriorFro
     cost, heights, inv_d = _sphere_costs(frame, sweep, shared, wall_labels=sum(o.size for _, o in walls),
                                          estimate=estimate)
     out = []
+    refine = _PlaneRefiner(frame, sweep, found)
     for i, prior in enumerate(priors):
         seconds = dict(shared)
         copy_seconds = 0.0  # the price of sharing, not of the method: kept out of its stages and total
@@ -373,6 +401,11 @@ def sweep_distances(frame, sweep: SweepMethod, priors: Sequence[Prior | PriorFro
             d = snap_depth_edges(d, conf, frame.images["C"], post.edge_radius_px, post.edge_sigma_color,
                                  post.edge_sigma_px, post.edge_jump, post.edge_reach_px)
         _lap(seconds, "post", t)
+        planes = []
+        if refine.active:
+            t = _clock()
+            d, planes = refine(d)
+            _lap(seconds, "refine_planes", t)
         cpu = {k[:-4]: seconds.pop(k) for k in [k for k in seconds if k.endswith("_cpu")]}
         seconds["total"] = sum(seconds.values())
         cpu["total"] = sum(cpu.values())
@@ -384,6 +417,7 @@ def sweep_distances(frame, sweep: SweepMethod, priors: Sequence[Prior | PriorFro
                 "room_planes_m": [float(np.median(o)) for n, o in walls if n[2] != 0],
                 "floor_m": float(bounds[0]), "ceiling_m": float(bounds[1]), "cpu_seconds": cpu,
                 "copy_seconds": copy_seconds, "blur_px": float(cost_params.blur_px),
+                **({"planes": planes} if refine.active else {}),
                 **({"noise_grey_levels": noise} if noise is not None else {}),
                 **({"calibration": calibration.record, "applied": calibration.applied} if calibration.record else {})}
         out.append((d.astype(np.float32), np.clip(conf, 0.0, 1.0).astype(np.float32), seconds, info))
@@ -416,6 +450,9 @@ class SweepMethod:
             (:class:`reconstruction.photometry.PhotometricParams`; mode ``"none"`` = the images as they are).
         corrected_cost: the cost used instead of ``cost`` when the self-calibration changed the images (what a
             corrected gain leaves can weigh less); None: ``cost`` always.
+        refine_planes: after the post-processing, the floor and the ceiling the coarse pass found are searched
+            again at sub-label precision from the images and the pixels near them put on them, where the search is
+            sure (:mod:`reconstruction.refine.planes`); None: not.
     """
 
     cost: CostParams = field(default_factory=CostParams)
@@ -426,6 +463,7 @@ class SweepMethod:
     label: str = "sweep"
     photometric: PhotometricParams = PhotometricParams()
     corrected_cost: CostParams | None = None
+    refine_planes: PlaneRefineParams | None = None
 
     def config(self) -> dict:
         out = {"kind": "sweep", "label": self.label, "cost": asdict(self.cost), "planes": asdict(self.planes),
@@ -433,6 +471,8 @@ class SweepMethod:
                "photometric": self.photometric.config()}
         if self.corrected_cost is not None:
             out["corrected_cost"] = asdict(self.corrected_cost)
+        if self.refine_planes is not None:
+            out["refine_planes"] = asdict(self.refine_planes)
         return out
 
     def run(self, frame) -> MethodOutput:

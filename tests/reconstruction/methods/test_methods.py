@@ -370,7 +370,7 @@ def test_a_builtin_flow_takes_every_parameter_or_none():
 #: the dataclasses of a method's configuration that a preset must write out in full
 PARAMETER_CLASSES = {"PriorSweepMethod", "FlowMethod", "SweepMethod", "CostParams", "PlaneParams", "SgmParams",
                      "PostParams", "PriorParams", "PhotometricParams", "RigParams", "TriangulationLimits",
-                     "RefineConfig"}
+                     "RefineConfig", "PlaneRefineParams"}
 
 
 def preset_problems(source: str, namespace: dict, preset_functions: set[str]) -> tuple[list[str], set[str]]:

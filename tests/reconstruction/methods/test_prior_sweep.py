@@ -122,7 +122,7 @@ def test_the_default_and_the_previous_one_are_within_2_percent_on_small_exact_fr
         assert np.abs(out.distance[ok] - gt[ok]).mean() <= 0.02 * gt[ok].mean(), method.label
 
 
-def test_the_default_is_fused_gated_with_its_mirror_test_cost_labels_room_bound_and_refill():
+def test_the_default_is_fused_gated_with_its_mirror_test_cost_labels_room_bound_refill_and_planes():
     """What the default is made of; its values are in the reviewed snapshot (test_presets_snapshot.py)."""
     cfg = json.loads(json.dumps(presets.fused_mirror().config()))
     gated = json.loads(json.dumps(presets.fused_gated().config()))
@@ -154,6 +154,9 @@ def test_the_default_is_fused_gated_with_its_mirror_test_cost_labels_room_bound_
     # the room bound closer to the floor and ceiling the coarse pass found
     assert cfg["sweep"]["planes"]["bound_margin"] < gated["sweep"]["planes"]["bound_margin"]
     cfg["sweep"]["planes"]["bound_margin"] = gated["sweep"]["planes"]["bound_margin"]
+    # its floor and ceiling searched again from the images (gated: not)
+    assert "refine_planes" not in gated["sweep"]
+    assert cfg["sweep"].pop("refine_planes")["max_se"] > 0
     assert {**cfg, "label": "fused-gated"} == gated
 
 

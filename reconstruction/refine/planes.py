@@ -1,0 +1,257 @@
+"""A room's large planes (floor, ceiling, walls) at the distance the images give them, not the one a label grid does.
+
+A sweep's plane labels are a grid: a floor whose height falls between two labels is put on one of them, or between
+them by the winner's sub-label interpolation of costs sampled a few per cent apart, and the whole floor is then a
+few per cent off (on the ideal frames of tri360-v3 dev, vp000: floors 0.3-7.5 % and ceilings up to 6.3 % from their
+true heights).  One plane's offset is one number, seen by tens of thousands of pixels.  :func:`refine_plane` finds it
+by a one-dimensional search: for each candidate offset ``o`` every selected pixel ``p`` of C is put on the plane
+(distance ``o / (b_p . n)``, ``b_p`` its world bearing, ``n`` the plane's unit normal), projected into U and R, and
+compared with what they see there (gray levels, truncated); the offset of the least mean cost wins (a parabola
+through the best sample and its two neighbours gives the sub-step).  Its uncertainty is the delete-one-block
+jackknife over sectors of the sphere (:func:`reconstruction.evidence.sphere_blocks`): a plane whose texture says
+little (a plain carpet), or whose pixels include other surfaces that pull the minimum their way, gives estimates
+that differ from block to block, and is left where it was.  :func:`snap_to_planes` then puts the pixels the estimate
+places near a refined plane onto it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from reconstruction.camera.equirect import project
+from reconstruction.camera.image_ops import sobel_gradient
+from reconstruction.camera.resample import sample_equirect
+from reconstruction.evidence import sphere_blocks
+
+__all__ = ["PlaneRefineParams", "PlaneFit", "plane_offsets", "refine_plane", "snap_to_planes"]
+
+
+@dataclass(frozen=True)
+class PlaneRefineParams:
+    """How :func:`refine_plane` searches a plane's offset and when it is applied.
+
+    Attributes:
+        select: the pixels searched are those whose estimate lies within this relative distance of the plane's
+            starting offset (``|ln(d (b . n) / o_0)|``), on its side, seen at more than ``min_cos`` from it.
+        search: the candidate offsets span ``o_0 * exp(+-search)``.
+        steps: candidate offsets, evenly spaced in ``ln o``.
+        truncate: each pair's absolute gray-level difference is truncated here (a pixel of another surface costs
+            at most this).
+        min_gradient: only pixels where C's gray gradient (Sobel, gray levels per pixel) exceeds this take part:
+            a flat pixel's cost does not depend on the offset.
+        max_pixels: at most this many pixels (evenly strided).
+        min_cos: pixels whose bearing makes an angle with the plane whose sine is below this are not used or
+            snapped (grazing: a small offset error is a large distance error there).
+        max_se: a refined offset is applied only when its jackknife standard error is at most this (natural log
+            of the offset, 0.005: half a per cent).
+        longitude_blocks: the jackknife's sectors of longitude (each cut at the horizon); a block with fewer than
+            ``min_block_pixels`` pixels stays in every fit.
+        snap: after a plane is refined, the pixels whose estimate lies within this relative distance of it, or of
+            where the estimate had it, are put on it.
+    """
+
+    select: float = 0.12
+    search: float = 0.15
+    steps: int = 61
+    truncate: float = 20.0
+    min_gradient: float = 1.0
+    max_pixels: int = 40000
+    min_cos: float = 0.1
+    max_se: float = 0.005
+    longitude_blocks: int = 32
+    min_block_pixels: int = 50
+    snap: float = 0.06
+    rise: float = 0.05
+    max_basin: float = 0.03
+    far_share: float = 0.05
+
+    def __post_init__(self) -> None:
+        for name in ("select", "search", "truncate", "max_se", "snap"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"plane refinement {name} must be > 0, got {getattr(self, name)}")
+        if self.steps < 5 or self.max_pixels < 100 or self.longitude_blocks < 2 or self.min_block_pixels < 1:
+            raise ValueError(f"plane refinement steps {self.steps} must be >= 5, max_pixels {self.max_pixels} >= 100, "
+                             f"longitude_blocks {self.longitude_blocks} >= 2, min_block_pixels "
+                             f"{self.min_block_pixels} >= 1")
+        if not 0 < self.min_cos < 1 or self.min_gradient < 0:
+            raise ValueError(f"plane refinement min_cos must be in (0, 1) and min_gradient >= 0, got {self.min_cos} "
+                             f"and {self.min_gradient}")
+
+
+@dataclass(frozen=True)
+class PlaneFit:
+    """One plane's refinement (:func:`refine_plane`).
+
+    Attributes:
+        normal: (3,) world unit normal; offset_start: where the search started (metres along ``normal``, signed).
+        offset_before: where the estimate had the plane: the mode of its selected pixels' offsets (metres).
+        offset: the refined offset (metres; ``offset_before`` when not applied).
+        se: the jackknife standard error of ``ln |offset|`` (inf when it could not be computed).
+        pixels: the pixels searched; blocks: the jackknife's blocks.
+        applied: whether :func:`snap_to_planes` uses it.
+    """
+
+    normal: tuple
+    offset_start: float
+    offset_before: float
+    offset: float
+    se: float
+    pixels: int
+    blocks: int
+    applied: bool
+
+    def record(self) -> dict:
+        """JSON-able."""
+        return {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(self).items()}
+
+
+def plane_offsets(distance: np.ndarray, bearings: np.ndarray, normal) -> np.ndarray:
+    """(H, W) signed offset ``d (b . n)`` of each pixel's point from C along ``normal`` (metres; NaN where the
+    distance is not finite)."""
+    with np.errstate(invalid="ignore"):
+        return np.asarray(distance, np.float64) * (bearings @ np.asarray(normal, np.float64))
+
+
+def _pick(curve: np.ndarray, far_share: float) -> int:
+    """The sample of ``curve`` (costs over offsets ascending in ``|offset|``) taken as the plane: of its local minima
+    (after a [1, 2, 1] smoothing) within ``far_share`` of the least cost, the farthest.  Other surfaces near a room's
+    plane lie on C's side of it (chair bases and mats above a floor, lamps below a ceiling, furniture before a wall),
+    so a second minimum nearer than the plane is theirs."""
+    c = np.convolve(np.pad(curve, 1, mode="edge"), [0.25, 0.5, 0.25], mode="valid")
+    interior = np.flatnonzero((c[1:-1] <= c[:-2]) & (c[1:-1] <= c[2:])) + 1
+    good = interior[c[interior] <= c.min() * (1.0 + far_share)]
+    if good.size == 0:
+        return int(np.argmin(curve))
+    j = int(good.max())
+    return max(j - 1, 0) + int(np.argmin(curve[max(j - 1, 0):j + 2]))
+
+
+def _para(curve: np.ndarray, j: int) -> float:
+    """Sub-step position of the minimum at sample ``j`` of ``curve`` (a parabola through it and its neighbours)."""
+    if not 0 < j < curve.size - 1:
+        return float(j)
+    a, m, c = curve[j - 1:j + 2]
+    den = a - 2.0 * m + c
+    return float(j + (0.5 * (a - c) / den if den > 0 else 0.0))
+
+
+def refine_plane(gray: dict, cameras: dict, bearings: np.ndarray, distance: np.ndarray, normal, offset_start: float,
+                 params: PlaneRefineParams = PlaneRefineParams(), pairs=("U", "R")) -> PlaneFit:
+    """Search one plane's offset from the images (see the module's docstring).
+
+    Where the estimate has the plane (``offset_before``) is the mode of its pixels' offsets (0.2 % bins) within
+    ``params.search`` of ``offset_start``; the search spans ``params.search`` either side of that mode, over the
+    pixels within ``params.select`` of it whose gray gradient exceeds ``params.min_gradient`` (each pair's gray gain
+    relative to C, the ratio of their medians there, is divided out).  Of the mean cost's local minima within
+    ``params.far_share`` of the least, the farthest from C is the plane (surfaces near a room's plane lie on C's
+    side of it: chair bases and mats above a floor, lamps below a ceiling).  It is applied when its jackknife
+    standard error (each block of ``params.longitude_blocks`` sectors left out in turn, the same rule) is at most
+    ``params.max_se`` and the candidates within ``params.rise`` of its cost reach at most ``params.max_basin`` from
+    it on either side (a shallow basin: the images do not fix the offset, or two surfaces share it).
+
+    Args:
+        gray: (H, W) float32 gray image (0-255) per camera name (C and ``pairs``).
+        cameras: pose per camera name (``position`` (3,) metres, ``rotation`` (3, 3) world-from-camera).
+        bearings: (H, W, 3) C's unit bearings in world coordinates.
+        distance: (H, W) C's current estimate, metres (non-finite: not used).
+        normal: (3,) the plane's world unit normal; offset_start: its signed offset from C along it, metres, as
+            another stage found it (non-zero).
+    Returns:
+        A :class:`PlaneFit` (``offset`` is ``offset_before`` when not applied).
+    """
+    normal = np.asarray(normal, np.float64)
+    sign = 1.0 if offset_start > 0 else -1.0
+    a_n = bearings @ normal
+    with np.errstate(invalid="ignore", divide="ignore"):
+        off = plane_offsets(distance, bearings, normal) * sign
+        rel = np.log(np.where(off > 0, off, np.nan) / abs(offset_start))
+    facing = (a_n * sign) > params.min_cos
+    within = facing & (np.abs(rel) < params.search)
+    mode = 0.0  # ln(offset_before / offset_start)
+    if within.any():
+        r = rel[within]
+        edges = np.arange(-params.search, params.search + 0.002, 0.002)
+        k = int(np.argmax(np.histogram(r, edges)[0]))
+        mode = float(np.median(r[(r >= edges[k]) & (r < edges[k + 1])]))
+    before = float(offset_start * np.exp(mode))
+    g_c = gray["C"]
+    gx, gy = sobel_gradient(g_c)
+    near = facing & (np.abs(rel - mode) < params.select) & (np.hypot(gx, gy) > params.min_gradient)
+    idx = np.flatnonzero(near.ravel())
+    idx = idx[::max(1, -(-idx.size // params.max_pixels))]
+    unapplied = PlaneFit(tuple(normal.tolist()), float(offset_start), before, before, float("inf"), int(idx.size), 0,
+                         False)
+    if idx.size < 10 * params.min_block_pixels:
+        return unapplied
+    b = bearings.reshape(-1, 3)[idx]
+    along = a_n.reshape(-1)[idx]
+    ref = g_c.reshape(-1)[idx].astype(np.float32)
+    centre = np.asarray(cameras["C"].position, np.float64)
+    grid = np.linspace(-params.search, params.search, params.steps)  # ln(offset / offset_before)
+    ids, block = np.unique(sphere_blocks(b, params.longitude_blocks), return_inverse=True)
+    sums = np.zeros((params.steps, ids.size))  # each block's summed cost per candidate
+    counts = np.bincount(block, minlength=ids.size).astype(np.float64)
+    gains = {}
+    for i, x in enumerate(grid):
+        points = centre + b * (before * np.exp(x) / along)[:, None]
+        cost = np.zeros(idx.size, np.float32)
+        for k in pairs:
+            u, v = project(points, cameras[k].position, cameras[k].rotation, g_c.shape[1], g_c.shape[0])
+            seen = sample_equirect(gray[k], u, v)
+            if k not in gains:
+                gains[k] = float(np.clip(np.median(ref) / max(float(np.median(seen)), 1e-3), 0.5, 2.0))
+            cost += np.minimum(np.abs(seen * gains[k] - ref), params.truncate)
+        sums[i] = np.bincount(block, weights=cost, minlength=ids.size)
+    total = sums.sum(axis=1) / counts.sum()
+    j = _pick(total, params.far_share)
+    leave = np.flatnonzero(counts >= params.min_block_pixels)
+    if not 1 <= j <= params.steps - 2 or leave.size < 4:  # at the search's edge, or too few blocks to judge
+        return unapplied
+    steps = np.arange(params.steps, dtype=np.float64)
+    x_hat = float(np.interp(_para(total, j), steps, grid))
+    est = np.array([float(np.interp(_para(c, _pick(c, params.far_share)), steps, grid))
+                    for c in ((sums.sum(axis=1) - sums[:, q]) / (counts.sum() - counts[q]) for q in leave)])
+    se = float(np.sqrt((est.size - 1) / est.size * np.sum((est - est.mean()) ** 2)))
+    low = total <= total[j] * (1.0 + params.rise)  # the basin: contiguous with j, within ``rise`` of its cost
+    first = j - int(np.argmin(low[j::-1])) if not low[:j + 1].all() else 0
+    last = j + int(np.argmin(low[j:])) if not low[j:].all() else params.steps - 1
+    applied = se <= params.max_se and max(grid[j] - grid[first], grid[last] - grid[j]) <= params.max_basin
+    offset = before * float(np.exp(x_hat)) if applied else before
+    return PlaneFit(tuple(normal.tolist()), float(offset_start), before, offset, se, int(idx.size), int(leave.size),
+                    bool(applied))
+
+
+def snap_to_planes(distance: np.ndarray, bearings: np.ndarray, fits, params: PlaneRefineParams = PlaneRefineParams(),
+                   d_range=(0.0, np.inf)) -> np.ndarray:
+    """Put the pixels the estimate places near each applied plane onto it.
+
+    Args:
+        distance: (H, W) C's estimate, metres.
+        bearings: (H, W, 3) C's unit world bearings.
+        fits: :class:`PlaneFit` per plane (those not applied are skipped), in order: a pixel near two planes takes
+            the first's distance.
+        d_range: (min, max) distances a snapped pixel may take, metres (others keep theirs).
+    Returns:
+        (H, W) float32: ``distance`` with the pixels within ``params.snap`` (relative) of a refined plane's offset or
+        of its ``offset_before`` at ``offset / (b . n)``.
+    """
+    out = np.asarray(distance, np.float32).copy()
+    done = np.zeros(out.shape, bool)
+    for fit in fits:
+        if not fit.applied:
+            continue
+        normal = np.asarray(fit.normal, np.float64)
+        sign = 1.0 if fit.offset > 0 else -1.0
+        a_n = (bearings @ normal) * sign
+        off = plane_offsets(distance, bearings, normal) * sign
+        with np.errstate(invalid="ignore", divide="ignore"):
+            lo = np.log(np.where(off > 0, off, np.nan))
+            new = abs(fit.offset) / a_n
+        near = (np.abs(lo - np.log(abs(fit.offset))) < params.snap) | (np.abs(lo - np.log(abs(fit.offset_before)))
+                                                                          < params.snap)
+        take = near & (a_n > params.min_cos) & ~done & (new >= d_range[0]) & (new <= d_range[1])
+        out[take] = new[take]
+        done |= take
+    return out
