@@ -297,7 +297,7 @@ def room_bounds(frame, sweep: SweepMethod, seconds):
 
 class _PlaneRefiner:
     """The floor and the ceiling of a frame refined on a distance map (``sweep.refine_planes``): the gray images
-    and C's world bearings made once for every prior's map."""
+    (blurred by the sweep's cost's ``blur_px``) and C's world bearings made once for every prior's map."""
 
     def __init__(self, frame, sweep: SweepMethod, found: tuple[float, float]):
         self.frame, self.sweep = frame, sweep
@@ -310,7 +310,8 @@ class _PlaneRefiner:
         (:meth:`reconstruction.refine.planes.PlaneFit.record`)."""
         frame, params = self.frame, self.sweep.refine_planes
         if self._gray is None:
-            self._gray = {k: gray_float(frame.images[k], 0.0) for k in ("C", *self.sweep.pairs)}
+            # the images as the sweep's cost saw them (blurred where a camera's noise asked for it)
+            self._gray = {k: gray_float(frame.images[k], self.sweep.cost.blur_px) for k in ("C", *self.sweep.pairs)}
             self._bearings = bearing_grid(frame.width, frame.height, frame.cameras["C"].rotation)
         fits = [refine_plane(self._gray, frame.cameras, self._bearings, d, UP, z, params, self.sweep.pairs)
                 for z in self.starts]

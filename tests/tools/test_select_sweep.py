@@ -10,7 +10,7 @@ import pytest
 
 from harness.data.errors import UserError
 from reconstruction.methods.presets import fused_mirror
-from tools.research import select_confirm, select_edges, select_flat, select_planes, select_sgm
+from tools.research import select_confirm, select_edges, select_flat, select_planes, select_refine_planes, select_sgm
 from tools.research.select_planes import CANDIDATES, REFERENCE, candidate_methods, planes_method
 from tools.research.select_sgm import sgm_method
 
@@ -119,8 +119,23 @@ def test_confirm_candidates_the_reference_first_and_the_default_once():
         select_confirm.candidate_methods(["3"])
 
 
+def test_refine_planes_candidates_the_reference_first_and_the_default_once():
+    methods, default, _ = _candidates(select_refine_planes, "fused-mirror-refine-planes-0-0-0")
+    assert methods[0].sweep.refine_planes is None
+    # everything but the three values is the default's
+    m = select_refine_planes.refine_planes_method(0.004, 0.02, 0.05)
+    assert m.label == "fused-mirror-refine-planes-0.004-0.02-0.05"
+    assert m.sweep.refine_planes == dataclasses.replace(default.sweep.refine_planes, max_se=0.004, max_basin=0.02,
+                                                        snap=0.05)
+    assert m.sweep.cost == default.sweep.cost and m.sweep.post == default.sweep.post
+    assert m.flow == default.flow and m.prior == default.prior and m.sweep.sgm == default.sweep.sgm
+    with pytest.raises(UserError, match="unknown candidate"):
+        select_refine_planes.candidate_methods(["1-1-1"])
+
+
 @pytest.mark.parametrize("main", [select_planes.main, select_sgm.main, select_flat.main, select_edges.main,
-                                  select_confirm.main], ids=["planes", "sgm", "flat", "edges", "confirm"])
+                                  select_confirm.main, select_refine_planes.main],
+                         ids=["planes", "sgm", "flat", "edges", "confirm", "refine_planes"])
 def test_a_missing_data_root_is_one_line_and_writes_nothing(main, tmp_path, capsys):
     out = tmp_path / "sel"
     assert main([str(tmp_path / "nope"), "--out", str(out), "--quiet", "--frames", "a/vp000"]) == 2

@@ -1,0 +1,111 @@
+"""The floor's and the ceiling's offsets searched from the images (reconstruction.refine.planes) on exact ray-cast
+frames."""
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from reconstruction.camera.equirect import bearing_grid
+from reconstruction.refine.planes import PlaneFit, PlaneRefineParams, _pick, refine_plane, snap_to_planes
+from reconstruction.sweep.cost import gray_float
+from reconstruction.sweep.planes import UP
+from tests.helpers import make_synthetic_frame
+
+
+@pytest.fixture(scope="module")
+def box():
+    """A 240x120 synthetic_box frame, its gray images, world bearings, true distance and floor height (m)."""
+    frame = make_synthetic_frame(240)
+    bearings = bearing_grid(frame.width, frame.height, frame.cameras["C"].rotation)
+    truth = frame.distance["C"].astype(np.float64)
+    z = truth * bearings[..., 2]
+    floor = float(np.median(z[bearings[..., 2] < -0.5]))
+    gray = {k: gray_float(frame.images[k], 0.0) for k in ("C", "U", "R")}
+    return frame, gray, bearings, truth, floor
+
+
+def _floor_moved(truth, bearings, floor, scale):
+    """The true distance with the floor's pixels (within 0.5 % of its height) moved by ``scale``."""
+    d = truth.copy()
+    on_floor = np.abs(truth * bearings[..., 2] / floor - 1.0) < 0.005
+    d[on_floor] *= scale
+    return d, on_floor
+
+
+@pytest.mark.parametrize("scale", [1.0, 1.05, 0.95])
+def test_a_floor_put_a_few_per_cent_off_is_found_again_within_half_a_per_cent(box, scale):
+    frame, gray, bearings, truth, floor = box
+    d, on_floor = _floor_moved(truth, bearings, floor, scale)
+    fit = refine_plane(gray, frame.cameras, bearings, d, UP, floor * scale)
+    assert fit.applied
+    assert fit.offset_before == pytest.approx(floor * scale, rel=0.003)  # where the estimate has it
+    assert fit.offset == pytest.approx(floor, rel=0.005)
+    assert 0 < fit.se < 0.005 and fit.pixels > 1000 and fit.blocks >= 4
+    snapped = snap_to_planes(d, bearings, [fit])
+    assert np.median(np.abs(snapped[on_floor] / truth[on_floor] - 1.0)) < 0.005
+    assert np.median(np.abs(d[on_floor] / truth[on_floor] - 1.0)) == pytest.approx(abs(scale - 1.0), abs=1e-3)
+
+
+def test_the_search_starts_from_where_the_estimate_has_the_plane_not_from_where_it_was_told(box):
+    frame, gray, bearings, truth, floor = box
+    d, _ = _floor_moved(truth, bearings, floor, 1.04)
+    fit = refine_plane(gray, frame.cameras, bearings, d, UP, floor * 1.1)  # told 10 % off, the estimate 4 %
+    assert fit.offset_start == pytest.approx(floor * 1.1)
+    assert fit.offset_before == pytest.approx(floor * 1.04, rel=0.003)
+    assert fit.offset == pytest.approx(floor, rel=0.005)
+
+
+def test_images_without_texture_leave_the_plane_where_it_was(box):
+    frame, gray, bearings, truth, floor = box
+    flat = {k: np.full_like(v, 120.0) for k, v in gray.items()}
+    d, _ = _floor_moved(truth, bearings, floor, 1.05)
+    fit = refine_plane(flat, frame.cameras, bearings, d, UP, floor * 1.05)
+    assert not fit.applied and fit.offset == fit.offset_before
+    assert snap_to_planes(d, bearings, [fit]).tolist() == d.astype(np.float32).tolist()
+
+
+def test_a_strict_standard_error_or_basin_keeps_the_plane(box):
+    frame, gray, bearings, truth, floor = box
+    d, _ = _floor_moved(truth, bearings, floor, 1.05)
+    for strict in ({"max_se": 1e-6}, {"max_basin": 1e-6}):
+        fit = refine_plane(gray, frame.cameras, bearings, d, UP, floor * 1.05,
+                           dataclasses.replace(PlaneRefineParams(), **strict))
+        assert not fit.applied and fit.offset == pytest.approx(floor * 1.05, rel=0.003)
+        assert np.isfinite(fit.se)
+
+
+def test_of_two_minima_alike_the_farther_is_the_plane_and_a_clearly_lower_one_wins():
+    x = np.linspace(-1, 1, 41)
+    near, far = 1.0 + (x + 0.5) ** 2, 1.0 + (x - 0.4) ** 2  # mean costs: never near 0
+    curve = np.minimum(near, far + 0.02)  # the nearer minimum 2 % lower
+    assert abs(x[_pick(curve, 0.05)] - 0.4) < 0.06
+    curve = np.minimum(near, far + 0.2)  # the farther one 20 % higher: not a candidate
+    assert abs(x[_pick(curve, 0.05)] + 0.5) < 0.06
+    assert _pick(np.linspace(2.0, 1.0, 11), 0.05) == 10  # no interior minimum: the least
+
+
+def test_snapping_moves_only_the_pixels_near_an_applied_plane_within_the_range():
+    bearings = bearing_grid(40, 20)
+    a_z = bearings[..., 2]
+    floor = np.where(a_z < -0.2, -1.0 / np.minimum(a_z, -1e-3), 5.0)  # a floor 1 m below C, 5 m elsewhere
+    d = floor * 1.04
+    d[a_z >= -0.2] = 5.0
+    fit = PlaneFit(normal=(0.0, 0.0, 1.0), offset_start=-1.04, offset_before=-1.04, offset=-1.0, se=0.001, pixels=1,
+                   blocks=8, applied=True)
+    out = snap_to_planes(d, bearings, [fit])
+    below = a_z < -0.2
+    np.testing.assert_allclose(out[below], floor[below], rtol=1e-5)
+    assert (out[~below] == 5.0).all()
+    assert snap_to_planes(d, bearings, [dataclasses.replace(fit, applied=False)]).tolist() == \
+        d.astype(np.float32).tolist()
+    capped = snap_to_planes(d, bearings, [fit], d_range=(0.0, 1.5))  # a snapped pixel never leaves the range
+    assert (capped <= np.maximum(d, 1.5) + 1e-6).all()
+    np.testing.assert_allclose(capped[below & (floor > 1.5)], d[below & (floor > 1.5)].astype(np.float32))
+
+
+@pytest.mark.parametrize("bad", [{"select": 0.0}, {"steps": 3}, {"min_cos": 1.0}, {"max_se": -1.0},
+                                 {"longitude_blocks": 1}, {"min_gradient": -1.0}])
+def test_bad_parameters_are_refused_in_one_line(bad):
+    with pytest.raises(ValueError, match="plane refinement"):
+        PlaneRefineParams(**bad)
