@@ -2,7 +2,8 @@
 
 Stages (timed in ``MethodOutput.seconds``): ``cost`` (rectified features, sphere cost volume), ``planes``
 (plane-label costs from the same volume), ``sgm`` (8-path aggregation), ``wta`` (winner, sub-level
-refinement, confidence), ``post`` (fill of unreliable pixels, median).  See docs/matching.md.
+refinement, confidence), ``post`` (fill of unreliable pixels, median), ``refine_planes`` (the floor and the ceiling
+searched again from the images, when ``SweepMethod.refine_planes`` asks).  See docs/matching.md.
 """
 
 from __future__ import annotations

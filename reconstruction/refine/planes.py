@@ -1,17 +1,19 @@
-"""A room's large planes (floor, ceiling, walls) at the distance the images give them, not the one a label grid does.
+"""A room's floor and ceiling at the distance the images give them, not the one a label grid does.
 
 A sweep's plane labels are a grid: a floor whose height falls between two labels is put on one of them, or between
-them by the winner's sub-label interpolation of costs sampled a few per cent apart, and the whole floor is then a
-few per cent off (on the ideal frames of tri360-v3 dev, vp000: floors 0.3-7.5 % and ceilings up to 6.3 % from their
-true heights).  One plane's offset is one number, seen by tens of thousands of pixels.  :func:`refine_plane` finds it
-by a one-dimensional search: for each candidate offset ``o`` every selected pixel ``p`` of C is put on the plane
-(distance ``o / (b_p . n)``, ``b_p`` its world bearing, ``n`` the plane's unit normal), projected into U and R, and
-compared with what they see there (gray levels, truncated); the offset of the least mean cost wins (a parabola
-through the best sample and its two neighbours gives the sub-step).  Its uncertainty is the delete-one-block
-jackknife over sectors of the sphere (:func:`reconstruction.evidence.sphere_blocks`): a plane whose texture says
-little (a plain carpet), or whose pixels include other surfaces that pull the minimum their way, gives estimates
-that differ from block to block, and is left where it was.  :func:`snap_to_planes` then puts the pixels the estimate
-places near a refined plane onto it.
+them by the winner's sub-label interpolation of costs sampled a label apart, and a plain floor is then a few per
+cent off everywhere (on vp000 of the ideal dev frames of tri360-v3: floors 0.3-7.5 % and ceilings up to 6.3 % from
+their true heights).  A plane's offset is one number that tens of thousands of pixels see.  :func:`refine_plane`
+finds it by a one-dimensional search: for each candidate offset ``o`` every selected pixel ``p`` of C is put on the
+plane (distance ``o / (b_p . n)``, ``b_p`` its world bearing, ``n`` the plane's unit normal), projected into U and R
+and compared with what they see there (gray levels, truncated); the least mean cost wins, of two alike the farther
+from C (what else lies near a room's plane lies on C's side of it), and a parabola through it and its two
+neighbours gives the sub-step.  The offset is applied only where the images fix it: its delete-one-block jackknife
+over sectors of the sphere (:func:`reconstruction.evidence.sphere_blocks`) is small (a plain carpet, or other
+surfaces that pull the minimum their way, give estimates that differ from block to block) and its basin narrow.
+:func:`snap_to_planes` then puts the pixels the estimate places near an applied plane onto it.  Walls are not
+searched: the sweep's wall labels are four times finer, and furniture against a wall pulls its minimum (measured,
+docs/edges.md).
 """
 
 from __future__ import annotations
@@ -33,9 +35,10 @@ class PlaneRefineParams:
     """How :func:`refine_plane` searches a plane's offset and when it is applied.
 
     Attributes:
-        select: the pixels searched are those whose estimate lies within this relative distance of the plane's
-            starting offset (``|ln(d (b . n) / o_0)|``), on its side, seen at more than ``min_cos`` from it.
-        search: the candidate offsets span ``o_0 * exp(+-search)``.
+        search: the candidate offsets span ``o_b * exp(+-search)``, ``o_b`` where the estimate has the plane: the
+            mode (0.2 % bins) of its pixels' offsets within ``search`` of the offset the search is given.
+        select: the pixels searched are those whose estimate lies within this relative distance of ``o_b``
+            (``|ln(d (b . n) / o_b)|``), on its side, seen at more than ``min_cos`` from it.
         steps: candidate offsets, evenly spaced in ``ln o``.
         truncate: each pair's absolute gray-level difference is truncated here (a pixel of another surface costs
             at most this).
@@ -44,12 +47,16 @@ class PlaneRefineParams:
         max_pixels: at most this many pixels (evenly strided).
         min_cos: pixels whose bearing makes an angle with the plane whose sine is below this are not used or
             snapped (grazing: a small offset error is a large distance error there).
+        far_share: of the mean cost's local minima (after a [1, 2, 1] smoothing) within this share of the least,
+            the farthest from C is the plane.
         max_se: a refined offset is applied only when its jackknife standard error is at most this (natural log
-            of the offset, 0.005: half a per cent).
+            of the offset, 0.005: half a per cent) ...
+        rise, max_basin: ... and when the candidates whose cost is within ``rise`` (a share) of its own, contiguous
+            with it, reach at most ``max_basin`` (natural log) from it on either side.
         longitude_blocks: the jackknife's sectors of longitude (each cut at the horizon); a block with fewer than
             ``min_block_pixels`` pixels stays in every fit.
         snap: after a plane is refined, the pixels whose estimate lies within this relative distance of it, or of
-            where the estimate had it, are put on it.
+            ``o_b``, are put on it.
     """
 
     select: float = 0.12
@@ -68,7 +75,7 @@ class PlaneRefineParams:
     far_share: float = 0.05
 
     def __post_init__(self) -> None:
-        for name in ("select", "search", "truncate", "max_se", "snap"):
+        for name in ("select", "search", "truncate", "max_se", "snap", "rise", "max_basin", "far_share"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"plane refinement {name} must be > 0, got {getattr(self, name)}")
         if self.steps < 5 or self.max_pixels < 100 or self.longitude_blocks < 2 or self.min_block_pixels < 1:
