@@ -43,6 +43,7 @@ from reconstruction.sweep.planes import (
     dominant_planes,
     dominant_walls,
     fill_plane_costs,
+    onto_room_planes,
     plane_heights,
     room_planes,
 )
@@ -250,7 +251,8 @@ def _aggregate(frame, cost, heights, inv_d, sweep: SweepMethod, seconds, bounds=
     fill_plane_costs(cost, n_d, a_z, heights, inv_d, max_cost, bias, families)
     max_cost += bias
     if np.isfinite(bounds[0]) or np.isfinite(bounds[1]):
-        bound_costs(cost, n_d, a_z, inv_d, heights, bounds[0], bounds[1], max_cost)
+        bound_costs(cost, n_d, a_z, inv_d, heights, bounds[0], bounds[1], max_cost,
+                    int(round(plane_params.bound_penalty * cost_params.scale)))
         first = n_d + heights.size
         for a_n, offsets in families:
             bound_wall_costs(cost, first, a_z, a_n, offsets, bounds[0], bounds[1], max_cost)
@@ -338,8 +340,10 @@ def sweep_distances(frame, sweep: SweepMethod, priors: Sequence[Prior | PriorFro
     Returns:
         One ``(distance, confidence, seconds, info)`` per prior: (H, W) float32 metres, (H, W) float32 in [0, 1],
         wall time per stage (the shared ``coarse_*`` and ``cost`` stages in every one, as they would take alone),
-        details (plane share, room bounds, ``cpu_seconds``: process CPU time per stage; ``copy_seconds``: the wall
-        time of copying the shared volume for this prior, 0 for the last, which takes the volume itself;
+        details (plane share, room bounds, ``beyond_share``: the share of pixels put on the floor or the ceiling
+        from beyond the room bound, ``PlaneParams.bound_penalty``; ``cpu_seconds``: process CPU time per stage;
+        ``copy_seconds``: the wall time of copying the shared volume for this prior, 0 for the last, which takes
+        the volume itself;
         ``blur_px``: the images' blur; ``noise_grey_levels``: their noise, when the cost asks for it;
         ``calibration``: what the self-calibration applied, when it ran).
     """
@@ -393,6 +397,9 @@ def sweep_distances(frame, sweep: SweepMethod, priors: Sequence[Prior | PriorFro
         del work
         t = _clock()
         d = labels_to_distance(label, inv_d, heights, a_z, cost_params.d_min_m, cost_params.d_max_m, families)
+        beyond = 0.0
+        if plane_params.bound_penalty > 0:  # a winner beyond the room bound is a reflection in the floor (ceiling)
+            d, beyond = onto_room_planes(d, a_z, bounds, found)
         if post.min_confidence > 0:
             ok = conf >= post.min_confidence
             if ok.any() and not ok.all():
@@ -413,7 +420,7 @@ def sweep_distances(frame, sweep: SweepMethod, priors: Sequence[Prior | PriorFro
         cpu["total"] = sum(cpu.values())
         n_h = cost_params.levels + heights.size
         info = {"plane_share": float(((label >= cost_params.levels - 0.5) & (label < n_h - 0.5)).mean()),
-                "wall_share": float((label >= n_h - 0.5).mean()),
+                "wall_share": float((label >= n_h - 0.5).mean()), "beyond_share": beyond,
                 "wall_yaw_deg": None if yaw is None else float(np.degrees(yaw)),
                 "walls_m": [float(np.median(o)) for n, o in walls if n[2] == 0],
                 "room_planes_m": [float(np.median(o)) for n, o in walls if n[2] != 0],

@@ -17,7 +17,8 @@ import numpy as np
 from reconstruction.camera.image_ops import central_differences
 
 __all__ = ["add_prior", "PlaneParams", "plane_heights", "fill_plane_costs", "plane_inverse_distance", "bound_costs",
-           "dominant_planes", "wall_normals", "dominant_wall_yaw", "dominant_walls", "room_planes", "bound_wall_costs"]
+           "dominant_planes", "wall_normals", "dominant_wall_yaw", "dominant_walls", "room_planes", "bound_wall_costs",
+           "onto_room_planes"]
 
 
 @dataclass(frozen=True)
@@ -32,6 +33,10 @@ class PlaneParams:
         room_bound: find the floor and ceiling in a coarse pass and forbid labels below / above them (removes
             matches of mirror images in glossy floors).
         bound_margin: tolerance of the room bound, as a fraction of the floor's / ceiling's |height|.
+        bound_penalty: 0: a sphere label beyond the room bound is forbidden.  > 0: it costs this many gray levels
+            more instead, and a pixel whose winner still lies beyond the bound is put on the floor (the ceiling)
+            the coarse pass found (:func:`onto_room_planes`): a polished floor's reflection of a lamp matches
+            where its mirror image lies, below the floor, and that pixel shows the floor.
         bound_min_share: share of pixels the floor (ceiling) plane must win in the coarse pass to be used.
         coarse_factor: the coarse pass runs on images this many times smaller.
         wall_labels: labels per wall (0 = no walls).  The coarse pass finds the room's two wall directions (at
@@ -59,6 +64,7 @@ class PlaneParams:
     bias: int = 4
     room_bound: bool = True
     bound_margin: float = 0.25
+    bound_penalty: float = 0.0
     bound_min_share: float = 0.03
     coarse_factor: int = 2
     wall_labels: int = 0
@@ -67,6 +73,10 @@ class PlaneParams:
     room_labels: int = 0
     room_spread: float = 0.2
     mirror_tolerance: float = 0.0
+
+    def __post_init__(self) -> None:
+        if not (np.isfinite(self.bound_penalty) and self.bound_penalty >= 0):
+            raise ValueError(f"plane bound_penalty must be >= 0 (gray levels), got {self.bound_penalty}")
 
 
 def plane_heights(params: PlaneParams) -> np.ndarray:
@@ -256,7 +266,7 @@ def fill_plane_costs(cost: np.ndarray, levels: int, a_z: np.ndarray, heights: np
 
 
 @numba.njit(parallel=True, cache=True)
-def _bound(cost, levels, a_z, inv_d, heights, z_low, z_high, max_cost):
+def _bound(cost, levels, a_z, inv_d, heights, z_low, z_high, max_cost, penalty):
     h, w, _ = cost.shape
     for y in numba.prange(h):
         for x in range(w):
@@ -264,27 +274,54 @@ def _bound(cost, levels, a_z, inv_d, heights, z_low, z_high, max_cost):
             for i in range(levels):
                 z = az / inv_d[i]
                 if z < z_low or z > z_high:
-                    cost[y, x, i] = max_cost
+                    if penalty > 0:
+                        cost[y, x, i] = min(np.int64(cost[y, x, i]) + penalty, max_cost)
+                    else:
+                        cost[y, x, i] = max_cost
             for p in range(heights.shape[0]):  # the horizontal planes only (wall labels follow them)
                 if heights[p] < z_low or heights[p] > z_high:
                     cost[y, x, levels + p] = max_cost
 
 
 def bound_costs(cost: np.ndarray, levels: int, a_z: np.ndarray, inv_d: np.ndarray, heights: np.ndarray,
-                z_low: float, z_high: float, max_cost: int) -> None:
-    """Forbid (set to ``max_cost``) every label whose point lies below ``z_low`` or above ``z_high``.
+                z_low: float, z_high: float, max_cost: int, penalty: int = 0) -> None:
+    """Forbid (set to ``max_cost``) every label whose point lies below ``z_low`` or above ``z_high``, or, with
+    ``penalty`` > 0, add that much to each such sphere label's cost (at most ``max_cost``; the plane labels beyond
+    stay forbidden).
 
     The room bound: nothing is seen below the floor or above the ceiling, but a glossy floor's mirror image of
-    the ceiling lights is (a virtual point at ``2 z_floor - z_light``); forbidding those labels removes the
-    reflection matches.
+    the ceiling lights is (a virtual point at ``2 z_floor - z_light``).  Forbidding those labels removes the
+    reflection matches, and the reflection's pixels then take whatever label is cheapest among the rest (often a
+    nearer one: the blob is flat inside, its edges are the lamp's).  A penalty keeps a match beyond the bound that
+    is clearly better than any inside it, so that :func:`onto_room_planes` can put it on the floor.
 
     Args:
         cost: (H, W, levels + P) uint16, modified in place.
         a_z: (H, W) world Z of C's unit bearings; inv_d: (levels,) 1/m; heights: (P,) metres relative to C.
         z_low, z_high: heights relative to C's centre, metres (use -inf / inf for no bound).
+        penalty: uint16 cost units added to a sphere label beyond the bound (0: forbidden).
     """
     _bound(cost, levels, np.ascontiguousarray(a_z, np.float64), inv_d.astype(np.float64),
-           heights.astype(np.float64), float(z_low), float(z_high), np.uint16(max_cost))
+           heights.astype(np.float64), float(z_low), float(z_high), np.int64(max_cost), np.int64(penalty))
+
+
+def onto_room_planes(distance: np.ndarray, a_z: np.ndarray, bounds: tuple[float, float],
+                     planes: tuple[float, float]) -> tuple[np.ndarray, float]:
+    """Put every pixel whose point lies beyond the room bound on the floor or the ceiling.
+
+    Args:
+        distance: (H, W) metres along C's bearings; a_z: (H, W) world Z of those unit bearings.
+        bounds: ``(z_low, z_high)``, the room bound's heights relative to C, metres (-inf / inf: none).
+        planes: ``(z_floor, z_ceiling)``, the heights the pixels below ``z_low`` / above ``z_high`` are put on,
+            metres (on C's side of the bound: ``z_low <= z_floor < 0 < z_ceiling <= z_high``).
+    Returns:
+        The (H, W) float32 distance (a new array) and the share of pixels moved.
+    """
+    with np.errstate(invalid="ignore", divide="ignore"):
+        z = distance * a_z
+        below, above = z < bounds[0], z > bounds[1]
+        out = np.where(below, planes[0] / a_z, np.where(above, planes[1] / a_z, distance))
+    return out.astype(np.float32), float((below | above).mean())
 
 
 @numba.njit(parallel=True, cache=True)

@@ -10,7 +10,15 @@ import pytest
 
 from harness.data.errors import UserError
 from reconstruction.methods.presets import fused_mirror
-from tools.research import select_confirm, select_edges, select_flat, select_planes, select_refine_planes, select_sgm
+from tools.research import (
+    select_bound,
+    select_confirm,
+    select_edges,
+    select_flat,
+    select_planes,
+    select_refine_planes,
+    select_sgm,
+)
 from tools.research.select_planes import CANDIDATES, REFERENCE, candidate_methods, planes_method
 from tools.research.select_sgm import sgm_method
 
@@ -133,9 +141,23 @@ def test_refine_planes_candidates_the_reference_first_and_the_default_once():
         select_refine_planes.candidate_methods(["1-1-1"])
 
 
+def test_bound_candidates_the_reference_first_and_the_default_once():
+    methods, default, _ = _candidates(select_bound, "fused-mirror-bound-0")
+    assert methods[0].sweep.planes.bound_penalty == 0
+    # everything but the penalty is the default's
+    m = select_bound.bound_method(3.0)
+    assert m.label == "fused-mirror-bound-3"
+    assert m.sweep.planes == dataclasses.replace(default.sweep.planes, bound_penalty=3.0)
+    assert m.sweep.cost == default.sweep.cost and m.sweep.post == default.sweep.post
+    assert m.sweep.refine_planes == default.sweep.refine_planes
+    assert m.flow == default.flow and m.prior == default.prior and m.sweep.sgm == default.sweep.sgm
+    with pytest.raises(UserError, match="unknown candidate"):
+        select_bound.candidate_methods(["3"])
+
+
 @pytest.mark.parametrize("main", [select_planes.main, select_sgm.main, select_flat.main, select_edges.main,
-                                  select_confirm.main, select_refine_planes.main],
-                         ids=["planes", "sgm", "flat", "edges", "confirm", "refine_planes"])
+                                  select_confirm.main, select_refine_planes.main, select_bound.main],
+                         ids=["planes", "sgm", "flat", "edges", "confirm", "refine_planes", "bound"])
 def test_a_missing_data_root_is_one_line_and_writes_nothing(main, tmp_path, capsys):
     out = tmp_path / "sel"
     assert main([str(tmp_path / "nope"), "--out", str(out), "--quiet", "--frames", "a/vp000"]) == 2

@@ -66,3 +66,42 @@ def test_without_a_ceiling_there_is_no_mirror_test_and_without_planes_no_bound()
     z_floor, z_ceil = dominant_planes(label, LEVELS, HEIGHTS, 0.03, mirror_tolerance=0.2)
     assert _close(z_floor, -4.1) and z_ceil == np.inf
     assert dominant_planes(label, LEVELS, np.zeros(0), 0.03, mirror_tolerance=0.2) == (-np.inf, np.inf)
+
+
+def test_a_penalty_makes_labels_beyond_the_bound_dearer_not_forbidden():
+    """``bound_costs`` with a penalty: a sphere label beyond the bound costs that much more (at most the maximum),
+    one inside it is untouched, and the horizontal planes beyond it stay forbidden."""
+    from reconstruction.sweep.planes import bound_costs
+
+    levels, heights = 4, np.array([-2.0, -1.0, 1.0, 2.0])
+    inv_d = np.array([0.2, 0.4, 0.8, 1.6])  # at a_z -0.5 the points lie at z -2.5, -1.25, -0.625, -0.3125 m
+    cost = np.array([[[10, 20, 30, 40, 0, 0, 0, 0]]], np.uint16)
+    bound_costs(cost, levels, np.array([[-0.5]]), inv_d, heights, -1.5, 1.5, 999, penalty=16)
+    np.testing.assert_array_equal(cost[0, 0], [26, 20, 30, 40, 999, 0, 0, 999])
+    cost = np.array([[[990, 20, 30, 40, 0, 0, 0, 0]]], np.uint16)
+    bound_costs(cost, levels, np.array([[-0.5]]), inv_d, heights, -1.5, 1.5, 999, penalty=16)
+    assert cost[0, 0, 0] == 999  # never above the maximum
+    cost = np.array([[[10, 20, 30, 40, 0, 0, 0, 0]]], np.uint16)
+    bound_costs(cost, levels, np.array([[-0.5]]), inv_d, heights, -1.5, 1.5, 999)  # no penalty: forbidden
+    np.testing.assert_array_equal(cost[0, 0, :levels], [999, 20, 30, 40])
+
+
+def test_a_pixel_beyond_the_bound_is_put_on_the_floor_or_the_ceiling_found():
+    from reconstruction.sweep.planes import onto_room_planes
+
+    a_z = np.array([[-0.5, -0.5, 0.5, 0.5, 0.0, -0.5]])
+    # a reflection 4 m away below the floor (z -2), a floor pixel at 2.6 m (z -1.3), the ceiling's mirror at 5 m
+    # above it (z 2.5), a ceiling pixel at 3.4 m (z 1.7), a horizontal bearing, a pixel without an estimate
+    d = np.array([[4.0, 2.6, 5.0, 3.4, 8.0, np.nan]], np.float32)
+    out, share = onto_room_planes(d, a_z, (-1.43, 1.87), (-1.3, 1.7))
+    np.testing.assert_allclose(out[0, :5], [2.6, 2.6, 3.4, 3.4, 8.0], rtol=1e-6)
+    assert np.isnan(out[0, 5]) and share == pytest.approx(2 / 6) and out.dtype == np.float32
+    out, share = onto_room_planes(d, a_z, (-np.inf, np.inf), (-np.inf, np.inf))  # no bound: nothing moves
+    np.testing.assert_array_equal(out, d)
+    assert share == 0.0
+
+
+def test_a_negative_or_non_finite_penalty_is_refused():
+    for bad in (-1.0, float("nan"), float("inf")):
+        with pytest.raises(ValueError, match="bound_penalty"):
+            PlaneParams(bound_penalty=bad)
