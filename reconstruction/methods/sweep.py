@@ -23,7 +23,7 @@ from reconstruction.methods.self_calibration import Calibration, reduced_frame, 
 from reconstruction.photometry import PhotometricParams
 from reconstruction.refine.edges import snap_depth_edges
 from reconstruction.refine.fill import check_fill_space, fill_edge_aware
-from reconstruction.refine.planes import PlaneRefineParams, refine_plane, snap_to_planes
+from reconstruction.refine.planes import PlaneRefineParams, onto_walls, refine_plane, snap_to_planes
 from reconstruction.refine.triangulate import TriangulationLimits
 from reconstruction.rig_calibration import NO_RIG_CALIBRATION
 from reconstruction.sweep.cost import (
@@ -46,6 +46,7 @@ from reconstruction.sweep.planes import (
     onto_room_planes,
     plane_heights,
     room_planes,
+    room_walls,
 )
 from reconstruction.sweep.sgm import aggregate, winner_take_all
 
@@ -299,18 +300,21 @@ def room_bounds(frame, sweep: SweepMethod, seconds):
 
 
 class _PlaneRefiner:
-    """The floor and the ceiling of a frame refined on a distance map (``sweep.refine_planes``): the gray images
-    (blurred by the sweep's cost's ``blur_px``) and C's world bearings made once for every prior's map."""
+    """The floor and the ceiling of a frame refined on a distance map, and what lies beyond its enclosing walls put
+    on them (``sweep.refine_planes``): the gray images (blurred by the sweep's cost's ``blur_px``) and C's world
+    bearings made once for every prior's map."""
 
     def __init__(self, frame, sweep: SweepMethod, found: tuple[float, float]):
         self.frame, self.sweep = frame, sweep
         self.starts = [z for z in found if np.isfinite(z) and z != 0]
-        self.active = sweep.refine_planes is not None and bool(self.starts)
+        params = sweep.refine_planes
+        self.active = params is not None and (bool(self.starts) or params.wall_margin > 0)
         self._gray = self._bearings = None
 
     def __call__(self, d: np.ndarray) -> tuple[np.ndarray, list[dict]]:
-        """(H, W) distance (m) -> the distance with the refined planes' pixels on them, and each plane's record
-        (:meth:`reconstruction.refine.planes.PlaneFit.record`)."""
+        """(H, W) distance (m) -> the distance with the refined planes' pixels on them, then the pixels beyond an
+        enclosing wall on it, and each plane's record (:meth:`reconstruction.refine.planes.PlaneFit.record`, then
+        :func:`reconstruction.refine.planes.onto_walls`' per wall)."""
         frame, params = self.frame, self.sweep.refine_planes
         if self._gray is None:
             # the images as the sweep's cost saw them (blurred where a camera's noise asked for it)
@@ -319,7 +323,13 @@ class _PlaneRefiner:
         fits = [refine_plane(self._gray, frame.cameras, self._bearings, d, UP, z, params, self.sweep.pairs)
                 for z in self.starts]
         cost = self.sweep.cost
-        return snap_to_planes(d, self._bearings, fits, params, (cost.d_min_m, cost.d_max_m)), [f.record() for f in fits]
+        d = snap_to_planes(d, self._bearings, fits, params, (cost.d_min_m, cost.d_max_m))
+        records = [f.record() for f in fits]
+        if params.wall_margin > 0:  # the walls of the map as it now is
+            _, walls = room_walls(d[..., None] * self._bearings, self.sweep.planes.wall_min_share)
+            d, walls = onto_walls(d, self._bearings, walls, params)
+            records += walls
+        return d, records
 
 
 def sweep_distances(frame, sweep: SweepMethod, priors: Sequence[Prior | PriorFromSweep | None] = (None,),

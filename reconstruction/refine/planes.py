@@ -13,7 +13,8 @@ over sectors of the sphere (:func:`reconstruction.evidence.sphere_blocks`) is sm
 surfaces that pull the minimum their way, give estimates that differ from block to block) and its basin narrow.
 :func:`snap_to_planes` then puts the pixels the estimate places near an applied plane onto it.  Walls are not
 searched: the sweep's wall labels are four times finer, and furniture against a wall pulls its minimum (measured,
-docs/edges.md).
+docs/edges.md).  :func:`onto_walls` puts what the estimate places well beyond an enclosing wall on it: nothing is
+seen through a room's wall, but a glossy one shows mirror images that match beyond it.
 """
 
 from __future__ import annotations
@@ -27,7 +28,7 @@ from reconstruction.camera.image_ops import sobel_gradient
 from reconstruction.camera.resample import sample_equirect
 from reconstruction.evidence import sphere_blocks
 
-__all__ = ["PlaneRefineParams", "PlaneFit", "plane_offsets", "refine_plane", "snap_to_planes"]
+__all__ = ["PlaneRefineParams", "PlaneFit", "plane_offsets", "refine_plane", "snap_to_planes", "onto_walls"]
 
 
 @dataclass(frozen=True)
@@ -57,6 +58,9 @@ class PlaneRefineParams:
             ``min_block_pixels`` pixels stays in every fit.
         snap: after a plane is refined, the pixels whose estimate lies within this relative distance of it, or of
             ``o_b``, are put on it.
+        wall_margin: > 0: the pixels more than this (relative) beyond an enclosing wall are put on it
+            (:func:`onto_walls`); 0: walls are left alone.
+        wall_max_share: a wall encloses when at most this share of the pixels facing it lie beyond it.
     """
 
     select: float = 0.12
@@ -73,8 +77,13 @@ class PlaneRefineParams:
     rise: float = 0.05
     max_basin: float = 0.03
     far_share: float = 0.05
+    wall_margin: float = 0.0
+    wall_max_share: float = 0.03
 
     def __post_init__(self) -> None:
+        if not (self.wall_margin >= 0 and 0 <= self.wall_max_share <= 1):
+            raise ValueError(f"plane refinement wall_margin must be >= 0 and wall_max_share in [0, 1], got "
+                             f"{self.wall_margin} and {self.wall_max_share}")
         for name in ("select", "search", "truncate", "max_se", "snap", "rise", "max_basin", "far_share"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"plane refinement {name} must be > 0, got {getattr(self, name)}")
@@ -262,3 +271,42 @@ def snap_to_planes(distance: np.ndarray, bearings: np.ndarray, fits, params: Pla
         out[take] = new[take]
         done |= take
     return out
+
+
+def onto_walls(distance: np.ndarray, bearings: np.ndarray, walls, params: PlaneRefineParams) -> tuple[np.ndarray,
+                                                                                                     list[dict]]:
+    """Put the pixels the estimate places well beyond an enclosing wall on it.
+
+    Nothing is seen through a room's wall, but a glossy one (a screen, a whiteboard, a lacquered door, a lab's
+    cabinets) shows mirror images, and they match where the mirrored surfaces would be: beyond it.  A wall encloses
+    when at most ``params.wall_max_share`` of the pixels facing it (the sine of their bearing's angle with it above
+    ``params.min_cos``) lie more than ``params.wall_margin`` (relative) beyond it; those pixels are then put on it (a
+    pixel beyond two walls on the nearer).  A wall with more beyond it (shelves in a library, a corridor's side
+    wall with its openings) is left alone.
+
+    Args:
+        distance: (H, W) C's estimate, metres (non-finite: left alone).
+        bearings: (H, W, 3) C's unit world bearings.
+        walls: per wall ``(normal, offset)``: (3,) world unit normal and signed offset from C along it, metres
+            (:func:`reconstruction.sweep.planes.room_walls`).
+    Returns:
+        The (H, W) float32 distance and per wall a record (``normal``, ``offset``, ``beyond_share``: the share of
+        its facing pixels beyond it, ``applied``).
+    """
+    d = np.asarray(distance, np.float64)
+    out = d.copy()
+    records = []
+    for normal, offset in walls:
+        normal = np.asarray(normal, np.float64)
+        a_n = bearings @ normal
+        with np.errstate(divide="ignore", invalid="ignore"):
+            on_wall = offset / a_n
+            facing = (on_wall > 0) & (np.abs(a_n) > params.min_cos)
+            beyond = facing & (d > on_wall * (1.0 + params.wall_margin))
+        share = float(beyond.sum() / max(int(facing.sum()), 1))
+        applied = share <= params.wall_max_share
+        if applied:
+            out = np.where(beyond & (on_wall < out), on_wall, out)
+        records.append({"normal": normal.tolist(), "offset": float(offset), "beyond_share": share,
+                        "applied": bool(applied)})
+    return out.astype(np.float32), records

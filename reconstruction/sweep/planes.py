@@ -18,7 +18,7 @@ from reconstruction.camera.image_ops import central_differences
 
 __all__ = ["add_prior", "PlaneParams", "plane_heights", "fill_plane_costs", "plane_inverse_distance", "bound_costs",
            "dominant_planes", "wall_normals", "dominant_wall_yaw", "dominant_walls", "room_planes", "bound_wall_costs",
-           "onto_room_planes"]
+           "onto_room_planes", "room_walls"]
 
 
 @dataclass(frozen=True)
@@ -135,33 +135,29 @@ def dominant_wall_yaw(points: np.ndarray, min_share: float, max_tilt_rad: float 
     return float(np.mod(mode + np.average(diff[near], weights=weight[near]), np.pi / 2))
 
 
-def dominant_walls(points: np.ndarray, params: PlaneParams) -> tuple[float | None, list[tuple[np.ndarray, np.ndarray]]]:
-    """The room's dominant walls from a distance map's 3D points, as label families.
+def room_walls(points: np.ndarray, min_share: float) -> tuple[float | None, list[tuple[np.ndarray, float]]]:
+    """The room's dominant walls from a distance map's 3D points.
 
     The walls' yaw comes from :func:`dominant_wall_yaw`; along each of the two wall normals every point has an
     offset (``point . normal``), and the points of a wall share theirs, however plain the wall (where the points
     are noisy, their normals are useless but their offsets still cluster); on each side of C the mode of the
     offsets beyond 0.3 m (2 % bins of log |offset|, refined by the median within 4 %) is a wall if it holds at
-    least ``wall_min_share`` of the pixels.
+    least ``min_share`` of the pixels.
 
     Args:
         points: (H, W, 3) world points relative to C, metres (non-finite = none).
-        params: ``wall_labels``, ``wall_spread``, ``wall_min_share``.
+        min_share: share of the pixels a wall must hold (and the wall direction's votes within 3 degrees reach).
     Returns:
         ``(yaw, walls)``: the yaw (radians, None if no wall direction is dominant) and per wall found
-        ``(normal, offsets)``: (3,) world unit normal and (wall_labels,) signed offsets along it, metres,
-        ascending |offset| (``|o| * geomspace(1 - spread, 1 + spread)``).
+        ``(normal, offset)``: (3,) world unit normal and the signed offset along it, metres.
     """
-    if params.wall_labels <= 0:
-        return None, []
-    yaw = dominant_wall_yaw(points, params.wall_min_share)
+    yaw = dominant_wall_yaw(points, min_share)
     if yaw is None:
         return None, []
     p = np.asarray(points, np.float64)
     finite = np.isfinite(p).all(axis=-1)
     walls = []
-    scale = np.geomspace(1.0 - params.wall_spread, 1.0 + params.wall_spread, params.wall_labels)
-    need = params.wall_min_share * p.shape[0] * p.shape[1]
+    need = min_share * p.shape[0] * p.shape[1]
     for normal in wall_normals(yaw):
         o = (p @ normal)[finite]
         for sign in (-1.0, 1.0):
@@ -175,8 +171,26 @@ def dominant_walls(points: np.ndarray, params: PlaneParams) -> tuple[float | Non
             near = np.abs(logs - mode) <= 0.04
             if near.sum() < need:
                 continue
-            walls.append((normal, sign * float(np.exp(np.median(logs[near]))) * scale))
+            walls.append((normal, sign * float(np.exp(np.median(logs[near])))))
     return yaw, walls
+
+
+def dominant_walls(points: np.ndarray, params: PlaneParams) -> tuple[float | None, list[tuple[np.ndarray, np.ndarray]]]:
+    """The room's dominant walls (:func:`room_walls`, ``params.wall_min_share``) as label families.
+
+    Args:
+        points: (H, W, 3) world points relative to C, metres (non-finite = none).
+        params: ``wall_labels``, ``wall_spread``, ``wall_min_share``.
+    Returns:
+        ``(yaw, walls)``: the yaw (radians, None if no wall direction is dominant) and per wall found
+        ``(normal, offsets)``: (3,) world unit normal and (wall_labels,) signed offsets along it, metres,
+        ascending |offset| (``|o| * geomspace(1 - spread, 1 + spread)``).
+    """
+    if params.wall_labels <= 0:
+        return None, []
+    yaw, walls = room_walls(points, params.wall_min_share)
+    scale = np.geomspace(1.0 - params.wall_spread, 1.0 + params.wall_spread, params.wall_labels)
+    return yaw, [(normal, offset * scale) for normal, offset in walls]
 
 
 #: the world's up direction (gravity = -Z)

@@ -18,6 +18,7 @@ from tools.research import (
     select_planes,
     select_refine_planes,
     select_sgm,
+    select_walls,
 )
 from tools.research.select_planes import CANDIDATES, REFERENCE, candidate_methods, planes_method
 from tools.research.select_sgm import sgm_method
@@ -155,9 +156,24 @@ def test_bound_candidates_the_reference_first_and_the_default_once():
         select_bound.candidate_methods(["3"])
 
 
+def test_walls_candidates_the_reference_first_and_the_default_once():
+    methods, default, _ = _candidates(select_walls, "fused-mirror-walls-0-0.03")
+    assert methods[0].sweep.refine_planes.wall_margin == 0
+    # everything but the two values is the default's
+    m = select_walls.walls_method(0.3, 0.02)
+    assert m.label == "fused-mirror-walls-0.3-0.02"
+    assert m.sweep.refine_planes == dataclasses.replace(default.sweep.refine_planes, wall_margin=0.3,
+                                                        wall_max_share=0.02)
+    assert m.sweep.planes == default.sweep.planes and m.sweep.cost == default.sweep.cost
+    assert m.flow == default.flow and m.prior == default.prior and m.sweep.post == default.sweep.post
+    with pytest.raises(UserError, match="unknown candidate"):
+        select_walls.candidate_methods(["0.3-0.02"])
+
+
 @pytest.mark.parametrize("main", [select_planes.main, select_sgm.main, select_flat.main, select_edges.main,
-                                  select_confirm.main, select_refine_planes.main, select_bound.main],
-                         ids=["planes", "sgm", "flat", "edges", "confirm", "refine_planes", "bound"])
+                                  select_confirm.main, select_refine_planes.main, select_bound.main,
+                                  select_walls.main],
+                         ids=["planes", "sgm", "flat", "edges", "confirm", "refine_planes", "bound", "walls"])
 def test_a_missing_data_root_is_one_line_and_writes_nothing(main, tmp_path, capsys):
     out = tmp_path / "sel"
     assert main([str(tmp_path / "nope"), "--out", str(out), "--quiet", "--frames", "a/vp000"]) == 2

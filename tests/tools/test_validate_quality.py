@@ -335,3 +335,14 @@ def test_a_fused_method_ranks_with_its_flow_as_reference(data, tmp_path, capsys)
     code, _, err = _run(capsys, data, "--method", "fused", "--out", tmp_path / "v3", "--results", alone,
                         "--frames", "1", "--calibration-frames", "0", "--quiet")
     assert code == 2 and err.count("\n") == 1 and repr(fused.flow.label) in err and "reference" in err
+
+
+def test_a_plane_search_stored_before_the_walls_step_reads_as_leaving_walls_alone():
+    from tools.research.select_walls import walls_method
+
+    old = json.loads(json.dumps(walls_method(0.0, 0.03).config()))
+    for k in ("wall_margin", "wall_max_share"):
+        del old["sweep"]["refine_planes"][k]
+    assert config_difference(old, walls_method(0.0, 0.03).config()) is None
+    wanted = {**json.loads(json.dumps(presets.fused_mirror().config())), "label": old["label"]}
+    assert "wall_margin" in config_difference(old, wanted)

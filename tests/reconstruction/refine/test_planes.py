@@ -131,3 +131,55 @@ def test_the_default_records_and_applies_its_floor_and_ceiling_search(box):
     assert "planes" not in without.info
     ok = np.isfinite(truth)
     assert np.abs(out.distance - truth)[ok].mean() < np.abs(without.distance - truth)[ok].mean()
+
+
+def _box_room(width=240):
+    """C's world bearings and the exact distances to a 4 x 6 x 2.8 m box room around it (walls at x = -1.5, 2.5 and
+    y = -2, 4, floor -1.3, ceiling 1.5 m)."""
+    b = bearing_grid(width, width // 2, np.eye(3))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        hits = [np.where(b[..., i] * s > 0, o / (b[..., i] * s), np.inf)
+                for i, s, o in ((0, -1, 1.5), (0, 1, 2.5), (1, -1, 2.0), (1, 1, 4.0), (2, -1, 1.3), (2, 1, 1.5))]
+    return b, np.min(hits, axis=0)
+
+
+def test_mirror_images_beyond_an_enclosing_wall_are_put_on_it_and_an_open_wall_is_left_alone():
+    from reconstruction.refine.planes import onto_walls
+    from reconstruction.sweep.planes import room_walls
+
+    b, d = _box_room()
+    _, walls = room_walls(d[..., None] * b, 0.01)
+    assert sorted(round(abs(o), 3) for _, o in walls) == [1.5, 2.0, 2.5, 4.0]
+    params = PlaneRefineParams(wall_margin=0.2, wall_max_share=0.03)
+    on_x = np.abs(d * b[..., 0] - 2.5) < 1e-6  # the wall at x = 2.5
+    rows, cols = np.nonzero(on_x)
+    mirror = np.zeros(d.shape, bool)
+    mirror[rows[:40], cols[:40]] = True  # a screen's mirror image: 40 of its pixels matched 1.6x too far
+    seen = d.copy()
+    seen[mirror] *= 1.6
+    seen[rows[40], cols[40]] = np.nan
+    out, records = onto_walls(seen, b, walls, params)
+    np.testing.assert_allclose(out[mirror], d[mirror], rtol=1e-4)  # on the wall as the map's offsets place it
+    assert np.isnan(out[rows[40], cols[40]]) and out.dtype == np.float32
+    others = ~mirror & np.isfinite(seen)
+    np.testing.assert_array_equal(out[others], seen[others].astype(np.float32))
+    assert all(r["applied"] for r in records) and max(r["beyond_share"] for r in records) < 0.03
+    # half the wall's pixels 1.6x beyond it: an opening, not a mirror; the wall is left alone
+    half = on_x & (np.arange(d.shape[1])[None, :] % 2 == 0)
+    opened = d.copy()
+    opened[half] *= 1.6
+    out, records = onto_walls(opened, b, walls, params)
+    assert np.all(out[half] > d[half] * 1.001)  # none on that wall (those beyond another one, near corners, on it)
+    assert np.mean(out[half] == opened[half].astype(np.float32)) > 0.8
+    assert [r["applied"] for r in records if abs(r["offset"] - 2.5) < 1e-3] == [False]
+    # a pixel 10 % beyond its wall: within the margin, left where it is
+    near = seen.copy()
+    near[mirror] = d[mirror] * 1.1
+    out, _ = onto_walls(near, b, walls, params)
+    np.testing.assert_allclose(out[mirror], near[mirror], rtol=1e-6)
+
+
+def test_wall_parameters_out_of_range_are_refused():
+    for bad in ({"wall_margin": -0.1}, {"wall_max_share": 1.5}, {"wall_max_share": float("nan")}):
+        with pytest.raises(ValueError, match="wall_margin"):
+            PlaneRefineParams(**bad)
