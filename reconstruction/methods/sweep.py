@@ -327,8 +327,8 @@ class _PlaneRefiner:
         records = [f.record() for f in fits]
         if params.wall_margin > 0:  # the walls of the map as it now is
             _, walls = room_walls(d[..., None] * self._bearings, self.sweep.planes.wall_min_share)
-            d, walls = onto_walls(d, self._bearings, walls, params)
-            records += walls
+            d, wall_records = onto_walls(d, self._bearings, walls, params)
+            records += wall_records
         return d, records
 
 

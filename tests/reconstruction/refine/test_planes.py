@@ -114,15 +114,18 @@ def test_bad_parameters_are_refused_in_one_line(bad):
 @pytest.mark.slow
 def test_the_default_records_and_applies_its_floor_and_ceiling_search(box):
     """fused-mirror on the ray-cast box: both planes searched and applied, the floor within half a per cent of the
-    truth and the ceiling within one (its R pair puts it about 0.5 % near at this width, 0.2 % at 800 px), and the
-    answer closer to the truth than the same method without the search."""
+    truth and the ceiling within one (its R pair puts it about 0.5 % near at this width, 0.2 % at 800 px), its walls
+    recorded after them (a box: nothing seen beyond them), and the answer closer to the truth than the same method
+    without the search."""
     from reconstruction.methods.presets import fused_mirror
 
     frame, _, bearings, truth, floor = box
     method = fused_mirror()
     out = method.run(frame)
-    planes = out.info["planes"]
+    planes = [p for p in out.info["planes"] if "se" in p]
+    walls = out.info["planes"][len(planes):]
     assert [p["normal"] for p in planes] == [[0.0, 0.0, 1.0]] * 2 and all(p["applied"] for p in planes)
+    assert walls and all(w["normal"][2] == 0 and w["applied"] and w["beyond_share"] <= 0.03 for w in walls)
     ceiling = float(np.median((truth * bearings[..., 2])[bearings[..., 2] > 0.5]))
     assert planes[0]["offset"] == pytest.approx(floor, rel=0.005)
     assert planes[1]["offset"] == pytest.approx(ceiling, rel=0.01)
