@@ -131,6 +131,8 @@ def fused_mirror() -> PriorSweepMethod:
                 # lamps match below the floor, and forbidden there they took nearer labels (chosen by python -m
                 # tools.research.select_bound on the dev split, docs/edges.md)
                 bound_penalty=2.0,
+                # everywhere but near the horizon (see the sweep's PlaneParams)
+                bound_penalty_min_az=0.0,
                 # the horizontal planes plus 9 labels per wall found by the coarse pass
                 wall_labels=9,
                 # the mirror test of the room bound: a floor found by the coarse pass within 20 % of where the
@@ -224,7 +226,8 @@ def fused() -> PriorSweepMethod:
             # spheres and floor/ceiling planes, no wall planes
             planes=PlaneParams(
                 per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_margin=0.25, bound_penalty=0.0,
-                bound_min_share=0.03, coarse_factor=2, wall_labels=0, wall_spread=0.1, wall_min_share=0.01,
+                bound_penalty_min_az=0.0, bound_min_share=0.03, coarse_factor=2,
+                wall_labels=0, wall_spread=0.1, wall_min_share=0.01,
                 mirror_tolerance=0.0, room_labels=0, room_spread=0.2),
             sgm=SgmParams(p1=120, p2=800, p3=200, edge=8.0, paths=8),
             post=PostParams(min_confidence=0.0, fill_lambda=200.0, fill_sigma_color=8.0, median_px=5,
@@ -258,7 +261,8 @@ def sweep() -> SweepMethod:
             flat_weight=1.0, flat_sigma_px=2.0, flat_min_noise=0.5),
         planes=PlaneParams(
             per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_margin=0.25, bound_penalty=0.0,
-            bound_min_share=0.03, coarse_factor=2, wall_labels=0, wall_spread=0.1, wall_min_share=0.01,
+            bound_penalty_min_az=0.0, bound_min_share=0.03, coarse_factor=2,
+            wall_labels=0, wall_spread=0.1, wall_min_share=0.01,
             mirror_tolerance=0.0, room_labels=0, room_spread=0.2),
         sgm=SgmParams(p1=120, p2=800, p3=200, edge=8.0, paths=8),
         post=PostParams(min_confidence=0.0, fill_lambda=200.0, fill_sigma_color=8.0, median_px=5, fill_space="inverse",
@@ -304,7 +308,8 @@ def fused_mirror_raw() -> PriorSweepMethod:
                 flat_contrast=1.0, flat_weight=0.5, flat_sigma_px=2.0, flat_min_noise=0.5),
             planes=PlaneParams(
                 per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_margin=0.1, bound_penalty=2.0,
-                bound_min_share=0.03, coarse_factor=2, wall_labels=9, wall_spread=0.1, wall_min_share=0.01,
+                bound_penalty_min_az=0.0, bound_min_share=0.03, coarse_factor=2,
+                wall_labels=9, wall_spread=0.1, wall_min_share=0.01,
                 mirror_tolerance=0.2, room_labels=0, room_spread=0.2),
             sgm=SgmParams(p1=120, p2=800, p3=200, edge=8.0, paths=8),
             post=PostParams(min_confidence=0.1, fill_lambda=200.0, fill_sigma_color=4.0, median_px=5,
@@ -358,7 +363,8 @@ def fused_mirror_told_rig() -> PriorSweepMethod:
                 flat_contrast=1.0, flat_weight=0.5, flat_sigma_px=2.0, flat_min_noise=0.5),
             planes=PlaneParams(
                 per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_margin=0.1, bound_penalty=2.0,
-                bound_min_share=0.03, coarse_factor=2, wall_labels=9, wall_spread=0.1, wall_min_share=0.01,
+                bound_penalty_min_az=0.0, bound_min_share=0.03, coarse_factor=2,
+                wall_labels=9, wall_spread=0.1, wall_min_share=0.01,
                 mirror_tolerance=0.2, room_labels=0, room_spread=0.2),
             sgm=SgmParams(p1=120, p2=800, p3=200, edge=8.0, paths=8),
             post=PostParams(min_confidence=0.1, fill_lambda=200.0, fill_sigma_color=4.0, median_px=5,
@@ -418,7 +424,8 @@ def fused_mirror_raw_images() -> PriorSweepMethod:
                 flat_contrast=1.0, flat_weight=0.5, flat_sigma_px=2.0, flat_min_noise=0.5),
             planes=PlaneParams(
                 per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_margin=0.1, bound_penalty=2.0,
-                bound_min_share=0.03, coarse_factor=2, wall_labels=9, wall_spread=0.1, wall_min_share=0.01,
+                bound_penalty_min_az=0.0, bound_min_share=0.03, coarse_factor=2,
+                wall_labels=9, wall_spread=0.1, wall_min_share=0.01,
                 mirror_tolerance=0.2, room_labels=0, room_spread=0.2),
             sgm=SgmParams(p1=120, p2=800, p3=200, edge=8.0, paths=8),
             post=PostParams(min_confidence=0.1, fill_lambda=200.0, fill_sigma_color=4.0, median_px=5,
@@ -472,7 +479,8 @@ def fused_mirror_shared_falloff() -> PriorSweepMethod:
                 flat_contrast=1.0, flat_weight=0.5, flat_sigma_px=2.0, flat_min_noise=0.5),
             planes=PlaneParams(
                 per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_margin=0.1, bound_penalty=2.0,
-                bound_min_share=0.03, coarse_factor=2, wall_labels=9, wall_spread=0.1, wall_min_share=0.01,
+                bound_penalty_min_az=0.0, bound_min_share=0.03, coarse_factor=2,
+                wall_labels=9, wall_spread=0.1, wall_min_share=0.01,
                 mirror_tolerance=0.2, room_labels=0, room_spread=0.2),
             sgm=SgmParams(p1=120, p2=800, p3=200, edge=8.0, paths=8),
             post=PostParams(min_confidence=0.1, fill_lambda=200.0, fill_sigma_color=4.0, median_px=5,
@@ -530,7 +538,8 @@ def fused_gated() -> PriorSweepMethod:
             # the horizontal planes plus 9 labels per wall found by the coarse pass
             planes=PlaneParams(
                 per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_margin=0.25, bound_penalty=0.0,
-                bound_min_share=0.03, coarse_factor=2, wall_labels=9, wall_spread=0.1, wall_min_share=0.01,
+                bound_penalty_min_az=0.0, bound_min_share=0.03, coarse_factor=2,
+                wall_labels=9, wall_spread=0.1, wall_min_share=0.01,
                 mirror_tolerance=0.0, room_labels=0, room_spread=0.2),
             sgm=SgmParams(p1=120, p2=800, p3=200, edge=8.0, paths=8),
             post=PostParams(min_confidence=0.0, fill_lambda=200.0, fill_sigma_color=8.0, median_px=5,
@@ -592,7 +601,8 @@ def fused_adaptive() -> PriorSweepMethod:
             # the horizontal planes plus 9 labels per wall found by the coarse pass
             planes=PlaneParams(
                 per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_margin=0.25, bound_penalty=0.0,
-                bound_min_share=0.03, coarse_factor=2, wall_labels=9, wall_spread=0.1, wall_min_share=0.01,
+                bound_penalty_min_az=0.0, bound_min_share=0.03, coarse_factor=2,
+                wall_labels=9, wall_spread=0.1, wall_min_share=0.01,
                 mirror_tolerance=0.0, room_labels=0, room_spread=0.2),
             sgm=SgmParams(p1=120, p2=800, p3=200, edge=8.0, paths=8),
             post=PostParams(min_confidence=0.0, fill_lambda=200.0, fill_sigma_color=8.0, median_px=5,

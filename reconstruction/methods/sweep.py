@@ -253,7 +253,7 @@ def _aggregate(frame, cost, heights, inv_d, sweep: SweepMethod, seconds, bounds=
     max_cost += bias
     if np.isfinite(bounds[0]) or np.isfinite(bounds[1]):
         bound_costs(cost, n_d, a_z, inv_d, heights, bounds[0], bounds[1], max_cost,
-                    int(round(plane_params.bound_penalty * cost_params.scale)))
+                    int(round(plane_params.bound_penalty * cost_params.scale)), plane_params.bound_penalty_min_az)
         first = n_d + heights.size
         for a_n, offsets in families:
             bound_wall_costs(cost, first, a_z, a_n, offsets, bounds[0], bounds[1], max_cost)
@@ -409,7 +409,7 @@ def sweep_distances(frame, sweep: SweepMethod, priors: Sequence[Prior | PriorFro
         d = labels_to_distance(label, inv_d, heights, a_z, cost_params.d_min_m, cost_params.d_max_m, families)
         beyond = 0.0
         if plane_params.bound_penalty > 0:  # a winner beyond the room bound is a reflection in the floor (ceiling)
-            d, beyond = onto_room_planes(d, a_z, bounds, found)
+            d, beyond = onto_room_planes(d, a_z, bounds, found, plane_params.bound_penalty_min_az)
         if post.min_confidence > 0:
             ok = conf >= post.min_confidence
             if ok.any() and not ok.all():

@@ -37,6 +37,10 @@ class PlaneParams:
             more instead, and a pixel whose winner still lies beyond the bound is put on the floor (the ceiling)
             the coarse pass found (:func:`onto_room_planes`): a polished floor's reflection of a lamp matches
             where its mirror image lies, below the floor, and that pixel shows the floor.
+        bound_penalty_min_az: the penalty applies only at bearings whose world Z (the sine of their elevation) is
+            at least this in magnitude; nearer the horizon a label beyond the bound stays forbidden and no pixel is
+            put on the floor (the ceiling).  There the bound is crossed only far away (at 5.7 degrees, ten times
+            the floor's depth below C), where a noisy camera's wrong match is likelier than a reflection.
         bound_min_share: share of pixels the floor (ceiling) plane must win in the coarse pass to be used.
         coarse_factor: the coarse pass runs on images this many times smaller.
         wall_labels: labels per wall (0 = no walls).  The coarse pass finds the room's two wall directions (at
@@ -65,6 +69,7 @@ class PlaneParams:
     room_bound: bool = True
     bound_margin: float = 0.25
     bound_penalty: float = 0.0
+    bound_penalty_min_az: float = 0.0
     bound_min_share: float = 0.03
     coarse_factor: int = 2
     wall_labels: int = 0
@@ -77,6 +82,9 @@ class PlaneParams:
     def __post_init__(self) -> None:
         if not (np.isfinite(self.bound_penalty) and self.bound_penalty >= 0):
             raise ValueError(f"plane bound_penalty must be >= 0 (gray levels), got {self.bound_penalty}")
+        if not (np.isfinite(self.bound_penalty_min_az) and 0 <= self.bound_penalty_min_az < 1):
+            raise ValueError(f"plane bound_penalty_min_az must be in [0, 1) (sine of the elevation), got "
+                             f"{self.bound_penalty_min_az}")
 
 
 def plane_heights(params: PlaneParams) -> np.ndarray:
@@ -280,15 +288,16 @@ def fill_plane_costs(cost: np.ndarray, levels: int, a_z: np.ndarray, heights: np
 
 
 @numba.njit(parallel=True, cache=True)
-def _bound(cost, levels, a_z, inv_d, heights, z_low, z_high, max_cost, penalty):
+def _bound(cost, levels, a_z, inv_d, heights, z_low, z_high, max_cost, penalty, min_az):
     h, w, _ = cost.shape
     for y in numba.prange(h):
         for x in range(w):
             az = a_z[y, x]
+            soft = penalty > 0 and abs(az) >= min_az
             for i in range(levels):
                 z = az / inv_d[i]
                 if z < z_low or z > z_high:
-                    if penalty > 0:
+                    if soft:
                         cost[y, x, i] = min(np.int64(cost[y, x, i]) + penalty, max_cost)
                     else:
                         cost[y, x, i] = max_cost
@@ -298,10 +307,10 @@ def _bound(cost, levels, a_z, inv_d, heights, z_low, z_high, max_cost, penalty):
 
 
 def bound_costs(cost: np.ndarray, levels: int, a_z: np.ndarray, inv_d: np.ndarray, heights: np.ndarray,
-                z_low: float, z_high: float, max_cost: int, penalty: int = 0) -> None:
+                z_low: float, z_high: float, max_cost: int, penalty: int = 0, min_az: float = 0.0) -> None:
     """Forbid (set to ``max_cost``) every label whose point lies below ``z_low`` or above ``z_high``, or, with
-    ``penalty`` > 0, add that much to each such sphere label's cost (at most ``max_cost``; the plane labels beyond
-    stay forbidden).
+    ``penalty`` > 0, add that much to each such sphere label's cost (at most ``max_cost``) at the pixels whose
+    ``|a_z| >= min_az`` (the plane labels beyond, and every label beyond nearer the horizon, stay forbidden).
 
     The room bound: nothing is seen below the floor or above the ceiling, but a glossy floor's mirror image of
     the ceiling lights is (a virtual point at ``2 z_floor - z_light``).  Forbidding those labels removes the
@@ -314,26 +323,31 @@ def bound_costs(cost: np.ndarray, levels: int, a_z: np.ndarray, inv_d: np.ndarra
         a_z: (H, W) world Z of C's unit bearings; inv_d: (levels,) 1/m; heights: (P,) metres relative to C.
         z_low, z_high: heights relative to C's centre, metres (use -inf / inf for no bound).
         penalty: uint16 cost units added to a sphere label beyond the bound (0: forbidden).
+        min_az: smallest ``|a_z|`` (sine of the elevation) at which the penalty replaces the ban.
     """
     _bound(cost, levels, np.ascontiguousarray(a_z, np.float64), inv_d.astype(np.float64),
-           heights.astype(np.float64), float(z_low), float(z_high), np.int64(max_cost), np.int64(penalty))
+           heights.astype(np.float64), float(z_low), float(z_high), np.int64(max_cost), np.int64(penalty),
+           float(min_az))
 
 
 def onto_room_planes(distance: np.ndarray, a_z: np.ndarray, bounds: tuple[float, float],
-                     planes: tuple[float, float]) -> tuple[np.ndarray, float]:
-    """Put every pixel whose point lies beyond the room bound on the floor or the ceiling.
+                     planes: tuple[float, float], min_az: float = 0.0) -> tuple[np.ndarray, float]:
+    """Put every pixel whose point lies beyond the room bound on the floor or the ceiling (only where
+    ``|a_z| >= min_az``).
 
     Args:
         distance: (H, W) metres along C's bearings; a_z: (H, W) world Z of those unit bearings.
         bounds: ``(z_low, z_high)``, the room bound's heights relative to C, metres (-inf / inf: none).
         planes: ``(z_floor, z_ceiling)``, the heights the pixels below ``z_low`` / above ``z_high`` are put on,
             metres (on C's side of the bound: ``z_low <= z_floor < 0 < z_ceiling <= z_high``).
+        min_az: smallest ``|a_z|`` (sine of the elevation) of a pixel that is moved.
     Returns:
         The (H, W) float32 distance (a new array) and the share of pixels moved.
     """
     with np.errstate(invalid="ignore", divide="ignore"):
         z = distance * a_z
-        below, above = z < bounds[0], z > bounds[1]
+        steep = np.abs(a_z) >= min_az
+        below, above = (z < bounds[0]) & steep, (z > bounds[1]) & steep
         out = np.where(below, planes[0] / a_z, np.where(above, planes[1] / a_z, distance))
     return out.astype(np.float32), float((below | above).mean())
 

@@ -143,12 +143,12 @@ def test_refine_planes_candidates_the_reference_first_and_the_default_once():
 
 
 def test_bound_candidates_the_reference_first_and_the_default_once():
-    methods, default, _ = _candidates(select_bound, "fused-mirror-bound-0")
+    methods, default, _ = _candidates(select_bound, "fused-mirror-bound-0-0")
     assert methods[0].sweep.planes.bound_penalty == 0
-    # everything but the penalty is the default's
-    m = select_bound.bound_method(3.0)
-    assert m.label == "fused-mirror-bound-3"
-    assert m.sweep.planes == dataclasses.replace(default.sweep.planes, bound_penalty=3.0)
+    # everything but the penalty and where it applies is the default's
+    m = select_bound.bound_method(3.0, 0.15)
+    assert m.label == "fused-mirror-bound-3-0.15"
+    assert m.sweep.planes == dataclasses.replace(default.sweep.planes, bound_penalty=3.0, bound_penalty_min_az=0.15)
     assert m.sweep.cost == default.sweep.cost and m.sweep.post == default.sweep.post
     assert m.sweep.refine_planes == default.sweep.refine_planes
     assert m.flow == default.flow and m.prior == default.prior and m.sweep.sgm == default.sweep.sgm

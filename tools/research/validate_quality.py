@@ -173,7 +173,8 @@ def _without_labels(config) -> object:
 #: with its built-in parameters), the fits' pixel and match limits, the evidence's blocks, the rig fit's iterations,
 #: the noise blur's cap and scale, DeepFlow's and DeepMatching's; the rig fit's ``confirm_factor``: no confirming
 #: pass; a sweep's ``post.fill_space``: the inverse distance; its ``planes.room_labels``: no floor or ceiling family;
-#: its ``planes.bound_penalty``: labels beyond the room bound forbidden; its ``refine_planes.wall_margin``: walls left
+#: its ``planes.bound_penalty``: labels beyond the room bound forbidden (``bound_penalty_min_az``: the penalty at
+#: every bearing); its ``refine_planes.wall_margin``: walls left
 #: alone).  A key ``parent.key`` applies only inside a mapping stored under ``parent``.
 _ADDED_KEYS = {"mirror_tolerance": 0.0, "intensity_weight": 1.0, "feature": "intensity",
                "photometric": NO_CALIBRATION.config(),
@@ -183,7 +184,8 @@ _ADDED_KEYS = {"mirror_tolerance": 0.0, "intensity_weight": 1.0, "feature": "int
                "rig.min_block_samples": 50, "rig.hemispheres": 0.0, "photometric.hemispheres": 0.0,
                "rig.confirm_factor": 0,
                "max_noise_blur_px": 1.5, "noise_scale": 1, "post.fill_space": "inverse",
-               "planes.room_labels": 0, "planes.room_spread": 0.2, "planes.bound_penalty": 0.0, "occlusion": 0.0,
+               "planes.room_labels": 0, "planes.room_spread": 0.2, "planes.bound_penalty": 0.0,
+               "planes.bound_penalty_min_az": 0.0, "occlusion": 0.0,
                "occlusion_min_share": 0.25, "refine_planes.wall_margin": 0.0, "refine_planes.wall_max_share": 0.03,
                "flat_contrast": 0.0, "flat_weight": 1.0, "flat_sigma_px": 2.0, "flat_min_noise": 0.5,
                "post.edge_radius_px": 0, "post.edge_sigma_color": 10.0, "post.edge_sigma_px": 5.0,

@@ -86,6 +86,22 @@ def test_a_penalty_makes_labels_beyond_the_bound_dearer_not_forbidden():
     np.testing.assert_array_equal(cost[0, 0, :levels], [999, 20, 30, 40])
 
 
+def test_near_the_horizon_labels_beyond_the_bound_stay_forbidden():
+    """``min_az``: the penalty replaces the ban only where ``|a_z|`` reaches it; a shallower bearing's label beyond
+    the bound is forbidden as without a penalty, a steeper one's is dearer."""
+    from reconstruction.sweep.planes import bound_costs
+
+    levels, heights = 3, np.array([-1.0, 1.0])
+    inv_d = np.array([0.02, 0.2, 1.0])  # at a_z -0.05: z -2.5, -0.25, -0.05 m; at a_z -0.5: z -25, -2.5, -0.5 m
+    cost = np.array([[[10, 20, 30, 0, 0], [10, 20, 30, 0, 0]]], np.uint16)
+    bound_costs(cost, levels, np.array([[-0.05, -0.5]]), inv_d, heights, -1.5, 1.5, 999, penalty=16, min_az=0.1)
+    np.testing.assert_array_equal(cost[0, 0, :levels], [999, 20, 30])  # shallow: forbidden
+    np.testing.assert_array_equal(cost[0, 1, :levels], [26, 36, 30])  # steep: dearer
+    cost = np.array([[[10, 20, 30, 0, 0]]], np.uint16)
+    bound_costs(cost, levels, np.array([[-0.1]]), inv_d, heights, -1.5, 1.5, 999, penalty=16, min_az=0.1)
+    np.testing.assert_array_equal(cost[0, 0, :levels], [26, 20, 30])  # |a_z| == min_az: the penalty applies
+
+
 def test_a_pixel_beyond_the_bound_is_put_on_the_floor_or_the_ceiling_found():
     from reconstruction.sweep.planes import onto_room_planes
 
@@ -99,9 +115,17 @@ def test_a_pixel_beyond_the_bound_is_put_on_the_floor_or_the_ceiling_found():
     out, share = onto_room_planes(d, a_z, (-np.inf, np.inf), (-np.inf, np.inf))  # no bound: nothing moves
     np.testing.assert_array_equal(out, d)
     assert share == 0.0
+    a_z = np.array([[-0.05, -0.5, 0.05, 0.5]])  # near the horizon nothing moves with min_az 0.1
+    d = np.array([[40.0, 4.0, 50.0, 5.0]], np.float32)
+    out, share = onto_room_planes(d, a_z, (-1.43, 1.87), (-1.3, 1.7), min_az=0.1)
+    np.testing.assert_allclose(out[0], [40.0, 2.6, 50.0, 3.4], rtol=1e-6)
+    assert share == pytest.approx(2 / 4)
 
 
 def test_a_negative_or_non_finite_penalty_is_refused():
     for bad in (-1.0, float("nan"), float("inf")):
         with pytest.raises(ValueError, match="bound_penalty"):
             PlaneParams(bound_penalty=bad)
+    for bad in (-0.1, 1.0, float("nan")):
+        with pytest.raises(ValueError, match="bound_penalty_min_az"):
+            PlaneParams(bound_penalty_min_az=bad)
