@@ -3,6 +3,7 @@ the candidates."""
 
 from __future__ import annotations
 
+import numpy as np
 import pandas as pd
 import pytest
 
@@ -15,6 +16,7 @@ from tools.research.select_fill import (
     choose,
     family_table,
     fill_method,
+    frame_table,
     region_table,
 )
 
@@ -43,7 +45,8 @@ def test_family_table_pools_and_the_rule_keeps_every_family_within_the_bound():
     assert list(table.index)[0] == ("ideal", "a") and list(table.index)[-1] == ("all", "all")
     assert table.loc[("all", "all"), "x"] == pytest.approx((0.15 + 0.30 + 0.20) / 3)
     levels = {"x": 200, "y": 200}
-    choice, worst = choose(table, ["x", "y"], levels)
+    choice, worst, worst_frame = choose(table, ["x", "y"], levels)
+    assert all(np.isnan(v) for v in worst_frame.values())  # no frames given: no frame bound
     assert worst["x"] == pytest.approx(1.0) and worst["y"] == pytest.approx(0.31 / 0.30)
     assert choice == "x"  # y is lower pooled but loses 3 % on ideal b
     assert choose(table, ["z", "y"], {"z": 200, "y": 200})[0] == "z"  # z loses 1 %: eligible
@@ -52,6 +55,27 @@ def test_family_table_pools_and_the_rule_keeps_every_family_within_the_bound():
     # a candidate worse everywhere leaves the reference
     table[["x", "y"]] = table[["x", "y"]] * 2
     assert choose(table, ["x", "y"], levels)[0] == REF
+
+
+def test_the_rule_keeps_every_frame_within_the_frame_bound():
+    """A candidate better pooled and on every family but losing more than ``FRAME_BOUND`` on one frame is not
+    eligible; within the bound it is."""
+    rows = []
+    maes = {REF: (0.10, 0.10, 0.10, 0.10), "x": (0.05, 0.05, 0.05, 0.12), "y": (0.09, 0.09, 0.09, 0.105)}
+    for method, per_frame in maes.items():
+        for k, mae in enumerate(per_frame):
+            rows.append({"scene": f"a-s{k // 2}", "viewpoint": f"vp00{k % 2}", "method": method, "mae_m": mae,
+                         "valid_px": 1000, "condition": "", "family": "a"})
+    df = pd.DataFrame(rows)
+    methods = [REF, "x", "y"]
+    frames = frame_table(df, methods)
+    assert frames.shape == (4, 3) and frames.loc[("a-s1", "vp001"), "x"] == pytest.approx(0.12)
+    families = family_table(df, methods)
+    choice, worst, worst_frame = choose(families, ["x", "y"], {"x": 200, "y": 200}, frames)
+    assert worst_frame["x"] == pytest.approx(1.2) and worst_frame["y"] == pytest.approx(1.05)
+    assert worst["x"] < 1 and choice == "y"  # x: 1.2 x on one frame
+    assert choose(families, ["x"], {"x": 200}, frames)[0] == REF
+    assert choose(families, ["x"], {"x": 200})[0] == "x"  # without frames only the families count
 
 
 def test_region_table_pools_each_region_by_its_pixels():

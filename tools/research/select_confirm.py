@@ -7,19 +7,20 @@ Run as::
         [--quiet] [--workers N | --scheduler ADDRESS]
 
 ``LABEL`` is a frame directory (``<scene>/<viewpoint>``) or a directory of frames (``<scene>``) relative to
-``DATA_ROOT``; without ``--frames`` every frame under ``DATA_ROOT`` (choose on a suite's ``dev`` split).  A frame
+``DATA_ROOT``; without ``--frames`` every frame under ``DATA_ROOT`` (choose on a suite's ``dev`` split). A frame
 whose pre-pass rotations are all confirmed (or that has none) gets the same answer from every candidate, to the
 digit, so ``--frames`` may list only the scenes (every viewpoint) of the (condition, room family) cells that hold a
 frame whose ``not_confirmed`` column in ``calibration_floor``'s rows is not ``none``: the rule below reads each
-cell's pooled MAE, and every other cell is the same for every candidate.  The methods: the reference :data:`REFERENCE`
-(``fused-mirror-confirm-0``: no confirming pass, as the default was before this choice), one
+cell's pooled MAE, and every other cell is the same for every candidate.  The methods: the reference
+:data:`REFERENCE` (``fused-mirror-confirm-0``: no confirming pass, as the default was before this choice), one
 ``fused-mirror-confirm-<f>`` per candidate of :data:`CANDIDATES` (``--candidates``: these only; the rig fit's
-``RigParams.confirm_factor`` ``f``, everything else the default's) and the default ``fused-mirror`` as registered
-(a candidate or the reference configured as the default stands for it, not run twice).  ``DIR`` becomes a results
-set (``tri360 evaluate``'s, without the report) plus ``selection.md`` and ``selection.json``, as ``python -m
+``RigParams.confirm_factor`` ``f``, everything else the default's) and the default ``fused-mirror`` as registered (a
+candidate or the reference configured as the default stands for it, not run twice). ``DIR`` becomes a results set
+(``tri360 evaluate``'s, without the report) plus ``selection.md`` and ``selection.json``, as ``python -m
 tools.research.select_fill`` writes them, with the same rule (:func:`tools.research.select_fill.choose`): eligible
-when no (condition, room family) is more than ``FAMILY_BOUND`` times the reference's; the choice is the eligible
-candidate (or the reference) with the lowest pooled MAE over all frames.
+when no (condition, room family) is more than ``FAMILY_BOUND`` times the reference's and no frame more than
+``FRAME_BOUND`` times; the choice is the eligible candidate (or the reference) with the lowest pooled MAE over all
+frames.
 """
 
 from __future__ import annotations

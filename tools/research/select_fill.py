@@ -17,9 +17,9 @@ pooled MAE (metres; each frame weighted by its scored pixels, as the leaderboard
 (``reports.regions``), and per method, camera condition and room family; and the choice.
 
 The rule (:func:`choose`): a candidate (the default among them) is *eligible* when its pooled MAE on every
-(condition, room family) is at most :data:`FAMILY_BOUND` times the reference's and it has at most :data:`MAX_LEVELS`
-sphere labels (memory); the choice is the eligible candidate (or the reference) with the lowest pooled MAE over all
-frames.
+(condition, room family) is at most :data:`FAMILY_BOUND` times the reference's, its MAE on every frame at most
+:data:`FRAME_BOUND` times the reference's, and it has at most :data:`MAX_LEVELS` sphere labels (memory); the
+choice is the eligible candidate (or the reference) with the lowest pooled MAE over all frames.
 """
 
 from __future__ import annotations
@@ -42,15 +42,18 @@ from reconstruction.methods.presets import fused_mirror
 from tools.common import cell, run_selection
 from tools.research.select_cost import evaluate_frames, frames_parser, pooled_mae, with_condition
 
-__all__ = ["PROG", "REFERENCE", "FAMILY_BOUND", "MAX_LEVELS", "CANDIDATES", "fill_method", "candidate_methods",
-           "methods_to_compare", "region_table", "family_table", "choose", "selection_markdown", "select",
-           "candidates_main", "main"]
+__all__ = ["PROG", "REFERENCE", "FAMILY_BOUND", "FRAME_BOUND", "MAX_LEVELS", "CANDIDATES", "fill_method",
+           "candidate_methods", "methods_to_compare", "region_table", "family_table", "frame_table", "choose",
+           "selection_markdown", "select", "candidates_main", "main"]
 
 PROG = "select_fill"
 TITLE = "Sweep resolution and the refill of the least confident pixels"
 #: a candidate's pooled MAE on every (condition, room family) at most this times the reference's (1.0 at first; the
 #: captured classroom frames at 1.002 x, 0.001 m, made it 1.02: docs/edges.md)
 FAMILY_BOUND = 1.02
+#: a candidate's MAE on every frame at most this times the reference's (the pooled bound can hide one frame's loss: a
+#: default that loses badly on any frame is not better)
+FRAME_BOUND = 1.10
 #: the most sphere labels an eligible candidate may have: the default's peak memory at 1000x500 within the 1 GB a
 #: frame may take (``python -m tools.bench.sweep``: 0.93 GB with 200 labels, 1.01 GB with 240)
 MAX_LEVELS = 200
@@ -136,20 +139,31 @@ def family_table(results: pd.DataFrame, methods: Sequence[str]) -> pd.DataFrame:
     return table
 
 
-def choose(families: pd.DataFrame, candidates: Sequence[str], levels: dict[str, int]) -> tuple[str, dict[str, float]]:
-    """The rule of the module doc; ``levels``: each candidate's sphere labels.  Returns ``(label, worst ratio to the
-    reference over the (condition, family) cells per candidate)``."""
+def frame_table(results: pd.DataFrame, methods: Sequence[str]) -> pd.DataFrame:
+    """(scene, viewpoint) (index) x method: each frame's MAE, metres."""
+    table = results.pivot_table(index=["scene", "viewpoint"], columns="method", values="mae_m", aggfunc="first")
+    return table[list(methods)]
+
+
+def choose(families: pd.DataFrame, candidates: Sequence[str], levels: dict[str, int],
+           frames: pd.DataFrame | None = None) -> tuple[str, dict[str, float], dict[str, float]]:
+    """The rule of the module doc; ``levels``: each candidate's sphere labels; ``frames``: :func:`frame_table` (the
+    reference first; None: no frame bound).  Returns ``(label, worst ratio to the reference over the (condition,
+    family) cells per candidate, worst ratio over the frames per candidate)``."""
     cells = families.drop(index=("all", "all"))
     reference = families.columns[0]
     worst = {m: float((cells[m] / cells[reference]).max()) for m in candidates}
-    eligible = [m for m in candidates if worst[m] <= FAMILY_BOUND and levels[m] <= MAX_LEVELS]
+    worst_frame = ({m: float((frames[m] / frames[reference]).max()) for m in candidates} if frames is not None
+                   else {m: float("nan") for m in candidates})
+    eligible = [m for m in candidates if worst[m] <= FAMILY_BOUND and levels[m] <= MAX_LEVELS
+                and not worst_frame[m] > FRAME_BOUND]
     pooled = families.loc[("all", "all")]
     best = min([reference, *eligible], key=lambda m: pooled[m])
-    return best, worst
+    return best, worst, worst_frame
 
 
 def selection_markdown(regions: pd.DataFrame, families: pd.DataFrame, choice: str, worst: dict[str, float],
-                       where: str, title: str) -> str:
+                       where: str, title: str, worst_frame: dict[str, float] | None = None) -> str:
     """The tables and the choice as Markdown, under ``# <title>, on <where>``."""
     ref = regions.index[0]
     lines = [f"# {title}, on {where}", "",
@@ -167,6 +181,9 @@ def selection_markdown(regions: pd.DataFrame, families: pd.DataFrame, choice: st
     lines += ["", f"Worst (condition, family) ratio to {ref} (eligible at most {FAMILY_BOUND}, and at most "
                   f"{MAX_LEVELS} sphere labels):", ""]
     lines += [f"- {m}: {v:.3f}" for m, v in worst.items()]
+    if worst_frame is not None:
+        lines += ["", f"Worst frame's ratio to {ref} (eligible at most {FRAME_BOUND}):", ""]
+        lines += [f"- {m}: {v:.3f}" for m, v in worst_frame.items()]
     lines += ["", f"Choice (lowest pooled MAE among the eligible and the reference): **{choice}**"]
     return "\n".join(lines) + "\n"
 
@@ -196,10 +213,12 @@ def select(args, methods: Sequence[Method], ctx, title: str) -> tuple[str, dict]
     where = f"{len(results) // len(methods)} frames of {args.data_root}"
     regions = region_table(pd.read_csv(args.out / "regions.csv"), labels)
     families = family_table(results, labels)
-    choice, worst = choose(families, labels[1:], {m.label: m.sweep.cost.levels for m in methods})
-    text = selection_markdown(regions, families, choice, worst, where, title)
+    choice, worst, worst_frame = choose(families, labels[1:], {m.label: m.sweep.cost.levels for m in methods},
+                                        frame_table(results, labels))
+    text = selection_markdown(regions, families, choice, worst, where, title, worst_frame)
     payload = {"where": where, "frames": args.frames, "methods": labels, "choice": choice,
                "worst_family_ratio": worst, "family_bound": FAMILY_BOUND,
+               "worst_frame_ratio": worst_frame, "frame_bound": FRAME_BOUND,
                "region_mae_m": {m: {r: float(v) for r, v in row.items()} for m, row in regions.iterrows()},
                "family_mae_m": [{"condition": c, "family": f, **{m: float(x) for m, x in row.items()}}
                                 for (c, f), row in families.iterrows()]}

@@ -6,17 +6,16 @@ Run as::
         [--quiet] [--workers N | --scheduler ADDRESS]
 
 ``LABEL`` is a frame directory (``<scene>/<viewpoint>``) or a directory of frames (``<scene>``) relative to
-``DATA_ROOT``; without ``--frames`` every frame under ``DATA_ROOT`` (choose on a suite's ``dev`` split).  The
+``DATA_ROOT``; without ``--frames`` every frame under ``DATA_ROOT`` (choose on a suite's ``dev`` split). The
 methods: the reference :data:`REFERENCE` (``fused-mirror-flat-0-1``: a preference everywhere, as the default was
 before this choice), one ``fused-mirror-flat-<k>-<w>`` per candidate of :data:`CANDIDATES` (``--candidates``: these
 only, as ``<k>-<w>``; both sweep costs' ``CostParams.flat_contrast`` set to ``k`` and ``flat_weight`` to ``w``,
-everything else the default's) and the
-default ``fused-mirror`` as registered (a candidate or the reference configured as the default stands for it, not
-run twice).  ``DIR`` becomes a results set (``tri360 evaluate``'s, without the report) plus ``selection.md`` and
-``selection.json``, as ``python -m tools.research.select_fill`` writes them, with the same rule
-(:func:`tools.research.select_fill.choose`): eligible when no (condition, room family) is more than
-``FAMILY_BOUND`` times the reference's; the choice is the eligible candidate (or the reference) with the lowest
-pooled MAE over all frames.
+everything else the default's) and the default ``fused-mirror`` as registered (a candidate or the reference
+configured as the default stands for it, not run twice). ``DIR`` becomes a results set (``tri360 evaluate``'s,
+without the report) plus ``selection.md`` and ``selection.json``, as ``python -m tools.research.select_fill`` writes
+them, with the same rule (:func:`tools.research.select_fill.choose`): eligible when no (condition, room family) is
+more than ``FAMILY_BOUND`` times the reference's and no frame more than ``FRAME_BOUND`` times; the choice is the
+eligible candidate (or the reference) with the lowest pooled MAE over all frames.
 """
 
 from __future__ import annotations

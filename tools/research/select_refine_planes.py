@@ -6,16 +6,17 @@ Run as::
         [--quiet] [--workers N | --scheduler ADDRESS]
 
 ``LABEL`` is a frame directory (``<scene>/<viewpoint>``) or a directory of frames (``<scene>``) relative to
-``DATA_ROOT``; without ``--frames`` every frame under ``DATA_ROOT`` (choose on a suite's ``dev`` split).  The
+``DATA_ROOT``; without ``--frames`` every frame under ``DATA_ROOT`` (choose on a suite's ``dev`` split). The
 methods: the reference :data:`REFERENCE` (``fused-mirror-refine-planes-0-0-0``: no search, as the default was before
 this choice), one ``fused-mirror-refine-planes-<se>-<basin>-<snap>`` per candidate of :data:`CANDIDATES`
 (``--candidates``: these only; the sweep's :class:`reconstruction.refine.planes.PlaneRefineParams` ``max_se``,
 ``max_basin`` and ``snap``, everything else the default's) and the default ``fused-mirror`` as registered (a
-candidate or the reference configured as the default stands for it, not run twice).  ``DIR`` becomes a results set
+candidate or the reference configured as the default stands for it, not run twice). ``DIR`` becomes a results set
 (``tri360 evaluate``'s, without the report) plus ``selection.md`` and ``selection.json``, as ``python -m
 tools.research.select_fill`` writes them, with the same rule (:func:`tools.research.select_fill.choose`): eligible
-when no (condition, room family) is more than ``FAMILY_BOUND`` times the reference's; the choice is the eligible
-candidate (or the reference) with the lowest pooled MAE over all frames.
+when no (condition, room family) is more than ``FAMILY_BOUND`` times the reference's and no frame more than
+``FRAME_BOUND`` times; the choice is the eligible candidate (or the reference) with the lowest pooled MAE over all
+frames.
 """
 
 from __future__ import annotations

@@ -6,17 +6,17 @@ Run as::
         [--quiet] [--workers N | --scheduler ADDRESS]
 
 ``LABEL`` is a frame directory (``<scene>/<viewpoint>``) or a directory of frames (``<scene>``) relative to
-``DATA_ROOT``; without ``--frames`` every frame under ``DATA_ROOT`` (choose on a suite's ``dev`` split).  The
-methods: the reference :data:`REFERENCE` (``fused-mirror-sgm-800-4``: SGM's penalty for a jump of more than one label
-800 and the plane labels preferred by 4 cost units, as the default was before this choice), one
+``DATA_ROOT``; without ``--frames`` every frame under ``DATA_ROOT`` (choose on a suite's ``dev`` split). The
+methods: the reference :data:`REFERENCE` (``fused-mirror-sgm-800-4``: SGM's penalty for a jump of more than one
+label 800 and the plane labels preferred by 4 cost units, as the default was before this choice), one
 ``fused-mirror-sgm-<p2>-<bias>`` per candidate of :data:`CANDIDATES` (``--candidates``: these only, as
 ``<p2>-<bias>``; everything but the sweep's ``SgmParams.p2`` and ``PlaneParams.bias`` the default's) and the default
-``fused-mirror`` as registered (a candidate configured as the default is the default, not run twice).  ``DIR``
+``fused-mirror`` as registered (a candidate configured as the default is the default, not run twice). ``DIR``
 becomes a results set (``tri360 evaluate``'s, without the report) plus ``selection.md`` and ``selection.json``, as
 ``python -m tools.research.select_fill`` writes them, with the same rule
-(:func:`tools.research.select_fill.choose`): eligible when no (condition, room family) is more than
-``FAMILY_BOUND`` times the reference's; the choice is the eligible candidate (or the reference) with the lowest
-pooled MAE over all frames.
+(:func:`tools.research.select_fill.choose`): eligible when no (condition, room family) is more than ``FAMILY_BOUND``
+times the reference's and no frame more than ``FRAME_BOUND`` times; the choice is the eligible candidate (or the
+reference) with the lowest pooled MAE over all frames.
 """
 
 from __future__ import annotations
