@@ -131,8 +131,11 @@ def fused_mirror() -> PriorSweepMethod:
                 # lamps match below the floor, and forbidden there they took nearer labels (chosen by python -m
                 # tools.research.select_bound on the dev split, docs/edges.md)
                 bound_penalty=2.0,
-                # everywhere but near the horizon (see the sweep's PlaneParams)
-                bound_penalty_min_az=0.0,
+                # only at bearings more than 11.5 degrees above or below the horizon (|sine of the elevation| >=
+                # 0.2): nearer it the bound is crossed only far away, and a noisy camera's wrong match to a far label
+                # put the pixel on the floor far beyond the wall it shows (labs under camera conditions); chosen by
+                # python -m tools.research.select_bound among 0, 0.1 and 0.2 on the dev split (docs/edges.md)
+                bound_penalty_min_az=0.2,
                 # the horizontal planes plus 9 labels per wall found by the coarse pass
                 wall_labels=9,
                 # the mirror test of the room bound: a floor found by the coarse pass within 20 % of where the
@@ -308,7 +311,7 @@ def fused_mirror_raw() -> PriorSweepMethod:
                 flat_contrast=1.0, flat_weight=0.5, flat_sigma_px=2.0, flat_min_noise=0.5),
             planes=PlaneParams(
                 per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_margin=0.1, bound_penalty=2.0,
-                bound_penalty_min_az=0.0, bound_min_share=0.03, coarse_factor=2,
+                bound_penalty_min_az=0.2, bound_min_share=0.03, coarse_factor=2,
                 wall_labels=9, wall_spread=0.1, wall_min_share=0.01,
                 mirror_tolerance=0.2, room_labels=0, room_spread=0.2),
             sgm=SgmParams(p1=120, p2=800, p3=200, edge=8.0, paths=8),
@@ -363,7 +366,7 @@ def fused_mirror_told_rig() -> PriorSweepMethod:
                 flat_contrast=1.0, flat_weight=0.5, flat_sigma_px=2.0, flat_min_noise=0.5),
             planes=PlaneParams(
                 per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_margin=0.1, bound_penalty=2.0,
-                bound_penalty_min_az=0.0, bound_min_share=0.03, coarse_factor=2,
+                bound_penalty_min_az=0.2, bound_min_share=0.03, coarse_factor=2,
                 wall_labels=9, wall_spread=0.1, wall_min_share=0.01,
                 mirror_tolerance=0.2, room_labels=0, room_spread=0.2),
             sgm=SgmParams(p1=120, p2=800, p3=200, edge=8.0, paths=8),
@@ -424,7 +427,7 @@ def fused_mirror_raw_images() -> PriorSweepMethod:
                 flat_contrast=1.0, flat_weight=0.5, flat_sigma_px=2.0, flat_min_noise=0.5),
             planes=PlaneParams(
                 per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_margin=0.1, bound_penalty=2.0,
-                bound_penalty_min_az=0.0, bound_min_share=0.03, coarse_factor=2,
+                bound_penalty_min_az=0.2, bound_min_share=0.03, coarse_factor=2,
                 wall_labels=9, wall_spread=0.1, wall_min_share=0.01,
                 mirror_tolerance=0.2, room_labels=0, room_spread=0.2),
             sgm=SgmParams(p1=120, p2=800, p3=200, edge=8.0, paths=8),
@@ -479,7 +482,7 @@ def fused_mirror_shared_falloff() -> PriorSweepMethod:
                 flat_contrast=1.0, flat_weight=0.5, flat_sigma_px=2.0, flat_min_noise=0.5),
             planes=PlaneParams(
                 per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_margin=0.1, bound_penalty=2.0,
-                bound_penalty_min_az=0.0, bound_min_share=0.03, coarse_factor=2,
+                bound_penalty_min_az=0.2, bound_min_share=0.03, coarse_factor=2,
                 wall_labels=9, wall_spread=0.1, wall_min_share=0.01,
                 mirror_tolerance=0.2, room_labels=0, room_spread=0.2),
             sgm=SgmParams(p1=120, p2=800, p3=200, edge=8.0, paths=8),

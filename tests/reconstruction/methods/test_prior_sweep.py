@@ -154,9 +154,12 @@ def test_the_default_is_fused_gated_with_its_mirror_test_cost_labels_room_bound_
     # the room bound closer to the floor and ceiling the coarse pass found
     assert cfg["sweep"]["planes"]["bound_margin"] < gated["sweep"]["planes"]["bound_margin"]
     cfg["sweep"]["planes"]["bound_margin"] = gated["sweep"]["planes"]["bound_margin"]
-    # a match beyond the bound dearer and put on the floor (gated: forbidden)
+    # a match beyond the bound dearer and put on the floor (gated: forbidden) ...
     assert cfg["sweep"]["planes"]["bound_penalty"] > 0 == gated["sweep"]["planes"]["bound_penalty"]
     cfg["sweep"]["planes"]["bound_penalty"] = 0.0
+    # ... away from the horizon only
+    assert 0 < cfg["sweep"]["planes"]["bound_penalty_min_az"] < 1
+    cfg["sweep"]["planes"]["bound_penalty_min_az"] = gated["sweep"]["planes"]["bound_penalty_min_az"]
     # its floor and ceiling searched again from the images (gated: not)
     assert "refine_planes" not in gated["sweep"]
     assert cfg["sweep"].pop("refine_planes")["max_se"] > 0
