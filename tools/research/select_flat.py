@@ -13,9 +13,7 @@ only, as ``<k>-<w>``; both sweep costs' ``CostParams.flat_contrast`` set to ``k`
 everything else the default's) and the default ``fused-mirror`` as registered (a candidate or the reference
 configured as the default stands for it, not run twice). ``DIR`` becomes a results set (``tri360 evaluate``'s,
 without the report) plus ``selection.md`` and ``selection.json``, as ``python -m tools.research.select_fill`` writes
-them, with the same rule (:func:`tools.research.select_fill.choose`): eligible when no (condition, room family) is
-more than ``FAMILY_BOUND`` times the reference's and no frame more than ``FRAME_BOUND`` times; the choice is the
-eligible candidate (or the reference) with the lowest pooled MAE over all frames.
+them, with the same rule (:func:`tools.research.select_fill.choose`).
 """
 
 from __future__ import annotations

@@ -14,9 +14,7 @@ label 800 and the plane labels preferred by 4 cost units, as the default was bef
 ``fused-mirror`` as registered (a candidate configured as the default is the default, not run twice). ``DIR``
 becomes a results set (``tri360 evaluate``'s, without the report) plus ``selection.md`` and ``selection.json``, as
 ``python -m tools.research.select_fill`` writes them, with the same rule
-(:func:`tools.research.select_fill.choose`): eligible when no (condition, room family) is more than ``FAMILY_BOUND``
-times the reference's and no frame more than ``FRAME_BOUND`` times; the choice is the eligible candidate (or the
-reference) with the lowest pooled MAE over all frames.
+(:func:`tools.research.select_fill.choose`).
 """
 
 from __future__ import annotations
