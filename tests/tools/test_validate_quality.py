@@ -214,6 +214,7 @@ def test_a_configuration_written_before_a_parameter_was_added_reads_as_its_earli
     old = json.loads(json.dumps(uncalibrated(presets.fused_gated()).config()))  # as fused-gated ran before both
     del old["sweep"]["planes"]["mirror_tolerance"], old["sweep"]["cost"]["intensity_weight"]
     del old["sweep"]["planes"]["bound_penalty"]  # before it existed: labels beyond the room bound forbidden
+    del old["sweep"]["planes"]["bound_penalty_min_az"]  # before it existed: the penalty at every bearing
     for part in ("flow", "sweep", "quality_flow"):
         del old[part]["photometric"]
     assert config_difference(old, uncalibrated(presets.fused_gated()).config()) is None
@@ -224,6 +225,7 @@ def test_a_configuration_written_before_a_parameter_was_added_reads_as_its_earli
     raw_mirror["sweep"]["cost"]["levels"] = old["sweep"]["cost"]["levels"]
     raw_mirror["sweep"]["planes"]["bound_margin"] = old["sweep"]["planes"]["bound_margin"]
     raw_mirror["sweep"]["planes"]["bound_penalty"] = 0.0
+    raw_mirror["sweep"]["planes"]["bound_penalty_min_az"] = 0.0
     raw_mirror["sweep"]["post"] = old["sweep"]["post"]
     for k in ("flat_contrast", "flat_weight"):
         raw_mirror["sweep"]["cost"][k] = old["sweep"]["cost"][k]
