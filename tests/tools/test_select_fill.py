@@ -76,6 +76,8 @@ def test_the_rule_keeps_every_frame_within_the_frame_bound():
     assert worst["x"] < 1 and choice == "y"  # x: 1.2 x on one frame
     assert choose(families, ["x"], {"x": 200}, frames)[0] == REF
     assert choose(families, ["x"], {"x": 200})[0] == "x"  # without frames only the families count
+    frames.loc[("a-s0", "vp000"), "y"] = np.nan  # a frame y gives no MAE on: unbounded, not skipped
+    assert choose(families, ["y"], {"y": 200}, frames)[:3:2] == (REF, {"y": np.inf})
 
 
 def test_region_table_pools_each_region_by_its_pixels():

@@ -33,6 +33,7 @@ import dataclasses
 import sys
 from collections.abc import Callable, Sequence
 
+import numpy as np
 import pandas as pd
 
 from harness.data.errors import UserError
@@ -153,8 +154,9 @@ def choose(families: pd.DataFrame, candidates: Sequence[str], levels: dict[str, 
     cells = families.drop(index=("all", "all"))
     reference = families.columns[0]
     worst = {m: float((cells[m] / cells[reference]).max()) for m in candidates}
-    worst_frame = ({m: float((frames[m] / frames[reference]).max()) for m in candidates} if frames is not None
-                   else {m: float("nan") for m in candidates})
+    # a frame the reference scores and a candidate does not (no finite MAE) counts as unbounded
+    worst_frame = ({m: float((frames[m].fillna(np.inf) / frames[reference]).max()) for m in candidates}
+                   if frames is not None else {m: float("nan") for m in candidates})
     eligible = [m for m in candidates if worst[m] <= FAMILY_BOUND and levels[m] <= MAX_LEVELS
                 and not worst_frame[m] > FRAME_BOUND]
     pooled = families.loc[("all", "all")]
