@@ -31,9 +31,9 @@ from reconstruction.methods.base import MethodOutput
 from reconstruction.methods.flow_pipeline import FlowMethod, run_flow_group
 from reconstruction.methods.self_calibration import Calibration
 from reconstruction.methods.sweep import Prior, PriorFromSweep, SgmParams, SweepMethod, sweep_distances
-from reconstruction.sweep.cost import CostParams, gray_float
+from reconstruction.sweep.cost import FLAT_NOISE_SCALE, CostParams, gray_float, image_noise
 
-__all__ = ["PriorParams", "PriorSweepMethod", "default_sweep", "prior_weight", "sweep_gate"]
+__all__ = ["PriorParams", "PriorSweepMethod", "contrast_above_noise", "default_sweep", "prior_weight", "sweep_gate"]
 
 
 def default_sweep() -> SweepMethod:
@@ -49,8 +49,8 @@ class PriorParams:
     """How strongly the flow distance pulls the sweep's labels, per pixel.
 
     The weight of pixel p is ``weight * conf(p) * gate(p) * sweep(p)``: ``conf`` the flow's confidence when
-    ``use_confidence`` (else 1), ``gate`` a ramp of C's local contrast ``c(p)`` (:func:`local_contrast`) from 0 at
-    ``contrast_low`` to 1 at ``contrast_high`` when ``contrast_high > 0`` (else 1), ``sweep`` the factor from the
+    ``use_confidence`` (else 1), ``gate`` a ramp of C's local contrast ``c(p)`` (:func:`contrast_above_noise`) from 0
+    at ``contrast_low`` to 1 at ``contrast_high`` when ``contrast_high > 0`` (else 1), ``sweep`` the factor from the
     plain sweep's agreement with the flow and its confidence (:func:`sweep_gate`; 1 when both of its options are
     off).  The defaults are ``fused``'s one constant.
 
@@ -63,6 +63,11 @@ class PriorParams:
         contrast_low, contrast_high: local contrast (gray levels, 0-255 scale) below which the prior is off and
             above which it has its full weight; ``contrast_high`` 0 = no gate.
         contrast_sigma_px: Gaussian window of the local contrast, pixels.
+        contrast_noise: the gate reads C's contrast above its noise, ``sqrt(max(c^2 - (contrast_noise * n)^2, 0))``
+            with ``n`` C's noise in gray levels (:func:`reconstruction.sweep.cost.image_noise` at
+            :data:`reconstruction.sweep.cost.FLAT_NOISE_SCALE`, where what JPEG coding leaves of the noise still
+            shows): a camera's noise alone opens the gate on a plain wall, where the flow has nothing to follow;
+            0 = the contrast as it is.
         sweep_confidence_power: k > 0: where the flow and the plain sweep (the coarse room-bound pass, no prior,
             upsampled: no extra aggregation) disagree by more than ``agree_tolerance`` (relative), the weight is
             scaled by ``(1 - c_sweep)^k``, ``c_sweep`` the plain sweep's confidence: a confident sweep keeps its
@@ -71,6 +76,11 @@ class PriorParams:
         frame_agreement_low, frame_agreement_high: the frame's share of pixels where flow and plain sweep agree
             scales the whole prior, from 0 at ``low`` to 1 at ``high`` (a frame whose flow disagrees with the
             sweep almost everywhere gets no prior); ``high`` 0 = off.
+        frame_agreement_contrast: that share counts only C's pixels whose local contrast above C's noise
+            (:func:`contrast_above_noise`, window ``contrast_sigma_px``) is at least this, gray levels: where C
+            shows no texture the flow and the sweep agree by chance, and a camera's noise makes them disagree
+            there, so the share over every pixel falls with the noise while the flow is no worse where it has
+            texture to follow; 0 = every pixel counts.
     """
 
     weight: float = 16.0
@@ -79,21 +89,45 @@ class PriorParams:
     contrast_low: float = 0.0
     contrast_high: float = 0.0
     contrast_sigma_px: float = 3.0
+    contrast_noise: float = 0.0
     sweep_confidence_power: float = 0.0
     agree_tolerance: float = 0.05
     frame_agreement_low: float = 0.0
     frame_agreement_high: float = 0.0
+    frame_agreement_contrast: float = 0.0
 
     def __post_init__(self):
         for low, high in (("contrast_low", "contrast_high"), ("frame_agreement_low", "frame_agreement_high")):
             lo, hi = getattr(self, low), getattr(self, high)
             if hi > 0 and not lo < hi:
                 raise ValueError(f"{low} {lo} must be below {high} {hi}")
+        for name in ("contrast_noise", "frame_agreement_contrast"):
+            if not getattr(self, name) >= 0:
+                raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}")
 
     @property
     def needs_plain_sweep(self) -> bool:
         """Whether the weight depends on the plain sweep's result (the coarse pass's, upsampled)."""
         return self.sweep_confidence_power > 0 or self.frame_agreement_high > 0
+
+
+def contrast_above_noise(image: np.ndarray, sigma_px: float, noise_factor: float = 1.0) -> np.ndarray:
+    """C's local contrast above its noise: ``sqrt(max(c^2 - (noise_factor * n)^2, 0))``, ``c`` the local standard
+    deviation of the gray image (:func:`reconstruction.camera.image_ops.local_contrast`) and ``n`` the image's noise
+    (:func:`reconstruction.sweep.cost.image_noise` at :data:`reconstruction.sweep.cost.FLAT_NOISE_SCALE`, where what
+    JPEG coding leaves of the noise still shows): on a plain surface a camera's noise alone is the contrast.
+
+    Args:
+        image: (H, W, 3) uint8 image; sigma_px: the contrast's Gaussian window, pixels; noise_factor: ``n``'s
+            multiple subtracted (0 = the contrast as it is).
+    Returns:
+        (H, W) float32 gray levels (0-255 scale).
+    """
+    c = local_contrast(gray_float(image, 0.0), sigma_px)
+    if noise_factor > 0:
+        noise = np.float32(noise_factor * image_noise(image, FLAT_NOISE_SCALE))
+        c = np.sqrt(np.maximum(c * c - noise * noise, 0.0))
+    return c
 
 
 def prior_weight(params: PriorParams, image: np.ndarray, confidence: np.ndarray | None) -> np.ndarray:
@@ -108,17 +142,19 @@ def prior_weight(params: PriorParams, image: np.ndarray, confidence: np.ndarray 
     if params.use_confidence and confidence is not None:
         w *= np.asarray(confidence, np.float32)
     if params.contrast_high > 0:
-        c = local_contrast(gray_float(image, 0.0), params.contrast_sigma_px)
+        c = contrast_above_noise(image, params.contrast_sigma_px, params.contrast_noise)
         w *= np.clip((c - params.contrast_low) / (params.contrast_high - params.contrast_low), 0.0, 1.0)
     return w
 
 
-def sweep_gate(params: PriorParams, flow_m: np.ndarray, sweep_m: np.ndarray, sweep_conf: np.ndarray) -> np.ndarray:
+def sweep_gate(params: PriorParams, flow_m: np.ndarray, sweep_m: np.ndarray, sweep_conf: np.ndarray,
+               image: np.ndarray | None = None) -> np.ndarray:
     """The factor of the prior's weight that depends on the plain sweep (:class:`PriorParams`).
 
     Args:
         flow_m, sweep_m: (H, W) flow and plain-sweep distances, metres; sweep_conf: (H, W) sweep confidence in
-            [0, 1].
+            [0, 1]; image: (H, W, 3) uint8 image of C, needed when ``frame_agreement_contrast`` counts only its
+            textured pixels in the frame's agreement share (ValueError without it).
     Returns:
         (H, W) float32 in [0, 1].
     """
@@ -130,8 +166,15 @@ def sweep_gate(params: PriorParams, flow_m: np.ndarray, sweep_m: np.ndarray, swe
         ambiguous = np.power(1.0 - np.clip(sweep_conf, 0.0, 1.0), params.sweep_confidence_power)
         g = np.where(agree, 1.0, ambiguous).astype(np.float32)
     if params.frame_agreement_high > 0:
+        counted = agree
+        if params.frame_agreement_contrast > 0:
+            if image is None:
+                raise ValueError("frame_agreement_contrast needs C's image")
+            textured = contrast_above_noise(image, params.contrast_sigma_px) >= params.frame_agreement_contrast
+            # a frame without a textured pixel has no evidence for the flow: no prior
+            counted = agree[textured] if textured.any() else np.zeros(1, bool)
         lo, hi = params.frame_agreement_low, params.frame_agreement_high
-        g *= np.float32(np.clip((agree.mean() - lo) / (hi - lo), 0.0, 1.0))
+        g *= np.float32(np.clip((counted.mean() - lo) / (hi - lo), 0.0, 1.0))
     return g
 
 
@@ -211,8 +254,9 @@ class PriorSweepMethod:
                 flow = flow_outputs[m.flow.label]
                 weight = prior_weight(m.prior, frame.images["C"], flow.confidence)
                 if m.prior.needs_plain_sweep:
-                    priors.append(PriorFromSweep(lambda d_s, c_s, m=m, d=flow.distance, w=weight:
-                                                 Prior(d, w * sweep_gate(m.prior, d, d_s, c_s),
+                    priors.append(PriorFromSweep(lambda d_s, c_s, m=m, d=flow.distance, w=weight,
+                                                 image=frame.images["C"]:
+                                                 Prior(d, w * sweep_gate(m.prior, d, d_s, c_s, image),
                                                        m.prior.truncate_levels)))
                 else:
                     priors.append(Prior(flow.distance, weight, m.prior.truncate_levels))

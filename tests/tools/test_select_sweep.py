@@ -15,6 +15,7 @@ from tools.research import (
     select_confirm,
     select_edges,
     select_flat,
+    select_gate,
     select_planes,
     select_refine_planes,
     select_sgm,
@@ -170,10 +171,25 @@ def test_walls_candidates_the_reference_first_and_the_default_once():
         select_walls.candidate_methods(["0.3-0.02"])
 
 
+def test_gate_candidates_the_reference_first_and_the_default_once():
+    methods, default, _ = _candidates(select_gate, "fused-mirror-gate-0-0-0.5-0.7")
+    p = methods[0].prior
+    assert (p.contrast_noise, p.frame_agreement_contrast, p.frame_agreement_low, p.frame_agreement_high) == \
+        select_gate.REFERENCE
+    # everything but the four values is the default's
+    m = select_gate.gate_method(2.0, 8.0, 0.3, 0.9)
+    assert m.label == "fused-mirror-gate-2-8-0.3-0.9"
+    assert m.prior == dataclasses.replace(default.prior, contrast_noise=2.0, frame_agreement_contrast=8.0,
+                                          frame_agreement_low=0.3, frame_agreement_high=0.9)
+    assert m.sweep == default.sweep and m.flow == default.flow and m.quality_flow == default.quality_flow
+    with pytest.raises(UserError, match="unknown candidate"):
+        select_gate.candidate_methods(["3"])
+
+
 @pytest.mark.parametrize("main", [select_planes.main, select_sgm.main, select_flat.main, select_edges.main,
                                   select_confirm.main, select_refine_planes.main, select_bound.main,
-                                  select_walls.main],
-                         ids=["planes", "sgm", "flat", "edges", "confirm", "refine_planes", "bound", "walls"])
+                                  select_walls.main, select_gate.main],
+                         ids=["planes", "sgm", "flat", "edges", "confirm", "refine_planes", "bound", "walls", "gate"])
 def test_a_missing_data_root_is_one_line_and_writes_nothing(main, tmp_path, capsys):
     out = tmp_path / "sel"
     assert main([str(tmp_path / "nope"), "--out", str(out), "--quiet", "--frames", "a/vp000"]) == 2

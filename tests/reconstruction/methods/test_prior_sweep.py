@@ -203,6 +203,26 @@ def test_prior_weight_defaults_to_one_constant_and_gates_by_contrast_and_confide
         PriorParams(contrast_low=4.0, contrast_high=2.0)
 
 
+def test_the_contrast_gate_reads_the_contrast_above_the_noise():
+    """``contrast_noise``: a plain image with noise of about 3 gray levels opens the plain gate (its local contrast is
+    the noise's) and not the one that reads the contrast above the noise; a textured half (standard deviation about
+    74 gray levels) is gated open either way; a noise-free plain image is gated shut either way."""
+    rng = np.random.default_rng(1)
+    plain = np.full((60, 120, 3), 128.0)
+    image = np.clip(plain + rng.normal(0.0, 3.0, (60, 120, 1)), 0, 255).astype(np.uint8)
+    image[:, 60:] = rng.integers(0, 256, (60, 60, 1), dtype=np.uint8)
+    gate = PriorParams(contrast_low=0.5, contrast_high=2.0)
+    above = PriorParams(contrast_low=0.5, contrast_high=2.0, contrast_noise=1.0)
+    plain_part, textured = (slice(None), slice(12, 48)), (slice(None), slice(72, 108))
+    assert prior_weight(gate, image, None)[plain_part].mean() > 14.0
+    assert prior_weight(above, image, None)[plain_part].mean() < 4.0
+    assert prior_weight(above, image, None)[textured].min() == 16.0
+    flat = plain.astype(np.uint8)
+    assert prior_weight(above, flat, None).max() == 0.0 and prior_weight(gate, flat, None).max() == 0.0
+    with pytest.raises(ValueError, match="contrast_noise must be >= 0"):
+        PriorParams(contrast_noise=-1.0)
+
+
 @pytest.mark.slow
 def test_one_cost_volume_for_several_priors_gives_each_prior_its_own_sweep():
     """``sweep_distances`` shares the room-bound pass and the cost volume: each result equals the sweep run alone
@@ -276,6 +296,33 @@ def test_sweep_gate_keeps_a_confident_sweep_and_scales_by_the_frames_agreement()
     np.testing.assert_allclose(g, 0.0, atol=1e-6)
     with pytest.raises(ValueError, match="frame_agreement_low 0.8 must be below frame_agreement_high 0.6"):
         PriorParams(frame_agreement_low=0.8, frame_agreement_high=0.6)
+
+
+def test_the_frames_agreement_share_can_count_only_the_pixels_with_texture_above_the_noise():
+    """``frame_agreement_contrast``: flow and sweep agree on the textured half of C and disagree on its plain,
+    noisy half.  Over every pixel the share is 0.5 (no prior with the ramp 0.6-0.8); over the pixels whose contrast
+    above the noise is at least 4 gray levels it is 1 (the full prior).  Without a textured pixel: no prior."""
+    from reconstruction.methods.prior_sweep import contrast_above_noise, sweep_gate
+
+    rng = np.random.default_rng(2)
+    image = np.clip(128.0 + rng.normal(0.0, 3.0, (60, 120, 1)), 0, 255).astype(np.uint8).repeat(3, axis=2)
+    image[:, 60:] = rng.integers(0, 256, (60, 60, 1), dtype=np.uint8)
+    flow = np.full((60, 120), 2.0)
+    sweep = np.where(np.arange(120) < 60, 3.0, 2.0)[None, :].repeat(60, axis=0)
+    conf = np.zeros((60, 120), np.float32)
+    every = PriorParams(frame_agreement_low=0.6, frame_agreement_high=0.8)
+    textured = dataclasses.replace(every, frame_agreement_contrast=4.0)
+    np.testing.assert_allclose(sweep_gate(every, flow, sweep, conf, image), 0.0, atol=1e-6)
+    np.testing.assert_allclose(sweep_gate(textured, flow, sweep, conf, image), 1.0, atol=1e-6)
+    # the plain half's contrast is its noise: above the noise it is well below 4 gray levels, as it is not
+    c, above = contrast_above_noise(image, 3.0, 0.0), contrast_above_noise(image, 3.0)
+    assert np.median(c[:, 12:48]) > 2.0 and np.percentile(above[:, 12:48], 99) < 4.0
+    plain = np.full_like(image, 128)
+    np.testing.assert_allclose(sweep_gate(textured, flow, sweep, conf, plain), 0.0, atol=1e-6)
+    with pytest.raises(ValueError, match="needs C's image"):
+        sweep_gate(textured, flow, sweep, conf)
+    with pytest.raises(ValueError, match="frame_agreement_contrast must be >= 0"):
+        PriorParams(frame_agreement_contrast=-1.0)
 
 
 @pytest.mark.slow
