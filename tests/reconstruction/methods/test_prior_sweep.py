@@ -314,7 +314,7 @@ def test_the_frames_agreement_share_can_count_only_the_pixels_with_texture_above
     textured = dataclasses.replace(every, frame_agreement_contrast=4.0)
     np.testing.assert_allclose(sweep_gate(every, flow, sweep, conf, image), 0.0, atol=1e-6)
     np.testing.assert_allclose(sweep_gate(textured, flow, sweep, conf, image), 1.0, atol=1e-6)
-    # the plain half's contrast is its noise: above the noise it is well below 4 gray levels, as it is not
+    # the plain half's contrast as it is is its noise (above 2 gray levels); above the noise it is below 4
     c, above = contrast_above_noise(image, 3.0, 0.0), contrast_above_noise(image, 3.0)
     assert np.median(c[:, 12:48]) > 2.0 and np.percentile(above[:, 12:48], 99) < 4.0
     plain = np.full_like(image, 128)
