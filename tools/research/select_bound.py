@@ -30,7 +30,7 @@ from collections.abc import Sequence
 
 from reconstruction.methods.base import Method
 from reconstruction.methods.presets import fused_mirror
-from tools.research.select_fill import candidates_main, methods_to_compare
+from tools.research.select_fill import candidates_main, config_name, methods_to_compare
 
 __all__ = ["PROG", "REFERENCE", "CANDIDATES", "bound_method", "candidate_methods", "main"]
 
@@ -44,10 +44,6 @@ CANDIDATES: tuple[Config, ...] = ((1.0, 0.0), (2.0, 0.0), (4.0, 0.0), (2.0, 0.1)
 TITLE = "A match beyond the room bound: forbidden, or dearer and put on the floor"
 
 
-def _name(config: Config) -> str:
-    return "-".join(f"{x:g}" for x in config)
-
-
 def bound_method(penalty: float, min_az: float) -> Method:
     """The default method whose sweep adds ``penalty`` gray levels to a sphere label beyond the room bound and puts
     a pixel that still wins one on the floor or the ceiling found, at bearings whose |world Z| is at least
@@ -56,18 +52,18 @@ def bound_method(penalty: float, min_az: float) -> Method:
     base = fused_mirror()
     planes = dataclasses.replace(base.sweep.planes, bound_penalty=penalty, bound_penalty_min_az=min_az)
     sweep = dataclasses.replace(base.sweep, planes=planes)
-    return dataclasses.replace(base, sweep=sweep, label=f"{base.label}-bound-{_name((penalty, min_az))}")
+    return dataclasses.replace(base, sweep=sweep, label=f"{base.label}-bound-{config_name((penalty, min_az))}")
 
 
 def candidate_methods(names: Sequence[str] | None = None) -> list[Method]:
     """The reference (:data:`REFERENCE`), one :func:`bound_method` per candidate (``names``: these only, as
     ``<penalty>-<min_az>``) and the default (:func:`tools.research.select_fill.methods_to_compare`)."""
-    return methods_to_compare(bound_method, REFERENCE, CANDIDATES, _name, names)
+    return methods_to_compare(bound_method, REFERENCE, CANDIDATES, config_name, names)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    return candidates_main(PROG, __doc__, argv, candidate_methods, "<penalty>-<min_az>", [_name(c) for c in CANDIDATES],
-                           TITLE)
+    return candidates_main(PROG, __doc__, argv, candidate_methods, "<penalty>-<min_az>",
+                           [config_name(c) for c in CANDIDATES], TITLE)
 
 
 if __name__ == "__main__":

@@ -33,7 +33,7 @@ from collections.abc import Sequence
 
 from reconstruction.methods.base import Method
 from reconstruction.methods.presets import fused_mirror
-from tools.research.select_fill import candidates_main, methods_to_compare
+from tools.research.select_fill import candidates_main, config_name, methods_to_compare
 
 __all__ = ["PROG", "REFERENCE", "CANDIDATES", "confirm_method", "candidate_methods", "main"]
 
@@ -47,10 +47,6 @@ CANDIDATES: tuple[Config, ...] = ((1,),)
 TITLE = "A pre-pass rotation applied only when a full-resolution fit confirms it"
 
 
-def _name(config: Config) -> str:
-    return "-".join(f"{x:g}" for x in config)
-
-
 def confirm_method(confirm_factor: int) -> Method:
     """The default method whose rig fit (its flow's and, if it has one, its quality flow's) applies a rotation only
     when a flow pass on images reduced by ``confirm_factor`` confirms it
@@ -61,17 +57,17 @@ def confirm_method(confirm_factor: int) -> Method:
     quality = base.quality_flow
     return dataclasses.replace(base, flow=dataclasses.replace(base.flow, rig=rig),
                                quality_flow=None if quality is None else dataclasses.replace(quality, rig=rig),
-                               label=f"{base.label}-confirm-{_name((confirm_factor,))}")
+                               label=f"{base.label}-confirm-{config_name((confirm_factor,))}")
 
 
 def candidate_methods(names: Sequence[str] | None = None) -> list[Method]:
     """The reference (:data:`REFERENCE`), one :func:`confirm_method` per candidate (``names``: these only, as
     ``<f>``) and the default (:func:`tools.research.select_fill.methods_to_compare`)."""
-    return methods_to_compare(confirm_method, REFERENCE, CANDIDATES, _name, names)
+    return methods_to_compare(confirm_method, REFERENCE, CANDIDATES, config_name, names)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    return candidates_main(PROG, __doc__, argv, candidate_methods, "<f>", [_name(c) for c in CANDIDATES], TITLE)
+    return candidates_main(PROG, __doc__, argv, candidate_methods, "<f>", [config_name(c) for c in CANDIDATES], TITLE)
 
 
 if __name__ == "__main__":

@@ -30,7 +30,7 @@ from collections.abc import Sequence
 
 from reconstruction.methods.base import Method
 from reconstruction.methods.presets import fused_mirror
-from tools.research.select_fill import candidates_main, methods_to_compare
+from tools.research.select_fill import candidates_main, config_name, methods_to_compare
 
 __all__ = ["PROG", "REFERENCE", "CANDIDATES", "edges_method", "candidate_methods", "main"]
 
@@ -45,10 +45,6 @@ CANDIDATES: tuple[Config, ...] = ((4, 10.0, 3.0, 2), (7, 10.0, 5.0, 4), (7, 20.0
 TITLE = "Depth edges moved onto C's image edges"
 
 
-def _name(config: Config) -> str:
-    return "-".join(f"{x:g}" for x in config)
-
-
 def edges_method(radius_px: int, sigma_color: float, sigma_px: float, reach_px: int) -> Method:
     """The default method whose sweep moves the pixels within ``reach_px`` of a depth edge to the joint weighted
     median of their ``radius_px`` window (colour scale ``sigma_color``, spatial scale ``sigma_px``;
@@ -59,18 +55,18 @@ def edges_method(radius_px: int, sigma_color: float, sigma_px: float, reach_px: 
                                edge_sigma_px=sigma_px, edge_reach_px=reach_px)
     sweep = dataclasses.replace(base.sweep, post=post)
     return dataclasses.replace(base, sweep=sweep,
-                               label=f"{base.label}-edges-{_name((radius_px, sigma_color, sigma_px, reach_px))}")
+                               label=f"{base.label}-edges-{config_name((radius_px, sigma_color, sigma_px, reach_px))}")
 
 
 def candidate_methods(names: Sequence[str] | None = None) -> list[Method]:
     """The reference (:data:`REFERENCE`), one :func:`edges_method` per candidate (``names``: these only, as
     ``<r>-<c>-<s>-<reach>``) and the default (:func:`tools.research.select_fill.methods_to_compare`)."""
-    return methods_to_compare(edges_method, REFERENCE, CANDIDATES, _name, names)
+    return methods_to_compare(edges_method, REFERENCE, CANDIDATES, config_name, names)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     return candidates_main(PROG, __doc__, argv, candidate_methods, "<r>-<c>-<s>-<reach>",
-                           [_name(c) for c in CANDIDATES], TITLE)
+                           [config_name(c) for c in CANDIDATES], TITLE)
 
 
 if __name__ == "__main__":

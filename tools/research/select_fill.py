@@ -43,9 +43,9 @@ from reconstruction.methods.presets import fused_mirror
 from tools.common import cell, run_selection
 from tools.research.select_cost import evaluate_frames, frames_parser, pooled_mae, with_condition
 
-__all__ = ["PROG", "REFERENCE", "FAMILY_BOUND", "FRAME_BOUND", "MAX_LEVELS", "CANDIDATES", "fill_method",
-           "candidate_methods", "methods_to_compare", "region_table", "family_table", "frame_table", "choose",
-           "selection_markdown", "select", "candidates_main", "main"]
+__all__ = ["PROG", "REFERENCE", "FAMILY_BOUND", "FRAME_BOUND", "MAX_LEVELS", "CANDIDATES", "config_name",
+           "fill_method", "candidate_methods", "methods_to_compare", "region_table", "family_table", "frame_table",
+           "choose", "selection_markdown", "select", "candidates_main", "main"]
 
 PROG = "select_fill"
 TITLE = "Sweep resolution and the refill of the least confident pixels"
@@ -92,6 +92,12 @@ def fill_method(levels: int, min_confidence: float, sigma: float, space: str) ->
 def _same_as_default(method: Method) -> bool:
     mine, default = method.config(), fused_mirror().config()
     return {**mine, "label": None} == {**default, "label": None}
+
+
+def config_name(config: tuple) -> str:
+    """A candidate configuration of numbers as its name in labels and ``--candidates``: the values joined by ``-``
+    (``%g``: 2.0 -> ``2``, 0.05 -> ``0.05``)."""
+    return "-".join(f"{x:g}" for x in config)
 
 
 def methods_to_compare(build: Callable[..., Method], reference: tuple, candidates: Sequence[tuple],

@@ -29,7 +29,7 @@ from collections.abc import Sequence
 
 from reconstruction.methods.base import Method
 from reconstruction.methods.presets import fused_mirror
-from tools.research.select_fill import candidates_main, methods_to_compare
+from tools.research.select_fill import candidates_main, config_name, methods_to_compare
 
 __all__ = ["PROG", "REFERENCE", "CANDIDATES", "flat_method", "candidate_methods", "main"]
 
@@ -44,10 +44,6 @@ CANDIDATES: tuple[Config, ...] = ((0.7, 1.0), (1.0, 1.0), (1.0, 0.5))
 TITLE = "Less matching preference where C shows no texture above its noise"
 
 
-def _name(config: Config) -> str:
-    return "-".join(f"{x:g}" for x in config)
-
-
 def flat_method(flat_contrast: float, flat_weight: float) -> Method:
     """The default method whose sweep costs (``cost`` and ``corrected_cost``) move the costs of the pixels below
     ``flat_contrast`` times C's noise ``flat_weight`` of the way to their mean
@@ -58,17 +54,19 @@ def flat_method(flat_contrast: float, flat_weight: float) -> Method:
     values = {"flat_contrast": flat_contrast, "flat_weight": flat_weight}
     corrected = None if sweep.corrected_cost is None else dataclasses.replace(sweep.corrected_cost, **values)
     sweep = dataclasses.replace(sweep, cost=dataclasses.replace(sweep.cost, **values), corrected_cost=corrected)
-    return dataclasses.replace(base, sweep=sweep, label=f"{base.label}-flat-{_name((flat_contrast, flat_weight))}")
+    label = f"{base.label}-flat-{config_name((flat_contrast, flat_weight))}"
+    return dataclasses.replace(base, sweep=sweep, label=label)
 
 
 def candidate_methods(names: Sequence[str] | None = None) -> list[Method]:
     """The reference (:data:`REFERENCE`), one :func:`flat_method` per candidate (``names``: these only, as
     ``<k>-<w>``) and the default (:func:`tools.research.select_fill.methods_to_compare`)."""
-    return methods_to_compare(flat_method, REFERENCE, CANDIDATES, _name, names)
+    return methods_to_compare(flat_method, REFERENCE, CANDIDATES, config_name, names)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    return candidates_main(PROG, __doc__, argv, candidate_methods, "<k>-<w>", [_name(c) for c in CANDIDATES], TITLE)
+    return candidates_main(PROG, __doc__, argv, candidate_methods, "<k>-<w>",
+                           [config_name(c) for c in CANDIDATES], TITLE)
 
 
 if __name__ == "__main__":

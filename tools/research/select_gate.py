@@ -33,7 +33,7 @@ from collections.abc import Sequence
 
 from reconstruction.methods.base import Method
 from reconstruction.methods.presets import fused_mirror
-from tools.research.select_fill import candidates_main, methods_to_compare
+from tools.research.select_fill import candidates_main, config_name, methods_to_compare
 
 __all__ = ["PROG", "REFERENCE", "CANDIDATES", "gate_method", "candidate_methods", "main"]
 
@@ -49,10 +49,6 @@ CANDIDATES: tuple[Config, ...] = ((0.5, 0.0, 0.5, 0.7), (1.0, 0.0, 0.5, 0.7), (1
 TITLE = "The flow prior's gates: C's contrast as it is, or above its noise"
 
 
-def _name(config: Config) -> str:
-    return "-".join(f"{x:g}" for x in config)
-
-
 def gate_method(contrast_noise: float, agreement_contrast: float, low: float, high: float) -> Method:
     """The default method whose flow prior reads C's contrast above ``contrast_noise`` times C's noise in its
     per-pixel gate and counts only the pixels whose contrast above the noise is at least ``agreement_contrast`` gray
@@ -63,19 +59,19 @@ def gate_method(contrast_noise: float, agreement_contrast: float, low: float, hi
                                 frame_agreement_contrast=agreement_contrast, frame_agreement_low=low,
                                 frame_agreement_high=high)
     config = (contrast_noise, agreement_contrast, low, high)
-    return dataclasses.replace(base, prior=prior, label=f"{base.label}-gate-{_name(config)}")
+    return dataclasses.replace(base, prior=prior, label=f"{base.label}-gate-{config_name(config)}")
 
 
 def candidate_methods(names: Sequence[str] | None = None) -> list[Method]:
     """The reference (:data:`REFERENCE`), one :func:`gate_method` per candidate (``names``: these only, as
     ``<contrast_noise>-<agreement_contrast>-<low>-<high>``) and the default
     (:func:`tools.research.select_fill.methods_to_compare`)."""
-    return methods_to_compare(gate_method, REFERENCE, CANDIDATES, _name, names)
+    return methods_to_compare(gate_method, REFERENCE, CANDIDATES, config_name, names)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     return candidates_main(PROG, __doc__, argv, candidate_methods, "<contrast_noise>-<agreement_contrast>-<low>-"
-                           "<high>", [_name(c) for c in CANDIDATES], TITLE)
+                           "<high>", [config_name(c) for c in CANDIDATES], TITLE)
 
 
 if __name__ == "__main__":

@@ -30,7 +30,7 @@ from collections.abc import Sequence
 
 from reconstruction.methods.base import Method
 from reconstruction.methods.presets import fused_mirror
-from tools.research.select_fill import candidates_main, methods_to_compare
+from tools.research.select_fill import candidates_main, config_name, methods_to_compare
 
 __all__ = ["PROG", "REFERENCE", "CANDIDATES", "planes_method", "candidate_methods", "main"]
 
@@ -46,10 +46,6 @@ CANDIDATES: tuple[Config, ...] = ((9, 0.1, 0.25), (17, 0.2, 0.25), (0, 0.2, 0.05
 TITLE = "The floor and ceiling label families and the room bound"
 
 
-def _name(config: Config) -> str:
-    return "-".join(f"{x:g}" for x in config)
-
-
 def planes_method(room_labels: int, room_spread: float, bound_margin: float) -> Method:
     """The default method whose sweep has ``room_labels`` labels for the floor and as many for the ceiling spanning
     +- ``room_spread`` (:class:`reconstruction.sweep.planes.PlaneParams`) and the room bound ``bound_margin``
@@ -59,19 +55,19 @@ def planes_method(room_labels: int, room_spread: float, bound_margin: float) -> 
     planes = dataclasses.replace(base.sweep.planes, room_labels=room_labels, room_spread=room_spread,
                                  bound_margin=bound_margin)
     return dataclasses.replace(base, sweep=dataclasses.replace(base.sweep, planes=planes),
-                               label=f"{base.label}-planes-{_name((room_labels, room_spread, bound_margin))}")
+                               label=f"{base.label}-planes-{config_name((room_labels, room_spread, bound_margin))}")
 
 
 def candidate_methods(names: Sequence[str] | None = None) -> list[Method]:
     """The reference (:data:`REFERENCE`), one :func:`planes_method` per candidate (``names``: these only, as
     ``<room_labels>-<room_spread>-<bound_margin>``) and the default
     (:func:`tools.research.select_fill.methods_to_compare`)."""
-    return methods_to_compare(planes_method, REFERENCE, CANDIDATES, _name, names)
+    return methods_to_compare(planes_method, REFERENCE, CANDIDATES, config_name, names)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     return candidates_main(PROG, __doc__, argv, candidate_methods, "<room_labels>-<room_spread>-<bound_margin>",
-                           [_name(c) for c in CANDIDATES], TITLE)
+                           [config_name(c) for c in CANDIDATES], TITLE)
 
 
 if __name__ == "__main__":

@@ -30,7 +30,7 @@ from collections.abc import Sequence
 from reconstruction.methods.base import Method
 from reconstruction.methods.presets import fused_mirror
 from reconstruction.refine.planes import PlaneRefineParams
-from tools.research.select_fill import candidates_main, methods_to_compare
+from tools.research.select_fill import candidates_main, config_name, methods_to_compare
 
 __all__ = ["PROG", "REFERENCE", "CANDIDATES", "refine_planes_method", "candidate_methods", "main"]
 
@@ -42,10 +42,6 @@ REFERENCE: Config = (0.0, 0.0, 0.0)
 #: the candidates
 CANDIDATES: tuple[Config, ...] = ((0.005, 0.03, 0.06), (0.003, 0.03, 0.06), (0.005, 0.03, 0.09))
 TITLE = "Floor and ceiling searched again from the images"
-
-
-def _name(config: Config) -> str:
-    return "-".join(f"{x:g}" for x in config)
 
 
 def refine_planes_method(max_se: float, max_basin: float, snap: float) -> Method:
@@ -61,18 +57,18 @@ def refine_planes_method(max_se: float, max_basin: float, snap: float) -> Method
                                      max_basin=max_basin, snap=snap)
     sweep = dataclasses.replace(base.sweep, refine_planes=params)
     return dataclasses.replace(base, sweep=sweep,
-                               label=f"{base.label}-refine-planes-{_name((max_se, max_basin, snap))}")
+                               label=f"{base.label}-refine-planes-{config_name((max_se, max_basin, snap))}")
 
 
 def candidate_methods(names: Sequence[str] | None = None) -> list[Method]:
     """The reference (:data:`REFERENCE`), one :func:`refine_planes_method` per candidate (``names``: these only, as
     ``<se>-<basin>-<snap>``) and the default (:func:`tools.research.select_fill.methods_to_compare`)."""
-    return methods_to_compare(refine_planes_method, REFERENCE, CANDIDATES, _name, names)
+    return methods_to_compare(refine_planes_method, REFERENCE, CANDIDATES, config_name, names)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     return candidates_main(PROG, __doc__, argv, candidate_methods, "<se>-<basin>-<snap>",
-                           [_name(c) for c in CANDIDATES], TITLE)
+                           [config_name(c) for c in CANDIDATES], TITLE)
 
 
 if __name__ == "__main__":

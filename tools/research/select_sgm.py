@@ -30,7 +30,7 @@ from collections.abc import Sequence
 
 from reconstruction.methods.base import Method
 from reconstruction.methods.presets import fused_mirror
-from tools.research.select_fill import candidates_main, methods_to_compare
+from tools.research.select_fill import candidates_main, config_name, methods_to_compare
 
 __all__ = ["PROG", "REFERENCE", "CANDIDATES", "sgm_method", "candidate_methods", "main"]
 
@@ -45,10 +45,6 @@ CANDIDATES: tuple[Config, ...] = ((1200, 4), (1200, 8))
 TITLE = "The SGM jump penalty and the plane labels' preference"
 
 
-def _name(config: Config) -> str:
-    return "-".join(f"{x:g}" for x in config)
-
-
 def sgm_method(p2: int, bias: int) -> Method:
     """The default method whose sweep's SGM penalises a jump of more than one label by ``p2``
     (:class:`reconstruction.methods.sweep.SgmParams`) and prefers its plane labels by ``bias``
@@ -57,17 +53,18 @@ def sgm_method(p2: int, bias: int) -> Method:
     base = fused_mirror()
     sweep = dataclasses.replace(base.sweep, sgm=dataclasses.replace(base.sweep.sgm, p2=p2),
                                 planes=dataclasses.replace(base.sweep.planes, bias=bias))
-    return dataclasses.replace(base, sweep=sweep, label=f"{base.label}-sgm-{_name((p2, bias))}")
+    return dataclasses.replace(base, sweep=sweep, label=f"{base.label}-sgm-{config_name((p2, bias))}")
 
 
 def candidate_methods(names: Sequence[str] | None = None) -> list[Method]:
     """The reference (:data:`REFERENCE`), one :func:`sgm_method` per candidate (``names``: these only, as
     ``<p2>-<bias>``) and the default (:func:`tools.research.select_fill.methods_to_compare`)."""
-    return methods_to_compare(sgm_method, REFERENCE, CANDIDATES, _name, names)
+    return methods_to_compare(sgm_method, REFERENCE, CANDIDATES, config_name, names)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    return candidates_main(PROG, __doc__, argv, candidate_methods, "<p2>-<bias>", [_name(c) for c in CANDIDATES], TITLE)
+    return candidates_main(PROG, __doc__, argv, candidate_methods, "<p2>-<bias>",
+                           [config_name(c) for c in CANDIDATES], TITLE)
 
 
 if __name__ == "__main__":

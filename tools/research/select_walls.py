@@ -29,7 +29,7 @@ from collections.abc import Sequence
 
 from reconstruction.methods.base import Method
 from reconstruction.methods.presets import fused_mirror
-from tools.research.select_fill import candidates_main, methods_to_compare
+from tools.research.select_fill import candidates_main, config_name, methods_to_compare
 
 __all__ = ["PROG", "REFERENCE", "CANDIDATES", "walls_method", "candidate_methods", "main"]
 
@@ -43,10 +43,6 @@ CANDIDATES: tuple[Config, ...] = ((0.2, 0.03), (0.2, 0.05), (0.1, 0.03))
 TITLE = "What lies well beyond an enclosing wall put on it"
 
 
-def _name(config: Config) -> str:
-    return "-".join(f"{x:g}" for x in config)
-
-
 def walls_method(margin: float, share: float) -> Method:
     """The default method whose sweep puts the pixels more than ``margin`` (relative) beyond a wall on it when at
     most ``share`` of the pixels facing the wall lie beyond it (``margin`` 0: walls left alone), everything else the
@@ -54,18 +50,18 @@ def walls_method(margin: float, share: float) -> Method:
     base = fused_mirror()
     params = dataclasses.replace(base.sweep.refine_planes, wall_margin=margin, wall_max_share=share)
     sweep = dataclasses.replace(base.sweep, refine_planes=params)
-    return dataclasses.replace(base, sweep=sweep, label=f"{base.label}-walls-{_name((margin, share))}")
+    return dataclasses.replace(base, sweep=sweep, label=f"{base.label}-walls-{config_name((margin, share))}")
 
 
 def candidate_methods(names: Sequence[str] | None = None) -> list[Method]:
     """The reference (:data:`REFERENCE`), one :func:`walls_method` per candidate (``names``: these only, as
     ``<margin>-<share>``) and the default (:func:`tools.research.select_fill.methods_to_compare`)."""
-    return methods_to_compare(walls_method, REFERENCE, CANDIDATES, _name, names)
+    return methods_to_compare(walls_method, REFERENCE, CANDIDATES, config_name, names)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    return candidates_main(PROG, __doc__, argv, candidate_methods, "<margin>-<share>", [_name(c) for c in CANDIDATES],
-                           TITLE)
+    return candidates_main(PROG, __doc__, argv, candidate_methods, "<margin>-<share>",
+                           [config_name(c) for c in CANDIDATES], TITLE)
 
 
 if __name__ == "__main__":
