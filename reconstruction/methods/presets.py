@@ -177,7 +177,8 @@ def fused_mirror() -> PriorSweepMethod:
         prior=PriorParams(
             weight=16.0, truncate_levels=16.0, use_confidence=False, contrast_low=0.5, contrast_high=2.0,
             contrast_sigma_px=3.0, contrast_noise=0.0, sweep_confidence_power=1.0, agree_tolerance=0.05,
-            frame_agreement_low=0.5, frame_agreement_high=0.7, frame_agreement_contrast=0.0),
+            frame_agreement_low=0.5, frame_agreement_high=0.7, frame_agreement_contrast=0.0,
+            epipole_cone_deg=0.0, epipole_cone_noise_low=0.0, epipole_cone_noise_high=0.0),
         # the quality measures compare the distance with fused's refined flow distance (computed only when the
         # quality is assessed): on the dev split that ranks pixels by error better than the unrefined prior
         # (docs/real-captures.md)
@@ -239,7 +240,8 @@ def fused() -> PriorSweepMethod:
         prior=PriorParams(
             weight=16.0, truncate_levels=16.0, use_confidence=False, contrast_low=0.0, contrast_high=0.0,
             contrast_sigma_px=3.0, contrast_noise=0.0, sweep_confidence_power=0.0, agree_tolerance=0.05,
-            frame_agreement_low=0.0, frame_agreement_high=0.0, frame_agreement_contrast=0.0))
+            frame_agreement_low=0.0, frame_agreement_high=0.0, frame_agreement_contrast=0.0,
+            epipole_cone_deg=0.0, epipole_cone_noise_low=0.0, epipole_cone_noise_high=0.0))
 
 
 def sweep() -> SweepMethod:
@@ -321,7 +323,8 @@ def fused_mirror_raw() -> PriorSweepMethod:
         prior=PriorParams(
             weight=16.0, truncate_levels=16.0, use_confidence=False, contrast_low=0.5, contrast_high=2.0,
             contrast_sigma_px=3.0, contrast_noise=0.0, sweep_confidence_power=1.0, agree_tolerance=0.05,
-            frame_agreement_low=0.5, frame_agreement_high=0.7, frame_agreement_contrast=0.0),
+            frame_agreement_low=0.5, frame_agreement_high=0.7, frame_agreement_contrast=0.0,
+            epipole_cone_deg=0.0, epipole_cone_noise_low=0.0, epipole_cone_noise_high=0.0),
         quality_flow=FlowMethod(
             flow=dis, rectify=True, limits=limits, photometric=photometric, rig=rig,
             refine=RefineConfig(
@@ -381,7 +384,8 @@ def fused_mirror_told_rig() -> PriorSweepMethod:
         prior=PriorParams(
             weight=16.0, truncate_levels=16.0, use_confidence=False, contrast_low=0.5, contrast_high=2.0,
             contrast_sigma_px=3.0, contrast_noise=0.0, sweep_confidence_power=1.0, agree_tolerance=0.05,
-            frame_agreement_low=0.5, frame_agreement_high=0.7, frame_agreement_contrast=0.0),
+            frame_agreement_low=0.5, frame_agreement_high=0.7, frame_agreement_contrast=0.0,
+            epipole_cone_deg=0.0, epipole_cone_noise_low=0.0, epipole_cone_noise_high=0.0),
         quality_flow=FlowMethod(
             flow=dis, rectify=True, limits=limits, photometric=photometric, rig=rig,
             refine=RefineConfig(
@@ -437,7 +441,8 @@ def fused_mirror_raw_images() -> PriorSweepMethod:
         prior=PriorParams(
             weight=16.0, truncate_levels=16.0, use_confidence=False, contrast_low=0.5, contrast_high=2.0,
             contrast_sigma_px=3.0, contrast_noise=0.0, sweep_confidence_power=1.0, agree_tolerance=0.05,
-            frame_agreement_low=0.5, frame_agreement_high=0.7, frame_agreement_contrast=0.0),
+            frame_agreement_low=0.5, frame_agreement_high=0.7, frame_agreement_contrast=0.0,
+            epipole_cone_deg=0.0, epipole_cone_noise_low=0.0, epipole_cone_noise_high=0.0),
         quality_flow=FlowMethod(
             flow=dis, rectify=True, limits=limits, photometric=photometric, rig=rig,
             refine=RefineConfig(
@@ -497,7 +502,8 @@ def fused_mirror_shared_falloff() -> PriorSweepMethod:
         prior=PriorParams(
             weight=16.0, truncate_levels=16.0, use_confidence=False, contrast_low=0.5, contrast_high=2.0,
             contrast_sigma_px=3.0, contrast_noise=0.0, sweep_confidence_power=1.0, agree_tolerance=0.05,
-            frame_agreement_low=0.5, frame_agreement_high=0.7, frame_agreement_contrast=0.0),
+            frame_agreement_low=0.5, frame_agreement_high=0.7, frame_agreement_contrast=0.0,
+            epipole_cone_deg=0.0, epipole_cone_noise_low=0.0, epipole_cone_noise_high=0.0),
         quality_flow=FlowMethod(
             flow=dis, rectify=True, limits=limits, photometric=photometric, rig=rig,
             refine=RefineConfig(
@@ -554,7 +560,8 @@ def fused_gated() -> PriorSweepMethod:
         prior=PriorParams(
             weight=16.0, truncate_levels=16.0, use_confidence=False, contrast_low=0.5, contrast_high=2.0,
             contrast_sigma_px=3.0, contrast_noise=0.0, sweep_confidence_power=1.0, agree_tolerance=0.05,
-            frame_agreement_low=0.5, frame_agreement_high=0.7, frame_agreement_contrast=0.0),
+            frame_agreement_low=0.5, frame_agreement_high=0.7, frame_agreement_contrast=0.0,
+            epipole_cone_deg=0.0, epipole_cone_noise_low=0.0, epipole_cone_noise_high=0.0),
         # fused's refined flow distance, for the quality measures only (docs/real-captures.md)
         quality_flow=FlowMethod(
             flow=dis, rectify=True, limits=limits, photometric=photometric, rig=rig,
@@ -616,7 +623,8 @@ def fused_adaptive() -> PriorSweepMethod:
         prior=PriorParams(
             weight=16.0, truncate_levels=16.0, use_confidence=False, contrast_low=0.0, contrast_high=0.0,
             contrast_sigma_px=3.0, contrast_noise=0.0, sweep_confidence_power=0.0, agree_tolerance=0.05,
-            frame_agreement_low=0.6, frame_agreement_high=0.8, frame_agreement_contrast=0.0))
+            frame_agreement_low=0.6, frame_agreement_high=0.8, frame_agreement_contrast=0.0,
+            epipole_cone_deg=0.0, epipole_cone_noise_low=0.0, epipole_cone_noise_high=0.0))
 
 
 # ----------------------------------------------------------------------------------------------- the tables

@@ -26,6 +26,7 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
+from reconstruction.camera.equirect import bearing_grid
 from reconstruction.camera.image_ops import local_contrast
 from reconstruction.methods.base import MethodOutput
 from reconstruction.methods.flow_pipeline import FlowMethod, run_flow_group
@@ -33,7 +34,8 @@ from reconstruction.methods.self_calibration import Calibration
 from reconstruction.methods.sweep import Prior, PriorFromSweep, SgmParams, SweepMethod, sweep_distances
 from reconstruction.sweep.cost import FLAT_NOISE_SCALE, CostParams, gray_float, image_noise
 
-__all__ = ["PriorParams", "PriorSweepMethod", "contrast_above_noise", "default_sweep", "prior_weight", "sweep_gate"]
+__all__ = ["PriorParams", "PriorSweepMethod", "contrast_above_noise", "cone_floor", "default_sweep", "epipole_cone",
+           "prior_weight", "sweep_gate"]
 
 
 def default_sweep() -> SweepMethod:
@@ -81,6 +83,16 @@ class PriorParams:
             shows no texture the flow and the sweep agree by chance, and a camera's noise makes them disagree
             there, so the share over every pixel falls with the noise while the flow is no worse where it has
             texture to follow; 0 = every pixel counts.
+        epipole_cone_deg: within this angle (degrees) of the vertical pair's epipoles (C's bearings along the
+            baseline C -> U, up or down: the ceiling and the floor below the rig) the frame's agreement factor is
+            not applied, the per-pixel factors are: there only the other pair has parallax, and the sweep alone
+            locks onto a period of a tiled floor that the flow's coarse-to-fine distance keeps, while the frame's
+            share falls with a camera's noise elsewhere; 0 = the frame's factor everywhere.
+        epipole_cone_noise_low, epipole_cone_noise_high: the cone spares the frame's factor in proportion to the
+            rig's noise (the largest of the three images' :func:`reconstruction.sweep.cost.image_noise` at
+            :data:`reconstruction.sweep.cost.FLAT_NOISE_SCALE`, gray levels), from not at all at ``low`` to fully
+            at ``high`` (the factor there is ``max(frame factor, that share)``): on a rig with noise-free cameras
+            a low share says the flow is wrong, not the noise; ``high`` 0 = fully on every frame.
     """
 
     weight: float = 16.0
@@ -95,15 +107,21 @@ class PriorParams:
     frame_agreement_low: float = 0.0
     frame_agreement_high: float = 0.0
     frame_agreement_contrast: float = 0.0
+    epipole_cone_deg: float = 0.0
+    epipole_cone_noise_low: float = 0.0
+    epipole_cone_noise_high: float = 0.0
 
     def __post_init__(self):
-        for low, high in (("contrast_low", "contrast_high"), ("frame_agreement_low", "frame_agreement_high")):
+        for low, high in (("contrast_low", "contrast_high"), ("frame_agreement_low", "frame_agreement_high"),
+                          ("epipole_cone_noise_low", "epipole_cone_noise_high")):
             lo, hi = getattr(self, low), getattr(self, high)
             if hi > 0 and not lo < hi:
                 raise ValueError(f"{low} {lo} must be below {high} {hi}")
         for name in ("contrast_noise", "frame_agreement_contrast"):
             if not getattr(self, name) >= 0:
                 raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}")
+        if not 0.0 <= self.epipole_cone_deg < 90.0:
+            raise ValueError(f"epipole_cone_deg must be in [0, 90), got {self.epipole_cone_deg}")
 
     @property
     def needs_plain_sweep(self) -> bool:
@@ -147,14 +165,55 @@ def prior_weight(params: PriorParams, image: np.ndarray, confidence: np.ndarray 
     return w
 
 
+def epipole_cone(width: int, height: int, c_position, c_rotation, other_position, cone_deg: float) -> np.ndarray:
+    """C's pixels whose bearing lies within ``cone_deg`` of the baseline C -> other or of its opposite (the pair's
+    two epipoles).
+
+    Args:
+        width, height: C's image size, pixels; c_position, other_position: (3,) camera centres, metres (world);
+        c_rotation: (3, 3) C's world-from-camera rotation; cone_deg: half-angle, degrees (0: no pixel).
+    Returns:
+        (H, W) bool.
+    """
+    t = np.asarray(other_position, np.float64) - np.asarray(c_position, np.float64)
+    norm = np.linalg.norm(t)
+    if not norm > 0:
+        raise ValueError("the other camera coincides with C: no baseline direction")
+    if cone_deg <= 0:
+        return np.zeros((height, width), bool)
+    cos_angle = bearing_grid(width, height, c_rotation) @ (t / norm)
+    return np.abs(cos_angle) > np.cos(np.deg2rad(cone_deg))
+
+
+def cone_floor(params: PriorParams, frame) -> np.ndarray:
+    """The least the frame's agreement factor may be at each of C's pixels (:class:`PriorParams`
+    ``epipole_cone_*``): the rig's noise share inside U's epipole cone, 0 outside.
+
+    Args:
+        frame: the frame (its cameras C and U placed, its images C, R, U: (H, W, 3) uint8).
+    Returns:
+        (H, W) float32 in [0, 1].
+    """
+    c = frame.cameras["C"]
+    cone = epipole_cone(frame.width, frame.height, c.position, c.rotation, frame.cameras["U"].position,
+                        params.epipole_cone_deg)
+    share = 1.0
+    lo, hi = params.epipole_cone_noise_low, params.epipole_cone_noise_high
+    if hi > 0:
+        noise = max(image_noise(frame.images[k], FLAT_NOISE_SCALE) for k in ("C", "R", "U"))
+        share = float(np.clip((noise - lo) / (hi - lo), 0.0, 1.0))
+    return np.where(cone, np.float32(share), np.float32(0.0))
+
+
 def sweep_gate(params: PriorParams, flow_m: np.ndarray, sweep_m: np.ndarray, sweep_conf: np.ndarray,
-               image: np.ndarray | None = None) -> np.ndarray:
+               image: np.ndarray | None = None, floor: np.ndarray | None = None) -> np.ndarray:
     """The factor of the prior's weight that depends on the plain sweep (:class:`PriorParams`).
 
     Args:
         flow_m, sweep_m: (H, W) flow and plain-sweep distances, metres; sweep_conf: (H, W) sweep confidence in
             [0, 1]; image: (H, W, 3) uint8 image of C, needed when ``frame_agreement_contrast`` counts only its
-            textured pixels in the frame's agreement share (ValueError without it).
+            textured pixels in the frame's agreement share (ValueError without it); floor: (H, W) float32 in [0, 1],
+            the least the frame's agreement factor may be at each pixel (:func:`cone_floor`), or None (0).
     Returns:
         (H, W) float32 in [0, 1].
     """
@@ -174,7 +233,8 @@ def sweep_gate(params: PriorParams, flow_m: np.ndarray, sweep_m: np.ndarray, swe
             # a frame without a textured pixel has no evidence for the flow: no prior
             counted = agree[textured] if textured.any() else np.zeros(1, bool)
         lo, hi = params.frame_agreement_low, params.frame_agreement_high
-        g *= np.float32(np.clip((counted.mean() - lo) / (hi - lo), 0.0, 1.0))
+        factor = np.float32(np.clip((counted.mean() - lo) / (hi - lo), 0.0, 1.0))
+        g *= factor if floor is None else np.maximum(floor, factor)
     return g
 
 
@@ -254,9 +314,10 @@ class PriorSweepMethod:
                 flow = flow_outputs[m.flow.label]
                 weight = prior_weight(m.prior, frame.images["C"], flow.confidence)
                 if m.prior.needs_plain_sweep:
+                    floor = cone_floor(m.prior, frame) if m.prior.epipole_cone_deg > 0 else None
                     priors.append(PriorFromSweep(lambda d_s, c_s, m=m, d=flow.distance, w=weight,
-                                                 image=frame.images["C"]:
-                                                 Prior(d, w * sweep_gate(m.prior, d, d_s, c_s, image),
+                                                 image=frame.images["C"], floor=floor:
+                                                 Prior(d, w * sweep_gate(m.prior, d, d_s, c_s, image, floor),
                                                        m.prior.truncate_levels)))
                 else:
                     priors.append(Prior(flow.distance, weight, m.prior.truncate_levels))

@@ -325,6 +325,57 @@ def test_the_frames_agreement_share_can_count_only_the_pixels_with_texture_above
         PriorParams(frame_agreement_contrast=-1.0)
 
 
+def test_the_epipole_cone_is_the_pixels_near_the_baseline_both_ways():
+    """Camera C level at the origin, U 0.4 m straight above: the cone of 20 degrees is the top and bottom 20 degrees
+    of latitude (rows), for any yaw of C; a tilted baseline moves it; 0 degrees is no pixel."""
+    from reconstruction.methods.prior_sweep import epipole_cone
+
+    w, h = 72, 36  # 5 degrees per pixel; row centres at latitude 87.5, 82.5, ...
+    yaw = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+    for rot in (np.eye(3), yaw):
+        cone = epipole_cone(w, h, [0, 0, 0], rot, [0, 0, 0.4], 20.0)
+        lat = 90.0 - 5.0 * (np.arange(h) + 0.5)
+        np.testing.assert_array_equal(cone, np.repeat((np.abs(lat) > 70.0)[:, None], w, axis=1))
+    assert not epipole_cone(w, h, [0, 0, 0], np.eye(3), [0, 0, 0.4], 0.0).any()
+    # the baseline along camera +X (longitude 90 degrees at the horizon): the pixels around (row 17-18, column 54)
+    side = epipole_cone(w, h, [1, 2, 3], np.eye(3), [1.4, 2, 3], 10.0)
+    assert side[17:19, 53:56].all() and side[17:19, 17:20].all() and not side[:10].any() and side.sum() < 0.05 * w * h
+    with pytest.raises(ValueError, match="coincides"):
+        epipole_cone(w, h, [0, 0, 0], np.eye(3), [0, 0, 0], 10.0)
+    with pytest.raises(ValueError, match="epipole_cone_deg must be in"):
+        PriorParams(epipole_cone_deg=90.0)
+
+
+def test_the_cone_floor_spares_the_frames_agreement_factor_in_proportion_to_the_rigs_noise():
+    """``sweep_gate``'s floor: the frame's factor is at least the floor, the per-pixel factor still applies;
+    ``cone_floor``: the rig's noise share inside U's cone, 0 outside; with a noise ramp a noise-free rig gets 0, a
+    noisy one 1, and the noisiest image of the three decides."""
+    from reconstruction.methods.prior_sweep import cone_floor, sweep_gate
+
+    flow = np.full((2, 4), 2.0)
+    sweep = np.array([[2.0, 2.05, 3.0, 3.0], [2.0, 2.0, 3.0, 3.0]])  # 4 of 8 agree: no prior with the ramp 0.6-0.8
+    conf = np.array([[0.0, 0.0, 1.0, 0.5], [1.0, 1.0, 0.0, 0.5]])
+    floor = np.array([[1.0, 0.0, 1.0, 1.0], [0.5, 0.0, 0.0, 0.0]], np.float32)
+    p = PriorParams(sweep_confidence_power=2.0, frame_agreement_low=0.6, frame_agreement_high=0.8)
+    g = sweep_gate(p, flow, sweep, conf, floor=floor)
+    np.testing.assert_allclose(g, [[1, 0, 0, 0.25], [0.5, 0, 0, 0]], atol=1e-6)
+    np.testing.assert_allclose(sweep_gate(p, flow, sweep, conf), 0.0, atol=1e-6)
+
+    f = make_synthetic_frame(80)  # U straight above C
+    rng = np.random.default_rng(0)
+    plain = {k: np.full_like(v, 128) for k, v in f.images.items()}
+    noisy = dict(plain, R=np.clip(128.0 + rng.normal(0.0, 4.0, plain["R"].shape), 0, 255).astype(np.uint8))
+    lat = 90.0 - 180.0 * (np.arange(f.height) + 0.5) / f.height
+    inside = np.repeat((np.abs(lat) > 70.0)[:, None], f.width, axis=1)
+    always = PriorParams(epipole_cone_deg=20.0)
+    ramp = dataclasses.replace(always, epipole_cone_noise_low=0.6, epipole_cone_noise_high=1.2)
+    np.testing.assert_array_equal(cone_floor(always, dataclasses.replace(f, images=plain)), inside.astype(np.float32))
+    np.testing.assert_array_equal(cone_floor(ramp, dataclasses.replace(f, images=plain)), 0.0)
+    np.testing.assert_array_equal(cone_floor(ramp, dataclasses.replace(f, images=noisy)), inside.astype(np.float32))
+    with pytest.raises(ValueError, match="epipole_cone_noise_low 1.2 must be below epipole_cone_noise_high 0.6"):
+        PriorParams(epipole_cone_noise_low=1.2, epipole_cone_noise_high=0.6)
+
+
 @pytest.mark.slow
 def test_a_frame_whose_flow_disagrees_with_the_coarse_sweep_gets_the_plain_sweep():
     """The gate uses the coarse room-bound pass (no extra aggregation); when the frame's agreement is below the
