@@ -85,9 +85,10 @@ class PriorParams:
             texture to follow; 0 = every pixel counts.
         epipole_cone_deg: within this angle (degrees) of the vertical pair's epipoles (C's bearings along the
             baseline C -> U, up or down: the ceiling and the floor below the rig) the frame's agreement factor is
-            not applied, the per-pixel factors are: there only the other pair has parallax, and the sweep alone
-            locks onto a period of a tiled floor that the flow's coarse-to-fine distance keeps, while the frame's
-            share falls with a camera's noise elsewhere; 0 = the frame's factor everywhere.
+            at least a floor (the next two fields; :func:`cone_floor`), the per-pixel factors still apply: there
+            only the other pair has parallax, and the sweep alone locks onto a period of a tiled floor that the
+            flow's coarse-to-fine distance keeps, while the frame's share falls with a camera's noise elsewhere;
+            0 = the frame's factor everywhere (so too without the frame's gate, ``frame_agreement_high`` 0).
         epipole_cone_noise_low, epipole_cone_noise_high: the cone spares the frame's factor in proportion to the
             rig's noise (the largest of the three images' :func:`reconstruction.sweep.cost.image_noise` at
             :data:`reconstruction.sweep.cost.FLAT_NOISE_SCALE`, gray levels), from not at all at ``low`` to fully

@@ -11,16 +11,15 @@ Run as::
 camera condition: a camera's noise is what these settings are about). The methods: the reference :data:`REFERENCE`
 (``fused-mirror-gate-0-0-0.5-0.7-0-0-0``, the default before this choice), one
 ``fused-mirror-gate-<contrast_noise>-<agreement_contrast>-<low>-<high>-<cone>-<noise_low>-<noise_high>`` per
-candidate of :data:`CANDIDATES`
-(``--candidates``: these only; the fields of :class:`reconstruction.methods.prior_sweep.PriorParams`
-``contrast_noise`` (the per-pixel gate reads C's contrast above that many times its noise), ``frame_agreement_
-contrast`` (the frame's agreement share counts only the pixels whose contrast above the noise is at least that
-many gray levels), ``frame_agreement_low``, ``frame_agreement_high``, ``epipole_cone_deg`` (within that many
-degrees of the C -> U baseline, up or down, the frame's agreement factor is spared), ``epipole_cone_noise_low`` and
-``epipole_cone_noise_high`` (in proportion to the rig's noise between them, gray levels; 0-0: fully); everything else
-the default's) and the
-default ``fused-mirror`` as registered (a candidate or the reference configured as the default stands for it, not
-run twice). ``DIR`` becomes a results set (``tri360 evaluate``'s, without the report) plus ``selection.md`` and
+candidate of :data:`CANDIDATES` (``--candidates``: these only; the fields of
+:class:`reconstruction.methods.prior_sweep.PriorParams` ``contrast_noise`` (the per-pixel gate reads C's contrast
+above that many times its noise), ``frame_agreement_contrast`` (the frame's agreement share counts only the pixels
+whose contrast above the noise is at least that many gray levels), ``frame_agreement_low``,
+``frame_agreement_high``, ``epipole_cone_deg`` (within that many degrees of the C -> U baseline, up or down, the
+frame's agreement factor is spared), ``epipole_cone_noise_low`` and ``epipole_cone_noise_high`` (in proportion to
+the rig's noise between them, gray levels; 0-0: fully); everything else the default's) and the default
+``fused-mirror`` as registered (a candidate or the reference configured as the default stands for it, not run
+twice). ``DIR`` becomes a results set (``tri360 evaluate``'s, without the report) plus ``selection.md`` and
 ``selection.json``, as ``python -m tools.research.select_fill`` writes them, with the same rule
 (:func:`tools.research.select_fill.choose`).
 """
@@ -54,7 +53,7 @@ CANDIDATES: tuple[Config, ...] = (
     (0.5, 0.0, 0.5, 0.7, 0.0, 0.0, 0.0), (1.0, 0.0, 0.5, 0.7, 0.0, 0.0, 0.0), (1.5, 0.0, 0.5, 0.7, 0.0, 0.0, 0.0),
     (0.0, 4.0, 0.5, 0.7, 0.0, 0.0, 0.0), (0.0, 4.0, 0.45, 0.65, 0.0, 0.0, 0.0), (0.0, 4.0, 0.4, 0.6, 0.0, 0.0, 0.0),
     (0.0, 0.0, 0.5, 0.7, 20.0, 0.0, 0.0), (0.0, 0.0, 0.5, 0.7, 10.0, 0.6, 1.2), (0.0, 0.0, 0.5, 0.7, 20.0, 0.6, 1.2),
-    (0.0, 0.0, 0.5, 0.7, 30.0, 0.6, 1.2))
+    (1.0, 0.0, 0.5, 0.7, 10.0, 0.6, 1.2), (1.0, 0.0, 0.5, 0.7, 20.0, 0.6, 1.2), (1.0, 0.0, 0.5, 0.7, 30.0, 0.6, 1.2))
 TITLE = "The flow prior's gates: C's contrast as it is or above its noise; the frame's factor at U's epipoles"
 
 
