@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from reconstruction.camera.equirect import bearing_grid, pixel_to_lonlat
+from reconstruction.camera.equirect import baseline_cosine, pixel_to_lonlat
 from reconstruction.camera.image_ops import dilate_wrapped, grey, sobel_gradient
 
 __all__ = [
@@ -543,13 +543,8 @@ def angle_to_baseline_deg(frame, other: str) -> np.ndarray:
     """
 
     c = frame.cameras["C"]
-    t = np.asarray(frame.cameras[other].position, dtype=np.float64) - np.asarray(c.position, dtype=np.float64)
-    norm = np.linalg.norm(t)
-    if not norm > 0:
-        raise ValueError(f"camera {other} coincides with camera C: no baseline direction")
-    bearings = bearing_grid(frame.width, frame.height, c.rotation)  # (H, W, 3) unit, world frame
-    cosang = np.clip(bearings @ (t / norm), -1.0, 1.0)
-    return np.degrees(np.arccos(cosang))
+    return np.degrees(np.arccos(baseline_cosine(frame.width, frame.height, c.rotation, c.position,
+                                                frame.cameras[other].position, other)))
 
 
 def texture_magnitude(image) -> np.ndarray:

@@ -19,6 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = [
+    "baseline_cosine",
     "pixel_to_lonlat",
     "lonlat_to_pixel",
     "lonlat_to_bearing",
@@ -106,6 +107,25 @@ def bearing_grid(width: int, height: int, rotation=None, dtype=np.float64):
     if rotation is not None:
         b = b @ np.asarray(rotation, dtype=np.float64).T
     return b.astype(dtype, copy=False)
+
+
+def baseline_cosine(width: int, height: int, rotation, position, other_position, other: str = "other") -> np.ndarray:
+    """Cosine of the angle between each pixel's bearing of a posed camera and its baseline to another camera.
+
+    Args:
+        width, height: the camera's image size, pixels; rotation: (3, 3) its world-from-camera rotation;
+        position, other_position: (3,) the two camera centres, metres (world); other: the other camera's name, for
+            the error.
+    Returns:
+        (H, W) float64 in [-1, 1]; 1 = looking straight at the other camera (its epipole), -1 = straight away.
+    Raises:
+        ValueError: the two centres coincide (no baseline direction).
+    """
+    t = np.asarray(other_position, dtype=np.float64) - np.asarray(position, dtype=np.float64)
+    norm = np.linalg.norm(t)
+    if not norm > 0:
+        raise ValueError(f"camera {other} coincides with camera C: no baseline direction")
+    return np.clip(bearing_grid(width, height, rotation) @ (t / norm), -1.0, 1.0)
 
 
 def project(points, position, rotation, width: int, height: int):

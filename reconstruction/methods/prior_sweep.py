@@ -26,7 +26,7 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from reconstruction.camera.equirect import bearing_grid
+from reconstruction.camera.equirect import baseline_cosine
 from reconstruction.camera.image_ops import local_contrast
 from reconstruction.methods.base import MethodOutput
 from reconstruction.methods.flow_pipeline import FlowMethod, run_flow_group
@@ -175,15 +175,11 @@ def epipole_cone(width: int, height: int, c_position, c_rotation, other_position
         c_rotation: (3, 3) C's world-from-camera rotation; cone_deg: half-angle, degrees (0: no pixel).
     Returns:
         (H, W) bool.
+    Raises:
+        ValueError: the two centres coincide (:func:`reconstruction.camera.equirect.baseline_cosine`).
     """
-    t = np.asarray(other_position, np.float64) - np.asarray(c_position, np.float64)
-    norm = np.linalg.norm(t)
-    if not norm > 0:
-        raise ValueError("the other camera coincides with C: no baseline direction")
-    if cone_deg <= 0:
-        return np.zeros((height, width), bool)
-    cos_angle = bearing_grid(width, height, c_rotation) @ (t / norm)
-    return np.abs(cos_angle) > np.cos(np.deg2rad(cone_deg))
+    cos_angle = baseline_cosine(width, height, c_rotation, c_position, other_position)
+    return np.abs(cos_angle) > np.cos(np.deg2rad(cone_deg)) if cone_deg > 0 else np.zeros((height, width), bool)
 
 
 def cone_floor(params: PriorParams, frame) -> np.ndarray:
