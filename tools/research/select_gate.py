@@ -1,5 +1,7 @@
-"""Choose how the flow prior's gates read C's texture (the contrast as it is, or above C's noise) and whether the
-frame's agreement factor spares the vertical pair's epipoles.
+"""Choose how the flow prior's gates read C's texture and whether the frame's factor spares U's epipoles.
+
+Whether the per-pixel gate reads C's contrast as it is or above C's noise, and whether the frame's agreement factor
+spares the vertical pair's epipoles.
 
 Run as::
 
