@@ -176,7 +176,8 @@ def fused_mirror() -> PriorSweepMethod:
         # ramped from 0 at 50 % to full at 70 % (chosen on the dev split, docs/matching.md)
         prior=PriorParams(
             weight=16.0, truncate_levels=16.0, use_confidence=False, contrast_low=0.5, contrast_high=2.0,
-            contrast_sigma_px=3.0, contrast_noise=0.0, sweep_confidence_power=1.0, agree_tolerance=0.05,
+            contrast_sigma_px=3.0, contrast_noise=0.0, contrast_blur=0.0, contrast_blur_floor=0.0,
+            contrast_max_blur_px=3.0, sweep_confidence_power=1.0, agree_tolerance=0.05,
             frame_agreement_low=0.5, frame_agreement_high=0.7, frame_agreement_contrast=0.0,
             epipole_cone_deg=0.0, epipole_cone_noise_low=0.0, epipole_cone_noise_high=0.0),
         # the quality measures compare the distance with fused's refined flow distance (computed only when the
@@ -239,7 +240,8 @@ def fused() -> PriorSweepMethod:
                             edge_jump=0.05, edge_reach_px=4)),
         prior=PriorParams(
             weight=16.0, truncate_levels=16.0, use_confidence=False, contrast_low=0.0, contrast_high=0.0,
-            contrast_sigma_px=3.0, contrast_noise=0.0, sweep_confidence_power=0.0, agree_tolerance=0.05,
+            contrast_sigma_px=3.0, contrast_noise=0.0, contrast_blur=0.0, contrast_blur_floor=0.0,
+            contrast_max_blur_px=3.0, sweep_confidence_power=0.0, agree_tolerance=0.05,
             frame_agreement_low=0.0, frame_agreement_high=0.0, frame_agreement_contrast=0.0,
             epipole_cone_deg=0.0, epipole_cone_noise_low=0.0, epipole_cone_noise_high=0.0))
 
@@ -322,7 +324,8 @@ def fused_mirror_raw() -> PriorSweepMethod:
                             edge_jump=0.05, edge_reach_px=4)),
         prior=PriorParams(
             weight=16.0, truncate_levels=16.0, use_confidence=False, contrast_low=0.5, contrast_high=2.0,
-            contrast_sigma_px=3.0, contrast_noise=0.0, sweep_confidence_power=1.0, agree_tolerance=0.05,
+            contrast_sigma_px=3.0, contrast_noise=0.0, contrast_blur=0.0, contrast_blur_floor=0.0,
+            contrast_max_blur_px=3.0, sweep_confidence_power=1.0, agree_tolerance=0.05,
             frame_agreement_low=0.5, frame_agreement_high=0.7, frame_agreement_contrast=0.0,
             epipole_cone_deg=0.0, epipole_cone_noise_low=0.0, epipole_cone_noise_high=0.0),
         quality_flow=FlowMethod(
@@ -383,7 +386,8 @@ def fused_mirror_told_rig() -> PriorSweepMethod:
                 flat_contrast=1.0, flat_weight=0.5, flat_sigma_px=2.0, flat_min_noise=0.5)),
         prior=PriorParams(
             weight=16.0, truncate_levels=16.0, use_confidence=False, contrast_low=0.5, contrast_high=2.0,
-            contrast_sigma_px=3.0, contrast_noise=0.0, sweep_confidence_power=1.0, agree_tolerance=0.05,
+            contrast_sigma_px=3.0, contrast_noise=0.0, contrast_blur=0.0, contrast_blur_floor=0.0,
+            contrast_max_blur_px=3.0, sweep_confidence_power=1.0, agree_tolerance=0.05,
             frame_agreement_low=0.5, frame_agreement_high=0.7, frame_agreement_contrast=0.0,
             epipole_cone_deg=0.0, epipole_cone_noise_low=0.0, epipole_cone_noise_high=0.0),
         quality_flow=FlowMethod(
@@ -440,7 +444,8 @@ def fused_mirror_raw_images() -> PriorSweepMethod:
                             edge_jump=0.05, edge_reach_px=4)),
         prior=PriorParams(
             weight=16.0, truncate_levels=16.0, use_confidence=False, contrast_low=0.5, contrast_high=2.0,
-            contrast_sigma_px=3.0, contrast_noise=0.0, sweep_confidence_power=1.0, agree_tolerance=0.05,
+            contrast_sigma_px=3.0, contrast_noise=0.0, contrast_blur=0.0, contrast_blur_floor=0.0,
+            contrast_max_blur_px=3.0, sweep_confidence_power=1.0, agree_tolerance=0.05,
             frame_agreement_low=0.5, frame_agreement_high=0.7, frame_agreement_contrast=0.0,
             epipole_cone_deg=0.0, epipole_cone_noise_low=0.0, epipole_cone_noise_high=0.0),
         quality_flow=FlowMethod(
@@ -501,7 +506,8 @@ def fused_mirror_shared_falloff() -> PriorSweepMethod:
                 flat_contrast=1.0, flat_weight=0.5, flat_sigma_px=2.0, flat_min_noise=0.5)),
         prior=PriorParams(
             weight=16.0, truncate_levels=16.0, use_confidence=False, contrast_low=0.5, contrast_high=2.0,
-            contrast_sigma_px=3.0, contrast_noise=0.0, sweep_confidence_power=1.0, agree_tolerance=0.05,
+            contrast_sigma_px=3.0, contrast_noise=0.0, contrast_blur=0.0, contrast_blur_floor=0.0,
+            contrast_max_blur_px=3.0, sweep_confidence_power=1.0, agree_tolerance=0.05,
             frame_agreement_low=0.5, frame_agreement_high=0.7, frame_agreement_contrast=0.0,
             epipole_cone_deg=0.0, epipole_cone_noise_low=0.0, epipole_cone_noise_high=0.0),
         quality_flow=FlowMethod(
@@ -559,7 +565,8 @@ def fused_gated() -> PriorSweepMethod:
         # agreement share ramped from 0 at 50 % to full at 70 % (as fused-mirror's, which took it from here)
         prior=PriorParams(
             weight=16.0, truncate_levels=16.0, use_confidence=False, contrast_low=0.5, contrast_high=2.0,
-            contrast_sigma_px=3.0, contrast_noise=0.0, sweep_confidence_power=1.0, agree_tolerance=0.05,
+            contrast_sigma_px=3.0, contrast_noise=0.0, contrast_blur=0.0, contrast_blur_floor=0.0,
+            contrast_max_blur_px=3.0, sweep_confidence_power=1.0, agree_tolerance=0.05,
             frame_agreement_low=0.5, frame_agreement_high=0.7, frame_agreement_contrast=0.0,
             epipole_cone_deg=0.0, epipole_cone_noise_low=0.0, epipole_cone_noise_high=0.0),
         # fused's refined flow distance, for the quality measures only (docs/real-captures.md)
@@ -622,7 +629,8 @@ def fused_adaptive() -> PriorSweepMethod:
         # 5 %: 0 below 60 %, full above 80 %
         prior=PriorParams(
             weight=16.0, truncate_levels=16.0, use_confidence=False, contrast_low=0.0, contrast_high=0.0,
-            contrast_sigma_px=3.0, contrast_noise=0.0, sweep_confidence_power=0.0, agree_tolerance=0.05,
+            contrast_sigma_px=3.0, contrast_noise=0.0, contrast_blur=0.0, contrast_blur_floor=0.0,
+            contrast_max_blur_px=3.0, sweep_confidence_power=0.0, agree_tolerance=0.05,
             frame_agreement_low=0.6, frame_agreement_high=0.8, frame_agreement_contrast=0.0,
             epipole_cone_deg=0.0, epipole_cone_noise_low=0.0, epipole_cone_noise_high=0.0))
 

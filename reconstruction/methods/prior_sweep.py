@@ -32,7 +32,7 @@ from reconstruction.methods.base import MethodOutput
 from reconstruction.methods.flow_pipeline import FlowMethod, run_flow_group
 from reconstruction.methods.self_calibration import Calibration
 from reconstruction.methods.sweep import Prior, PriorFromSweep, SgmParams, SweepMethod, sweep_distances
-from reconstruction.sweep.cost import FLAT_NOISE_SCALE, CostParams, gray_float, image_noise
+from reconstruction.sweep.cost import FLAT_NOISE_SCALE, CostParams, blur_for_noise, gray_float, image_noise
 
 __all__ = ["PriorParams", "PriorSweepMethod", "contrast_above_noise", "cone_floor", "default_sweep", "epipole_cone",
            "prior_weight", "sweep_gate"]
@@ -70,6 +70,11 @@ class PriorParams:
             :data:`reconstruction.sweep.cost.FLAT_NOISE_SCALE`, where what JPEG coding leaves of the noise still
             shows): a camera's noise alone opens the gate on a plain wall, where the flow has nothing to follow;
             0 = the contrast as it is.
+        contrast_blur, contrast_blur_floor, contrast_max_blur_px: the gate reads the contrast of C's gray image
+            blurred (Gaussian sigma) by ``contrast_blur * (n - contrast_blur_floor)`` pixels, at most
+            ``contrast_max_blur_px`` (:func:`reconstruction.sweep.cost.blur_for_noise`; ``n`` as above, in gray
+            levels): a blur takes a camera's noise out of the contrast and leaves the texture the flow follows, and
+            on a noise-free rendering it is no blur at all; ``contrast_blur`` in pixels per gray level, 0 = off.
         sweep_confidence_power: k > 0: where the flow and the plain sweep (the coarse room-bound pass, no prior,
             upsampled: no extra aggregation) disagree by more than ``agree_tolerance`` (relative), the weight is
             scaled by ``(1 - c_sweep)^k``, ``c_sweep`` the plain sweep's confidence: a confident sweep keeps its
@@ -103,6 +108,9 @@ class PriorParams:
     contrast_high: float = 0.0
     contrast_sigma_px: float = 3.0
     contrast_noise: float = 0.0
+    contrast_blur: float = 0.0
+    contrast_blur_floor: float = 0.0
+    contrast_max_blur_px: float = 3.0
     sweep_confidence_power: float = 0.0
     agree_tolerance: float = 0.05
     frame_agreement_low: float = 0.0
@@ -118,7 +126,8 @@ class PriorParams:
             lo, hi = getattr(self, low), getattr(self, high)
             if hi > 0 and not lo < hi:
                 raise ValueError(f"{low} {lo} must be below {high} {hi}")
-        for name in ("contrast_noise", "frame_agreement_contrast"):
+        for name in ("contrast_noise", "frame_agreement_contrast", "contrast_blur", "contrast_blur_floor",
+                     "contrast_max_blur_px"):
             if not getattr(self, name) >= 0:
                 raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}")
         if not 0.0 <= self.epipole_cone_deg < 90.0:
@@ -130,22 +139,27 @@ class PriorParams:
         return self.sweep_confidence_power > 0 or self.frame_agreement_high > 0
 
 
-def contrast_above_noise(image: np.ndarray, sigma_px: float, noise_factor: float = 1.0) -> np.ndarray:
+def contrast_above_noise(image: np.ndarray, sigma_px: float, noise_factor: float = 1.0,
+                         blur: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> np.ndarray:
     """C's local contrast above its noise: ``sqrt(max(c^2 - (noise_factor * n)^2, 0))``, ``c`` the local standard
-    deviation of the gray image (:func:`reconstruction.camera.image_ops.local_contrast`) and ``n`` the image's noise
-    (:func:`reconstruction.sweep.cost.image_noise` at :data:`reconstruction.sweep.cost.FLAT_NOISE_SCALE`, where what
-    JPEG coding leaves of the noise still shows): on a plain surface a camera's noise alone is the contrast.
+    deviation of the gray image (:func:`reconstruction.camera.image_ops.local_contrast`), blurred first by a width
+    that grows with ``n`` (``blur``), and ``n`` the image's noise (:func:`reconstruction.sweep.cost.image_noise` at
+    :data:`reconstruction.sweep.cost.FLAT_NOISE_SCALE`, where what JPEG coding leaves of the noise still shows): on
+    a plain surface a camera's noise alone is the contrast.
 
     Args:
         image: (H, W, 3) uint8 image; sigma_px: the contrast's Gaussian window, pixels; noise_factor: ``n``'s
-            multiple subtracted (0 = the contrast as it is).
+            multiple subtracted (0 = the contrast as it is; ``n`` is the noise before any blur);
+        blur: (pixels per gray level, floor in gray levels, largest blur in pixels) of
+            :func:`reconstruction.sweep.cost.blur_for_noise` (first 0 = no blur).
     Returns:
         (H, W) float32 gray levels (0-255 scale).
     """
-    c = local_contrast(gray_float(image, 0.0), sigma_px)
+    noise = image_noise(image, FLAT_NOISE_SCALE) if noise_factor > 0 or blur[0] > 0 else 0.0
+    c = local_contrast(gray_float(image, blur_for_noise(noise, *blur)), sigma_px)
     if noise_factor > 0:
-        noise = np.float32(noise_factor * image_noise(image, FLAT_NOISE_SCALE))
-        c = np.sqrt(np.maximum(c * c - noise * noise, 0.0))
+        n = np.float32(noise_factor * noise)
+        c = np.sqrt(np.maximum(c * c - n * n, 0.0))
     return c
 
 
@@ -161,7 +175,8 @@ def prior_weight(params: PriorParams, image: np.ndarray, confidence: np.ndarray 
     if params.use_confidence and confidence is not None:
         w *= np.asarray(confidence, np.float32)
     if params.contrast_high > 0:
-        c = contrast_above_noise(image, params.contrast_sigma_px, params.contrast_noise)
+        c = contrast_above_noise(image, params.contrast_sigma_px, params.contrast_noise,
+                                 (params.contrast_blur, params.contrast_blur_floor, params.contrast_max_blur_px))
         w *= np.clip((c - params.contrast_low) / (params.contrast_high - params.contrast_low), 0.0, 1.0)
     return w
 

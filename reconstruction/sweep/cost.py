@@ -54,7 +54,7 @@ from reconstruction.camera.resample import WRAP_PAD, rectifying_rotation, rotati
 __all__ = ["CostParams", "PairWarp", "FEATURES", "RANK_RADIUS_PX", "NORM_SIGMA_PX", "NORM_EPS", "NORM_SCALE",
            "inverse_distances", "visibility_buffer", "gray_float", "rank_transform", "local_normalize",
            "feature_image", "prepare_pair", "build_cost_volume", "source_rows", "rect_row", "image_noise",
-           "noise_blur_px", "FLAT_NOISE_SCALE", "untextured", "flatten_untextured"]
+           "noise_blur_px", "blur_for_noise", "FLAT_NOISE_SCALE", "untextured", "flatten_untextured"]
 
 #: the per-pixel features of the cost (``CostParams.feature``; module doc)
 FEATURES = ("intensity", "rank", "normalized")
@@ -190,11 +190,18 @@ def image_noise(image: np.ndarray, scale: int = 1) -> float:
     return float(np.sqrt(np.pi / 2.0) / 6.0 * response[flat].mean())
 
 
+def blur_for_noise(noise: float, per_level: float, floor: float, max_px: float) -> float:
+    """A blur that grows with an image's noise: ``per_level * (noise - floor)`` pixels, at most ``max_px``; 0 where
+    ``per_level`` is 0 or ``noise`` is not above ``floor`` (``noise``, ``floor`` in gray levels, ``per_level`` in
+    pixels per gray level)."""
+    if per_level <= 0 or not noise > floor:
+        return 0.0
+    return min(per_level * (noise - floor), max_px)
+
+
 def noise_blur_px(params: CostParams, noise: float) -> float:
     """The blur (pixels) of ``params`` for images of ``noise`` gray levels (``CostParams.noise_blur``)."""
-    if params.noise_blur <= 0 or not noise > params.noise_floor:
-        return params.blur_px
-    return max(params.blur_px, min(params.noise_blur * (noise - params.noise_floor), params.max_noise_blur_px))
+    return max(params.blur_px, blur_for_noise(noise, params.noise_blur, params.noise_floor, params.max_noise_blur_px))
 
 
 def inverse_distances(params: CostParams) -> np.ndarray:

@@ -1,7 +1,7 @@
 """Choose how the flow prior's gates read C's texture and whether the frame's factor spares U's epipoles.
 
-Whether the per-pixel gate reads C's contrast as it is or above C's noise, and whether the frame's agreement factor
-spares the vertical pair's epipoles.
+Whether the per-pixel gate reads C's contrast as it is, above C's noise or of C's image blurred in proportion to its
+noise, and whether the frame's agreement factor spares the vertical pair's epipoles.
 
 Run as::
 
@@ -11,15 +11,19 @@ Run as::
 ``LABEL`` is a frame directory (``<scene>/<viewpoint>``) or a directory of frames (``<scene>``) relative to
 ``DATA_ROOT``; without ``--frames`` every frame under ``DATA_ROOT`` (choose on a suite's ``dev`` split, under every
 camera condition: a camera's noise is what these settings are about). The methods: the reference :data:`REFERENCE`
-(``fused-mirror-gate-0-0-0.5-0.7-0-0-0``, the default before this choice), one
-``fused-mirror-gate-<contrast_noise>-<agreement_contrast>-<low>-<high>-<cone>-<noise_low>-<noise_high>`` per
+(``fused-mirror-gate-0-0-0.5-0.7-0-0-0-0-0-3``, the default before this choice), one
+``fused-mirror-gate-<contrast_noise>-<agreement_contrast>-<low>-<high>-<cone>-<noise_low>-<noise_high>-<blur>-``
+``<blur_floor>-<max_blur>`` per
 candidate of :data:`CANDIDATES` (``--candidates``: these only; the fields of
 :class:`reconstruction.methods.prior_sweep.PriorParams` ``contrast_noise`` (the per-pixel gate reads C's contrast
 above that many times its noise), ``frame_agreement_contrast`` (the frame's agreement share counts only the pixels
 whose contrast above the noise is at least that many gray levels), ``frame_agreement_low``,
 ``frame_agreement_high``, ``epipole_cone_deg`` (within that many degrees of the C -> U baseline, up or down, the
 frame's agreement factor is spared), ``epipole_cone_noise_low`` and ``epipole_cone_noise_high`` (in proportion to
-the rig's noise between them, gray levels; 0-0: fully); everything else the default's) and the default
+the rig's noise between them, gray levels; 0-0: fully), ``contrast_blur``, ``contrast_blur_floor`` and
+``contrast_max_blur_px`` (the per-pixel gate reads the contrast of C's image blurred by ``blur * (n - blur_floor)``
+pixels, at most ``max_blur``, ``n`` C's noise in gray levels; ``blur`` 0: no blur); everything else the default's)
+and the default
 ``fused-mirror`` as registered (a candidate or the reference configured as the default stands for it, not run
 twice). ``DIR`` becomes a results set (``tri360 evaluate``'s, without the report) plus ``selection.md`` and
 ``selection.json``, as ``python -m tools.research.select_fill`` writes them, with the same rule
@@ -45,48 +49,64 @@ __all__ = ["PROG", "REFERENCE", "CANDIDATES", "gate_method", "candidate_methods"
 
 PROG = "select_gate"
 #: a configuration: (``contrast_noise``, ``frame_agreement_contrast`` in gray levels, ``frame_agreement_low``,
-#: ``frame_agreement_high``, ``epipole_cone_deg`` in degrees, ``epipole_cone_noise_low`` and ``_high`` in gray levels)
-Config = tuple[float, float, float, float, float, float, float]
+#: ``frame_agreement_high``, ``epipole_cone_deg`` in degrees, ``epipole_cone_noise_low`` and ``_high`` in gray levels,
+#: ``contrast_blur`` in pixels per gray level, ``contrast_blur_floor`` in gray levels, ``contrast_max_blur_px``)
+Config = tuple[float, float, float, float, float, float, float, float, float, float]
 #: the reference: the default as it was before this choice (the contrast as it is, every pixel in the share, the
-#: frame's factor everywhere)
-REFERENCE: Config = (0.0, 0.0, 0.5, 0.7, 0.0, 0.0, 0.0)
-#: the candidates
+#: frame's factor everywhere, no blur)
+REFERENCE: Config = (0.0, 0.0, 0.5, 0.7, 0.0, 0.0, 0.0, 0.0, 0.0, 3.0)
+_OFF = (0.0, 0.0, 3.0)  # no blur
+_CONE = (20.0, 0.6, 1.2)
+#: the candidates: the contrast above the noise, the textured share, the cone; then the blur from C's noise 0.6 gray
+#: levels up (the noisiest rendering of the dev split reads 0.45, the least noisy camera twin 0.93), with and
+#: without the cone
 CANDIDATES: tuple[Config, ...] = (
-    (0.5, 0.0, 0.5, 0.7, 0.0, 0.0, 0.0), (1.0, 0.0, 0.5, 0.7, 0.0, 0.0, 0.0), (1.5, 0.0, 0.5, 0.7, 0.0, 0.0, 0.0),
-    (0.0, 4.0, 0.5, 0.7, 0.0, 0.0, 0.0), (0.0, 4.0, 0.45, 0.65, 0.0, 0.0, 0.0), (0.0, 4.0, 0.4, 0.6, 0.0, 0.0, 0.0),
-    (0.0, 0.0, 0.5, 0.7, 20.0, 0.0, 0.0), (0.0, 0.0, 0.5, 0.7, 10.0, 0.6, 1.2), (0.0, 0.0, 0.5, 0.7, 20.0, 0.6, 1.2),
-    (1.0, 0.0, 0.5, 0.7, 10.0, 0.6, 1.2), (1.0, 0.0, 0.5, 0.7, 20.0, 0.6, 1.2), (1.0, 0.0, 0.5, 0.7, 30.0, 0.6, 1.2))
-TITLE = "The flow prior's gates: C's contrast as it is or above its noise; the frame's factor at U's epipoles"
+    (0.5, 0.0, 0.5, 0.7, 0.0, 0.0, 0.0, *_OFF), (1.0, 0.0, 0.5, 0.7, 0.0, 0.0, 0.0, *_OFF),
+    (1.5, 0.0, 0.5, 0.7, 0.0, 0.0, 0.0, *_OFF), (0.0, 4.0, 0.5, 0.7, 0.0, 0.0, 0.0, *_OFF),
+    (0.0, 4.0, 0.45, 0.65, 0.0, 0.0, 0.0, *_OFF), (0.0, 4.0, 0.4, 0.6, 0.0, 0.0, 0.0, *_OFF),
+    (0.0, 0.0, 0.5, 0.7, 20.0, 0.0, 0.0, *_OFF), (0.0, 0.0, 0.5, 0.7, 10.0, 0.6, 1.2, *_OFF),
+    (0.0, 0.0, 0.5, 0.7, *_CONE, *_OFF), (1.0, 0.0, 0.5, 0.7, 10.0, 0.6, 1.2, *_OFF),
+    (1.0, 0.0, 0.5, 0.7, *_CONE, *_OFF), (1.0, 0.0, 0.5, 0.7, 30.0, 0.6, 1.2, *_OFF),
+    (0.0, 0.0, 0.5, 0.7, *_CONE, 4.0, 0.6, 3.0), (0.0, 0.0, 0.5, 0.7, *_CONE, 4.0, 0.6, 1.5),
+    (0.0, 0.0, 0.5, 0.7, *_CONE, 2.0, 0.6, 3.0), (0.0, 0.0, 0.5, 0.7, 0.0, 0.0, 0.0, 4.0, 0.6, 3.0))
+TITLE = ("The flow prior's gates: C's contrast as it is, above its noise or blurred by it; the frame's factor at U's "
+         "epipoles")
+#: the labels' and ``--candidates``' fields
+FIELDS = ("<contrast_noise>-<agreement_contrast>-<low>-<high>-<cone>-<noise_low>-<noise_high>-<blur>-<blur_floor>-"
+          "<max_blur>")
 
 
 def gate_method(contrast_noise: float, agreement_contrast: float, low: float, high: float,
-                cone_deg: float = 0.0, cone_noise_low: float = 0.0, cone_noise_high: float = 0.0) -> Method:
-    """The default method whose flow prior reads C's contrast above ``contrast_noise`` times C's noise in its
+                cone_deg: float = 0.0, cone_noise_low: float = 0.0, cone_noise_high: float = 0.0,
+                blur: float = 0.0, blur_floor: float = 0.0, max_blur_px: float = 3.0) -> Method:
+    """The default method whose flow prior reads C's contrast above ``contrast_noise`` times C's noise, of C's image
+    blurred by ``blur * (n - blur_floor)`` pixels (at most ``max_blur_px``; ``n`` C's noise, gray levels), in its
     per-pixel gate and counts only the pixels whose contrast above the noise is at least ``agreement_contrast`` gray
     levels (0: every pixel) in the frame's agreement share, ramped from ``low`` to ``high``, that factor spared within
     ``cone_deg`` degrees of U's epipoles in proportion to the rig's noise between ``cone_noise_low`` and
-    ``cone_noise_high`` (0-0: fully); everything else the default's; labelled
-    ``fused-mirror-gate-<contrast_noise>-<agreement_contrast>-<low>-<high>-<cone_deg>-<cone_noise_low>-<cone_noise_high>``.
+    ``cone_noise_high`` (0-0: fully); everything else the default's; labelled ``fused-mirror-gate-`` and the ten
+    values in :data:`FIELDS`' order.
     """
     base = fused_mirror()
     prior = dataclasses.replace(base.prior, contrast_noise=contrast_noise,
                                 frame_agreement_contrast=agreement_contrast, frame_agreement_low=low,
                                 frame_agreement_high=high, epipole_cone_deg=cone_deg,
-                                epipole_cone_noise_low=cone_noise_low, epipole_cone_noise_high=cone_noise_high)
-    config = (contrast_noise, agreement_contrast, low, high, cone_deg, cone_noise_low, cone_noise_high)
+                                epipole_cone_noise_low=cone_noise_low, epipole_cone_noise_high=cone_noise_high,
+                                contrast_blur=blur, contrast_blur_floor=blur_floor, contrast_max_blur_px=max_blur_px)
+    config = (contrast_noise, agreement_contrast, low, high, cone_deg, cone_noise_low, cone_noise_high, blur,
+              blur_floor, max_blur_px)
     return dataclasses.replace(base, prior=prior, label=f"{base.label}-gate-{config_name(config)}")
 
 
 def candidate_methods(names: Sequence[str] | None = None) -> list[Method]:
     """The reference (:data:`REFERENCE`), one :func:`gate_method` per candidate (``names``: these only, as
-    ``<contrast_noise>-<agreement_contrast>-<low>-<high>-<cone>-<noise_low>-<noise_high>``) and the default
-    (:func:`tools.research.select_fill.methods_to_compare`)."""
+    :data:`FIELDS`) and the default (:func:`tools.research.select_fill.methods_to_compare`)."""
     return methods_to_compare(gate_method, REFERENCE, CANDIDATES, config_name, names)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    return candidates_main(PROG, __doc__, argv, candidate_methods, "<contrast_noise>-<agreement_contrast>-<low>-"
-                           "<high>-<cone>-<noise_low>-<noise_high>", [config_name(c) for c in CANDIDATES], TITLE)
+    return candidates_main(PROG, __doc__, argv, candidate_methods, FIELDS, [config_name(c) for c in CANDIDATES],
+                           TITLE)
 
 
 if __name__ == "__main__":

@@ -325,6 +325,39 @@ def test_the_frames_agreement_share_can_count_only_the_pixels_with_texture_above
         PriorParams(frame_agreement_contrast=-1.0)
 
 
+def test_the_gates_blur_follows_the_noise_and_leaves_a_noise_free_image_as_it_is():
+    """``contrast_blur``: a plain gray half with noise of 4 gray levels per channel and a half of 8-pixel checks.
+    Blurred by up to 3 pixels the plain half's contrast falls below a quarter of its unblurred figure while the
+    checks keep more than the gate's ``contrast_high`` (2 gray levels; a 3-pixel blur leaves a fifth of 8-pixel
+    checks' contrast); on the same image without noise (below the floor) the blur is none, the contrast exactly the
+    unblurred one; the gate's weight follows."""
+    from reconstruction.methods.prior_sweep import contrast_above_noise, prior_weight
+
+    rng = np.random.default_rng(5)
+    h, w = 64, 128
+    checks = np.where(((np.arange(h)[:, None] // 8) + (np.arange(w)[None, :] // 8)) % 2 == 0, 100.0, 156.0)
+    clean = np.where(np.arange(w)[None, :] < w // 2, 128.0, checks)
+    noisy = clean[..., None] + rng.normal(0.0, 4.0, (h, w, 3))
+    clean_u8 = np.repeat(clean[..., None], 3, axis=2).astype(np.uint8)
+    noisy_u8 = np.clip(np.rint(noisy), 0, 255).astype(np.uint8)
+    blur = (4.0, 0.6, 3.0)
+    plain, textured = (slice(8, -8), slice(8, w // 2 - 8)), (slice(8, -8), slice(w // 2 + 8, -8))
+    c0, c1 = contrast_above_noise(noisy_u8, 3.0, 0.0), contrast_above_noise(noisy_u8, 3.0, 0.0, blur)
+    assert np.median(c0[plain]) > 2.0 and np.median(c1[plain]) < 0.25 * np.median(c0[plain])
+    assert np.percentile(c1[textured], 1) > 2.0
+    np.testing.assert_array_equal(contrast_above_noise(clean_u8, 3.0, 0.0, blur),
+                                  contrast_above_noise(clean_u8, 3.0, 0.0))
+    gate = PriorParams(contrast_low=0.5, contrast_high=2.0)
+    blurred = dataclasses.replace(gate, contrast_blur=4.0, contrast_blur_floor=0.6)
+    np.testing.assert_array_equal(prior_weight(blurred, clean_u8, None), prior_weight(gate, clean_u8, None))
+    w0, w1 = prior_weight(gate, noisy_u8, None), prior_weight(blurred, noisy_u8, None)
+    assert w0[plain].mean() > 12.0 and w1[plain].mean() < 4.0  # the full weight is 16
+    np.testing.assert_allclose(w1[textured], 16.0, atol=1e-5)
+    for name in ("contrast_blur", "contrast_blur_floor", "contrast_max_blur_px"):
+        with pytest.raises(ValueError, match=f"{name} must be >= 0"):
+            PriorParams(**{name: -1.0})
+
+
 def test_the_epipole_cone_is_the_pixels_near_the_baseline_both_ways():
     """Camera C level at the origin, U 0.4 m straight above: the cone of 20 degrees is the top and bottom 20 degrees
     of latitude (rows), for any yaw of C; a tilted baseline moves it; 0 degrees is no pixel."""

@@ -20,6 +20,7 @@ from reconstruction.sweep.cost import (
     RANK_RADIUS_PX,
     CostParams,
     _features,
+    blur_for_noise,
     build_cost_volume,
     gray_float,
     image_noise,
@@ -246,5 +247,9 @@ def test_noise_blur_grows_with_the_noise_above_its_floor_only():
     assert noise_blur_px(params, 9.0) == params.max_noise_blur_px == 1.5  # at most that
     assert noise_blur_px(dataclasses.replace(params, max_noise_blur_px=2.0), 9.0) == 2.0
     assert noise_blur_px(CostParams(blur_px=0.7), 9.0) == 0.7  # noise_blur 0: off
+    # the ramp itself: 0 at and below the floor or when off, linear above it, capped
+    assert blur_for_noise(1.0, 2.0, 1.0, 3.0) == 0.0 and blur_for_noise(5.0, 0.0, 1.0, 3.0) == 0.0
+    assert blur_for_noise(1.5, 2.0, 1.0, 3.0) == pytest.approx(1.0, abs=1e-12)
+    assert blur_for_noise(4.0, 2.0, 1.0, 3.0) == 3.0
     with pytest.raises(ValueError, match="noise_blur"):
         CostParams(noise_blur=-1.0)
