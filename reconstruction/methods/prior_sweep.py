@@ -74,8 +74,8 @@ class PriorParams:
             blurred (Gaussian sigma) by ``contrast_blur * (n - contrast_blur_floor)`` pixels, at most
             ``contrast_max_blur_px`` (:func:`reconstruction.sweep.cost.blur_for_noise`; ``n`` as above, in gray
             levels): a blur takes more of a camera's noise out of the contrast than of a texture coarser than the
-            blur, and on a noise-free rendering it is no blur at all; ``contrast_blur`` in pixels per gray level,
-            0 = off.
+            blur, and where ``n`` is at most the floor (a rendering's residual noise) there is no blur at all;
+            ``contrast_blur`` in pixels per gray level, 0 = off.
         sweep_confidence_power: k > 0: where the flow and the plain sweep (the coarse room-bound pass, no prior,
             upsampled: no extra aggregation) disagree by more than ``agree_tolerance`` (relative), the weight is
             scaled by ``(1 - c_sweep)^k``, ``c_sweep`` the plain sweep's confidence: a confident sweep keeps its
