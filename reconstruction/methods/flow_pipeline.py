@@ -14,7 +14,7 @@ Its stages are :mod:`reconstruction.methods.self_calibration` (the frame calibra
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from typing import Protocol, runtime_checkable
 
@@ -49,6 +49,8 @@ class Reconstruction:
         distance: (H, W) float32 distance of camera C per variant, metres (finite everywhere).
         pair_distance: (H, W) float32 per-pair triangulated distance ("U", "R"), metres.
         pair_valid: (H, W) bool per pair: False at the pair's epipoles or where its flow is unusable.
+        pair_fb_px: (H, W) float32 per pair, the flow's forward-backward inconsistency at C's pixels, pixels
+            (:attr:`reconstruction.flow.matching.PairMatch.fb_error_px`; 0 for the oracle).
         seconds: wall time per stage (``flow_U``, ``flow_R``, ``triangulate``, ``average``, each variant).
         iterations: LM iterations per variant.
         confidence: (H, W) float32 per variant, in [0, 1] (:func:`flow_confidence`).
@@ -59,6 +61,7 @@ class Reconstruction:
     distance: dict[str, np.ndarray] = field(default_factory=dict)
     pair_distance: dict[str, np.ndarray] = field(default_factory=dict)
     pair_valid: dict[str, np.ndarray] = field(default_factory=dict)
+    pair_fb_px: dict[str, np.ndarray] = field(default_factory=dict)
     seconds: dict[str, float] = field(default_factory=dict)
     iterations: dict[str, int] = field(default_factory=dict)
     confidence: dict[str, np.ndarray] = field(default_factory=dict)
@@ -101,6 +104,7 @@ def reconstruct(frame, flow: str | FlowBackend = DEFAULT_FLOW, rectify: bool = T
     for k in PAIRS:
         out.pair_distance[k] = prep.d_pair[k].reshape(h, w).astype(np.float32)
         out.pair_valid[k] = prep.valid[k].reshape(h, w)
+        out.pair_fb_px[k] = np.asarray(prep.matches[k].fb_error_px, np.float32).reshape(h, w)
     if "average" in variants:
         out.distance["average"] = prep.d0.reshape(h, w).astype(np.float32)
         out.confidence["average"] = flow_confidence(out.distance["average"], prep)
@@ -214,10 +218,13 @@ class BuiltOnFlow(GroupedMethod, Protocol):
 
     def run_on_flows(self, calibration: Calibration, members: Sequence[BuiltOnFlow],
                      flow_outputs: dict[str, MethodOutput],
-                     on_stage: Callable[[str], None] | None = None) -> dict[str, MethodOutput]:
+                     on_stage: Callable[[str], None] | None = None,
+                     fb_error_px: Mapping[str, np.ndarray] | None = None) -> dict[str, MethodOutput]:
         """Run ``members`` (all of this method's type in the group, itself among them) given their flows' outputs
         (``flow_outputs``: by flow label) on the frame their flow matched (``calibration.frame``: self-calibrated
-        once, :func:`reconstruction.methods.self_calibration.self_calibrate`).
+        once, :func:`reconstruction.methods.self_calibration.self_calibrate`) and, per pair, the flow's
+        forward-backward inconsistency at C's pixels (``fb_error_px``: (H, W) pixels, :attr:`Reconstruction.
+        pair_fb_px`).
 
         Returns:
             Outputs by member label.
@@ -263,5 +270,5 @@ def run_flow_group(frame, members: Sequence[FlowMethod | BuiltOnFlow],
     for u in users:
         by_type.setdefault(type(u), []).append(u)
     for kind in by_type.values():  # they match the frame the flow matched: one self-calibration per frame
-        outs.update(kind[0].run_on_flows(result.calibration, kind, flow_outs, on_stage))
+        outs.update(kind[0].run_on_flows(result.calibration, kind, flow_outs, on_stage, result.pair_fb_px))
     return {m.label: outs[m.label] for m in members}

@@ -21,7 +21,7 @@ pass and the cost volume (:func:`reconstruction.methods.sweep.sweep_distances`).
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
@@ -100,6 +100,12 @@ class PriorParams:
             :data:`reconstruction.sweep.cost.FLAT_NOISE_SCALE`, gray levels), from not at all at ``low`` to fully
             at ``high`` (the factor there is ``max(frame factor, that share)``): on a rig with noise-free cameras
             a low share says the flow is wrong, not the noise; ``high`` 0 = fully on every frame.
+        epipole_cone_fb_low, epipole_cone_fb_high: the cone spares the frame's factor only where the other pair's
+            flow (C -> R, the pair with parallax there) is consistent: at each pixel the spare is scaled from 1 at
+            ``low`` to 0 at ``high`` of that flow's forward-backward inconsistency, pixels
+            (:attr:`reconstruction.flow.matching.PairMatch.fb_error_px`): a flow that follows a camera's noise on a
+            plain floor does not come back to where it started, one locked onto the floor's texture does;
+            ``high`` 0 = off.
     """
 
     weight: float = 16.0
@@ -120,15 +126,18 @@ class PriorParams:
     epipole_cone_deg: float = 0.0
     epipole_cone_noise_low: float = 0.0
     epipole_cone_noise_high: float = 0.0
+    epipole_cone_fb_low: float = 0.0
+    epipole_cone_fb_high: float = 0.0
 
     def __post_init__(self):
         for low, high in (("contrast_low", "contrast_high"), ("frame_agreement_low", "frame_agreement_high"),
-                          ("epipole_cone_noise_low", "epipole_cone_noise_high")):
+                          ("epipole_cone_noise_low", "epipole_cone_noise_high"),
+                          ("epipole_cone_fb_low", "epipole_cone_fb_high")):
             lo, hi = getattr(self, low), getattr(self, high)
             if hi > 0 and not lo < hi:
                 raise ValueError(f"{low} {lo} must be below {high} {hi}")
         for name in ("contrast_noise", "frame_agreement_contrast", "contrast_blur", "contrast_blur_floor",
-                     "contrast_max_blur_px"):
+                     "contrast_max_blur_px", "epipole_cone_fb_low"):
             if not getattr(self, name) >= 0:
                 raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}")
         if not 0.0 <= self.epipole_cone_deg < 90.0:
@@ -198,12 +207,15 @@ def epipole_cone(width: int, height: int, c_position, c_rotation, other_position
     return np.abs(cos_angle) > np.cos(np.deg2rad(cone_deg)) if cone_deg > 0 else np.zeros((height, width), bool)
 
 
-def cone_floor(params: PriorParams, frame) -> np.ndarray:
+def cone_floor(params: PriorParams, frame, fb_error_px: np.ndarray | None = None) -> np.ndarray:
     """The least the frame's agreement factor may be at each of C's pixels (:class:`PriorParams`
-    ``epipole_cone_*``): the rig's noise share inside U's epipole cone, 0 outside.
+    ``epipole_cone_*``): the rig's noise share inside U's epipole cone, scaled down where the C -> R flow is
+    inconsistent, 0 outside.
 
     Args:
         frame: the frame (its cameras C and U placed, its images C, R, U: (H, W, 3) uint8).
+        fb_error_px: (H, W) forward-backward inconsistency of the C -> R flow at C's pixels, pixels; needed when
+            ``epipole_cone_fb_high`` > 0 (ValueError without it).
     Returns:
         (H, W) float32 in [0, 1].
     """
@@ -215,7 +227,14 @@ def cone_floor(params: PriorParams, frame) -> np.ndarray:
     if hi > 0:
         noise = max(image_noise(frame.images[k], FLAT_NOISE_SCALE) for k in ("C", "R", "U"))
         share = float(np.clip((noise - lo) / (hi - lo), 0.0, 1.0))
-    return np.where(cone, np.float32(share), np.float32(0.0))
+    floor = np.where(cone, np.float32(share), np.float32(0.0))
+    if params.epipole_cone_fb_high > 0:
+        if fb_error_px is None:
+            raise ValueError("epipole_cone_fb_high needs the C -> R flow's forward-backward inconsistency")
+        lo, hi = params.epipole_cone_fb_low, params.epipole_cone_fb_high
+        fb = np.nan_to_num(np.asarray(fb_error_px, np.float32), nan=np.inf)
+        floor *= np.clip((hi - fb) / np.float32(hi - lo), 0.0, 1.0)
+    return floor.astype(np.float32)
 
 
 def sweep_gate(params: PriorParams, flow_m: np.ndarray, sweep_m: np.ndarray, sweep_conf: np.ndarray,
@@ -310,10 +329,12 @@ class PriorSweepMethod:
 
     def run_on_flows(self, calibration: Calibration, members: Sequence[PriorSweepMethod],
                      flow_outputs: dict[str, MethodOutput],
-                     on_stage: Callable[[str], None] | None = None) -> dict[str, MethodOutput]:
+                     on_stage: Callable[[str], None] | None = None,
+                     fb_error_px: Mapping[str, np.ndarray] | None = None) -> dict[str, MethodOutput]:
         """Run flow-prior sweep ``members`` given their flows' outputs (by flow label) on the frame their flow
         matched (``calibration``: self-calibrated once); members of one sweep configuration share the room-bound
-        pass and the cost volume."""
+        pass and the cost volume.  ``fb_error_px``: per pair ("U", "R"), (H, W) forward-backward inconsistency of
+        the flow at C's pixels, pixels (needed by ``epipole_cone_fb_high``)."""
         frame = calibration.frame
         by_sweep: dict[str, list[PriorSweepMethod]] = {}
         for m in members:
@@ -327,7 +348,8 @@ class PriorSweepMethod:
                 flow = flow_outputs[m.flow.label]
                 weight = prior_weight(m.prior, frame.images["C"], flow.confidence)
                 if m.prior.needs_plain_sweep:
-                    floor = cone_floor(m.prior, frame) if m.prior.epipole_cone_deg > 0 else None
+                    floor = (cone_floor(m.prior, frame, (fb_error_px or {}).get("R"))
+                             if m.prior.epipole_cone_deg > 0 else None)
                     priors.append(PriorFromSweep(lambda d_s, c_s, m=m, d=flow.distance, w=weight,
                                                  image=frame.images["C"], floor=floor:
                                                  Prior(d, w * sweep_gate(m.prior, d, d_s, c_s, image, floor),

@@ -52,6 +52,20 @@ def test_unknown_flow_and_variant_are_rejected(synthetic_frame):
         reconstruct(synthetic_frame, flow="oracle", variants=["average", "nope"])
 
 
+def test_the_reconstruction_keeps_each_pairs_forward_backward_inconsistency(synthetic_frame):
+    """``pair_fb_px``: per pair, the flow's forward-backward inconsistency at C's pixels as :func:`match_pair` gives
+    it (float32, finite, >= 0; small where the frame's texture is followed), 0 everywhere for the oracle."""
+    f = synthetic_frame
+    result = reconstruct(f, flow="dis", variants=["average"])
+    for k in ("U", "R"):
+        fb = result.pair_fb_px[k]
+        assert fb.shape == (f.height, f.width) and fb.dtype == np.float32 and np.isfinite(fb).all()
+        assert fb.min() >= 0.0 and np.median(fb) < 1.0  # pixels
+        assert np.mean(np.abs(fb - match_pair(f, k, "dis").fb_error_px)) < 0.05  # pixels
+    exact = reconstruct(f, flow="oracle", variants=["average"])
+    assert all((exact.pair_fb_px[k] == 0).all() for k in ("U", "R"))
+
+
 @pytest.mark.slow
 def test_rectified_flow_beats_plain_and_refinement_beats_average(frame400):
     gt = frame400.distance["C"]

@@ -409,6 +409,59 @@ def test_the_cone_floor_spares_the_frames_agreement_factor_in_proportion_to_the_
         PriorParams(epipole_cone_noise_low=1.2, epipole_cone_noise_high=0.6)
 
 
+def test_the_cone_spares_the_frames_factor_only_where_the_c_r_flow_comes_back():
+    """``epipole_cone_fb_*``: inside U's cone the floor falls linearly from 1 at ``fb_low`` to 0 at ``fb_high``
+    pixels of the C -> R flow's forward-backward inconsistency (NaN counts as inconsistent); outside it stays 0;
+    without the inconsistency it is a ValueError, and the ramp must rise."""
+    from reconstruction.methods.prior_sweep import cone_floor
+
+    f = make_synthetic_frame(80)  # U straight above C: the cone is the rows within 20 degrees of either pole
+    lat = 90.0 - 180.0 * (np.arange(f.height) + 0.5) / f.height
+    inside = np.repeat((np.abs(lat) > 70.0)[:, None], f.width, axis=1)
+    fb = np.tile(np.linspace(0.0, 4.0, f.width, dtype=np.float32), (f.height, 1))
+    fb[0, :3] = np.nan
+    p = PriorParams(epipole_cone_deg=20.0, epipole_cone_fb_low=1.0, epipole_cone_fb_high=3.0)
+    floor = cone_floor(p, f, fb)
+    expected = np.where(inside, np.clip((3.0 - fb) / 2.0, 0.0, 1.0), 0.0)
+    expected[0, :3] = 0.0
+    assert floor.dtype == np.float32
+    np.testing.assert_allclose(floor, expected, atol=1e-6)
+    assert floor[inside & (fb <= 1.0)].min() == 1.0 and floor[inside & (fb >= 3.0)].max() == 0.0
+    np.testing.assert_array_equal(cone_floor(PriorParams(epipole_cone_deg=20.0), f, fb), inside.astype(np.float32))
+    with pytest.raises(ValueError, match="forward-backward"):
+        cone_floor(p, f)
+    with pytest.raises(ValueError, match="epipole_cone_fb_low 3.0 must be below epipole_cone_fb_high 1.0"):
+        PriorParams(epipole_cone_fb_low=3.0, epipole_cone_fb_high=1.0)
+    with pytest.raises(ValueError, match="epipole_cone_fb_low must be >= 0"):
+        PriorParams(epipole_cone_fb_low=-1.0)
+
+
+def test_the_flow_group_hands_the_c_r_flows_inconsistency_to_the_cone(monkeypatch):
+    """Run in its flow's group, a prior whose cone reads the C -> R flow's forward-backward inconsistency gets the
+    reconstruction's (the same as the flow stages compute) and runs."""
+    import reconstruction.methods.prior_sweep as prior_sweep
+
+    f = make_synthetic_frame(120)
+    m = uncalibrated(presets.fused())
+    seen = []
+    real = prior_sweep.cone_floor
+
+    def spy(params, frame, fb_error_px=None):
+        seen.append(fb_error_px)
+        return real(params, frame, fb_error_px)
+
+    monkeypatch.setattr(prior_sweep, "cone_floor", spy)
+    cone = PriorSweepMethod(flow=m.flow, sweep=m.sweep, label="cone",
+                            prior=dataclasses.replace(m.prior, frame_agreement_low=0.5, frame_agreement_high=0.7,
+                                                      sweep_confidence_power=1.0, epipole_cone_deg=20.0,
+                                                      epipole_cone_fb_low=1.0, epipole_cone_fb_high=3.0))
+    out = run_methods(f, [cone])["cone"]
+    assert np.isfinite(out.distance).all()
+    assert len(seen) == 1 and seen[0].shape == (f.height, f.width)
+    flows = pipeline.reconstruct(f, m.flow.flow, m.flow.rectify, ["average"], m.flow.limits)
+    assert np.mean(np.abs(seen[0] - flows.pair_fb_px["R"])) < 0.05  # pixels
+
+
 @pytest.mark.slow
 def test_a_frame_whose_flow_disagrees_with_the_coarse_sweep_gets_the_plain_sweep():
     """The gate uses the coarse room-bound pass (no extra aggregation); when the frame's agreement is below the
