@@ -65,7 +65,7 @@ _ANY_FB = (0.0, 0.0)  # the cone's spare wherever it is on
 #: the candidates: the contrast above the noise, the textured share, the cone; then the blur from C's noise 0.6 gray
 #: levels up (the noisiest rendering of the dev split reads 0.45, the least noisy camera twin 0.93), with and
 #: without the cone, and with the contrast above the noise too; then the cone spared only where the C -> R flow
-#: comes back to within 1-3 or 0.5-2 pixels of where it started
+#: comes back to within 1-3 or 0.5-2 pixels of where it started, and with the contrast above the noise
 CANDIDATES: tuple[Config, ...] = (
     (0.5, 0.0, 0.5, 0.7, 0.0, 0.0, 0.0, *_OFF), (1.0, 0.0, 0.5, 0.7, 0.0, 0.0, 0.0, *_OFF),
     (1.5, 0.0, 0.5, 0.7, 0.0, 0.0, 0.0, *_OFF), (0.0, 4.0, 0.5, 0.7, 0.0, 0.0, 0.0, *_OFF),
@@ -76,7 +76,8 @@ CANDIDATES: tuple[Config, ...] = (
     (0.0, 0.0, 0.5, 0.7, *_CONE, 4.0, 0.6, 3.0, *_ANY_FB), (0.0, 0.0, 0.5, 0.7, *_CONE, 4.0, 0.6, 1.5, *_ANY_FB),
     (0.0, 0.0, 0.5, 0.7, *_CONE, 2.0, 0.6, 3.0, *_ANY_FB), (0.0, 0.0, 0.5, 0.7, 0.0, 0.0, 0.0, 4.0, 0.6, 3.0, *_ANY_FB),
     (1.0, 0.0, 0.5, 0.7, *_CONE, 4.0, 0.6, 1.5, *_ANY_FB), (1.0, 0.0, 0.5, 0.7, *_CONE, 4.0, 0.6, 3.0, *_ANY_FB),
-    (0.0, 0.0, 0.5, 0.7, *_CONE, 0.0, 0.0, 3.0, 1.0, 3.0), (0.0, 0.0, 0.5, 0.7, *_CONE, 0.0, 0.0, 3.0, 0.5, 2.0))
+    (0.0, 0.0, 0.5, 0.7, *_CONE, 0.0, 0.0, 3.0, 1.0, 3.0), (0.0, 0.0, 0.5, 0.7, *_CONE, 0.0, 0.0, 3.0, 0.5, 2.0),
+    (1.0, 0.0, 0.5, 0.7, *_CONE, 0.0, 0.0, 3.0, 1.0, 3.0))
 TITLE = ("The flow prior's gates: C's contrast as it is, above its noise or blurred by it; the frame's factor at U's "
          "epipoles")
 #: the labels' and ``--candidates``' fields
