@@ -180,7 +180,7 @@ def fused_mirror() -> PriorSweepMethod:
             contrast_max_blur_px=3.0, sweep_confidence_power=1.0, agree_tolerance=0.05,
             frame_agreement_low=0.5, frame_agreement_high=0.7, frame_agreement_contrast=0.0,
             epipole_cone_deg=0.0, epipole_cone_noise_low=0.0, epipole_cone_noise_high=0.0,
-            epipole_cone_fb_low=0.0, epipole_cone_fb_high=0.0),
+            epipole_cone_fb_low=0.0, epipole_cone_fb_high=0.0, epipole_cone_room=0.0),
         # the quality measures compare the distance with fused's refined flow distance (computed only when the
         # quality is assessed): on the dev split that ranks pixels by error better than the unrefined prior
         # (docs/real-captures.md)
@@ -245,7 +245,7 @@ def fused() -> PriorSweepMethod:
             contrast_max_blur_px=3.0, sweep_confidence_power=0.0, agree_tolerance=0.05,
             frame_agreement_low=0.0, frame_agreement_high=0.0, frame_agreement_contrast=0.0,
             epipole_cone_deg=0.0, epipole_cone_noise_low=0.0, epipole_cone_noise_high=0.0,
-            epipole_cone_fb_low=0.0, epipole_cone_fb_high=0.0))
+            epipole_cone_fb_low=0.0, epipole_cone_fb_high=0.0, epipole_cone_room=0.0))
 
 
 def sweep() -> SweepMethod:
@@ -330,7 +330,7 @@ def fused_mirror_raw() -> PriorSweepMethod:
             contrast_max_blur_px=3.0, sweep_confidence_power=1.0, agree_tolerance=0.05,
             frame_agreement_low=0.5, frame_agreement_high=0.7, frame_agreement_contrast=0.0,
             epipole_cone_deg=0.0, epipole_cone_noise_low=0.0, epipole_cone_noise_high=0.0,
-            epipole_cone_fb_low=0.0, epipole_cone_fb_high=0.0),
+            epipole_cone_fb_low=0.0, epipole_cone_fb_high=0.0, epipole_cone_room=0.0),
         quality_flow=FlowMethod(
             flow=dis, rectify=True, limits=limits, photometric=photometric, rig=rig,
             refine=RefineConfig(
@@ -393,7 +393,7 @@ def fused_mirror_told_rig() -> PriorSweepMethod:
             contrast_max_blur_px=3.0, sweep_confidence_power=1.0, agree_tolerance=0.05,
             frame_agreement_low=0.5, frame_agreement_high=0.7, frame_agreement_contrast=0.0,
             epipole_cone_deg=0.0, epipole_cone_noise_low=0.0, epipole_cone_noise_high=0.0,
-            epipole_cone_fb_low=0.0, epipole_cone_fb_high=0.0),
+            epipole_cone_fb_low=0.0, epipole_cone_fb_high=0.0, epipole_cone_room=0.0),
         quality_flow=FlowMethod(
             flow=dis, rectify=True, limits=limits, photometric=photometric, rig=rig,
             refine=RefineConfig(
@@ -452,7 +452,7 @@ def fused_mirror_raw_images() -> PriorSweepMethod:
             contrast_max_blur_px=3.0, sweep_confidence_power=1.0, agree_tolerance=0.05,
             frame_agreement_low=0.5, frame_agreement_high=0.7, frame_agreement_contrast=0.0,
             epipole_cone_deg=0.0, epipole_cone_noise_low=0.0, epipole_cone_noise_high=0.0,
-            epipole_cone_fb_low=0.0, epipole_cone_fb_high=0.0),
+            epipole_cone_fb_low=0.0, epipole_cone_fb_high=0.0, epipole_cone_room=0.0),
         quality_flow=FlowMethod(
             flow=dis, rectify=True, limits=limits, photometric=photometric, rig=rig,
             refine=RefineConfig(
@@ -515,7 +515,7 @@ def fused_mirror_shared_falloff() -> PriorSweepMethod:
             contrast_max_blur_px=3.0, sweep_confidence_power=1.0, agree_tolerance=0.05,
             frame_agreement_low=0.5, frame_agreement_high=0.7, frame_agreement_contrast=0.0,
             epipole_cone_deg=0.0, epipole_cone_noise_low=0.0, epipole_cone_noise_high=0.0,
-            epipole_cone_fb_low=0.0, epipole_cone_fb_high=0.0),
+            epipole_cone_fb_low=0.0, epipole_cone_fb_high=0.0, epipole_cone_room=0.0),
         quality_flow=FlowMethod(
             flow=dis, rectify=True, limits=limits, photometric=photometric, rig=rig,
             refine=RefineConfig(
@@ -575,7 +575,7 @@ def fused_gated() -> PriorSweepMethod:
             contrast_max_blur_px=3.0, sweep_confidence_power=1.0, agree_tolerance=0.05,
             frame_agreement_low=0.5, frame_agreement_high=0.7, frame_agreement_contrast=0.0,
             epipole_cone_deg=0.0, epipole_cone_noise_low=0.0, epipole_cone_noise_high=0.0,
-            epipole_cone_fb_low=0.0, epipole_cone_fb_high=0.0),
+            epipole_cone_fb_low=0.0, epipole_cone_fb_high=0.0, epipole_cone_room=0.0),
         # fused's refined flow distance, for the quality measures only (docs/real-captures.md)
         quality_flow=FlowMethod(
             flow=dis, rectify=True, limits=limits, photometric=photometric, rig=rig,
@@ -640,7 +640,7 @@ def fused_adaptive() -> PriorSweepMethod:
             contrast_max_blur_px=3.0, sweep_confidence_power=0.0, agree_tolerance=0.05,
             frame_agreement_low=0.6, frame_agreement_high=0.8, frame_agreement_contrast=0.0,
             epipole_cone_deg=0.0, epipole_cone_noise_low=0.0, epipole_cone_noise_high=0.0,
-            epipole_cone_fb_low=0.0, epipole_cone_fb_high=0.0))
+            epipole_cone_fb_low=0.0, epipole_cone_fb_high=0.0, epipole_cone_room=0.0))
 
 
 # ----------------------------------------------------------------------------------------------- the tables

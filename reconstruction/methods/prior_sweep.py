@@ -106,6 +106,11 @@ class PriorParams:
             (:attr:`reconstruction.flow.matching.PairMatch.fb_error_px`): a flow that follows a camera's noise on a
             plain floor does not come back to where it started, one locked onto the floor's texture does;
             ``high`` 0 = off.
+        epipole_cone_room: the cone spares the frame's factor only where the flow's distance lies within this
+            relative tolerance (``|ln(d_flow / d_room)|``) of the floor or the ceiling the sweep's coarse pass
+            found (``d_room`` along C's bearing, :func:`reconstruction.sweep.planes.room_plane_distance`): there the
+            prior can only pull towards the room's plane, so a flow that follows a camera's noise on a plain floor
+            is not kept where the sweep and the plane had it right; 0 = off.
     """
 
     weight: float = 16.0
@@ -128,6 +133,7 @@ class PriorParams:
     epipole_cone_noise_high: float = 0.0
     epipole_cone_fb_low: float = 0.0
     epipole_cone_fb_high: float = 0.0
+    epipole_cone_room: float = 0.0
 
     def __post_init__(self):
         for low, high in (("contrast_low", "contrast_high"), ("frame_agreement_low", "frame_agreement_high"),
@@ -137,7 +143,7 @@ class PriorParams:
             if hi > 0 and not lo < hi:
                 raise ValueError(f"{low} {lo} must be below {high} {hi}")
         for name in ("contrast_noise", "frame_agreement_contrast", "contrast_blur", "contrast_blur_floor",
-                     "contrast_max_blur_px", "epipole_cone_fb_low"):
+                     "contrast_max_blur_px", "epipole_cone_fb_low", "epipole_cone_room"):
             if not getattr(self, name) >= 0:
                 raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}")
         if not 0.0 <= self.epipole_cone_deg < 90.0:
@@ -238,14 +244,17 @@ def cone_floor(params: PriorParams, frame, fb_error_px: np.ndarray | None = None
 
 
 def sweep_gate(params: PriorParams, flow_m: np.ndarray, sweep_m: np.ndarray, sweep_conf: np.ndarray,
-               image: np.ndarray | None = None, floor: np.ndarray | None = None) -> np.ndarray:
+               image: np.ndarray | None = None, floor: np.ndarray | None = None,
+               room_m: np.ndarray | None = None) -> np.ndarray:
     """The factor of the prior's weight that depends on the plain sweep (:class:`PriorParams`).
 
     Args:
         flow_m, sweep_m: (H, W) flow and plain-sweep distances, metres; sweep_conf: (H, W) sweep confidence in
             [0, 1]; image: (H, W, 3) uint8 image of C, needed when ``frame_agreement_contrast`` counts only its
             textured pixels in the frame's agreement share (ValueError without it); floor: (H, W) float32 in [0, 1],
-            the least the frame's agreement factor may be at each pixel (:func:`cone_floor`), or None (0).
+            the least the frame's agreement factor may be at each pixel (:func:`cone_floor`), or None (0);
+            room_m: (H, W) distance along C's bearings to the floor or the ceiling the sweep's coarse pass found,
+            metres (inf: none), needed when ``epipole_cone_room`` > 0 and there is a floor (ValueError without it).
     Returns:
         (H, W) float32 in [0, 1].
     """
@@ -266,6 +275,12 @@ def sweep_gate(params: PriorParams, flow_m: np.ndarray, sweep_m: np.ndarray, swe
             counted = agree[textured] if textured.any() else np.zeros(1, bool)
         lo, hi = params.frame_agreement_low, params.frame_agreement_high
         factor = np.float32(np.clip((counted.mean() - lo) / (hi - lo), 0.0, 1.0))
+        if floor is not None and params.epipole_cone_room > 0:
+            if room_m is None:
+                raise ValueError("epipole_cone_room needs the distance to the room's floor and ceiling")
+            with np.errstate(divide="ignore", invalid="ignore"):
+                off = np.abs(np.log(np.asarray(flow_m, np.float64) / np.asarray(room_m, np.float64)))
+            floor = np.where(np.isfinite(off) & (off < params.epipole_cone_room), floor, np.float32(0.0))
         g *= factor if floor is None else np.maximum(floor, factor)
     return g
 
@@ -350,9 +365,9 @@ class PriorSweepMethod:
                 if m.prior.needs_plain_sweep:
                     floor = (cone_floor(m.prior, frame, (fb_error_px or {}).get("R"))
                              if m.prior.epipole_cone_deg > 0 else None)
-                    priors.append(PriorFromSweep(lambda d_s, c_s, m=m, d=flow.distance, w=weight,
+                    priors.append(PriorFromSweep(lambda d_s, c_s, room, m=m, d=flow.distance, w=weight,
                                                  image=frame.images["C"], floor=floor:
-                                                 Prior(d, w * sweep_gate(m.prior, d, d_s, c_s, image, floor),
+                                                 Prior(d, w * sweep_gate(m.prior, d, d_s, c_s, image, floor, room),
                                                        m.prior.truncate_levels)))
                 else:
                     priors.append(Prior(flow.distance, weight, m.prior.truncate_levels))

@@ -45,6 +45,7 @@ from reconstruction.sweep.planes import (
     fill_plane_costs,
     onto_room_planes,
     plane_heights,
+    room_plane_distance,
     room_planes,
     room_walls,
 )
@@ -132,11 +133,13 @@ class Prior:
 
 @dataclass(frozen=True, eq=False)
 class PriorFromSweep:
-    """A prior that depends on the plain sweep, at no extra aggregation: ``make(distance, confidence)`` of the
-    sweep's coarse room-bound pass ((H, W) float32 each, upsampled to the frame) returns the :class:`Prior`.
-    Needs the plane family (``PlaneParams.per_side > 0``), whose coarse pass it reads."""
+    """A prior that depends on the plain sweep, at no extra aggregation: ``make(distance, confidence, room)`` of the
+    sweep's coarse room-bound pass ((H, W) float32 each, upsampled to the frame; ``room`` the distance along C's
+    bearings to the floor or the ceiling that pass found, inf where none: :func:`reconstruction.sweep.planes.
+    room_plane_distance`, metres) returns the :class:`Prior`.  Needs the plane family (``PlaneParams.per_side >
+    0``), whose coarse pass it reads."""
 
-    make: Callable[[np.ndarray, np.ndarray], Prior]
+    make: Callable[[np.ndarray, np.ndarray, np.ndarray], Prior]
 
 
 def _clock() -> tuple[float, float]:
@@ -378,8 +381,9 @@ def sweep_distances(frame, sweep: SweepMethod, priors: Sequence[Prior | PriorFro
         bounds = (z_floor, z_ceil)
         if from_sweep:  # only the priors made from the plain sweep read the coarse maps
             size = (frame.width, frame.height)
-            coarse = tuple(cv2.resize(np.asarray(a, np.float32), size, interpolation=cv2.INTER_LINEAR)
-                           for a in coarse)
+            coarse = (*(cv2.resize(np.asarray(a, np.float32), size, interpolation=cv2.INTER_LINEAR) for a in coarse),
+                      room_plane_distance(bearing_grid(frame.width, frame.height,
+                                                       frame.cameras["C"].rotation)[..., 2], found))
     estimate = None
     if cost_params.occlusion > 0 and coarse is not None:  # the coarse pass's distances decide what each pair sees
         # (upsampled bilinearly, as the priors read them: a no-op when they already did)

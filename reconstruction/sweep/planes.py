@@ -18,7 +18,7 @@ from reconstruction.camera.image_ops import central_differences
 
 __all__ = ["add_prior", "PlaneParams", "plane_heights", "fill_plane_costs", "plane_inverse_distance", "bound_costs",
            "dominant_planes", "wall_normals", "dominant_wall_yaw", "dominant_walls", "room_planes", "bound_wall_costs",
-           "onto_room_planes", "room_walls"]
+           "onto_room_planes", "room_plane_distance", "room_walls"]
 
 
 @dataclass(frozen=True)
@@ -328,6 +328,21 @@ def bound_costs(cost: np.ndarray, levels: int, a_z: np.ndarray, inv_d: np.ndarra
     _bound(cost, levels, np.ascontiguousarray(a_z, np.float64), inv_d.astype(np.float64),
            heights.astype(np.float64), float(z_low), float(z_high), np.int64(max_cost), np.int64(penalty),
            float(min_az))
+
+
+def room_plane_distance(a_z: np.ndarray, planes: tuple[float, float]) -> np.ndarray:
+    """Distance along C's bearings to the floor (bearings pointing down) or the ceiling (up).
+
+    Args:
+        a_z: (H, W) world Z of C's unit bearings; planes: ``(z_floor, z_ceiling)``, heights relative to C, metres
+            (``z_floor < 0 < z_ceiling``; -inf / inf: not found).
+    Returns:
+        (H, W) float32 metres; inf where the bearing is horizontal or its plane was not found.
+    """
+    a_z = np.asarray(a_z, np.float64)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        d = np.where(a_z < 0, planes[0] / a_z, np.where(a_z > 0, planes[1] / a_z, np.inf))
+    return np.where(np.isfinite(d) & (d > 0), d, np.inf).astype(np.float32)
 
 
 def onto_room_planes(distance: np.ndarray, a_z: np.ndarray, bounds: tuple[float, float],

@@ -172,20 +172,20 @@ def test_walls_candidates_the_reference_first_and_the_default_once():
 
 
 def test_gate_candidates_the_reference_first_and_the_default_once():
-    methods, default, _ = _candidates(select_gate, "fused-mirror-gate-0-0-0.5-0.7-0-0-0-0-0-3-0-0")
+    methods, default, _ = _candidates(select_gate, "fused-mirror-gate-0-0-0.5-0.7-0-0-0-0-0-3-0-0-0")
     p = methods[0].prior
     assert (p.contrast_noise, p.frame_agreement_contrast, p.frame_agreement_low, p.frame_agreement_high,
             p.epipole_cone_deg, p.epipole_cone_noise_low, p.epipole_cone_noise_high, p.contrast_blur,
             p.contrast_blur_floor, p.contrast_max_blur_px, p.epipole_cone_fb_low,
-            p.epipole_cone_fb_high) == select_gate.REFERENCE
-    # everything but the twelve values is the default's
-    m = select_gate.gate_method(2.0, 8.0, 0.3, 0.9, 12.0, 0.5, 1.5, 4.0, 0.6, 1.5, 0.5, 2.5)
-    assert m.label == "fused-mirror-gate-2-8-0.3-0.9-12-0.5-1.5-4-0.6-1.5-0.5-2.5"
+            p.epipole_cone_fb_high, p.epipole_cone_room) == select_gate.REFERENCE
+    # everything but the thirteen values is the default's
+    m = select_gate.gate_method(2.0, 8.0, 0.3, 0.9, 12.0, 0.5, 1.5, 4.0, 0.6, 1.5, 0.5, 2.5, 0.15)
+    assert m.label == "fused-mirror-gate-2-8-0.3-0.9-12-0.5-1.5-4-0.6-1.5-0.5-2.5-0.15"
     assert m.prior == dataclasses.replace(default.prior, contrast_noise=2.0, frame_agreement_contrast=8.0,
                                           frame_agreement_low=0.3, frame_agreement_high=0.9, epipole_cone_deg=12.0,
                                           epipole_cone_noise_low=0.5, epipole_cone_noise_high=1.5,
                                           contrast_blur=4.0, contrast_blur_floor=0.6, contrast_max_blur_px=1.5,
-                                          epipole_cone_fb_low=0.5, epipole_cone_fb_high=2.5)
+                                          epipole_cone_fb_low=0.5, epipole_cone_fb_high=2.5, epipole_cone_room=0.15)
     assert m.sweep == default.sweep and m.flow == default.flow and m.quality_flow == default.quality_flow
     assert all(len(c) == len(select_gate.REFERENCE) for c in select_gate.CANDIDATES)
     with pytest.raises(UserError, match="unknown candidate"):

@@ -194,6 +194,7 @@ _ADDED_KEYS = {"mirror_tolerance": 0.0, "intensity_weight": 1.0, "feature": "int
                "prior.epipole_cone_noise_low": 0.0, "prior.epipole_cone_noise_high": 0.0,
                "prior.contrast_blur": 0.0, "prior.contrast_blur_floor": 0.0, "prior.contrast_max_blur_px": 3.0,
                "prior.epipole_cone_fb_low": 0.0, "prior.epipole_cone_fb_high": 0.0,
+               "prior.epipole_cone_room": 0.0,
                **{f"params.{k}": v for k, v in {
                    "presmooth_sigma": 1.0, "mid_smoothing": 1.0, "post_smoothing": 1.0, "hog_sigmoid": 0.2,
                    "ninth_dim": 0.3, "cell_px": 4, "nlpow": 1.4, "reciprocal_px": 4.0, "alpha": 6.0, "beta": 390.0,

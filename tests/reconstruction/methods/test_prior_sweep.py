@@ -436,6 +436,31 @@ def test_the_cone_spares_the_frames_factor_only_where_the_c_r_flow_comes_back():
         PriorParams(epipole_cone_fb_low=-1.0)
 
 
+def test_the_cone_spares_the_frames_factor_only_where_the_flow_is_on_the_room_plane():
+    """``epipole_cone_room``: the floor counts only where the flow is within that relative tolerance of the room's
+    floor or ceiling (no plane, inf: not at all); the per-pixel factor still applies; without the room's distance it
+    is a ValueError."""
+    from reconstruction.methods.prior_sweep import sweep_gate
+
+    flow = np.array([[2.0, 2.0, 2.0, 2.0]])
+    sweep = np.array([[3.0, 3.0, 3.0, 3.0]])  # no pixel agrees: the frame's factor is 0
+    conf = np.array([[0.0, 0.0, 0.5, 0.0]])
+    floor = np.ones((1, 4), np.float32)
+    room = np.array([[2.1, 2.5, 2.1, np.inf]], np.float32)  # within 10 %, 22 % off, within 10 %, no plane
+    p = PriorParams(sweep_confidence_power=1.0, frame_agreement_low=0.5, frame_agreement_high=0.7,
+                    epipole_cone_room=0.1)
+    np.testing.assert_allclose(sweep_gate(p, flow, sweep, conf, floor=floor, room_m=room), [[1, 0, 0.5, 0]], atol=1e-6)
+    wide = dataclasses.replace(p, epipole_cone_room=0.3)
+    np.testing.assert_allclose(sweep_gate(wide, flow, sweep, conf, floor=floor, room_m=room), [[1, 1, 0.5, 0]],
+                               atol=1e-6)
+    off = dataclasses.replace(p, epipole_cone_room=0.0)
+    np.testing.assert_allclose(sweep_gate(off, flow, sweep, conf, floor=floor), [[1, 1, 0.5, 1]], atol=1e-6)
+    with pytest.raises(ValueError, match="room's floor and ceiling"):
+        sweep_gate(p, flow, sweep, conf, floor=floor)
+    with pytest.raises(ValueError, match="epipole_cone_room must be >= 0"):
+        PriorParams(epipole_cone_room=-0.1)
+
+
 def test_the_flow_group_hands_the_c_r_flows_inconsistency_to_the_cone(monkeypatch):
     """Run in its flow's group, a prior whose cone reads the C -> R flow's forward-backward inconsistency gets the
     reconstruction's (the same as the flow stages compute) and runs."""
@@ -454,7 +479,8 @@ def test_the_flow_group_hands_the_c_r_flows_inconsistency_to_the_cone(monkeypatc
     cone = PriorSweepMethod(flow=m.flow, sweep=m.sweep, label="cone",
                             prior=dataclasses.replace(m.prior, frame_agreement_low=0.5, frame_agreement_high=0.7,
                                                       sweep_confidence_power=1.0, epipole_cone_deg=20.0,
-                                                      epipole_cone_fb_low=1.0, epipole_cone_fb_high=3.0))
+                                                      epipole_cone_fb_low=1.0, epipole_cone_fb_high=3.0,
+                                                      epipole_cone_room=0.1))
     out = run_methods(f, [cone])["cone"]
     assert np.isfinite(out.distance).all()
     assert len(seen) == 1 and seen[0].shape == (f.height, f.width)

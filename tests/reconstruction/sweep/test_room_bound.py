@@ -129,3 +129,19 @@ def test_a_negative_or_non_finite_penalty_is_refused():
     for bad in (-0.1, 1.0, float("nan")):
         with pytest.raises(ValueError, match="bound_penalty_min_az"):
             PlaneParams(bound_penalty_min_az=bad)
+
+
+def test_the_distance_to_the_room_plane_along_each_bearing():
+    """Down to the floor, up to the ceiling (metres = height / a_z); inf for a horizontal bearing or a plane not
+    found."""
+    from reconstruction.sweep.planes import room_plane_distance
+
+    a_z = np.array([[-0.5, -1.0, 0.5, 1.0, 0.0]])
+    d = room_plane_distance(a_z, (-1.3, 1.7))
+    assert d.dtype == np.float32
+    np.testing.assert_allclose(d[0, :4], [2.6, 1.3, 3.4, 1.7], rtol=1e-6)
+    assert np.isinf(d[0, 4])
+    assert np.isinf(room_plane_distance(a_z, (-np.inf, np.inf))).all()
+    none_up = room_plane_distance(a_z, (-1.3, np.inf))
+    np.testing.assert_allclose(none_up[0, :2], [2.6, 1.3], rtol=1e-6)
+    assert np.isinf(none_up[0, 2:]).all()
