@@ -173,14 +173,17 @@ def fused_mirror() -> PriorSweepMethod:
         # fused's weight (16), times a ramp of C's local contrast (0 below 0.5, full above 2 gray levels: no prior
         # where there is no texture for the flow to follow), times 1 - c_sweep where the flow and the plain coarse
         # sweep disagree by more than 5 % (a confident sweep keeps its answer), times the frame's agreement share
-        # ramped from 0 at 50 % to full at 70 % (chosen on the dev split, docs/matching.md)
+        # ramped from 0 at 50 % to full at 70 % (chosen on the dev split, docs/matching.md); within 20 degrees of
+        # U's epipoles (the floor below the rig, the ceiling) that share is spared, in proportion to the rig's noise
+        # from 0.6 to 1.2 gray levels (none on a noise-free rig), where the flow lies within 10 % of the floor or
+        # ceiling the coarse pass found (chosen on tri360-v3 dev's camera twins, docs/photometry.md)
         prior=PriorParams(
             weight=16.0, truncate_levels=16.0, use_confidence=False, contrast_low=0.5, contrast_high=2.0,
             contrast_sigma_px=3.0, contrast_noise=0.0, contrast_blur=0.0, contrast_blur_floor=0.0,
             contrast_max_blur_px=3.0, sweep_confidence_power=1.0, agree_tolerance=0.05,
             frame_agreement_low=0.5, frame_agreement_high=0.7, frame_agreement_contrast=0.0,
-            epipole_cone_deg=0.0, epipole_cone_noise_low=0.0, epipole_cone_noise_high=0.0,
-            epipole_cone_fb_low=0.0, epipole_cone_fb_high=0.0, epipole_cone_room=0.0),
+            epipole_cone_deg=20.0, epipole_cone_noise_low=0.6, epipole_cone_noise_high=1.2,
+            epipole_cone_fb_low=0.0, epipole_cone_fb_high=0.0, epipole_cone_room=0.1),
         # the quality measures compare the distance with fused's refined flow distance (computed only when the
         # quality is assessed): on the dev split that ranks pixels by error better than the unrefined prior
         # (docs/real-captures.md)
@@ -329,8 +332,8 @@ def fused_mirror_raw() -> PriorSweepMethod:
             contrast_sigma_px=3.0, contrast_noise=0.0, contrast_blur=0.0, contrast_blur_floor=0.0,
             contrast_max_blur_px=3.0, sweep_confidence_power=1.0, agree_tolerance=0.05,
             frame_agreement_low=0.5, frame_agreement_high=0.7, frame_agreement_contrast=0.0,
-            epipole_cone_deg=0.0, epipole_cone_noise_low=0.0, epipole_cone_noise_high=0.0,
-            epipole_cone_fb_low=0.0, epipole_cone_fb_high=0.0, epipole_cone_room=0.0),
+            epipole_cone_deg=20.0, epipole_cone_noise_low=0.6, epipole_cone_noise_high=1.2,
+            epipole_cone_fb_low=0.0, epipole_cone_fb_high=0.0, epipole_cone_room=0.1),
         quality_flow=FlowMethod(
             flow=dis, rectify=True, limits=limits, photometric=photometric, rig=rig,
             refine=RefineConfig(
@@ -392,8 +395,8 @@ def fused_mirror_told_rig() -> PriorSweepMethod:
             contrast_sigma_px=3.0, contrast_noise=0.0, contrast_blur=0.0, contrast_blur_floor=0.0,
             contrast_max_blur_px=3.0, sweep_confidence_power=1.0, agree_tolerance=0.05,
             frame_agreement_low=0.5, frame_agreement_high=0.7, frame_agreement_contrast=0.0,
-            epipole_cone_deg=0.0, epipole_cone_noise_low=0.0, epipole_cone_noise_high=0.0,
-            epipole_cone_fb_low=0.0, epipole_cone_fb_high=0.0, epipole_cone_room=0.0),
+            epipole_cone_deg=20.0, epipole_cone_noise_low=0.6, epipole_cone_noise_high=1.2,
+            epipole_cone_fb_low=0.0, epipole_cone_fb_high=0.0, epipole_cone_room=0.1),
         quality_flow=FlowMethod(
             flow=dis, rectify=True, limits=limits, photometric=photometric, rig=rig,
             refine=RefineConfig(
@@ -451,8 +454,8 @@ def fused_mirror_raw_images() -> PriorSweepMethod:
             contrast_sigma_px=3.0, contrast_noise=0.0, contrast_blur=0.0, contrast_blur_floor=0.0,
             contrast_max_blur_px=3.0, sweep_confidence_power=1.0, agree_tolerance=0.05,
             frame_agreement_low=0.5, frame_agreement_high=0.7, frame_agreement_contrast=0.0,
-            epipole_cone_deg=0.0, epipole_cone_noise_low=0.0, epipole_cone_noise_high=0.0,
-            epipole_cone_fb_low=0.0, epipole_cone_fb_high=0.0, epipole_cone_room=0.0),
+            epipole_cone_deg=20.0, epipole_cone_noise_low=0.6, epipole_cone_noise_high=1.2,
+            epipole_cone_fb_low=0.0, epipole_cone_fb_high=0.0, epipole_cone_room=0.1),
         quality_flow=FlowMethod(
             flow=dis, rectify=True, limits=limits, photometric=photometric, rig=rig,
             refine=RefineConfig(
@@ -514,8 +517,8 @@ def fused_mirror_shared_falloff() -> PriorSweepMethod:
             contrast_sigma_px=3.0, contrast_noise=0.0, contrast_blur=0.0, contrast_blur_floor=0.0,
             contrast_max_blur_px=3.0, sweep_confidence_power=1.0, agree_tolerance=0.05,
             frame_agreement_low=0.5, frame_agreement_high=0.7, frame_agreement_contrast=0.0,
-            epipole_cone_deg=0.0, epipole_cone_noise_low=0.0, epipole_cone_noise_high=0.0,
-            epipole_cone_fb_low=0.0, epipole_cone_fb_high=0.0, epipole_cone_room=0.0),
+            epipole_cone_deg=20.0, epipole_cone_noise_low=0.6, epipole_cone_noise_high=1.2,
+            epipole_cone_fb_low=0.0, epipole_cone_fb_high=0.0, epipole_cone_room=0.1),
         quality_flow=FlowMethod(
             flow=dis, rectify=True, limits=limits, photometric=photometric, rig=rig,
             refine=RefineConfig(

@@ -229,6 +229,8 @@ def test_a_configuration_written_before_a_parameter_was_added_reads_as_its_earli
     raw_mirror["sweep"]["post"] = old["sweep"]["post"]
     for k in ("flat_contrast", "flat_weight"):
         raw_mirror["sweep"]["cost"][k] = old["sweep"]["cost"][k]
+    for k in ("epipole_cone_deg", "epipole_cone_noise_low", "epipole_cone_noise_high", "epipole_cone_room"):
+        raw_mirror["prior"][k] = 0.0
     assert config_difference(old, raw_mirror) == "sweep.planes.mirror_tolerance: 0.0 vs 0.2"
     assert config_difference(presets.fused_gated().config(), old) == "flow.photometric: present vs absent"
 

@@ -163,6 +163,10 @@ def test_the_default_is_fused_gated_with_its_mirror_test_cost_labels_room_bound_
     # its floor and ceiling searched again from the images (gated: not)
     assert "refine_planes" not in gated["sweep"]
     assert cfg["sweep"].pop("refine_planes")["max_se"] > 0
+    # its prior spares the frame's share at U's epipoles on a noisy rig where the flow is on the room's plane
+    cone = ("epipole_cone_deg", "epipole_cone_noise_low", "epipole_cone_noise_high", "epipole_cone_room")
+    assert all(cfg["prior"][k] > 0 == gated["prior"][k] for k in cone)
+    cfg["prior"].update({k: gated["prior"][k] for k in cone})
     assert {**cfg, "label": "fused-gated"} == gated
 
 
