@@ -103,9 +103,8 @@ class PriorParams:
         epipole_cone_fb_low, epipole_cone_fb_high: the cone spares the frame's factor only where the other pair's
             flow (C -> R, the pair with parallax there) is consistent: at each pixel the spare is scaled from 1 at
             ``low`` to 0 at ``high`` of that flow's forward-backward inconsistency, pixels
-            (:attr:`reconstruction.flow.matching.PairMatch.fb_error_px`): a flow that follows a camera's noise on a
-            plain floor does not come back to where it started, one locked onto the floor's texture does;
-            ``high`` 0 = off.
+            (:attr:`reconstruction.flow.matching.PairMatch.fb_error_px`); ``high`` 0 = off (as in every preset: a
+            flow that follows a camera's noise on a plain floor can come back to where it started too).
         epipole_cone_room: the cone spares the frame's factor only where the flow's distance lies within this
             relative tolerance (``|ln(d_flow / d_room)|``) of the floor or the ceiling the sweep's coarse pass
             found (``d_room`` along C's bearing, :func:`reconstruction.sweep.planes.room_plane_distance`): there the
