@@ -18,6 +18,7 @@ from tools.research import (
     select_gate,
     select_planes,
     select_refine_planes,
+    select_response,
     select_sgm,
     select_walls,
 )
@@ -129,6 +130,21 @@ def test_confirm_candidates_the_reference_first_and_the_default_once():
         select_confirm.candidate_methods(["3"])
 
 
+def test_response_candidates_the_reference_first_and_the_default_once():
+    methods, default, _ = _candidates(select_response, "fused-mirror-response-1")
+    assert methods[0].flow.photometric.response == 1
+    # everything but the response's degree (in the flow's, the sweep's and the quality flow's self-calibration) is
+    # the default's
+    m = select_response.response_method(3)
+    photometric = dataclasses.replace(default.flow.photometric, response=3)
+    assert m.label == "fused-mirror-response-3"
+    assert m.flow == dataclasses.replace(default.flow, photometric=photometric)
+    assert m.sweep == dataclasses.replace(default.sweep, photometric=photometric) and m.prior == default.prior
+    assert m.quality_flow is None or m.quality_flow.photometric == photometric
+    with pytest.raises(UserError, match="unknown candidate"):
+        select_response.candidate_methods(["4"])
+
+
 def test_refine_planes_candidates_the_reference_first_and_the_default_once():
     methods, default, _ = _candidates(select_refine_planes, "fused-mirror-refine-planes-0-0-0")
     assert methods[0].sweep.refine_planes is None
@@ -194,8 +210,9 @@ def test_gate_candidates_the_reference_first_and_the_default_once():
 
 @pytest.mark.parametrize("main", [select_planes.main, select_sgm.main, select_flat.main, select_edges.main,
                                   select_confirm.main, select_refine_planes.main, select_bound.main,
-                                  select_walls.main, select_gate.main],
-                         ids=["planes", "sgm", "flat", "edges", "confirm", "refine_planes", "bound", "walls", "gate"])
+                                  select_walls.main, select_gate.main, select_response.main],
+                         ids=["planes", "sgm", "flat", "edges", "confirm", "refine_planes", "bound", "walls", "gate",
+                              "response"])
 def test_a_missing_data_root_is_one_line_and_writes_nothing(main, tmp_path, capsys):
     out = tmp_path / "sel"
     assert main([str(tmp_path / "nope"), "--out", str(out), "--quiet", "--frames", "a/vp000"]) == 2
