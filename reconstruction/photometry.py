@@ -87,7 +87,9 @@ class PhotometricParams:
         central: the fields keep only the monomials of even total degree (and ``|x|, |y|, |z|``): a fall-off the
             same at a bearing and its opposite, as two like back-to-back lenses give whatever their axis, which a
             brightness difference between the floor and the ceiling (a polished floor's view-dependent reflection)
-            cannot move.
+            cannot move.  Off (the odd monomials too), the fit applies fields on an ideal dev frame and loses up to
+            1.13 x on a (condition, room family) cell of tri360-v3 dev while the seams family gains 5 %
+            (docs/photometry.md).
         common_field: :func:`fit_photometric` also fits the fall-off all three cameras share (from the parallax:
             the same point is seen at different bearings) and removes it from all three images, C's included.
             Off by default: through a 0.3-0.4 m rig's parallax it is hard to tell from view-dependent reflection
@@ -116,7 +118,9 @@ class PhotometricParams:
             a camera whose tone curve is not C's is not a gain of C's (a gamma of G instead of sRGB's about 2.2 is
             about ``r(s) = (1 - G / 2.2) s``).  1 (a power law): a cubic, which would follow an S-shaped
             curve, found log ranges of up to 4.7 between ``dark`` and ``bright`` on ideal frames of tri360-v3 dev
-            (where few pixels are, it extrapolates).  0: none.
+            (where few pixels are, it extrapolates); 2 follows a gamma curve against an S-shaped one, but on the
+            camera families of tri360-v3 dev it trades fields for responses (a cell 1.26 x, a frame 1.67 x;
+            ``python -m tools.research.select_response``).  0: none.
         min_response: the smallest response applied: the range of ``r_K`` over the levels of most of the fit's
             pixels (C's 5th to 95th percentile), natural log; above the 0.04 the fit finds on cameras that agree and
             the 0.09 on cameras that differ only by gain, fall-off, noise and JPEG (tri360-v3 dev, ideal and captured).
