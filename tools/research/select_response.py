@@ -7,12 +7,12 @@ Run as::
         [--quiet] [--workers N | --scheduler ADDRESS]
 
 ``LABEL`` is a frame directory (``<scene>/<viewpoint>``) or a directory of frames (``<scene>``) relative to
-``DATA_ROOT``; without ``--frames`` every frame under ``DATA_ROOT`` (choose on a suite's ``dev`` split). A frame on
-which no candidate applies a response and every candidate applies the same corrections gets the same answer from
-each, to the digit (the kept corrections are fitted again alone), so ``--frames`` may list only the frames of the
-(condition, room family) cells that hold a frame where, in ``calibration_floor``'s rows of the reference and of a
-candidate, ``applied`` differs or names a response: the rule below reads each cell's pooled MAE, and every other
-cell is the same for every candidate.  The methods: the reference :data:`REFERENCE` (``fused-mirror-response-1``: a
+``DATA_ROOT``; without ``--frames`` every frame under ``DATA_ROOT`` (choose on a suite's ``dev`` split). The degree
+changes every frame's fit, so even a frame on which the candidates apply the same corrections and no response can
+answer differently (the kept corrections are fitted again from the full fit's values: 0.94-1.04 x on 19 such dev
+frames).  A shortcut: ``--frames`` listing the frames of the (condition, room family) cells that hold a frame where,
+in ``calibration_floor``'s rows of the reference and of a candidate, ``applied`` differs or names a response, since
+the rule below reads each cell's pooled MAE; the other cells are then not compared.  The methods: the reference :data:`REFERENCE` (``fused-mirror-response-1``: a
 power law, the default before this choice), one ``fused-mirror-response-<n>`` per candidate of :data:`CANDIDATES`
 (``--candidates``: these only; ``PhotometricParams.response``, the polynomial's degree in the log level, everything
 else the default's) and the default ``fused-mirror`` as registered (a candidate or the reference configured as the
