@@ -12,11 +12,12 @@ changes every frame's fit, so even a frame on which the candidates apply the sam
 answer differently (the kept corrections are fitted again from the full fit's values: 0.94-1.04 x on 19 such dev
 frames).  A shortcut: ``--frames`` listing the frames of the (condition, room family) cells that hold a frame where,
 in ``calibration_floor``'s rows of the reference and of a candidate, ``applied`` differs or names a response, since
-the rule below reads each cell's pooled MAE; the other cells are then not compared.  The methods: the reference :data:`REFERENCE` (``fused-mirror-response-1``: a
-power law, the default before this choice), one ``fused-mirror-response-<n>`` per candidate of :data:`CANDIDATES`
-(``--candidates``: these only; ``PhotometricParams.response``, the polynomial's degree in the log level, everything
-else the default's) and the default ``fused-mirror`` as registered (a candidate or the reference configured as the
-default stands for it, not run twice). ``DIR`` becomes a results set (``tri360 evaluate``'s, without the report)
+the rule below reads each cell's pooled MAE; the other cells are then not compared.  The methods: the reference
+:data:`REFERENCE` (``fused-mirror-response-1``: a power law, the default before this choice), one
+``fused-mirror-response-<n>`` per candidate of :data:`CANDIDATES` (``--candidates``: these only;
+``PhotometricParams.response``, the polynomial's degree in the log level, everything else the default's) and the
+default ``fused-mirror`` as registered (a candidate or the reference configured as the default stands for it, not run
+twice). ``DIR`` becomes a results set (``tri360 evaluate``'s, without the report)
 plus ``selection.md`` and ``selection.json``, as ``python -m tools.research.select_fill`` writes them, with the same
 rule (:func:`tools.research.select_fill.choose`).
 """
