@@ -11,7 +11,7 @@ from harness.render.raycast import render_camera
 from reconstruction.camera.equirect import bearing_grid, bearing_to_pixel, pixel_to_bearing, project
 from reconstruction.camera.resample import rotation_maps
 from reconstruction.camera.rig import CameraPose, yaw_rotation
-from reconstruction.methods.sweep import SweepMethod
+from reconstruction.methods.sweep import PostParams, SweepMethod, _median_wrap
 from reconstruction.sweep.cost import CostParams, _box_lines, build_cost_volume, gray_float, prepare_pair, rect_row
 from reconstruction.sweep.sgm import aggregate, winner_take_all
 from scenes.model import choose_viewpoints
@@ -362,3 +362,33 @@ def test_box_filter_of_cost_slices_is_the_plain_box_mean():
     _box_lines(got.transpose(1, 0, 2), 4, r, False, np.float32(1.0 / 9.0))
     assert np.abs(got.astype(np.int64) - expected).max() <= 1
     assert (got.astype(np.int64) == expected).mean() > 0.95
+
+
+def _median_brute(d: np.ndarray, k: int) -> np.ndarray:
+    """The median of every k x k window, columns wrapping (longitude), rows beyond the edge repeating it."""
+    h, w = d.shape
+    r = k // 2
+    out = np.empty_like(d)
+    for y in range(h):
+        rows = np.clip(np.arange(y - r, y + r + 1), 0, h - 1)
+        for x in range(w):
+            cols = np.arange(x - r, x + r + 1) % w
+            out[y, x] = np.median(d[np.ix_(rows, cols)])
+    return out
+
+
+@pytest.mark.parametrize("k", [3, 5, 7, 9])
+def test_the_median_wraps_in_longitude_at_every_side(k):
+    # OpenCV's filter up to 5, SciPy's above: both are the plain median (an element of the window, so exact)
+    d = np.random.default_rng(k).random((12, 20)).astype(np.float32) * 10.0
+    out = _median_wrap(d, k)
+    assert out.dtype == np.float32 and out.shape == d.shape
+    np.testing.assert_array_equal(out, _median_brute(d, k))
+
+
+def test_the_median_side_must_be_odd():
+    assert PostParams(median_px=9).median_px == 9 and PostParams(median_px=0).median_px == 0
+    for bad in (2, 4, -3, 5.0, True):
+        with pytest.raises(ValueError, match="median_px"):
+            PostParams(median_px=bad)
+
