@@ -16,6 +16,7 @@ from tools.research import (
     select_edges,
     select_flat,
     select_gate,
+    select_median,
     select_planes,
     select_refine_planes,
     select_response,
@@ -145,6 +146,18 @@ def test_response_candidates_the_reference_first_and_the_default_once():
         select_response.candidate_methods(["4"])
 
 
+def test_median_candidates_the_reference_first_and_the_default_once():
+    methods, default, same = _candidates(select_median, "fused-mirror-median-5")
+    assert same is methods[0] and methods[0].sweep.post.median_px == 5
+    # everything but the median's side is the default's
+    m = select_median.median_method(9)
+    assert m.label == "fused-mirror-median-9"
+    assert m.sweep == dataclasses.replace(default.sweep, post=dataclasses.replace(default.sweep.post, median_px=9))
+    assert m.flow == default.flow and m.prior == default.prior and m.quality_flow == default.quality_flow
+    with pytest.raises(UserError, match="unknown candidate"):
+        select_median.candidate_methods(["11"])
+
+
 def test_refine_planes_candidates_the_reference_first_and_the_default_once():
     methods, default, _ = _candidates(select_refine_planes, "fused-mirror-refine-planes-0-0-0")
     assert methods[0].sweep.refine_planes is None
@@ -210,9 +223,9 @@ def test_gate_candidates_the_reference_first_and_the_default_once():
 
 @pytest.mark.parametrize("main", [select_planes.main, select_sgm.main, select_flat.main, select_edges.main,
                                   select_confirm.main, select_refine_planes.main, select_bound.main,
-                                  select_walls.main, select_gate.main, select_response.main],
+                                  select_walls.main, select_gate.main, select_response.main, select_median.main],
                          ids=["planes", "sgm", "flat", "edges", "confirm", "refine_planes", "bound", "walls", "gate",
-                              "response"])
+                              "response", "median"])
 def test_a_missing_data_root_is_one_line_and_writes_nothing(main, tmp_path, capsys):
     out = tmp_path / "sel"
     assert main([str(tmp_path / "nope"), "--out", str(out), "--quiet", "--frames", "a/vp000"]) == 2
