@@ -117,7 +117,8 @@ def fused_mirror() -> PriorSweepMethod:
                 d_min_m=0.3, d_max_m=30.0, levels=200, blur_px=0.0, gradient_weight=2.0, intensity_weight=1.0,
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=0.0,
                 noise_floor=1.0, max_noise_blur_px=1.5, noise_scale=1, occlusion=0.0, occlusion_min_share=0.25,
-                flat_contrast=1.0, flat_weight=0.5, flat_sigma_px=2.0, flat_min_noise=0.5),
+                flat_contrast=1.0, flat_weight=0.5, flat_sigma_px=2.0, flat_min_noise=0.5,
+                normalized_weight=0.0, normalized_contrast=1.0),
             planes=PlaneParams(
                 per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_min_share=0.03,
                 coarse_factor=2, wall_spread=0.1, wall_min_share=0.01,
@@ -169,7 +170,8 @@ def fused_mirror() -> PriorSweepMethod:
                 # 0.9-2.9 and its low-light ones 3.1-6.5 (reconstruction.sweep.cost.image_noise; chosen on tri360-v3
                 # dev's low-light family, docs/photometry.md)
                 noise_blur=1.0, noise_floor=2.0, noise_scale=2, occlusion=0.0, occlusion_min_share=0.25,
-                flat_contrast=1.0, flat_weight=0.5, flat_sigma_px=2.0, flat_min_noise=0.5)),
+                flat_contrast=1.0, flat_weight=0.5, flat_sigma_px=2.0, flat_min_noise=0.5,
+                normalized_weight=0.0, normalized_contrast=1.0)),
         # fused's weight (16), times a ramp of C's local contrast (0 below 0.5, full above 2 gray levels: no prior
         # where there is no texture for the flow to follow), times 1 - c_sweep where the flow and the plain coarse
         # sweep disagree by more than 5 % (a confident sweep keeps its answer), times the frame's agreement share
@@ -231,7 +233,8 @@ def fused() -> PriorSweepMethod:
                 d_min_m=0.3, d_max_m=30.0, levels=160, blur_px=0.0, gradient_weight=2.0, intensity_weight=1.0,
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=0.0,
                 noise_floor=1.0, max_noise_blur_px=1.5, noise_scale=1, occlusion=0.0, occlusion_min_share=0.25,
-                flat_contrast=0.0, flat_weight=1.0, flat_sigma_px=2.0, flat_min_noise=0.5),
+                flat_contrast=0.0, flat_weight=1.0, flat_sigma_px=2.0, flat_min_noise=0.5,
+                normalized_weight=0.0, normalized_contrast=1.0),
             # spheres and floor/ceiling planes, no wall planes
             planes=PlaneParams(
                 per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_margin=0.25, bound_penalty=0.0,
@@ -270,7 +273,8 @@ def sweep() -> SweepMethod:
             d_min_m=0.3, d_max_m=30.0, levels=160, blur_px=0.0, gradient_weight=2.0, intensity_weight=1.0,
             truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=0.0, noise_floor=1.0,
             max_noise_blur_px=1.5, noise_scale=1, occlusion=0.0, occlusion_min_share=0.25, flat_contrast=0.0,
-            flat_weight=1.0, flat_sigma_px=2.0, flat_min_noise=0.5),
+            flat_weight=1.0, flat_sigma_px=2.0, flat_min_noise=0.5,
+            normalized_weight=0.0, normalized_contrast=1.0),
         planes=PlaneParams(
             per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_margin=0.25, bound_penalty=0.0,
             bound_penalty_min_az=0.0, bound_min_share=0.03, coarse_factor=2,
@@ -317,7 +321,8 @@ def fused_mirror_raw() -> PriorSweepMethod:
                 d_min_m=0.3, d_max_m=30.0, levels=200, blur_px=0.0, gradient_weight=2.0, intensity_weight=1.0,
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=0.0,
                 noise_floor=1.0, max_noise_blur_px=1.5, noise_scale=1, occlusion=0.0, occlusion_min_share=0.25,
-                flat_contrast=1.0, flat_weight=0.5, flat_sigma_px=2.0, flat_min_noise=0.5),
+                flat_contrast=1.0, flat_weight=0.5, flat_sigma_px=2.0, flat_min_noise=0.5,
+                normalized_weight=0.0, normalized_contrast=1.0),
             planes=PlaneParams(
                 per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_margin=0.1, bound_penalty=2.0,
                 bound_penalty_min_az=0.2, bound_min_share=0.03, coarse_factor=2,
@@ -375,7 +380,8 @@ def fused_mirror_told_rig() -> PriorSweepMethod:
                 d_min_m=0.3, d_max_m=30.0, levels=200, blur_px=0.0, gradient_weight=2.0, intensity_weight=1.0,
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=0.0,
                 noise_floor=1.0, max_noise_blur_px=1.5, noise_scale=1, occlusion=0.0, occlusion_min_share=0.25,
-                flat_contrast=1.0, flat_weight=0.5, flat_sigma_px=2.0, flat_min_noise=0.5),
+                flat_contrast=1.0, flat_weight=0.5, flat_sigma_px=2.0, flat_min_noise=0.5,
+                normalized_weight=0.0, normalized_contrast=1.0),
             planes=PlaneParams(
                 per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_margin=0.1, bound_penalty=2.0,
                 bound_penalty_min_az=0.2, bound_min_share=0.03, coarse_factor=2,
@@ -389,7 +395,8 @@ def fused_mirror_told_rig() -> PriorSweepMethod:
                 d_min_m=0.3, d_max_m=30.0, levels=200, blur_px=0.7, gradient_weight=2.0, intensity_weight=0.25,
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=1.0,
                 noise_floor=2.0, max_noise_blur_px=1.5, noise_scale=2, occlusion=0.0, occlusion_min_share=0.25,
-                flat_contrast=1.0, flat_weight=0.5, flat_sigma_px=2.0, flat_min_noise=0.5)),
+                flat_contrast=1.0, flat_weight=0.5, flat_sigma_px=2.0, flat_min_noise=0.5,
+                normalized_weight=0.0, normalized_contrast=1.0)),
         prior=PriorParams(
             weight=16.0, truncate_levels=16.0, use_confidence=False, contrast_low=0.5, contrast_high=2.0,
             contrast_sigma_px=3.0, contrast_noise=0.0, contrast_blur=0.0, contrast_blur_floor=0.0,
@@ -439,7 +446,8 @@ def fused_mirror_raw_images() -> PriorSweepMethod:
                 d_min_m=0.3, d_max_m=30.0, levels=200, blur_px=0.0, gradient_weight=2.0, intensity_weight=1.0,
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=0.0,
                 noise_floor=1.0, max_noise_blur_px=1.5, noise_scale=1, occlusion=0.0, occlusion_min_share=0.25,
-                flat_contrast=1.0, flat_weight=0.5, flat_sigma_px=2.0, flat_min_noise=0.5),
+                flat_contrast=1.0, flat_weight=0.5, flat_sigma_px=2.0, flat_min_noise=0.5,
+                normalized_weight=0.0, normalized_contrast=1.0),
             planes=PlaneParams(
                 per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_margin=0.1, bound_penalty=2.0,
                 bound_penalty_min_az=0.2, bound_min_share=0.03, coarse_factor=2,
@@ -497,7 +505,8 @@ def fused_mirror_shared_falloff() -> PriorSweepMethod:
                 d_min_m=0.3, d_max_m=30.0, levels=200, blur_px=0.0, gradient_weight=2.0, intensity_weight=1.0,
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=0.0,
                 noise_floor=1.0, max_noise_blur_px=1.5, noise_scale=1, occlusion=0.0, occlusion_min_share=0.25,
-                flat_contrast=1.0, flat_weight=0.5, flat_sigma_px=2.0, flat_min_noise=0.5),
+                flat_contrast=1.0, flat_weight=0.5, flat_sigma_px=2.0, flat_min_noise=0.5,
+                normalized_weight=0.0, normalized_contrast=1.0),
             planes=PlaneParams(
                 per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_margin=0.1, bound_penalty=2.0,
                 bound_penalty_min_az=0.2, bound_min_share=0.03, coarse_factor=2,
@@ -511,7 +520,8 @@ def fused_mirror_shared_falloff() -> PriorSweepMethod:
                 d_min_m=0.3, d_max_m=30.0, levels=200, blur_px=0.7, gradient_weight=2.0, intensity_weight=0.25,
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=1.0,
                 noise_floor=2.0, max_noise_blur_px=1.5, noise_scale=2, occlusion=0.0, occlusion_min_share=0.25,
-                flat_contrast=1.0, flat_weight=0.5, flat_sigma_px=2.0, flat_min_noise=0.5)),
+                flat_contrast=1.0, flat_weight=0.5, flat_sigma_px=2.0, flat_min_noise=0.5,
+                normalized_weight=0.0, normalized_contrast=1.0)),
         prior=PriorParams(
             weight=16.0, truncate_levels=16.0, use_confidence=False, contrast_low=0.5, contrast_high=2.0,
             contrast_sigma_px=3.0, contrast_noise=0.0, contrast_blur=0.0, contrast_blur_floor=0.0,
@@ -558,7 +568,8 @@ def fused_gated() -> PriorSweepMethod:
                 d_min_m=0.3, d_max_m=30.0, levels=160, blur_px=0.0, gradient_weight=2.0, intensity_weight=1.0,
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=0.0,
                 noise_floor=1.0, max_noise_blur_px=1.5, noise_scale=1, occlusion=0.0, occlusion_min_share=0.25,
-                flat_contrast=0.0, flat_weight=1.0, flat_sigma_px=2.0, flat_min_noise=0.5),
+                flat_contrast=0.0, flat_weight=1.0, flat_sigma_px=2.0, flat_min_noise=0.5,
+                normalized_weight=0.0, normalized_contrast=1.0),
             # the horizontal planes plus 9 labels per wall found by the coarse pass
             planes=PlaneParams(
                 per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_margin=0.25, bound_penalty=0.0,
@@ -624,7 +635,8 @@ def fused_adaptive() -> PriorSweepMethod:
                 d_min_m=0.3, d_max_m=30.0, levels=160, blur_px=0.0, gradient_weight=2.0, intensity_weight=1.0,
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=0.0,
                 noise_floor=1.0, max_noise_blur_px=1.5, noise_scale=1, occlusion=0.0, occlusion_min_share=0.25,
-                flat_contrast=0.0, flat_weight=1.0, flat_sigma_px=2.0, flat_min_noise=0.5),
+                flat_contrast=0.0, flat_weight=1.0, flat_sigma_px=2.0, flat_min_noise=0.5,
+                normalized_weight=0.0, normalized_contrast=1.0),
             # the horizontal planes plus 9 labels per wall found by the coarse pass
             planes=PlaneParams(
                 per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_margin=0.25, bound_penalty=0.0,

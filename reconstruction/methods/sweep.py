@@ -284,13 +284,15 @@ def _aggregate(frame, cost, heights, inv_d, sweep: SweepMethod, seconds, bounds=
 
 
 def room_bounds(frame, sweep: SweepMethod, seconds):
-    """From a coarse pass of ``sweep`` (the plain sweep on images ``coarse_factor`` times smaller): floor and
-    ceiling heights relative to C (metres, -inf / inf if not found or without ``room_bound``; widened by
-    ``bound_margin``), the walls' yaw (radians or None), the label families of the walls found
-    (:func:`reconstruction.sweep.planes.dominant_walls`; none without ``wall_labels``) followed by those of the
-    floor and ceiling found (:func:`reconstruction.sweep.planes.room_planes`; none without ``room_labels``), and the
-    coarse pass's (distance (m), confidence) maps, and the floor's and ceiling's heights as found (metres, -inf /
-    inf if not found; no margin)."""
+    """From a coarse pass of ``sweep`` (the plain sweep on images ``coarse_factor`` times smaller, its cost without
+    ``normalized_weight``'s mix): floor and ceiling heights relative to C (metres, -inf / inf if not found or
+    without ``room_bound``; widened by ``bound_margin``), the walls' yaw (radians or None), the label families of the
+    walls found (:func:`reconstruction.sweep.planes.dominant_walls`; none without ``wall_labels``) followed by those
+    of the floor and ceiling found (:func:`reconstruction.sweep.planes.room_planes`; none without ``room_labels``),
+    and the coarse pass's (distance (m), confidence) maps, and the floor's and ceiling's heights as found (metres,
+    -inf / inf if not found; no margin)."""
+    if sweep.cost.normalized_weight > 0:  # the room is read from the cost of the feature alone (CostParams)
+        sweep = dataclasses.replace(sweep, cost=dataclasses.replace(sweep.cost, normalized_weight=0.0))
     cost_params, plane_params = sweep.cost, sweep.planes
     coarse = reduced_frame(frame, plane_params.coarse_factor)
     cost, heights, inv_d = _sphere_costs(coarse, sweep, seconds, prefix="coarse_")

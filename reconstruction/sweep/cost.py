@@ -25,6 +25,9 @@ two derivatives along the rectified columns and rows (gray levels per pixel), we
   the local contrast is well above ``NORM_EPS`` (below it, the plain high-passed intensity ``NORM_SCALE / NORM_EPS
   * (g - mu)``: flat, noisy areas are not amplified).
 
+``CostParams.normalized_weight`` mixes the normalised intensity's cost into another feature's where C shows texture
+(each pair's cost a weighted mean of both truncated differences; six features sampled instead of three).
+
 The invariance holds for the rectified gray image; the gray conversion of per-channel curves and the bilinear
 resampling into the rectified frame, which a tone curve does not commute with, make it approximate.
 
@@ -117,6 +120,19 @@ class CostParams:
         flat_sigma_px: the contrast window's sigma, pixels (> 0).
         flat_min_noise: the least noise the threshold assumes, gray levels (noise-free renders still have
             quantisation and aliasing).
+        normalized_weight: the locally normalised intensity's cost mixed in where C shows texture (0 = off): at C's
+            pixels whose local contrast (as for ``flat_contrast``) is at least ``normalized_contrast`` times C's
+            noise, each pair's cost is ``(1 - w)`` times the truncated difference of ``feature`` and its
+            derivatives plus ``w`` times that of :func:`local_normalize` and its derivatives (each truncated at
+            ``truncate``; the same weights), ``w = normalized_weight``; elsewhere ``feature``'s alone.  A
+            view-dependent shading or sheen moves the intensity but hardly the normalised intensity; but that
+            doubles a plain floor's noise (hence only where C shows texture) and spreads a polished floor's
+            reflections over its window (docs/cost.md).  Within [0, 1]; where it applies, six features are compared
+            instead of three (measured at 1000x500: the cost stage about 1.4 times as long, the default method
+            about 1.1 times).  The sweep's coarse room-bound pass leaves it out
+            (``reconstruction.methods.sweep.room_bounds``): on images half the size the window covers twice the
+            angle, and a glossy lab's walls were no longer found there.
+        normalized_contrast: the local contrast, in C's noise, from which the normalised cost is mixed in (>= 0).
     """
 
     d_min_m: float = 0.3
@@ -140,6 +156,8 @@ class CostParams:
     flat_weight: float = 1.0
     flat_sigma_px: float = 2.0
     flat_min_noise: float = 0.5
+    normalized_weight: float = 0.0
+    normalized_contrast: float = 1.0
 
     def __post_init__(self) -> None:
         if self.feature not in FEATURES:
@@ -158,6 +176,12 @@ class CostParams:
             raise ValueError(f"cost flat_contrast {self.flat_contrast} and flat_min_noise {self.flat_min_noise} must "
                              f"be >= 0, flat_sigma_px {self.flat_sigma_px} > 0 and flat_weight {self.flat_weight} "
                              f"within [0, 1]")
+        if not (0 <= self.normalized_weight <= 1 and self.normalized_contrast >= 0):
+            raise ValueError(f"cost normalized_weight {self.normalized_weight} must be within [0, 1] and "
+                             f"normalized_contrast {self.normalized_contrast} >= 0")
+        if self.normalized_weight > 0 and self.feature == "normalized":
+            raise ValueError("cost normalized_weight mixes the normalised intensity into another feature's cost; "
+                             "with feature 'normalized' it must be 0")
 
     def max_cost(self) -> int:
         """Largest possible summed cost, uint16 units (both pairs' weights sum to at most 2)."""
@@ -290,8 +314,9 @@ class PairWarp:
         name: the other camera's name ("U" or "R").
         baseline_m: |K - C|, metres.
         rect_rotation: (3, 3) world-from-rectified rotation (+Z along the baseline).
-        ref: (3, H, W) float32 features of C in the rectified frame.
-        other: (3, H, W) float32 features of K in the rectified frame.
+        ref: (F, H, W) float32 features of C in the rectified frame (F = 3, or 6 with
+            ``CostParams.normalized_weight``).
+        other: (F, H, W) float32 features of K in the rectified frame.
         cos_theta, sin_theta: (H,) cos / sin of each rectified row's colatitude.
         weight: (H, W) float32 pair weight in C's grid, ``sin(angle to baseline) ** pair_power``.
     """
@@ -304,6 +329,15 @@ class PairWarp:
     cos_theta: np.ndarray
     sin_theta: np.ndarray
     weight: np.ndarray
+
+
+def _pair_features(gray_rect: np.ndarray, params: CostParams) -> np.ndarray:
+    """(H, W) rectified gray -> (3, H, W) float32 weighted features of ``params.feature`` (:func:`_features`), and
+    with ``params.normalized_weight`` the normalised intensity's three after them: (6, H, W)."""
+    feats = _features(gray_rect, params.gradient_weight, params.intensity_weight, params.feature)
+    if params.normalized_weight <= 0:
+        return feats
+    return np.concatenate([feats, _features(gray_rect, params.gradient_weight, params.intensity_weight, "normalized")])
 
 
 def prepare_pair(frame, name: str, gray: dict, params: CostParams) -> PairWarp:
@@ -319,10 +353,8 @@ def prepare_pair(frame, name: str, gray: dict, params: CostParams) -> PairWarp:
     base = np.asarray(cam_k.position, np.float64) - np.asarray(cam_c.position, np.float64)
     b = float(np.linalg.norm(base))
     rect = rectifying_rotation(base, cam_c.rotation)
-    ref = _features(warp_equirect(gray["C"], rect, cam_c.rotation), params.gradient_weight, params.intensity_weight,
-                    params.feature)
-    other = _features(warp_equirect(gray[name], rect, cam_k.rotation), params.gradient_weight,
-                      params.intensity_weight, params.feature)
+    ref, other = (_pair_features(warp_equirect(gray[k], rect, cam.rotation), params)
+                  for k, cam in (("C", cam_c), (name, cam_k)))
     theta = np.pi * (np.arange(h) + 0.5) / h
     bear = bearing_grid(w, h, cam_c.rotation)
     cos_b = bear @ (base / b)
@@ -355,8 +387,8 @@ def _pair_arrays(pw: PairWarp, frame):
     """Per-pixel arrays of one pair in C's grid for :func:`_sweep_costs`.
 
     Returns:
-        ``(other_t, ref, ur, vr)``: (W, H, 3) K's rectified features transposed (columns contiguous),
-        (H, W, 3) C's rectified features at each C pixel, (H, W) rectified column and row of each C pixel
+        ``(other_t, ref, ur, vr)``: (W, H, F) K's rectified features transposed (columns contiguous),
+        (H, W, F) C's rectified features at each C pixel, (H, W) rectified column and row of each C pixel
         (float32, pixels).
     """
     h, w = frame.height, frame.width
@@ -410,8 +442,10 @@ def build_cost_volume(frame, params: CostParams, extra_labels: int = 0, pairs=("
     zbuf = (np.stack([visibility_buffer(estimate, ur[k], vr[k], pw.baseline_m, other_t.shape[1], other_t.shape[2])
                       for k, pw in enumerate(warps)]) if occlusion > 0 else np.zeros((len(warps), 1, 1), np.float32))
     baselines = np.array([pw.baseline_m for pw in warps], np.float64)
+    mix = (np.float32(params.normalized_weight) * ~_low_contrast(frame.images["C"], params, params.normalized_contrast)
+           if params.normalized_weight > 0 else np.zeros((1, 1), np.float32)).astype(np.float32)
     _sweep_costs(cost, params.levels, other_t, ref, ur, vr, rows, weight, np.float32(params.truncate), zbuf,
-                 inv_d, baselines, np.float32(occlusion), np.float32(params.occlusion_min_share))
+                 inv_d, baselines, np.float32(occlusion), np.float32(params.occlusion_min_share), mix)
     box = int(params.box_px)
     if box > 1:
         _box_lines(cost, params.levels, box // 2, True, np.float32(1.0))  # along longitude, which wraps
@@ -433,8 +467,14 @@ def untextured(image: np.ndarray, params: CostParams) -> np.ndarray:
     """
     if params.flat_contrast <= 0:
         return np.zeros(image.shape[:2], bool)
+    return _low_contrast(image, params, params.flat_contrast)
+
+
+def _low_contrast(image: np.ndarray, params: CostParams, factor: float) -> np.ndarray:
+    """(H, W) bool: C's local contrast (sigma ``params.flat_sigma_px``) below ``factor`` times its noise
+    (:func:`image_noise` at :data:`FLAT_NOISE_SCALE`, at least ``params.flat_min_noise``), gray levels."""
     noise = max(image_noise(image, FLAT_NOISE_SCALE), params.flat_min_noise)
-    return local_contrast(gray_float(image, 0.0), params.flat_sigma_px) < params.flat_contrast * noise
+    return local_contrast(gray_float(image, 0.0), params.flat_sigma_px) < factor * noise
 
 
 def flatten_untextured(cost: np.ndarray, levels: int, mask: np.ndarray, weight: float = 1.0) -> None:
@@ -509,15 +549,31 @@ def _splat_ranges(zbuf, d, ur, vr, b):
                         zbuf[c, r] = rng
 
 
+@numba.njit(inline="always", fastmath=True)
+def _normalized_l1(other_t, p, c0, c1, j0, tv, tu, ref, y, x):
+    """The summed absolute difference of features 3-5 (the normalised intensity and its derivatives) of C at
+    ``(y, x)`` and of K bilinearly at columns ``c0, c1`` (weight ``tu`` on ``c1``) and rows ``j0, j0 + 1`` (weight
+    ``tv`` on ``j0 + 1``)."""
+    s = np.float32(0.0)
+    for k in range(3, 6):
+        a = other_t[p, c0, j0, k] + tv * (other_t[p, c0, j0 + 1, k] - other_t[p, c0, j0, k])
+        b = other_t[p, c1, j0, k] + tv * (other_t[p, c1, j0 + 1, k] - other_t[p, c1, j0, k])
+        s += abs(a + tu * (b - a) - ref[p, y, x, k])
+    return s
+
+
 @numba.njit(parallel=True, cache=True, fastmath=True)
 def _sweep_costs(cost, n_levels, other_t, ref, ur, vr, rows, weight, truncate, zbuf, inv_d, baselines, occlusion,
-                 min_share):
-    # cost: (H, W, >= n_levels) uint16 out; other_t: (P, W, H, 3) K's rectified features, columns contiguous;
-    # ref: (P, H, W, 3) C's rectified features at C's pixels; ur, vr: (P, H, W) rectified column / row of C's
-    # pixels; rows: (P, H, n_levels) K's rectified row seen by each integer rectified row of C per hypothesis;
-    # weight: (P, H, W) pair weight times the cost scale; zbuf: (P, W, H) visibility_buffer per pair (used when
-    # occlusion > 0); inv_d: (n_levels,) 1/m; baselines: (P,) metres.
+                 min_share, mix):
+    # cost: (H, W, >= n_levels) uint16 out; other_t: (P, W, H, F) K's rectified features, columns contiguous, F = 3
+    # (a feature and its two derivatives) or 6 (then the normalised intensity's three after them); ref: (P, H, W,
+    # F) C's rectified features at C's pixels; ur, vr: (P, H, W) rectified column / row of C's pixels; rows: (P, H,
+    # n_levels) K's rectified row seen by each integer rectified row of C per hypothesis; weight: (P, H, W) pair
+    # weight times the cost scale; zbuf: (P, W, H) visibility_buffer per pair (used when occlusion > 0); inv_d:
+    # (n_levels,) 1/m; baselines: (P,) metres; mix: (H, W) weight of the second three features' truncated
+    # difference against the first three's (read only when F = 6).
     h, w, _ = cost.shape
+    second = other_t.shape[3] == 6
     n_pairs, wr, hr, _ = other_t.shape
     for y in numba.prange(h):
         acc = np.empty(n_levels, np.float32)
@@ -538,6 +594,7 @@ def _sweep_costs(cost, n_levels, other_t, ref, ur, vr, rows, weight, truncate, z
                 r0 = ref[p, y, x, 0]
                 r1 = ref[p, y, x, 1]
                 r2 = ref[p, y, x, 2]
+                m = mix[y, x] if second else np.float32(0.0)
                 u = ur[p, y, x]
                 fu = np.floor(u)
                 tu = np.float32(u - fu)
@@ -560,7 +617,11 @@ def _sweep_costs(cost, n_levels, other_t, ref, ur, vr, rows, weight, truncate, z
                     b2 = other_t[p, c1, j0, 2] + tv * (other_t[p, c1, j0 + 1, 2] - other_t[p, c1, j0, 2])
                     s = (abs(a0 + tu * (b0 - a0) - r0) + abs(a1 + tu * (b1 - a1) - r1)
                          + abs(a2 + tu * (b2 - a2) - r2))
-                    pair[i] = wt * min(s, truncate)
+                    if m > 0.0:  # the normalised intensity's three features mixed in
+                        s2 = _normalized_l1(other_t, p, c0, c1, j0, tv, tu, ref, y, x)
+                        pair[i] = wt * ((1.0 - m) * min(s, truncate) + m * min(s2, truncate))
+                    else:
+                        pair[i] = wt * min(s, truncate)
                 for i in range(n_levels):
                     acc[i] += pair[i]
                 if occlusion > 0.0:  # the hypotheses the estimate lets K see, and this pair's vote for them

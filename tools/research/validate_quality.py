@@ -188,6 +188,7 @@ _ADDED_KEYS = {"mirror_tolerance": 0.0, "intensity_weight": 1.0, "feature": "int
                "planes.bound_penalty_min_az": 0.0, "occlusion": 0.0,
                "occlusion_min_share": 0.25, "refine_planes.wall_margin": 0.0, "refine_planes.wall_max_share": 0.03,
                "flat_contrast": 0.0, "flat_weight": 1.0, "flat_sigma_px": 2.0, "flat_min_noise": 0.5,
+               "normalized_weight": 0.0, "normalized_contrast": 1.0,
                "post.edge_radius_px": 0, "post.edge_sigma_color": 10.0, "post.edge_sigma_px": 5.0,
                "post.edge_jump": 0.05, "post.edge_reach_px": 4, "prior.contrast_noise": 0.0,
                "prior.frame_agreement_contrast": 0.0, "prior.epipole_cone_deg": 0.0,

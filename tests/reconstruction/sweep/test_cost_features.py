@@ -92,6 +92,70 @@ def test_an_unknown_feature_is_refused_in_one_line():
     assert "\n" not in text and "census" in text and all(name in text for name in FEATURES)
 
 
+# ------------------------------------------------------------------- the normalised intensity mixed in
+
+
+@pytest.mark.parametrize("weight", [0.25, 0.5, 1.0])
+def test_the_mixed_cost_is_the_weighted_mean_of_both_features_costs(weight):
+    """With ``normalized_contrast`` 0 (mixed in at every pixel): each cost is ``(1 - w)`` times the intensity
+    volume's plus ``w`` times the normalised intensity's, each truncated on its own, within the two volumes'
+    rounding to whole cost units (1 unit)."""
+    f = make_synthetic_frame(120)
+    mixed, _ = build_cost_volume(f, CostParams(levels=24, normalized_weight=weight, normalized_contrast=0.0))
+    alone, _ = build_cost_volume(f, CostParams(levels=24))
+    normalized, _ = build_cost_volume(f, CostParams(levels=24, feature="normalized"))
+    expected = (1.0 - weight) * alone.astype(np.float64) + weight * normalized
+    assert np.abs(mixed - expected).max() <= 1.0
+    assert np.abs(normalized.astype(np.float64) - alone).mean() > 10  # the two volumes differ: the test can fail
+
+
+def test_the_normalised_cost_is_mixed_in_only_where_c_shows_texture():
+    """C's pixels whose local contrast is below ``normalized_contrast`` times its noise keep the intensity cost bit for
+    bit; the others get the mixed one (on a frame whose upper half is made flat in all three cameras)."""
+    f = make_synthetic_frame(120)
+    images = {k: im.copy() for k, im in f.images.items()}
+    for im in images.values():
+        im[: im.shape[0] // 2] = 128
+    flat = dataclasses.replace(f, images=images)
+    params = CostParams(levels=24, normalized_weight=0.5, normalized_contrast=1.0)
+    mixed, _ = build_cost_volume(flat, params)
+    alone, _ = build_cost_volume(flat, CostParams(levels=24))
+    low = cost_module._low_contrast(images["C"], params, 1.0)
+    assert 0.3 < low.mean() < 0.9  # the flat half (and more) is low-contrast, the textured rest is not
+    np.testing.assert_array_equal(mixed[low], alone[low])
+    assert np.abs(mixed[~low].astype(int) - alone[~low]).mean() > 1
+
+
+@pytest.mark.parametrize("kwargs", [dict(normalized_weight=-0.1), dict(normalized_weight=1.5),
+                                    dict(normalized_contrast=-1.0),
+                                    dict(normalized_weight=0.5, feature="normalized")])
+def test_a_bad_normalised_mix_is_refused_in_one_line(kwargs):
+    with pytest.raises(ValueError) as err:
+        CostParams(**kwargs)
+    assert "\n" not in str(err.value) and "normalized_" in str(err.value)
+
+
+def test_the_coarse_room_pass_reads_the_room_without_the_mix():
+    """``room_bounds`` of a sweep whose cost mixes in the normalised intensity equals, bit for bit, that of the same
+    sweep without the mix (the floor, ceiling, walls and the coarse maps)."""
+    from reconstruction.methods.sweep import room_bounds
+
+    f = make_synthetic_frame(120)
+    plain = SweepMethod(cost=CostParams(levels=24))
+    mixed = dataclasses.replace(plain, cost=dataclasses.replace(plain.cost, normalized_weight=0.5))
+    a, b = room_bounds(f, plain, {}), room_bounds(f, mixed, {})
+    assert a[:3] == b[:3] and repr(a[3]) == repr(b[3]) and a[5] == b[5]
+    for x, y in zip(a[4], b[4], strict=True):
+        np.testing.assert_array_equal(x, y)
+
+
+@pytest.mark.slow
+def test_sweep_with_the_normalised_intensity_mixed_in_on_an_exact_frame(frame):
+    """The mix keeps the exact ray-cast frame's bound of the normalised feature (measured 1.4 %)."""
+    params = CostParams(normalized_weight=0.5)
+    assert _relative_mae(frame, SweepMethod(cost=params)) <= BOUNDS["normalized"]
+
+
 # ------------------------------------------------------------------------------------------- invariance
 
 
