@@ -17,6 +17,7 @@ from tools.research import (
     select_flat,
     select_gate,
     select_median,
+    select_normalized,
     select_planes,
     select_refine_planes,
     select_response,
@@ -158,6 +159,20 @@ def test_median_candidates_the_reference_first_and_the_default_once():
         select_median.candidate_methods(["11"])
 
 
+def test_normalized_candidates_the_reference_first_and_the_default_once():
+    methods, default, same = _candidates(select_normalized, "fused-mirror-normalized-0")
+    assert same is methods[0] and methods[0].sweep.cost.normalized_weight == 0
+    # everything but the mix in both costs is the default's
+    m = select_normalized.normalized_method(0.5, 2.0)
+    assert m.label == "fused-mirror-normalized-0.5-2"
+    mixed = {k: dataclasses.replace(getattr(default.sweep, k), normalized_weight=0.5, normalized_contrast=2.0)
+             for k in ("cost", "corrected_cost")}
+    assert m.sweep == dataclasses.replace(default.sweep, **mixed)
+    assert m.flow == default.flow and m.prior == default.prior and m.quality_flow == default.quality_flow
+    with pytest.raises(UserError, match="unknown candidate"):
+        select_normalized.candidate_methods(["0.5"])
+
+
 def test_refine_planes_candidates_the_reference_first_and_the_default_once():
     methods, default, _ = _candidates(select_refine_planes, "fused-mirror-refine-planes-0-0-0")
     assert methods[0].sweep.refine_planes is None
@@ -223,9 +238,10 @@ def test_gate_candidates_the_reference_first_and_the_default_once():
 
 @pytest.mark.parametrize("main", [select_planes.main, select_sgm.main, select_flat.main, select_edges.main,
                                   select_confirm.main, select_refine_planes.main, select_bound.main,
-                                  select_walls.main, select_gate.main, select_response.main, select_median.main],
+                                  select_walls.main, select_gate.main, select_response.main, select_median.main,
+                                  select_normalized.main],
                          ids=["planes", "sgm", "flat", "edges", "confirm", "refine_planes", "bound", "walls", "gate",
-                              "response", "median"])
+                              "response", "median", "normalized"])
 def test_a_missing_data_root_is_one_line_and_writes_nothing(main, tmp_path, capsys):
     out = tmp_path / "sel"
     assert main([str(tmp_path / "nope"), "--out", str(out), "--quiet", "--frames", "a/vp000"]) == 2
