@@ -442,7 +442,9 @@ def build_cost_volume(frame, params: CostParams, extra_labels: int = 0, pairs=("
     zbuf = (np.stack([visibility_buffer(estimate, ur[k], vr[k], pw.baseline_m, other_t.shape[1], other_t.shape[2])
                       for k, pw in enumerate(warps)]) if occlusion > 0 else np.zeros((len(warps), 1, 1), np.float32))
     baselines = np.array([pw.baseline_m for pw in warps], np.float64)
-    mix = (np.float32(params.normalized_weight) * ~_low_contrast(frame.images["C"], params, params.normalized_contrast)
+    contrast = (_contrast_and_noise(frame.images["C"], params)
+                if params.normalized_weight > 0 or params.flat_contrast > 0 else None)
+    mix = (np.float32(params.normalized_weight) * ~_low_contrast(*contrast, params.normalized_contrast)
            if params.normalized_weight > 0 else np.zeros((1, 1), np.float32)).astype(np.float32)
     _sweep_costs(cost, params.levels, other_t, ref, ur, vr, rows, weight, np.float32(params.truncate), zbuf,
                  inv_d, baselines, np.float32(occlusion), np.float32(params.occlusion_min_share), mix)
@@ -451,7 +453,7 @@ def build_cost_volume(frame, params: CostParams, extra_labels: int = 0, pairs=("
         _box_lines(cost, params.levels, box // 2, True, np.float32(1.0))  # along longitude, which wraps
         _box_lines(cost.transpose(1, 0, 2), params.levels, box // 2, False, np.float32(1.0 / (box * box)))
     if params.flat_contrast > 0:
-        flatten_untextured(cost, params.levels, untextured(frame.images["C"], params), params.flat_weight)
+        flatten_untextured(cost, params.levels, _low_contrast(*contrast, params.flat_contrast), params.flat_weight)
     return cost, warps
 
 
@@ -467,14 +469,19 @@ def untextured(image: np.ndarray, params: CostParams) -> np.ndarray:
     """
     if params.flat_contrast <= 0:
         return np.zeros(image.shape[:2], bool)
-    return _low_contrast(image, params, params.flat_contrast)
+    return _low_contrast(*_contrast_and_noise(image, params), params.flat_contrast)
 
 
-def _low_contrast(image: np.ndarray, params: CostParams, factor: float) -> np.ndarray:
-    """(H, W) bool: C's local contrast (sigma ``params.flat_sigma_px``) below ``factor`` times its noise
-    (:func:`image_noise` at :data:`FLAT_NOISE_SCALE`, at least ``params.flat_min_noise``), gray levels."""
+def _contrast_and_noise(image: np.ndarray, params: CostParams) -> tuple[np.ndarray, float]:
+    """C's local contrast ((H, W) float32, sigma ``params.flat_sigma_px``) and noise (:func:`image_noise` at
+    :data:`FLAT_NOISE_SCALE`, at least ``params.flat_min_noise``), gray levels."""
     noise = max(image_noise(image, FLAT_NOISE_SCALE), params.flat_min_noise)
-    return local_contrast(gray_float(image, 0.0), params.flat_sigma_px) < factor * noise
+    return local_contrast(gray_float(image, 0.0), params.flat_sigma_px), noise
+
+
+def _low_contrast(contrast: np.ndarray, noise: float, factor: float) -> np.ndarray:
+    """(H, W) bool: ``contrast`` below ``factor`` times ``noise`` (:func:`_contrast_and_noise`)."""
+    return contrast < factor * noise
 
 
 def flatten_untextured(cost: np.ndarray, levels: int, mask: np.ndarray, weight: float = 1.0) -> None:

@@ -120,7 +120,7 @@ def test_the_normalised_cost_is_mixed_in_only_where_c_shows_texture():
     params = CostParams(levels=24, normalized_weight=0.5, normalized_contrast=1.0)
     mixed, _ = build_cost_volume(flat, params)
     alone, _ = build_cost_volume(flat, CostParams(levels=24))
-    low = cost_module._low_contrast(images["C"], params, 1.0)
+    low = cost_module._low_contrast(*cost_module._contrast_and_noise(images["C"], params), 1.0)
     assert 0.3 < low.mean() < 0.9  # the flat half (and more) is low-contrast, the textured rest is not
     np.testing.assert_array_equal(mixed[low], alone[low])
     assert np.abs(mixed[~low].astype(int) - alone[~low]).mean() > 1
