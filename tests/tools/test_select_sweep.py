@@ -202,8 +202,9 @@ def test_bound_candidates_the_reference_first_and_the_default_once():
 
 
 def test_walls_candidates_the_reference_first_and_the_default_once():
-    methods, default, _ = _candidates(select_walls, "fused-mirror-walls-0-0.03")
-    assert methods[0].sweep.refine_planes.wall_margin == 0
+    methods, default, _ = _candidates(select_walls, "fused-mirror-walls-0.2-0.03")
+    p = methods[0].sweep.refine_planes
+    assert (p.wall_margin, p.wall_max_share) == select_walls.REFERENCE == (0.2, 0.03)
     # everything but the two values is the default's
     m = select_walls.walls_method(0.3, 0.02)
     assert m.label == "fused-mirror-walls-0.3-0.02"

@@ -1,4 +1,4 @@
-"""Choose whether the default puts what it finds well beyond an enclosing wall on that wall.
+"""Choose when a wall encloses: how much of what the default finds may lie well beyond it for the rest to be put on it.
 
 Run as::
 
@@ -6,14 +6,15 @@ Run as::
         [--quiet] [--workers N | --scheduler ADDRESS]
 
 ``LABEL`` is a frame directory (``<scene>/<viewpoint>``) or a directory of frames (``<scene>``) relative to
-``DATA_ROOT``; without ``--frames`` every frame under ``DATA_ROOT`` (choose on a suite's ``dev`` split). The
-methods: the reference :data:`REFERENCE` (``fused-mirror-walls-0-0.03``: walls left alone, as the default was before
-this choice), one ``fused-mirror-walls-<margin>-<share>`` per candidate of :data:`CANDIDATES` (``--candidates``:
-these only; the sweep's :class:`reconstruction.refine.planes.PlaneRefineParams` ``wall_margin`` and
-``wall_max_share``, everything else the default's) and the default ``fused-mirror`` as registered (a candidate or
-the reference configured as the default stands for it, not run twice). ``DIR`` becomes a results set (``tri360
-evaluate``'s, without the report) plus ``selection.md`` and ``selection.json``, as ``python -m
-tools.research.select_fill`` writes them, with the same rule (:func:`tools.research.select_fill.choose`).
+``DATA_ROOT``; without ``--frames`` every frame under ``DATA_ROOT`` (choose on a suite's ``dev`` split). The methods:
+the reference :data:`REFERENCE` (``fused-mirror-walls-0.2-0.03``: a wall encloses when at most 3 % of the pixels
+facing it lie more than 20 % beyond it, as the default was before this choice), one
+``fused-mirror-walls-<margin>-<share>`` per candidate of :data:`CANDIDATES` (``--candidates``: these only; the sweep's
+:class:`reconstruction.refine.planes.PlaneRefineParams` ``wall_margin`` and ``wall_max_share``, everything else the
+default's) and the default ``fused-mirror`` as registered (a candidate or the reference configured as the default
+stands for it, not run twice). ``DIR`` becomes a results set (``tri360 evaluate``'s, without the report) plus
+``selection.md`` and ``selection.json``, as ``python -m tools.research.select_fill`` writes them, with the same rule
+(:func:`tools.research.select_fill.choose`).
 """
 
 from __future__ import annotations
@@ -37,9 +38,9 @@ PROG = "select_walls"
 #: a configuration: (``wall_margin``, ``wall_max_share``); ``wall_margin`` 0: walls left alone
 Config = tuple[float, float]
 #: the reference: the default as it was before this choice
-REFERENCE: Config = (0.0, 0.03)
-#: the candidates
-CANDIDATES: tuple[Config, ...] = ((0.2, 0.03), (0.2, 0.05), (0.1, 0.03))
+REFERENCE: Config = (0.2, 0.03)
+#: the candidates: how much of a wall may lie beyond it for it to enclose
+CANDIDATES: tuple[Config, ...] = ((0.2, 0.05), (0.2, 0.06), (0.2, 0.08), (0.2, 0.1))
 TITLE = "What lies well beyond an enclosing wall put on it"
 
 
