@@ -339,7 +339,8 @@ class _PlaneRefiner:
         d = snap_to_planes(d, self._bearings, fits, params, (cost.d_min_m, cost.d_max_m))
         records = [f.record() for f in fits]
         if params.wall_margin > 0:  # the walls of the map as it now is
-            _, walls = room_walls(d[..., None] * self._bearings, self.sweep.planes.wall_min_share)
+            _, walls = room_walls(d[..., None] * self._bearings, self.sweep.planes.wall_min_share,
+                                  self.sweep.planes.wall_yaw)
             d, wall_records = onto_walls(d, self._bearings, walls, params)
             records += wall_records
         return d, records

@@ -16,9 +16,13 @@ import numpy as np
 
 from reconstruction.camera.image_ops import central_differences
 
-__all__ = ["add_prior", "PlaneParams", "plane_heights", "fill_plane_costs", "plane_inverse_distance", "bound_costs",
-           "dominant_planes", "wall_normals", "dominant_wall_yaw", "dominant_walls", "room_planes", "bound_wall_costs",
-           "onto_room_planes", "room_plane_distance", "room_walls"]
+__all__ = ["add_prior", "PlaneParams", "WALL_YAWS", "plane_heights", "fill_plane_costs", "plane_inverse_distance",
+           "bound_costs", "dominant_planes", "wall_normals", "dominant_wall_yaw", "densest_wall_yaw", "dominant_walls",
+           "room_planes", "bound_wall_costs", "onto_room_planes", "room_plane_distance", "room_walls"]
+
+
+#: how :func:`room_walls` finds the walls' yaw (``PlaneParams.wall_yaw``)
+WALL_YAWS = ("normals", "offsets")
 
 
 @dataclass(frozen=True)
@@ -55,8 +59,12 @@ class PlaneParams:
             spread of 0.2, and the winner's sub-label offset interpolates between them.
         room_spread: relative half-width of the floor's and the ceiling's families (0.2 = heights from 0.8 to 1.2
             times the one found: the coarse pass's floor can be a few per cent off).
-        wall_min_share: share of the coarse pass's pixels a wall must cover to be used (and the wall direction's
-            votes within 3 degrees must reach).
+        wall_min_share: share of the coarse pass's pixels a wall must cover to be used (and, with ``wall_yaw``
+            ``"normals"``, the wall direction's votes within 3 degrees must reach).
+        wall_yaw: how the walls' yaw is found (:func:`room_walls`), for the coarse pass's wall labels and the
+            wall step of :class:`reconstruction.refine.planes.PlaneRefineParams` alike: ``"normals"``, the
+            surface normals' vote (:func:`dominant_wall_yaw`); ``"offsets"``, the yaw at which the four walls hold
+            the most points (:func:`densest_wall_yaw`), which needs no normals and so holds on plain, noisy walls.
         mirror_tolerance: the coarse pass's floor (ceiling) is taken as the ceiling's (floor's) mirror image in a
             nearer plane when it lies within this fraction of its height of that image (:func:`dominant_planes`;
             0 = no test).
@@ -75,11 +83,14 @@ class PlaneParams:
     wall_labels: int = 0
     wall_spread: float = 0.1
     wall_min_share: float = 0.01
+    wall_yaw: str = "normals"
     room_labels: int = 0
     room_spread: float = 0.2
     mirror_tolerance: float = 0.0
 
     def __post_init__(self) -> None:
+        if self.wall_yaw not in WALL_YAWS:
+            raise ValueError(f"plane wall_yaw must be one of {', '.join(WALL_YAWS)}, got {self.wall_yaw!r}")
         if not (np.isfinite(self.bound_penalty) and self.bound_penalty >= 0):
             raise ValueError(f"plane bound_penalty must be >= 0 (gray levels), got {self.bound_penalty}")
         if not (np.isfinite(self.bound_penalty_min_az) and 0 <= self.bound_penalty_min_az < 1):
@@ -143,23 +154,104 @@ def dominant_wall_yaw(points: np.ndarray, min_share: float, max_tilt_rad: float 
     return float(np.mod(mode + np.average(diff[near], weights=weight[near]), np.pi / 2))
 
 
-def room_walls(points: np.ndarray, min_share: float) -> tuple[float | None, list[tuple[np.ndarray, float]]]:
-    """The room's dominant walls from a distance map's 3D points.
+def densest_wall_yaw(points: np.ndarray, max_points: int = 20000, step_deg: float = 2.0,
+                     fine_deg: float = 0.2) -> float | None:
+    """The yaw of the room's walls (modulo 90 degrees) at which the walls hold the most points, fitted to them.
 
-    The walls' yaw comes from :func:`dominant_wall_yaw`; along each of the two wall normals every point has an
-    offset (``point . normal``), and the points of a wall share theirs, however plain the wall (where the points
-    are noisy, their normals are useless but their offsets still cluster); on each side of C the mode of the
-    offsets beyond 0.3 m (2 % bins of log |offset|, refined by the median within 4 %) is a wall if it holds at
-    least ``min_share`` of the pixels.
+    At the walls' yaw the points of each wall share their offset along its normal, whatever their normals (a plain
+    wall's noisy or stair-stepped points vote for no direction, but they still lie at one offset).  For a yaw, on
+    each side of C along each of the two normals, the densest window of three 2 % bins of log |offset| (0.3 to 100
+    m; 6 %, the window :func:`room_walls` asks a wall to fill) holds some points; the yaw whose four windows hold the
+    most is searched on a grid of ``step_deg`` over 90 degrees and then of ``fine_deg`` within one step of the best.
+    Within a 6 % window a yaw a degree off still holds much of a wall, so the yaw is then fitted to the points of the
+    four windows: the normal that minimises their summed squared distances to their walls' mean offsets (total least
+    squares with one direction shared by the walls at right angles).
 
     Args:
         points: (H, W, 3) world points relative to C, metres (non-finite = none).
-        min_share: share of the pixels a wall must hold (and the wall direction's votes within 3 degrees reach).
+        max_points: at most this many of the finite points are used (evenly strided).
+        step_deg, fine_deg: the two grids' spacing, degrees.
+    Returns:
+        The yaw in radians in [0, pi/2), or None when no point is finite.
+    """
+    p = np.asarray(points).reshape(-1, 3)
+    p = p[np.isfinite(p).all(axis=1)]
+    if p.shape[0] == 0:
+        return None
+    xy = np.ascontiguousarray(p[::max(1, -(-p.shape[0] // max_points)), :2], dtype=np.float32)
+    coarse = np.radians(np.arange(0.0, 90.0, step_deg))
+    best = coarse[int(np.argmax(_wall_mass(xy, coarse)[0]))]
+    fine = best + np.radians(np.arange(-step_deg, step_deg + 1e-9, fine_deg))
+    mass, first = _wall_mass(xy, fine)
+    k = int(np.argmax(mass))
+    # each window's points about their mean, those along the second normal turned by -90 degrees onto the first
+    scatter = np.zeros((2, 2))
+    turns = (np.eye(2), np.array([[0.0, 1.0], [-1.0, 0.0]]))
+    for i, normal in enumerate(wall_normals(fine[k])[:, :2]):
+        offset = xy.astype(np.float64) @ normal
+        with np.errstate(divide="ignore"):
+            b = np.floor((np.log(np.abs(offset)) - _LOG_OFFSET_MIN) / _LOG_OFFSET_BIN)
+        for side in (0, 1):
+            start = first[k + i * fine.size, side]
+            q = xy[((offset < 0) == bool(side)) & (b >= start) & (b <= start + 2)].astype(np.float64) @ turns[i].T
+            if q.shape[0]:
+                scatter += (q - q.mean(axis=0)).T @ (q - q.mean(axis=0))
+    normal = np.linalg.eigh(scatter)[1][:, 0]
+    return float(np.mod(np.arctan2(normal[1], normal[0]), np.pi / 2))
+
+
+_LOG_OFFSET_MIN, _LOG_OFFSET_BIN = np.log(0.3), 0.02
+_LOG_OFFSET_BINS = int(np.ceil((np.log(100.0) - _LOG_OFFSET_MIN) / _LOG_OFFSET_BIN))
+
+
+def _wall_mass(xy: np.ndarray, yaws: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per yaw (radians) the points in the densest three bins of log |offset| on each side of C along each of the
+    yaw's two wall normals.
+
+    Args:
+        xy: (N, 2) horizontal world points, metres.
+        yaws: (Y,) radians.
+    Returns:
+        ``(mass, first)``: (Y,) those points' number summed over the four sides, and (2Y, 2) per normal (the first
+        normals of the Y yaws, then the second ones) per side (positive offsets, then negative) the window's first
+        bin (``floor((ln |offset| - ln 0.3) / 0.02)``).
+    """
+    c, s = np.cos(yaws), np.sin(yaws)
+    normals = np.concatenate([np.stack([c, s]), np.stack([-s, c])], axis=1).astype(np.float32)  # (2, 2Y)
+    offset = xy @ normals  # (N, 2Y)
+    with np.errstate(divide="ignore"):
+        k = ((np.log(np.maximum(np.abs(offset), 1e-6)) - _LOG_OFFSET_MIN) / _LOG_OFFSET_BIN).astype(np.int64)
+    ok = (k >= 0) & (k < _LOG_OFFSET_BINS)
+    m = offset.shape[1]
+    index = (np.arange(m) * (2 * _LOG_OFFSET_BINS))[None, :] + (offset < 0) * _LOG_OFFSET_BINS + k
+    hist = np.bincount(index[ok], minlength=m * 2 * _LOG_OFFSET_BINS).reshape(m, 2, _LOG_OFFSET_BINS)
+    window = hist[..., :-2] + hist[..., 1:-1] + hist[..., 2:]
+    per_normal = window.max(axis=2).sum(axis=1)  # (2Y,)
+    return per_normal[:yaws.size] + per_normal[yaws.size:], window.argmax(axis=2)
+
+
+def room_walls(points: np.ndarray, min_share: float,
+               yaw_from: str = "normals") -> tuple[float | None, list[tuple[np.ndarray, float]]]:
+    """The room's dominant walls from a distance map's 3D points.
+
+    The walls' yaw comes from :func:`dominant_wall_yaw` (``yaw_from`` ``"normals"``) or :func:`densest_wall_yaw`
+    (``"offsets"``); along each of the two wall normals every point has an offset (``point . normal``), and the
+    points of a wall share theirs, however plain the wall (where the points are noisy, their normals are useless
+    but their offsets still cluster); on each side of C the mode of the offsets beyond 0.3 m (2 % bins of log
+    |offset|, refined by the median within 4 %) is a wall if it holds at least ``min_share`` of the pixels.
+
+    Args:
+        points: (H, W, 3) world points relative to C, metres (non-finite = none).
+        min_share: share of the pixels a wall must hold (and, from ``"normals"``, the wall direction's votes within
+            3 degrees reach).
+        yaw_from: ``"normals"`` or ``"offsets"`` (:data:`WALL_YAWS`).
     Returns:
         ``(yaw, walls)``: the yaw (radians, None if no wall direction is dominant) and per wall found
         ``(normal, offset)``: (3,) world unit normal and the signed offset along it, metres.
     """
-    yaw = dominant_wall_yaw(points, min_share)
+    if yaw_from not in WALL_YAWS:
+        raise ValueError(f"room_walls yaw_from must be one of {', '.join(WALL_YAWS)}, got {yaw_from!r}")
+    yaw = dominant_wall_yaw(points, min_share) if yaw_from == "normals" else densest_wall_yaw(points)
     if yaw is None:
         return None, []
     p = np.asarray(points, np.float64)
@@ -184,11 +276,12 @@ def room_walls(points: np.ndarray, min_share: float) -> tuple[float | None, list
 
 
 def dominant_walls(points: np.ndarray, params: PlaneParams) -> tuple[float | None, list[tuple[np.ndarray, np.ndarray]]]:
-    """The room's dominant walls (:func:`room_walls`, ``params.wall_min_share``) as label families.
+    """The room's dominant walls (:func:`room_walls`, ``params.wall_min_share`` and ``params.wall_yaw``) as label
+    families.
 
     Args:
         points: (H, W, 3) world points relative to C, metres (non-finite = none).
-        params: ``wall_labels``, ``wall_spread``, ``wall_min_share``.
+        params: ``wall_labels``, ``wall_spread``, ``wall_min_share``, ``wall_yaw``.
     Returns:
         ``(yaw, walls)``: the yaw (radians, None if no wall direction is dominant) and per wall found
         ``(normal, offsets)``: (3,) world unit normal and (wall_labels,) signed offsets along it, metres,
@@ -196,7 +289,7 @@ def dominant_walls(points: np.ndarray, params: PlaneParams) -> tuple[float | Non
     """
     if params.wall_labels <= 0:
         return None, []
-    yaw, walls = room_walls(points, params.wall_min_share)
+    yaw, walls = room_walls(points, params.wall_min_share, params.wall_yaw)
     scale = np.geomspace(1.0 - params.wall_spread, 1.0 + params.wall_spread, params.wall_labels)
     return yaw, [(normal, offset * scale) for normal, offset in walls]
 

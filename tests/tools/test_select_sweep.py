@@ -22,6 +22,7 @@ from tools.research import (
     select_refine_planes,
     select_response,
     select_sgm,
+    select_wall_yaw,
     select_walls,
 )
 from tools.research.select_planes import CANDIDATES, REFERENCE, candidate_methods, planes_method
@@ -216,6 +217,18 @@ def test_walls_candidates_the_reference_first_and_the_default_once():
         select_walls.candidate_methods(["0.3-0.02"])
 
 
+def test_wall_yaw_candidates_the_reference_first_and_the_default_once():
+    methods, default, _ = _candidates(select_wall_yaw, "fused-mirror-wall-yaw-normals")
+    assert (methods[0].sweep.planes.wall_yaw,) == select_wall_yaw.REFERENCE == ("normals",)
+    # everything but the one value is the default's
+    m = select_wall_yaw.wall_yaw_method("normals")
+    assert m.sweep.planes == dataclasses.replace(default.sweep.planes, wall_yaw="normals")
+    assert m.sweep.refine_planes == default.sweep.refine_planes and m.sweep.cost == default.sweep.cost
+    assert m.flow == default.flow and m.prior == default.prior and m.sweep.post == default.sweep.post
+    with pytest.raises(UserError, match="unknown candidate"):
+        select_wall_yaw.candidate_methods(["vanishing"])
+
+
 def test_gate_candidates_the_reference_first_and_the_default_once():
     methods, default, _ = _candidates(select_gate, "fused-mirror-gate-0-0-0.5-0.7-0-0-0-0-0-3-0-0-0")
     p = methods[0].prior
@@ -240,9 +253,9 @@ def test_gate_candidates_the_reference_first_and_the_default_once():
 @pytest.mark.parametrize("main", [select_planes.main, select_sgm.main, select_flat.main, select_edges.main,
                                   select_confirm.main, select_refine_planes.main, select_bound.main,
                                   select_walls.main, select_gate.main, select_response.main, select_median.main,
-                                  select_normalized.main],
+                                  select_normalized.main, select_wall_yaw.main],
                          ids=["planes", "sgm", "flat", "edges", "confirm", "refine_planes", "bound", "walls", "gate",
-                              "response", "median", "normalized"])
+                              "response", "median", "normalized", "wall_yaw"])
 def test_a_missing_data_root_is_one_line_and_writes_nothing(main, tmp_path, capsys):
     out = tmp_path / "sel"
     assert main([str(tmp_path / "nope"), "--out", str(out), "--quiet", "--frames", "a/vp000"]) == 2

@@ -350,3 +350,12 @@ def test_a_plane_search_stored_before_the_walls_step_reads_as_leaving_walls_alon
     assert config_difference(old, walls_method(0.0, 0.03).config()) is None
     wanted = {**json.loads(json.dumps(presets.fused_mirror().config())), "label": old["label"]}
     assert "wall_margin" in config_difference(old, wanted)
+
+
+def test_a_sweep_stored_before_the_wall_yaw_option_reads_as_the_normals_vote():
+    old = json.loads(json.dumps(presets.fused_gated().config()))
+    del old["sweep"]["planes"]["wall_yaw"]
+    assert config_difference(old, presets.fused_gated().config()) is None
+    old = json.loads(json.dumps(presets.fused_mirror().config()))
+    del old["sweep"]["planes"]["wall_yaw"]
+    assert config_difference(old, presets.fused_mirror().config()) == "sweep.planes.wall_yaw: 'normals' vs 'offsets'"

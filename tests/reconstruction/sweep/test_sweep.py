@@ -234,6 +234,37 @@ def test_dominant_wall_yaw_of_an_exact_box_room(yaw_deg):
     assert dominant_wall_yaw(sphere, 0.03) is None
 
 
+@pytest.mark.parametrize("yaw_deg", [0.0, 20.0, 61.0, 89.5])
+def test_densest_wall_yaw_of_an_exact_and_of_a_noisy_box_room(yaw_deg):
+    """The yaw at which the box's four walls hold the most points, modulo 90 degrees: within 0.3 degrees of the
+    exact room's, and within 1 degree when every distance is off by a random 2 % in blocks of 3 x 3 pixels (a label
+    map's stair steps, whose normals point anywhere); no finite point: None."""
+    from reconstruction.sweep.planes import densest_wall_yaw
+
+    exact = _box_points(np.radians(yaw_deg), 480)
+    err = (np.degrees(densest_wall_yaw(exact)) - yaw_deg % 90 + 45) % 90 - 45
+    assert abs(err) < 0.3, err
+    rng = np.random.default_rng(int(yaw_deg))
+    steps = np.kron(rng.normal(1.0, 0.02, (80, 160)), np.ones((3, 3)))[:240, :480]
+    err = (np.degrees(densest_wall_yaw(exact * steps[..., None])) - yaw_deg % 90 + 45) % 90 - 45
+    assert abs(err) < 1.0, err
+    assert densest_wall_yaw(np.full((4, 8, 3), np.nan)) is None
+
+
+def test_room_walls_from_the_offsets_and_its_yaw_options():
+    """room_walls with the yaw from the offsets finds the yawed box's four walls (3 and 4.5 m within 1 %); an
+    unknown yaw source is refused, by room_walls and by PlaneParams."""
+    from reconstruction.sweep.planes import PlaneParams, room_walls
+
+    yaw, walls = room_walls(_box_points(np.radians(20.0)), 0.01, "offsets")
+    assert abs(np.degrees(yaw) - 20.0) < 0.3
+    np.testing.assert_allclose(sorted(o for _, o in walls), [-4.5, -3.0, 3.0, 4.5], rtol=0.01)
+    with pytest.raises(ValueError, match="yaw_from"):
+        room_walls(_box_points(0.3), 0.01, "vanishing")
+    with pytest.raises(ValueError, match="wall_yaw"):
+        PlaneParams(wall_yaw="vanishing")
+
+
 def test_wall_labels_map_to_the_wall_distance():
     """A wall label with offset o gives distance o / (bearing . normal) where the wall is in front, else the far
     clamp; sphere and horizontal-plane labels are unchanged by the wall families."""
