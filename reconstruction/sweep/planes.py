@@ -196,6 +196,8 @@ def densest_wall_yaw(points: np.ndarray, max_points: int = 20000, step_deg: floa
             q = xy[((offset < 0) == bool(side)) & (b >= start) & (b <= start + 2)].astype(np.float64) @ turns[i].T
             if q.shape[0]:
                 scatter += (q - q.mean(axis=0)).T @ (q - q.mean(axis=0))
+    if not np.trace(scatter) > 0:  # no window holds two points apart: the grid's yaw
+        return float(np.mod(fine[k], np.pi / 2))
     normal = np.linalg.eigh(scatter)[1][:, 0]
     return float(np.mod(np.arctan2(normal[1], normal[0]), np.pi / 2))
 

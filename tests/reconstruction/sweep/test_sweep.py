@@ -249,6 +249,7 @@ def test_densest_wall_yaw_of_an_exact_and_of_a_noisy_box_room(yaw_deg):
     err = (np.degrees(densest_wall_yaw(exact * steps[..., None])) - yaw_deg % 90 + 45) % 90 - 45
     assert abs(err) < 1.0, err
     assert densest_wall_yaw(np.full((4, 8, 3), np.nan)) is None
+    assert 0 <= densest_wall_yaw(np.array([[[1.0, 2.0, 0.0]]])) < np.pi / 2  # one point: a yaw of the grid
 
 
 def test_room_walls_from_the_offsets_and_its_yaw_options():
