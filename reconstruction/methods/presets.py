@@ -122,11 +122,11 @@ def fused_mirror() -> PriorSweepMethod:
             planes=PlaneParams(
                 per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_min_share=0.03,
                 coarse_factor=2, wall_spread=0.1, wall_min_share=0.01,
-                # the walls' yaw (for the wall labels and the wall step) where the four walls hold the most points:
-                # the surface normals' vote found no wall direction on a plain white lab under every camera
-                # condition and was up to 7 degrees off elsewhere (chosen by python -m tools.research.select_wall_yaw
-                # on the dev split, docs/edges.md)
-                wall_yaw="offsets",
+                # the walls' yaw (for the wall labels and the wall step) from the surface normals' vote and, where it
+                # finds no wall direction (a plain white lab under every camera condition), where the four walls
+                # hold the most points (chosen by python -m tools.research.select_wall_yaw on the dev split,
+                # docs/edges.md)
+                wall_yaw="normals-or-offsets",
                 # nothing more than 10 % beyond the floor and the ceiling the coarse pass found (the sweep's 25 %
                 # lets a glossy floor's reflections and plain floors drift below it; 5 % cuts off true floors and
                 # tiers: the coarse pass finds floors up to 3.3 % too near on the dev split): chosen by python -m
@@ -331,7 +331,7 @@ def fused_mirror_raw() -> PriorSweepMethod:
             planes=PlaneParams(
                 per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_margin=0.1, bound_penalty=2.0,
                 bound_penalty_min_az=0.2, bound_min_share=0.03, coarse_factor=2,
-                wall_labels=9, wall_spread=0.1, wall_min_share=0.01, wall_yaw="offsets",
+                wall_labels=9, wall_spread=0.1, wall_min_share=0.01, wall_yaw="normals-or-offsets",
                 mirror_tolerance=0.2, room_labels=0, room_spread=0.2),
             sgm=SgmParams(p1=120, p2=800, p3=200, edge=8.0, paths=8),
             post=PostParams(min_confidence=0.1, fill_lambda=200.0, fill_sigma_color=4.0, median_px=5,
@@ -390,7 +390,7 @@ def fused_mirror_told_rig() -> PriorSweepMethod:
             planes=PlaneParams(
                 per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_margin=0.1, bound_penalty=2.0,
                 bound_penalty_min_az=0.2, bound_min_share=0.03, coarse_factor=2,
-                wall_labels=9, wall_spread=0.1, wall_min_share=0.01, wall_yaw="offsets",
+                wall_labels=9, wall_spread=0.1, wall_min_share=0.01, wall_yaw="normals-or-offsets",
                 mirror_tolerance=0.2, room_labels=0, room_spread=0.2),
             sgm=SgmParams(p1=120, p2=800, p3=200, edge=8.0, paths=8),
             post=PostParams(min_confidence=0.1, fill_lambda=200.0, fill_sigma_color=4.0, median_px=5,
@@ -456,7 +456,7 @@ def fused_mirror_raw_images() -> PriorSweepMethod:
             planes=PlaneParams(
                 per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_margin=0.1, bound_penalty=2.0,
                 bound_penalty_min_az=0.2, bound_min_share=0.03, coarse_factor=2,
-                wall_labels=9, wall_spread=0.1, wall_min_share=0.01, wall_yaw="offsets",
+                wall_labels=9, wall_spread=0.1, wall_min_share=0.01, wall_yaw="normals-or-offsets",
                 mirror_tolerance=0.2, room_labels=0, room_spread=0.2),
             sgm=SgmParams(p1=120, p2=800, p3=200, edge=8.0, paths=8),
             post=PostParams(min_confidence=0.1, fill_lambda=200.0, fill_sigma_color=4.0, median_px=5,
@@ -515,7 +515,7 @@ def fused_mirror_shared_falloff() -> PriorSweepMethod:
             planes=PlaneParams(
                 per_side=32, h_min_m=0.3, h_max_m=5.0, bias=4, room_bound=True, bound_margin=0.1, bound_penalty=2.0,
                 bound_penalty_min_az=0.2, bound_min_share=0.03, coarse_factor=2,
-                wall_labels=9, wall_spread=0.1, wall_min_share=0.01, wall_yaw="offsets",
+                wall_labels=9, wall_spread=0.1, wall_min_share=0.01, wall_yaw="normals-or-offsets",
                 mirror_tolerance=0.2, room_labels=0, room_spread=0.2),
             sgm=SgmParams(p1=120, p2=800, p3=200, edge=8.0, paths=8),
             post=PostParams(min_confidence=0.1, fill_lambda=200.0, fill_sigma_color=4.0, median_px=5,

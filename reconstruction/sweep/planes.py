@@ -22,7 +22,7 @@ __all__ = ["add_prior", "PlaneParams", "WALL_YAWS", "plane_heights", "fill_plane
 
 
 #: how :func:`room_walls` finds the walls' yaw (``PlaneParams.wall_yaw``)
-WALL_YAWS = ("normals", "offsets")
+WALL_YAWS = ("normals", "offsets", "normals-or-offsets")
 
 
 @dataclass(frozen=True)
@@ -64,7 +64,9 @@ class PlaneParams:
         wall_yaw: how the walls' yaw is found (:func:`room_walls`), for the coarse pass's wall labels and the
             wall step of :class:`reconstruction.refine.planes.PlaneRefineParams` alike: ``"normals"``, the
             surface normals' vote (:func:`dominant_wall_yaw`); ``"offsets"``, the yaw at which the four walls hold
-            the most points (:func:`densest_wall_yaw`), which needs no normals and so holds on plain, noisy walls.
+            the most points (:func:`densest_wall_yaw`), which needs no normals and so holds on plain, noisy walls,
+            but whose count is nearly flat over several degrees along a long corridor's walls;
+            ``"normals-or-offsets"``: the vote, and where it finds no wall direction the offsets.
         mirror_tolerance: the coarse pass's floor (ceiling) is taken as the ceiling's (floor's) mirror image in a
             nearer plane when it lies within this fraction of its height of that image (:func:`dominant_planes`;
             0 = no test).
@@ -236,24 +238,27 @@ def room_walls(points: np.ndarray, min_share: float,
                yaw_from: str = "normals") -> tuple[float | None, list[tuple[np.ndarray, float]]]:
     """The room's dominant walls from a distance map's 3D points.
 
-    The walls' yaw comes from :func:`dominant_wall_yaw` (``yaw_from`` ``"normals"``) or :func:`densest_wall_yaw`
-    (``"offsets"``); along each of the two wall normals every point has an offset (``point . normal``), and the
-    points of a wall share theirs, however plain the wall (where the points are noisy, their normals are useless
-    but their offsets still cluster); on each side of C the mode of the offsets beyond 0.3 m (2 % bins of log
-    |offset|, refined by the median within 4 %) is a wall if it holds at least ``min_share`` of the pixels.
+    The walls' yaw comes from :func:`dominant_wall_yaw` (``yaw_from`` ``"normals"``), :func:`densest_wall_yaw`
+    (``"offsets"``) or the first and, where it finds no wall direction, the second (``"normals-or-offsets"``);
+    along each of the two wall normals every point has an offset (``point . normal``), and the points of a wall
+    share theirs, however plain the wall (where the points are noisy, their normals are useless but their offsets
+    still cluster); on each side of C the mode of the offsets beyond 0.3 m (2 % bins of log |offset|, refined by the
+    median within 4 %) is a wall if it holds at least ``min_share`` of the pixels.
 
     Args:
         points: (H, W, 3) world points relative to C, metres (non-finite = none).
-        min_share: share of the pixels a wall must hold (and, from ``"normals"``, the wall direction's votes within
-            3 degrees reach).
-        yaw_from: ``"normals"`` or ``"offsets"`` (:data:`WALL_YAWS`).
+        min_share: share of the pixels a wall must hold (and the normals' vote for the wall direction within 3
+            degrees reach).
+        yaw_from: ``"normals"``, ``"offsets"`` or ``"normals-or-offsets"`` (:data:`WALL_YAWS`).
     Returns:
         ``(yaw, walls)``: the yaw (radians, None if no wall direction is dominant) and per wall found
         ``(normal, offset)``: (3,) world unit normal and the signed offset along it, metres.
     """
     if yaw_from not in WALL_YAWS:
         raise ValueError(f"room_walls yaw_from must be one of {', '.join(WALL_YAWS)}, got {yaw_from!r}")
-    yaw = dominant_wall_yaw(points, min_share) if yaw_from == "normals" else densest_wall_yaw(points)
+    yaw = None if yaw_from == "offsets" else dominant_wall_yaw(points, min_share)
+    if yaw is None and yaw_from != "normals":
+        yaw = densest_wall_yaw(points)
     if yaw is None:
         return None, []
     p = np.asarray(points, np.float64)

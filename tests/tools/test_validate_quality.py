@@ -358,4 +358,5 @@ def test_a_sweep_stored_before_the_wall_yaw_option_reads_as_the_normals_vote():
     assert config_difference(old, presets.fused_gated().config()) is None
     old = json.loads(json.dumps(presets.fused_mirror().config()))
     del old["sweep"]["planes"]["wall_yaw"]
-    assert config_difference(old, presets.fused_mirror().config()) == "sweep.planes.wall_yaw: 'normals' vs 'offsets'"
+    wanted = "sweep.planes.wall_yaw: 'normals' vs 'normals-or-offsets'"
+    assert config_difference(old, presets.fused_mirror().config()) == wanted

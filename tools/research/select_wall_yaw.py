@@ -1,4 +1,4 @@
-"""Choose how the sweep finds the walls' yaw: the surface normals' vote or the yaw at which the walls hold most points.
+"""Choose how the sweep finds the walls' yaw: the normals' vote, the yaw where the walls hold most points, or both.
 
 Run as::
 
@@ -40,7 +40,7 @@ Config = tuple[str]
 #: the reference: the default as it was before this choice
 REFERENCE: Config = ("normals",)
 #: the candidates
-CANDIDATES: tuple[Config, ...] = (("offsets",),)
+CANDIDATES: tuple[Config, ...] = (("offsets",), ("normals-or-offsets",))
 TITLE = "How the walls' yaw is found"
 
 

@@ -160,8 +160,9 @@ def test_the_default_is_fused_gated_with_its_mirror_test_cost_labels_room_bound_
     # ... away from the horizon only
     assert 0 < cfg["sweep"]["planes"]["bound_penalty_min_az"] < 1
     cfg["sweep"]["planes"]["bound_penalty_min_az"] = gated["sweep"]["planes"]["bound_penalty_min_az"]
-    # the walls' yaw where the walls hold the most points (gated: the surface normals' vote)
-    assert (cfg["sweep"]["planes"]["wall_yaw"], gated["sweep"]["planes"]["wall_yaw"]) == ("offsets", "normals")
+    # the walls' yaw where the walls hold the most points when the surface normals' vote finds none (gated: the vote)
+    assert (cfg["sweep"]["planes"]["wall_yaw"], gated["sweep"]["planes"]["wall_yaw"]) == ("normals-or-offsets",
+                                                                                          "normals")
     cfg["sweep"]["planes"]["wall_yaw"] = "normals"
     # its floor and ceiling searched again from the images (gated: not)
     assert "refine_planes" not in gated["sweep"]
