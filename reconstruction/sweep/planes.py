@@ -59,8 +59,9 @@ class PlaneParams:
             spread of 0.2, and the winner's sub-label offset interpolates between them.
         room_spread: relative half-width of the floor's and the ceiling's families (0.2 = heights from 0.8 to 1.2
             times the one found: the coarse pass's floor can be a few per cent off).
-        wall_min_share: share of the coarse pass's pixels a wall must cover to be used (and, with ``wall_yaw``
-            ``"normals"``, the wall direction's votes within 3 degrees must reach).
+        wall_min_share: share of the coarse pass's pixels a wall must cover to be used (and the normals' vote for
+            the wall direction within 3 degrees must reach, with ``wall_yaw`` ``"normals"`` or
+            ``"normals-or-offsets"``).
         wall_yaw: how the walls' yaw is found (:func:`room_walls`), for the coarse pass's wall labels and the
             wall step of :class:`reconstruction.refine.planes.PlaneRefineParams` alike: ``"normals"``, the
             surface normals' vote (:func:`dominant_wall_yaw`); ``"offsets"``, the yaw at which the four walls hold
