@@ -24,7 +24,13 @@ from reconstruction.methods.self_calibration import Calibration, reduced_frame, 
 from reconstruction.photometry import PhotometricParams
 from reconstruction.refine.edges import snap_depth_edges
 from reconstruction.refine.fill import check_fill_space, fill_edge_aware
-from reconstruction.refine.planes import PlaneRefineParams, onto_walls, refine_plane, snap_to_planes
+from reconstruction.refine.planes import (
+    PlaneRefineParams,
+    onto_enclosing_walls,
+    refine_plane,
+    resolved_range,
+    snap_to_planes,
+)
 from reconstruction.refine.triangulate import TriangulationLimits
 from reconstruction.rig_calibration import NO_RIG_CALIBRATION
 from reconstruction.sweep.cost import (
@@ -49,6 +55,7 @@ from reconstruction.sweep.planes import (
     room_plane_distance,
     room_planes,
     room_walls,
+    wall_normals,
 )
 from reconstruction.sweep.sgm import aggregate, winner_take_all
 
@@ -326,8 +333,9 @@ class _PlaneRefiner:
 
     def __call__(self, d: np.ndarray) -> tuple[np.ndarray, list[dict]]:
         """(H, W) distance (m) -> the distance with the refined planes' pixels on them, then the pixels beyond an
-        enclosing wall on it, and each plane's record (:meth:`reconstruction.refine.planes.PlaneFit.record`, then
-        :func:`reconstruction.refine.planes.onto_walls`' per wall)."""
+        enclosing wall on it (:func:`reconstruction.refine.planes.onto_enclosing_walls`: the walls found and, where
+        none encloses a side, the ceiling's edge), and each plane's record
+        (:meth:`reconstruction.refine.planes.PlaneFit.record`, then one per wall)."""
         frame, params = self.frame, self.sweep.refine_planes
         if self._gray is None:
             # the images as the sweep's cost saw them (blurred where a camera's noise asked for it)
@@ -339,9 +347,15 @@ class _PlaneRefiner:
         d = snap_to_planes(d, self._bearings, fits, params, (cost.d_min_m, cost.d_max_m))
         records = [f.record() for f in fits]
         if params.wall_margin > 0:  # the walls of the map as it now is
-            _, walls = room_walls(d[..., None] * self._bearings, self.sweep.planes.wall_min_share,
-                                  self.sweep.planes.wall_yaw)
-            d, wall_records = onto_walls(d, self._bearings, walls, params)
+            yaw, walls = room_walls(d[..., None] * self._bearings, self.sweep.planes.wall_min_share,
+                                    self.sweep.planes.wall_yaw)
+            ceiling = [f.offset for f in fits if f.offset > 0]
+            baseline = min(float(np.linalg.norm(frame.cameras[k].position - frame.cameras["C"].position))
+                           for k in self.sweep.pairs)
+            d, wall_records = onto_enclosing_walls(d, self._bearings, walls,
+                                                   None if yaw is None else wall_normals(yaw),
+                                                   ceiling[0] if ceiling else None, params,
+                                                   resolved_range(baseline, frame.width, params.snap))
             records += wall_records
         return d, records
 

@@ -28,7 +28,8 @@ from reconstruction.camera.image_ops import sobel_gradient
 from reconstruction.camera.resample import sample_equirect
 from reconstruction.evidence import sphere_blocks
 
-__all__ = ["PlaneRefineParams", "PlaneFit", "plane_offsets", "refine_plane", "snap_to_planes", "onto_walls"]
+__all__ = ["PlaneRefineParams", "PlaneFit", "plane_offsets", "refine_plane", "snap_to_planes", "onto_walls",
+           "ceiling_walls", "EDGE_RESOLUTION_PX", "resolved_range", "onto_enclosing_walls"]
 
 
 @dataclass(frozen=True)
@@ -61,6 +62,10 @@ class PlaneRefineParams:
         wall_margin: > 0: the pixels more than this (relative) beyond an enclosing wall are put on it
             (:func:`onto_walls`); 0: walls are left alone.
         wall_max_share: a wall encloses when at most this share of the pixels facing it lie beyond it.
+        ceiling_edge: > 0 (with ``wall_margin``): on each side of C along each wall normal where no wall found
+            encloses, the wall is also looked for at the ceiling's edge, the offset within which this share of the
+            ceiling's area seen on that side lies (:func:`ceiling_walls`), and what lies well beyond it is put on
+            it when it encloses (:func:`onto_enclosing_walls`); 0: not looked for.
     """
 
     select: float = 0.12
@@ -79,11 +84,14 @@ class PlaneRefineParams:
     far_share: float = 0.05
     wall_margin: float = 0.0
     wall_max_share: float = 0.03
+    ceiling_edge: float = 0.0
 
     def __post_init__(self) -> None:
         if not (self.wall_margin >= 0 and 0 <= self.wall_max_share <= 1):
             raise ValueError(f"plane refinement wall_margin must be >= 0 and wall_max_share in [0, 1], got "
                              f"{self.wall_margin} and {self.wall_max_share}")
+        if not 0 <= self.ceiling_edge <= 1:
+            raise ValueError(f"plane refinement ceiling_edge must be in [0, 1], got {self.ceiling_edge}")
         for name in ("select", "search", "truncate", "max_se", "snap", "rise", "max_basin", "far_share"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"plane refinement {name} must be > 0, got {getattr(self, name)}")
@@ -310,3 +318,98 @@ def onto_walls(distance: np.ndarray, bearings: np.ndarray, walls, params: PlaneR
         records.append({"normal": normal.tolist(), "offset": float(offset), "beyond_share": share,
                         "applied": bool(applied)})
     return out.astype(np.float32), records
+
+
+def ceiling_walls(distance: np.ndarray, bearings: np.ndarray, height: float, normals: np.ndarray, quantile: float,
+                  tolerance: float = 0.02, min_share: float = 0.001) -> list[tuple[np.ndarray, float]]:
+    """Walls at the ceiling's edge: on each side of C along each normal, the offset within which ``quantile`` of the
+    area of the ceiling seen on that side lies.
+
+    Furniture hides a room's walls and a glossy cabinet's mirror images match beyond them, but the ceiling reaches
+    the walls above both.  Its pixels are counted by the area they cover (a far pixel covers more of it: the
+    pixel's solid angle times ``d^2 / |b_z|``), so that a long room's far ceiling, seen in a few pixels near the
+    horizon, counts as much as its near ceiling: in a rectangular room whose ceiling is all seen the ``quantile``
+    of its area along a normal lies ``1 - quantile`` of its length short of the wall.  Where the ceiling goes on
+    through an opening the wall is put too far, which puts less on it.
+
+    Args:
+        distance: (H, W) C's estimate on an equirect grid, metres (non-finite: none).
+        bearings: (H, W, 3) C's unit world bearings (z up).
+        height: the ceiling's height relative to C's centre, metres (> 0).
+        normals: (K, 3) horizontal world unit normals of the walls.
+        quantile: in (0, 1].
+        tolerance: a pixel is on the ceiling when its height is within this share of ``height``.
+        min_share: a side needs at least this share of all pixels on the ceiling.
+    Returns:
+        Per side with enough ceiling pixels ``(normal, offset)``: (3,) the normal and the signed offset along it,
+        metres, as :func:`reconstruction.sweep.planes.room_walls` gives walls.
+    """
+    d = np.asarray(distance, np.float64)
+    b = np.asarray(bearings, np.float64)
+    h = d.shape[0]
+    solid = np.broadcast_to(np.cos((0.5 - (np.arange(h) + 0.5) / h) * np.pi)[:, None], d.shape)
+    with np.errstate(invalid="ignore"):
+        on = np.isfinite(d) & (np.abs(d * b[..., 2] - height) <= tolerance * abs(height))
+    points = d[on][:, None] * b[on]
+    area = solid[on] * d[on] ** 2 / np.abs(b[on][:, 2])
+    need = max(1, int(np.ceil(min_share * d.size)))
+    walls = []
+    for normal in np.asarray(normals, np.float64):
+        o = points @ normal
+        for sign in (-1.0, 1.0):
+            side = o * sign > 0
+            if side.sum() >= need:
+                order = np.argsort(o[side] * sign)
+                cum = np.cumsum(area[side][order])
+                k = min(int(np.searchsorted(cum, quantile * cum[-1])), order.size - 1)
+                walls.append((normal, sign * float((o[side] * sign)[order][k])))
+    return walls
+
+
+#: the angular error, in pixels of the equirect map, that the ceiling's edge must be resolved to (a quarter pixel:
+#: the accuracy the floor of tri360's reports assumes of an ideal matcher)
+EDGE_RESOLUTION_PX = 0.25
+
+
+def resolved_range(baseline_m: float, width: int, band: float) -> float:
+    """The distance (m) within which an angular error of :data:`EDGE_RESOLUTION_PX` across a baseline of
+    ``baseline_m`` (seen square on) moves a point by at most half of ``band`` (relative): ``band / 2 * baseline /
+    (EDGE_RESOLUTION_PX * 2 pi / width)``; 7.6 m for 0.4 m, 1000 px and a 6 % band."""
+    return 0.5 * band * baseline_m / (EDGE_RESOLUTION_PX * 2.0 * np.pi / width)
+
+
+def onto_enclosing_walls(distance: np.ndarray, bearings: np.ndarray, walls, normals: np.ndarray | None,
+                         ceiling: float | None, params: PlaneRefineParams,
+                         max_edge_m: float = np.inf) -> tuple[np.ndarray, list[dict]]:
+    """:func:`onto_walls` of the walls found and then, on each side of C along each wall normal where none of them
+    encloses but one encloses the opposite side, of the wall at the ceiling's edge (:func:`ceiling_walls`,
+    ``params.ceiling_edge``; a room's dominant surface on a side is often furniture in front of its wall, a bench's
+    front, which encloses nothing).  Where neither side along a normal is enclosed (a corridor's two ends) the
+    room's length is unknown; and a far ceiling, seen in a few pixels near the horizon, leaves the height band that
+    counts its pixels where the rig no longer resolves it, so that its edge is found short of a far wall and would put
+    that wall on it: an edge farther from C than ``max_edge_m`` (:func:`resolved_range`) is not used.
+
+    Args:
+        distance, bearings: as :func:`onto_walls`.
+        walls: the walls found (:func:`reconstruction.sweep.planes.room_walls`), along ``normals``.
+        normals: (2, 3) the walls' horizontal unit normals (None: no wall direction found, no ceiling's edge).
+        ceiling: the ceiling's height relative to C's centre, metres (None: not found, no ceiling's edge).
+        params: ``wall_margin`` (> 0), ``wall_max_share``, ``min_cos``, ``ceiling_edge`` (0: not looked for) and
+            ``snap`` (the pixels within it of the ceiling's height count as the ceiling's: those :func:`snap_to_planes`
+            puts on a refined ceiling).
+        max_edge_m: the farthest a ceiling's edge may lie from C (at the ceiling's height), metres.
+    Returns:
+        As :func:`onto_walls`; the ceiling's edges' records carry ``"from": "ceiling"``.
+    """
+    d, records = onto_walls(distance, bearings, walls, params)
+    if not (params.ceiling_edge > 0 and normals is not None and ceiling is not None and ceiling > 0):
+        return d, records
+    enclosed = [(np.asarray(r["normal"]), np.sign(r["offset"])) for r in records if r["applied"]]
+
+    def found(n: np.ndarray, sign: float) -> bool:  # a wall found encloses that side
+        return any(s == sign and float(m @ n) > 0.999 for m, s in enclosed)
+
+    edges = [(n, o) for n, o in ceiling_walls(d, bearings, ceiling, normals, params.ceiling_edge, params.snap)
+             if not found(n, np.sign(o)) and found(n, -np.sign(o)) and np.hypot(o, ceiling) <= max_edge_m]
+    d, edge_records = onto_walls(d, bearings, edges, params)
+    return d, records + [{**r, "from": "ceiling"} for r in edge_records]

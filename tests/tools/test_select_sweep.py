@@ -12,6 +12,7 @@ from harness.data.errors import UserError
 from reconstruction.methods.presets import fused_mirror
 from tools.research import (
     select_bound,
+    select_ceiling_edge,
     select_confirm,
     select_edges,
     select_flat,
@@ -229,6 +230,19 @@ def test_wall_yaw_candidates_the_reference_first_and_the_default_once():
         select_wall_yaw.candidate_methods(["vanishing"])
 
 
+def test_ceiling_edge_candidates_the_reference_first_and_the_default_once():
+    methods, default, _ = _candidates(select_ceiling_edge, "fused-mirror-ceiling-edge-0")
+    assert (methods[0].sweep.refine_planes.ceiling_edge,) == select_ceiling_edge.REFERENCE == (0.0,)
+    # everything but the one value is the default's
+    m = select_ceiling_edge.ceiling_edge_method(0.9)
+    assert m.label == "fused-mirror-ceiling-edge-0.9"
+    assert m.sweep.refine_planes == dataclasses.replace(default.sweep.refine_planes, ceiling_edge=0.9)
+    assert m.sweep.planes == default.sweep.planes and m.sweep.cost == default.sweep.cost
+    assert m.flow == default.flow and m.prior == default.prior and m.sweep.post == default.sweep.post
+    with pytest.raises(UserError, match="unknown candidate"):
+        select_ceiling_edge.candidate_methods(["0.9"])
+
+
 def test_gate_candidates_the_reference_first_and_the_default_once():
     methods, default, _ = _candidates(select_gate, "fused-mirror-gate-0-0-0.5-0.7-0-0-0-0-0-3-0-0-0")
     p = methods[0].prior
@@ -253,9 +267,9 @@ def test_gate_candidates_the_reference_first_and_the_default_once():
 @pytest.mark.parametrize("main", [select_planes.main, select_sgm.main, select_flat.main, select_edges.main,
                                   select_confirm.main, select_refine_planes.main, select_bound.main,
                                   select_walls.main, select_gate.main, select_response.main, select_median.main,
-                                  select_normalized.main, select_wall_yaw.main],
+                                  select_normalized.main, select_wall_yaw.main, select_ceiling_edge.main],
                          ids=["planes", "sgm", "flat", "edges", "confirm", "refine_planes", "bound", "walls", "gate",
-                              "response", "median", "normalized", "wall_yaw"])
+                              "response", "median", "normalized", "wall_yaw", "ceiling_edge"])
 def test_a_missing_data_root_is_one_line_and_writes_nothing(main, tmp_path, capsys):
     out = tmp_path / "sel"
     assert main([str(tmp_path / "nope"), "--out", str(out), "--quiet", "--frames", "a/vp000"]) == 2

@@ -360,3 +360,16 @@ def test_a_sweep_stored_before_the_wall_yaw_option_reads_as_the_normals_vote():
     del old["sweep"]["planes"]["wall_yaw"]
     wanted = "sweep.planes.wall_yaw: 'normals' vs 'normals-or-offsets'"
     assert config_difference(old, presets.fused_mirror().config()) == wanted
+
+
+def test_a_sweep_stored_before_the_ceiling_edge_option_reads_as_no_ceiling_edge():
+    default = presets.fused_mirror()
+    without = dataclasses.replace(default, sweep=dataclasses.replace(
+        default.sweep, refine_planes=dataclasses.replace(default.sweep.refine_planes, ceiling_edge=0.0)))
+    old = json.loads(json.dumps(without.config()))
+    del old["sweep"]["refine_planes"]["ceiling_edge"]
+    assert config_difference(old, without.config()) is None
+    old = json.loads(json.dumps(presets.fused_mirror().config()))
+    del old["sweep"]["refine_planes"]["ceiling_edge"]
+    wanted = "sweep.refine_planes.ceiling_edge: 0.0 vs 0.99"
+    assert config_difference(old, presets.fused_mirror().config()) == wanted

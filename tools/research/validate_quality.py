@@ -187,6 +187,7 @@ _ADDED_KEYS = {"mirror_tolerance": 0.0, "intensity_weight": 1.0, "feature": "int
                "planes.room_labels": 0, "planes.room_spread": 0.2, "planes.bound_penalty": 0.0,
                "planes.bound_penalty_min_az": 0.0, "planes.wall_yaw": "normals", "occlusion": 0.0,
                "occlusion_min_share": 0.25, "refine_planes.wall_margin": 0.0, "refine_planes.wall_max_share": 0.03,
+               "refine_planes.ceiling_edge": 0.0,
                "flat_contrast": 0.0, "flat_weight": 1.0, "flat_sigma_px": 2.0, "flat_min_noise": 0.5,
                "normalized_weight": 0.0, "normalized_contrast": 1.0,
                "post.edge_radius_px": 0, "post.edge_sigma_color": 10.0, "post.edge_sigma_px": 5.0,

@@ -186,3 +186,122 @@ def test_wall_parameters_out_of_range_are_refused():
     for bad in ({"wall_margin": -0.1}, {"wall_max_share": 1.5}, {"wall_max_share": float("nan")}):
         with pytest.raises(ValueError, match="wall_margin"):
             PlaneRefineParams(**bad)
+
+
+def test_the_ceilings_edge_is_where_its_area_ends_and_only_the_ceiling_counts():
+    from reconstruction.refine.planes import ceiling_walls
+
+    b, d = _box_room()
+    normals = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+    walls = {(int(np.argmax(np.abs(n))), np.sign(o)): o for n, o in ceiling_walls(d, b, 1.5, normals, 1.0)}
+    # the whole ceiling's area: its farthest pixel centres, within a pixel's footprint of the walls
+    for key, wall in {(0, -1): -1.5, (0, 1): 2.5, (1, -1): -2.0, (1, 1): 4.0}.items():
+        assert walls[key] == pytest.approx(wall, rel=0.03) and abs(walls[key]) <= abs(wall) + 1e-9
+    # 99 % of a side's area: at most the whole area's edge, within a few per cent of the wall
+    at99 = {(int(np.argmax(np.abs(n))), np.sign(o)): o for n, o in ceiling_walls(d, b, 1.5, normals, 0.99)}
+    for key, wall in walls.items():
+        assert abs(wall) * 0.96 <= abs(at99[key]) <= abs(wall) + 1e-9
+    # the floor and the walls do not count: the same edges with everything but the ceiling at half its distance
+    # (none of it at the ceiling's height) ...
+    near = np.where(np.abs(d * b[..., 2] - 1.5) < 0.02 * 1.5, d, d * 0.5)
+    assert [o for _, o in ceiling_walls(near, b, 1.5, normals, 0.99)] == pytest.approx(list(at99.values()))
+    # ... and without ceiling pixels (or too few of them) there is no edge
+    assert ceiling_walls(d, b, 2.5, normals, 0.99) == []
+    assert ceiling_walls(d, b, 1.5, normals, 0.99, min_share=0.5) == []
+
+
+def test_a_long_rooms_far_ceiling_counts_by_its_area_not_its_pixels():
+    from reconstruction.refine.planes import ceiling_walls
+
+    # a 2 m wide, 30 m long corridor (x from -1 to 1, y from -15 to 15), ceiling 1.2 m above C
+    b = bearing_grid(1000, 500, np.eye(3))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        hits = [np.where(b[..., i] * s > 0, o / (b[..., i] * s), np.inf)
+                for i, s, o in ((0, -1, 1.0), (0, 1, 1.0), (1, -1, 15.0), (1, 1, 15.0), (2, -1, 1.4), (2, 1, 1.2))]
+    d = np.min(hits, axis=0)
+    walls = ceiling_walls(d, b, 1.2, np.array([[0.0, 1.0, 0.0]]), 0.99)
+    # (a far pixel's footprint is a metre long near the end, so the edge is within a footprint of the wall)
+    assert [o / 15.0 for _, o in walls] == pytest.approx([-0.975, 0.975], abs=0.026)
+    # counted by pixels, 99 % of the ceiling's pixels lie within two fifths of its length
+    on = np.abs(d * b[..., 2] - 1.2) < 0.024
+    assert np.quantile(np.abs(d[on] * b[on][:, 1]), 0.99) < 0.4 * 15.0
+
+
+def test_where_no_wall_found_encloses_a_side_the_ceilings_edge_takes_its_mirror_images():
+    from reconstruction.refine.planes import onto_enclosing_walls
+    from reconstruction.sweep.planes import room_walls
+
+    b, d = _box_room()
+    _, walls = room_walls(d[..., None] * b, 0.01)
+    normals = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+    # on the side of the wall at x = 2.5 the surface found is a bench's front at x = 0.6, which encloses nothing
+    found = [(n, o) for n, o in walls if not (abs(n[0]) > 0.9 and o * np.sign(n[0]) > 0)]
+    found.append((np.array([1.0, 0.0, 0.0]), 0.6))
+    on_x = np.abs(d * b[..., 0] - 2.5) < 1e-6
+    mirror = on_x & (np.abs(b[..., 2]) < 0.2) & (np.abs(b[..., 1]) < 0.3)  # a cabinet's mirror images, 1.8 x too far
+    seen = np.where(mirror, d * 1.8, d)
+    off = PlaneRefineParams(wall_margin=0.2, wall_max_share=0.06)
+    out, records = onto_enclosing_walls(seen, b, found, normals, 1.5, off)
+    np.testing.assert_array_equal(out[mirror], seen[mirror].astype(np.float32))  # not looked for: left alone
+    assert not any("from" in r for r in records)
+    on = dataclasses.replace(off, ceiling_edge=0.99)
+    out, records = onto_enclosing_walls(seen, b, found, normals, 1.5, on)
+    np.testing.assert_allclose(out[mirror], d[mirror], rtol=0.03)  # on the ceiling's edge, a per cent short
+    edges = [r for r in records if r.get("from") == "ceiling"]
+    # one edge on the side the bench left open; the sides whose walls enclose get none
+    assert len(edges) == 1 and edges[0]["applied"] and edges[0]["offset"] == pytest.approx(2.5 * 0.99, abs=0.06)
+    others = ~mirror
+    np.testing.assert_array_equal(out[others], seen[others].astype(np.float32))
+    # no wall direction or no ceiling: the walls found only
+    for normals_, ceiling in ((None, 1.5), (normals, None)):
+        out, records = onto_enclosing_walls(seen, b, found, normals_, ceiling, on)
+        np.testing.assert_array_equal(out[mirror], seen[mirror].astype(np.float32))
+
+
+def test_a_ceiling_edge_quantile_out_of_range_is_refused():
+    for bad in (-0.1, 1.5, float("nan")):
+        with pytest.raises(ValueError, match="ceiling_edge"):
+            PlaneRefineParams(ceiling_edge=bad)
+
+
+def test_a_corridor_whose_two_ends_are_not_found_keeps_its_far_end():
+    from reconstruction.refine.planes import onto_enclosing_walls
+
+    # a 2 m wide, 30 m long corridor whose far ceiling (beyond 8 m) the estimate puts 30 % too far: the ceiling's
+    # edge, at about 8 m, is short of both ends (the pixels within 1 % of the ceiling's height count as its own)
+    b = bearing_grid(480, 240, np.eye(3))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        hits = [np.where(b[..., i] * s > 0, o / (b[..., i] * s), np.inf)
+                for i, s, o in ((0, -1, 1.0), (0, 1, 1.0), (1, -1, 15.0), (1, 1, 15.0), (2, -1, 1.4), (2, 1, 1.2))]
+    d = np.min(hits, axis=0)
+    ceiling = np.abs(d * b[..., 2] - 1.2) < 1e-6
+    seen = np.where(ceiling & (np.abs(d * b[..., 1]) > 8.0), d * 1.3, d)
+    normals = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+    sides = [(normals[0], -1.0), (normals[0], 1.0)]
+    params = PlaneRefineParams(wall_margin=0.2, wall_max_share=0.06, ceiling_edge=0.99, snap=0.01)
+    out, records = onto_enclosing_walls(seen, b, sides, normals, 1.2, params)
+    off, _ = onto_enclosing_walls(seen, b, sides, normals, 1.2, dataclasses.replace(params, ceiling_edge=0.0))
+    np.testing.assert_array_equal(out, off)  # the side walls' step only
+    assert not any("from" in r for r in records)
+    # with one end found, the other is looked for at the ceiling's edge (and here put too near: why it is not
+    # looked for when neither end is found)
+    out, records = onto_enclosing_walls(seen, b, [*sides, (normals[1], -15.0)], normals, 1.2, params)
+    edges = [r for r in records if r.get("from") == "ceiling"]
+    assert len(edges) == 1 and 7.0 < edges[0]["offset"] < 8.5 and edges[0]["applied"]
+    far_end = np.abs(d * b[..., 1] - 15.0) < 1e-6
+    assert np.all(out[far_end] < d[far_end] * 0.6)
+    # an edge farther than the rig resolves the ceiling is not used
+    out, records = onto_enclosing_walls(seen, b, [*sides, (normals[1], -15.0)], normals, 1.2, params, max_edge_m=7.0)
+    assert not any("from" in r for r in records)
+
+
+def test_the_resolved_range_grows_with_the_baseline_the_width_and_the_band():
+    from reconstruction.refine.planes import EDGE_RESOLUTION_PX, resolved_range
+
+    r = resolved_range(0.4, 1000, 0.06)
+    assert r == pytest.approx(7.64, abs=0.01)
+    # a quarter pixel at that distance moves a point square on to the baseline by half the band
+    assert EDGE_RESOLUTION_PX * 2 * np.pi / 1000 * r / 0.4 == pytest.approx(0.03)
+    assert resolved_range(0.8, 1000, 0.06) == pytest.approx(2 * r)
+    assert resolved_range(0.4, 2000, 0.06) == pytest.approx(2 * r)
+    assert resolved_range(0.4, 1000, 0.12) == pytest.approx(2 * r)
