@@ -39,8 +39,8 @@ PROG = "select_ceiling_edge"
 Config = tuple[float]
 #: the reference: the default as it was before this choice
 REFERENCE: Config = (0.0,)
-#: the candidates: the share of a side's ceiling area within which its wall is put
-CANDIDATES: tuple[Config, ...] = ((0.98,), (0.99,), (0.995,))
+#: the candidates: the share of a side's ceiling area within which its wall is put (the one measured on dev)
+CANDIDATES: tuple[Config, ...] = ((0.99,),)
 TITLE = "The ceiling's edge where no wall found encloses"
 
 

@@ -136,13 +136,13 @@ def test_the_default_records_and_applies_its_floor_and_ceiling_search(box):
     assert np.abs(out.distance - truth)[ok].mean() < np.abs(without.distance - truth)[ok].mean()
 
 
-def _box_room(width=240):
-    """C's world bearings and the exact distances to a 4 x 6 x 2.8 m box room around it (walls at x = -1.5, 2.5 and
-    y = -2, 4, floor -1.3, ceiling 1.5 m)."""
+def _box_room(width=240, x=(1.5, 2.5), y=(2.0, 4.0), z=(1.3, 1.5)):
+    """C's world bearings and the exact distances to a box room around it: by default 4 x 6 x 2.8 m (walls at x =
+    -1.5, 2.5 and y = -2, 4, floor -1.3, ceiling 1.5 m; each pair the distances below and above C, metres)."""
     b = bearing_grid(width, width // 2, np.eye(3))
     with np.errstate(divide="ignore", invalid="ignore"):
         hits = [np.where(b[..., i] * s > 0, o / (b[..., i] * s), np.inf)
-                for i, s, o in ((0, -1, 1.5), (0, 1, 2.5), (1, -1, 2.0), (1, 1, 4.0), (2, -1, 1.3), (2, 1, 1.5))]
+                for i, pair in enumerate((x, y, z)) for s, o in zip((-1, 1), pair, strict=True)]
     return b, np.min(hits, axis=0)
 
 
@@ -214,11 +214,7 @@ def test_a_long_rooms_far_ceiling_counts_by_its_area_not_its_pixels():
     from reconstruction.refine.planes import ceiling_walls
 
     # a 2 m wide, 30 m long corridor (x from -1 to 1, y from -15 to 15), ceiling 1.2 m above C
-    b = bearing_grid(1000, 500, np.eye(3))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        hits = [np.where(b[..., i] * s > 0, o / (b[..., i] * s), np.inf)
-                for i, s, o in ((0, -1, 1.0), (0, 1, 1.0), (1, -1, 15.0), (1, 1, 15.0), (2, -1, 1.4), (2, 1, 1.2))]
-    d = np.min(hits, axis=0)
+    b, d = _box_room(1000, (1.0, 1.0), (15.0, 15.0), (1.4, 1.2))
     walls = ceiling_walls(d, b, 1.2, np.array([[0.0, 1.0, 0.0]]), 0.99)
     # (a far pixel's footprint is a metre long near the end, so the edge is within a footprint of the wall)
     assert [o / 15.0 for _, o in walls] == pytest.approx([-0.975, 0.975], abs=0.026)
@@ -269,11 +265,7 @@ def test_a_corridor_whose_two_ends_are_not_found_keeps_its_far_end():
 
     # a 2 m wide, 30 m long corridor whose far ceiling (beyond 8 m) the estimate puts 30 % too far: the ceiling's
     # edge, at about 8 m, is short of both ends (the pixels within 1 % of the ceiling's height count as its own)
-    b = bearing_grid(480, 240, np.eye(3))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        hits = [np.where(b[..., i] * s > 0, o / (b[..., i] * s), np.inf)
-                for i, s, o in ((0, -1, 1.0), (0, 1, 1.0), (1, -1, 15.0), (1, 1, 15.0), (2, -1, 1.4), (2, 1, 1.2))]
-    d = np.min(hits, axis=0)
+    b, d = _box_room(480, (1.0, 1.0), (15.0, 15.0), (1.4, 1.2))
     ceiling = np.abs(d * b[..., 2] - 1.2) < 1e-6
     seen = np.where(ceiling & (np.abs(d * b[..., 1]) > 8.0), d * 1.3, d)
     normals = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
