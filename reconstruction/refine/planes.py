@@ -63,9 +63,10 @@ class PlaneRefineParams:
             (:func:`onto_walls`); 0: walls are left alone.
         wall_max_share: a wall encloses when at most this share of the pixels facing it lie beyond it.
         ceiling_edge: > 0 (with ``wall_margin``): on each side of C along each wall normal where no wall found
-            encloses, the wall is also looked for at the ceiling's edge, the offset within which this share of the
-            ceiling's area seen on that side lies (:func:`ceiling_walls`), and what lies well beyond it is put on
-            it when it encloses (:func:`onto_enclosing_walls`); 0: not looked for.
+            encloses but one encloses the opposite side, the wall is also looked for at the ceiling's edge, the
+            offset within which this share of the ceiling's area seen on that side lies (:func:`ceiling_walls`; not
+            farther than the rig resolves the ceiling), and what lies well beyond it is put on it when it encloses
+            (:func:`onto_enclosing_walls`); 0: not looked for.
     """
 
     select: float = 0.12
