@@ -23,7 +23,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from reconstruction.camera.equirect import project
+from reconstruction.camera.equirect import pixel_to_lonlat, project
 from reconstruction.camera.image_ops import sobel_gradient
 from reconstruction.camera.resample import sample_equirect
 from reconstruction.evidence import sphere_blocks
@@ -347,8 +347,9 @@ def ceiling_walls(distance: np.ndarray, bearings: np.ndarray, height: float, nor
     """
     d = np.asarray(distance, np.float64)
     b = np.asarray(bearings, np.float64)
-    h = d.shape[0]
-    solid = np.broadcast_to(np.cos((0.5 - (np.arange(h) + 0.5) / h) * np.pi)[:, None], d.shape)
+    h, w = d.shape
+    _, lat = pixel_to_lonlat(np.zeros((h, 1)), np.arange(h)[:, None], w, h)
+    solid = np.broadcast_to(np.cos(lat), d.shape)  # each row's pixel solid angle, relative
     with np.errstate(invalid="ignore"):
         on = np.isfinite(d) & (np.abs(d * b[..., 2] - height) <= tolerance * abs(height))
     points = d[on][:, None] * b[on]
