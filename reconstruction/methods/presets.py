@@ -98,7 +98,9 @@ def fused_mirror() -> PriorSweepMethod:
             # wide, of two minima within 5 % the farther: chair bases and mats lie above a floor), and the pixels
             # within 6 % of it put on it (chosen on tri360-v3 dev's ideal frames, docs/edges.md); then the pixels
             # more than 20 % beyond a wall that at most 6 % of the pixels facing it lie beyond are put on it: a glossy
-            # wall's mirror images (chosen by python -m tools.research.select_walls on the dev split, docs/edges.md);
+            # wall's mirror images (chosen by python -m tools.research.select_walls on the dev split, docs/edges.md),
+            # and up to 10 % if at most 4 % of the ceiling's pixels facing it lie beyond it: the ceiling stops at a
+            # wall, not at a shelf (python -m tools.research.select_closed_walls on the dev split, docs/edges.md);
             # on a side where no wall found encloses but one encloses the opposite side, the wall where 99 % of the
             # ceiling's area seen on that side ends, if the rig resolves the ceiling there (python -m
             # tools.research.select_ceiling_edge on the dev split, docs/edges.md)
@@ -106,7 +108,7 @@ def fused_mirror() -> PriorSweepMethod:
                 select=0.12, search=0.15, steps=61, truncate=20.0, min_gradient=1.0, max_pixels=40000, min_cos=0.1,
                 max_se=0.005, longitude_blocks=32, min_block_pixels=50, snap=0.06, rise=0.05, max_basin=0.03,
                 far_share=0.05, wall_margin=0.2, wall_max_share=0.06,
-                ceiling_edge=0.99),
+                closed_max_share=0.10, closed_ceiling_share=0.04, ceiling_edge=0.99),
             # the cost when the self-calibration changed no image (cameras that agree): the sweep's own but for its
             # 200 sphere labels (the sweep's 160): at 1000 px and the 0.4 m baseline a label is 1.3 px of parallax
             # at 160 and 1.06 px at 200, which brings far surfaces closer to what the rig resolves; 240 measured
@@ -326,7 +328,7 @@ def fused_mirror_raw() -> PriorSweepMethod:
                 select=0.12, search=0.15, steps=61, truncate=20.0, min_gradient=1.0, max_pixels=40000, min_cos=0.1,
                 max_se=0.005, longitude_blocks=32, min_block_pixels=50, snap=0.06, rise=0.05, max_basin=0.03,
                 far_share=0.05, wall_margin=0.2, wall_max_share=0.06,
-                ceiling_edge=0.99),
+                closed_max_share=0.10, closed_ceiling_share=0.04, ceiling_edge=0.99),
             cost=CostParams(
                 d_min_m=0.3, d_max_m=30.0, levels=200, blur_px=0.0, gradient_weight=2.0, intensity_weight=1.0,
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=0.0,
@@ -386,7 +388,7 @@ def fused_mirror_told_rig() -> PriorSweepMethod:
                 select=0.12, search=0.15, steps=61, truncate=20.0, min_gradient=1.0, max_pixels=40000, min_cos=0.1,
                 max_se=0.005, longitude_blocks=32, min_block_pixels=50, snap=0.06, rise=0.05, max_basin=0.03,
                 far_share=0.05, wall_margin=0.2, wall_max_share=0.06,
-                ceiling_edge=0.99),
+                closed_max_share=0.10, closed_ceiling_share=0.04, ceiling_edge=0.99),
             cost=CostParams(
                 d_min_m=0.3, d_max_m=30.0, levels=200, blur_px=0.0, gradient_weight=2.0, intensity_weight=1.0,
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=0.0,
@@ -453,7 +455,7 @@ def fused_mirror_raw_images() -> PriorSweepMethod:
                 select=0.12, search=0.15, steps=61, truncate=20.0, min_gradient=1.0, max_pixels=40000, min_cos=0.1,
                 max_se=0.005, longitude_blocks=32, min_block_pixels=50, snap=0.06, rise=0.05, max_basin=0.03,
                 far_share=0.05, wall_margin=0.2, wall_max_share=0.06,
-                ceiling_edge=0.99),
+                closed_max_share=0.10, closed_ceiling_share=0.04, ceiling_edge=0.99),
             cost=CostParams(
                 d_min_m=0.3, d_max_m=30.0, levels=200, blur_px=0.0, gradient_weight=2.0, intensity_weight=1.0,
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=0.0,
@@ -513,7 +515,7 @@ def fused_mirror_shared_falloff() -> PriorSweepMethod:
                 select=0.12, search=0.15, steps=61, truncate=20.0, min_gradient=1.0, max_pixels=40000, min_cos=0.1,
                 max_se=0.005, longitude_blocks=32, min_block_pixels=50, snap=0.06, rise=0.05, max_basin=0.03,
                 far_share=0.05, wall_margin=0.2, wall_max_share=0.06,
-                ceiling_edge=0.99),
+                closed_max_share=0.10, closed_ceiling_share=0.04, ceiling_edge=0.99),
             cost=CostParams(
                 d_min_m=0.3, d_max_m=30.0, levels=200, blur_px=0.0, gradient_weight=2.0, intensity_weight=1.0,
                 truncate=30.0, box_px=1, scale=8.0, pair_power=2.0, feature="intensity", noise_blur=0.0,

@@ -62,6 +62,11 @@ class PlaneRefineParams:
         wall_margin: > 0: the pixels more than this (relative) beyond an enclosing wall are put on it
             (:func:`onto_walls`); 0: walls are left alone.
         wall_max_share: a wall encloses when at most this share of the pixels facing it lie beyond it.
+        closed_max_share, closed_ceiling_share: a wall with more than ``wall_max_share`` but at most
+            ``closed_max_share`` of its facing pixels beyond it still encloses when the ceiling does not go on past
+            it: at most ``closed_ceiling_share`` of the ceiling's pixels facing it lie beyond it (a glossy screen or
+            cabinet on a wall shows little of the ceiling in its mirror images, while the room's ceiling goes on
+            behind a shelf or a partition that does not reach it); 0 (``closed_max_share``): not asked.
         ceiling_edge: > 0 (with ``wall_margin``): on each side of C along each wall normal where no wall found
             encloses but one encloses the opposite side, the wall is also looked for at the ceiling's edge, the
             offset within which this share of the ceiling's area seen on that side lies (:func:`ceiling_walls`; not
@@ -85,12 +90,17 @@ class PlaneRefineParams:
     far_share: float = 0.05
     wall_margin: float = 0.0
     wall_max_share: float = 0.03
+    closed_max_share: float = 0.0
+    closed_ceiling_share: float = 0.0
     ceiling_edge: float = 0.0
 
     def __post_init__(self) -> None:
         if not (self.wall_margin >= 0 and 0 <= self.wall_max_share <= 1):
             raise ValueError(f"plane refinement wall_margin must be >= 0 and wall_max_share in [0, 1], got "
                              f"{self.wall_margin} and {self.wall_max_share}")
+        if not (0 <= self.closed_max_share <= 1 and 0 <= self.closed_ceiling_share <= 1):
+            raise ValueError(f"plane refinement closed_max_share and closed_ceiling_share must be in [0, 1], got "
+                             f"{self.closed_max_share} and {self.closed_ceiling_share}")
         if not 0 <= self.ceiling_edge <= 1:
             raise ValueError(f"plane refinement ceiling_edge must be in [0, 1], got {self.ceiling_edge}")
         for name in ("select", "search", "truncate", "max_se", "snap", "rise", "max_basin", "far_share"):
@@ -282,8 +292,8 @@ def snap_to_planes(distance: np.ndarray, bearings: np.ndarray, fits, params: Pla
     return out
 
 
-def onto_walls(distance: np.ndarray, bearings: np.ndarray, walls, params: PlaneRefineParams) -> tuple[np.ndarray,
-                                                                                                     list[dict]]:
+def onto_walls(distance: np.ndarray, bearings: np.ndarray, walls, params: PlaneRefineParams,
+               ceiling: float | None = None) -> tuple[np.ndarray, list[dict]]:
     """Put the pixels the estimate places well beyond an enclosing wall on it.
 
     Nothing is seen through a room's wall, but a glossy one (a screen, a whiteboard, a lacquered door, a lab's
@@ -291,20 +301,29 @@ def onto_walls(distance: np.ndarray, bearings: np.ndarray, walls, params: PlaneR
     when at most ``params.wall_max_share`` of the pixels facing it (the sine of their bearing's angle with it above
     ``params.min_cos``) lie more than ``params.wall_margin`` (relative) beyond it; those pixels are then put on it (a
     pixel beyond two walls on the nearer).  A wall with more beyond it (shelves in a library, a corridor's side
-    wall with its openings) is left alone.
+    wall with its openings) is left alone, unless it has at most ``params.closed_max_share`` beyond it and the
+    ceiling stops at it: at most ``params.closed_ceiling_share`` of the ceiling's pixels facing it (their height
+    within ``params.snap`` of ``ceiling``) lie beyond it.
 
     Args:
         distance: (H, W) C's estimate, metres (non-finite: left alone).
         bearings: (H, W, 3) C's unit world bearings.
         walls: per wall ``(normal, offset)``: (3,) world unit normal and signed offset from C along it, metres
             (:func:`reconstruction.sweep.planes.room_walls`).
+        ceiling: the ceiling's height relative to C's centre, metres (None or <= 0: not known; only
+            ``wall_max_share`` decides).
     Returns:
         The (H, W) float32 distance and per wall a record (``normal``, ``offset``, ``beyond_share``: the share of
-        its facing pixels beyond it, ``applied``).
+        its facing pixels beyond it, ``applied``; ``ceiling_beyond_share``, the share of the ceiling's facing pixels
+        beyond it, when it was asked).
     """
     d = np.asarray(distance, np.float64)
     out = d.copy()
     records = []
+    on_ceiling = None
+    if ceiling is not None and ceiling > 0 and params.closed_max_share > params.wall_max_share:
+        with np.errstate(invalid="ignore"):
+            on_ceiling = np.isfinite(d) & (np.abs(d * bearings[..., 2] - ceiling) <= params.snap * ceiling)
     for normal, offset in walls:
         normal = np.asarray(normal, np.float64)
         a_n = bearings @ normal
@@ -314,10 +333,15 @@ def onto_walls(distance: np.ndarray, bearings: np.ndarray, walls, params: PlaneR
             beyond = facing & (d > on_wall * (1.0 + params.wall_margin))
         share = float(beyond.sum() / max(int(facing.sum()), 1))
         applied = share <= params.wall_max_share
+        record = {"normal": normal.tolist(), "offset": float(offset), "beyond_share": share}
+        if not applied and on_ceiling is not None and share <= params.closed_max_share:
+            ceiling_facing = on_ceiling & facing
+            ceiling_share = float((ceiling_facing & beyond).sum() / max(int(ceiling_facing.sum()), 1))
+            applied = ceiling_facing.any() and ceiling_share <= params.closed_ceiling_share
+            record["ceiling_beyond_share"] = ceiling_share
         if applied:
             out = np.where(beyond & (on_wall < out), on_wall, out)
-        records.append({"normal": normal.tolist(), "offset": float(offset), "beyond_share": share,
-                        "applied": bool(applied)})
+        records.append({**record, "applied": bool(applied)})
     return out.astype(np.float32), records
 
 
@@ -395,15 +419,17 @@ def onto_enclosing_walls(distance: np.ndarray, bearings: np.ndarray, walls, norm
         distance, bearings: as :func:`onto_walls`.
         walls: the walls found (:func:`reconstruction.sweep.planes.room_walls`), along ``normals``.
         normals: (2, 3) the walls' horizontal unit normals (None: no wall direction found, no ceiling's edge).
-        ceiling: the ceiling's height relative to C's centre, metres (None: not found, no ceiling's edge).
-        params: ``wall_margin`` (> 0), ``wall_max_share``, ``min_cos``, ``ceiling_edge`` (0: not looked for) and
+        ceiling: the ceiling's height relative to C's centre, metres (None: not found, no ceiling's edge, and only
+            ``wall_max_share`` decides whether a wall found encloses).
+        params: ``wall_margin`` (> 0), ``wall_max_share``, ``closed_max_share``, ``closed_ceiling_share``,
+            ``min_cos``, ``ceiling_edge`` (0: not looked for) and
             ``snap`` (the pixels within it of the ceiling's height count as the ceiling's: those :func:`snap_to_planes`
             puts on a refined ceiling).
         max_edge_m: the farthest a ceiling's edge may lie from C (at the ceiling's height), metres.
     Returns:
         As :func:`onto_walls`; the ceiling's edges' records carry ``"from": "ceiling"``.
     """
-    d, records = onto_walls(distance, bearings, walls, params)
+    d, records = onto_walls(distance, bearings, walls, params, ceiling)
     if not (params.ceiling_edge > 0 and normals is not None and ceiling is not None and ceiling > 0):
         return d, records
     enclosed = [(np.asarray(r["normal"]), np.sign(r["offset"])) for r in records if r["applied"]]

@@ -13,6 +13,7 @@ from reconstruction.methods.presets import fused_mirror
 from tools.research import (
     select_bound,
     select_ceiling_edge,
+    select_closed_walls,
     select_confirm,
     select_edges,
     select_flat,
@@ -243,6 +244,21 @@ def test_ceiling_edge_candidates_the_reference_first_and_the_default_once():
         select_ceiling_edge.candidate_methods(["0.9"])
 
 
+def test_closed_walls_candidates_the_reference_first_and_the_default_once():
+    methods, default, _ = _candidates(select_closed_walls, "fused-mirror-closed-walls-0-0")
+    p = methods[0].sweep.refine_planes
+    assert (p.closed_max_share, p.closed_ceiling_share) == select_closed_walls.REFERENCE == (0.0, 0.0)
+    # everything but the two values is the default's
+    m = select_closed_walls.closed_walls_method(0.2, 0.05)
+    assert m.label == "fused-mirror-closed-walls-0.2-0.05"
+    assert m.sweep.refine_planes == dataclasses.replace(default.sweep.refine_planes, closed_max_share=0.2,
+                                                        closed_ceiling_share=0.05)
+    assert m.sweep.planes == default.sweep.planes and m.sweep.cost == default.sweep.cost
+    assert m.flow == default.flow and m.prior == default.prior and m.sweep.post == default.sweep.post
+    with pytest.raises(UserError, match="unknown candidate"):
+        select_closed_walls.candidate_methods(["0.2-0.05"])
+
+
 def test_gate_candidates_the_reference_first_and_the_default_once():
     methods, default, _ = _candidates(select_gate, "fused-mirror-gate-0-0-0.5-0.7-0-0-0-0-0-3-0-0-0")
     p = methods[0].prior
@@ -267,9 +283,11 @@ def test_gate_candidates_the_reference_first_and_the_default_once():
 @pytest.mark.parametrize("main", [select_planes.main, select_sgm.main, select_flat.main, select_edges.main,
                                   select_confirm.main, select_refine_planes.main, select_bound.main,
                                   select_walls.main, select_gate.main, select_response.main, select_median.main,
-                                  select_normalized.main, select_wall_yaw.main, select_ceiling_edge.main],
+                                  select_normalized.main, select_wall_yaw.main, select_ceiling_edge.main,
+                                  select_closed_walls.main],
                          ids=["planes", "sgm", "flat", "edges", "confirm", "refine_planes", "bound", "walls", "gate",
-                              "response", "median", "normalized", "wall_yaw", "ceiling_edge"])
+                              "response", "median", "normalized", "wall_yaw", "ceiling_edge",
+                              "closed_walls"])
 def test_a_missing_data_root_is_one_line_and_writes_nothing(main, tmp_path, capsys):
     out = tmp_path / "sel"
     assert main([str(tmp_path / "nope"), "--out", str(out), "--quiet", "--frames", "a/vp000"]) == 2

@@ -373,3 +373,18 @@ def test_a_sweep_stored_before_the_ceiling_edge_option_reads_as_no_ceiling_edge(
     del old["sweep"]["refine_planes"]["ceiling_edge"]
     wanted = "sweep.refine_planes.ceiling_edge: 0.0 vs 0.99"
     assert config_difference(old, presets.fused_mirror().config()) == wanted
+
+
+def test_a_sweep_stored_before_the_closed_wall_option_reads_as_no_closed_wall():
+    default = presets.fused_mirror()
+    without = dataclasses.replace(default, sweep=dataclasses.replace(
+        default.sweep, refine_planes=dataclasses.replace(default.sweep.refine_planes, closed_max_share=0.0,
+                                                         closed_ceiling_share=0.0)))
+    old = json.loads(json.dumps(without.config()))
+    for key in ("closed_max_share", "closed_ceiling_share"):
+        del old["sweep"]["refine_planes"][key]
+    assert config_difference(old, without.config()) is None
+    old = json.loads(json.dumps(presets.fused_mirror().config()))
+    del old["sweep"]["refine_planes"]["closed_max_share"]
+    wanted = "sweep.refine_planes.closed_max_share: 0.0 vs 0.1"
+    assert config_difference(old, presets.fused_mirror().config()) == wanted

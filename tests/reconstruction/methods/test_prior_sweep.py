@@ -165,10 +165,12 @@ def test_the_default_is_fused_gated_with_its_mirror_test_cost_labels_room_bound_
                                                                                           "normals")
     cfg["sweep"]["planes"]["wall_yaw"] = "normals"
     # its floor and ceiling searched again from the images, what lies beyond a wall put on it, and where no wall
-    # found encloses a side, the ceiling's edge (gated: none of it)
+    # found encloses a side, the ceiling's edge, and a wall with more beyond it that the ceiling stops at (gated:
+    # none of it)
     assert "refine_planes" not in gated["sweep"]
     refine = cfg["sweep"].pop("refine_planes")
     assert refine["max_se"] > 0 and refine["wall_margin"] > 0 and 0 < refine["ceiling_edge"] < 1
+    assert refine["wall_max_share"] < refine["closed_max_share"] < 1 and 0 < refine["closed_ceiling_share"] < 1
     # its prior spares the frame's share at U's epipoles on a noisy rig where the flow is on the room's plane
     cone = ("epipole_cone_deg", "epipole_cone_noise_low", "epipole_cone_noise_high", "epipole_cone_room")
     assert all(cfg["prior"][k] > 0 == gated["prior"][k] for k in cone)

@@ -182,6 +182,39 @@ def test_mirror_images_beyond_an_enclosing_wall_are_put_on_it_and_an_open_wall_i
     np.testing.assert_allclose(out[mirror], near[mirror], rtol=1e-6)
 
 
+def test_a_wall_with_more_beyond_it_encloses_when_the_ceiling_stops_at_it_and_a_shelf_does_not():
+    from reconstruction.refine.planes import onto_walls
+
+    b, d = _box_room()  # walls at x = -1.5 and 2.5, ceiling 1.5 m above C
+    lon, lat = np.arctan2(b[..., 1], b[..., 0]), np.arcsin(b[..., 2])
+    wall = [(np.array([1.0, 0.0, 0.0]), 2.5)]
+    # a screen on the wall at x = 2.5, below the ceiling: its mirror images matched 1.6x beyond it
+    screen = (np.abs(lon) < np.radians(30)) & (np.abs(lat) < np.radians(15))
+    seen = np.where(screen, d * 1.6, d)
+    strict = PlaneRefineParams(wall_margin=0.2, wall_max_share=0.03)
+    out, records = onto_walls(seen, b, wall, strict, ceiling=1.5)
+    assert records[0]["beyond_share"] > 0.03 and not records[0]["applied"]  # too much beyond it for the share alone
+    np.testing.assert_array_equal(out, seen.astype(np.float32))
+    closed = dataclasses.replace(strict, closed_max_share=0.5, closed_ceiling_share=0.04)
+    out, records = onto_walls(seen, b, wall, closed, ceiling=1.5)
+    assert records[0]["applied"] and records[0]["ceiling_beyond_share"] == 0.0
+    np.testing.assert_allclose(out[screen], d[screen], rtol=1e-4)  # back on the wall
+    # without the ceiling's height only the share decides
+    _, records = onto_walls(seen, b, wall, closed)
+    assert not records[0]["applied"] and "ceiling_beyond_share" not in records[0]
+    # a shelf at x = 1.8 that stops 0.5 m above C in a room whose wall is at x = 5: the room and its ceiling go
+    # on behind it
+    b, d = _box_room(x=(1.5, 5.0))
+    shelf = [(np.array([1.0, 0.0, 0.0]), 1.8)]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        on_shelf = (b[..., 0] > 0) & (1.8 / b[..., 0] < d) & (1.8 / b[..., 0] * b[..., 2] < 0.5)
+    shelved = np.where(on_shelf, 1.8 / np.where(b[..., 0] > 0, b[..., 0], 1.0), d)
+    out, records = onto_walls(shelved, b, shelf, closed, ceiling=1.5)
+    assert records[0]["beyond_share"] <= 0.5 and records[0]["ceiling_beyond_share"] > 0.1
+    assert not records[0]["applied"]
+    np.testing.assert_array_equal(out, shelved.astype(np.float32))
+
+
 def test_wall_parameters_out_of_range_are_refused():
     for bad in ({"wall_margin": -0.1}, {"wall_max_share": 1.5}, {"wall_max_share": float("nan")}):
         with pytest.raises(ValueError, match="wall_margin"):
@@ -252,6 +285,12 @@ def test_where_no_wall_found_encloses_a_side_the_ceilings_edge_takes_its_mirror_
     for normals_, ceiling in ((None, 1.5), (normals, None)):
         out, records = onto_enclosing_walls(seen, b, found, normals_, ceiling, on)
         np.testing.assert_array_equal(out[mirror], seen[mirror].astype(np.float32))
+
+
+def test_closed_wall_shares_out_of_range_are_refused():
+    for bad in ({"closed_max_share": -0.1}, {"closed_ceiling_share": 1.5}, {"closed_max_share": float("nan")}):
+        with pytest.raises(ValueError, match="closed_max_share"):
+            PlaneRefineParams(**bad)
 
 
 def test_a_ceiling_edge_quantile_out_of_range_is_refused():
