@@ -29,7 +29,7 @@ from reconstruction.camera.resample import sample_equirect
 from reconstruction.evidence import sphere_blocks
 
 __all__ = ["PlaneRefineParams", "PlaneFit", "plane_offsets", "refine_plane", "snap_to_planes", "onto_walls",
-           "ceiling_walls", "EDGE_RESOLUTION_PX", "resolved_range", "onto_enclosing_walls"]
+           "on_ceiling", "ceiling_walls", "EDGE_RESOLUTION_PX", "resolved_range", "onto_enclosing_walls"]
 
 
 @dataclass(frozen=True)
@@ -320,10 +320,8 @@ def onto_walls(distance: np.ndarray, bearings: np.ndarray, walls, params: PlaneR
     d = np.asarray(distance, np.float64)
     out = d.copy()
     records = []
-    on_ceiling = None
-    if ceiling is not None and ceiling > 0 and params.closed_max_share > params.wall_max_share:
-        with np.errstate(invalid="ignore"):
-            on_ceiling = np.isfinite(d) & (np.abs(d * bearings[..., 2] - ceiling) <= params.snap * ceiling)
+    ask_ceiling = ceiling is not None and ceiling > 0 and params.closed_max_share > params.wall_max_share
+    ceiling_pixels = None  # made when a wall first asks for them
     for normal, offset in walls:
         normal = np.asarray(normal, np.float64)
         a_n = bearings @ normal
@@ -334,8 +332,10 @@ def onto_walls(distance: np.ndarray, bearings: np.ndarray, walls, params: PlaneR
         share = float(beyond.sum() / max(int(facing.sum()), 1))
         applied = share <= params.wall_max_share
         record = {"normal": normal.tolist(), "offset": float(offset), "beyond_share": share}
-        if not applied and on_ceiling is not None and share <= params.closed_max_share:
-            ceiling_facing = on_ceiling & facing
+        if not applied and ask_ceiling and share <= params.closed_max_share:
+            if ceiling_pixels is None:
+                ceiling_pixels = on_ceiling(d, bearings, ceiling, params.snap)
+            ceiling_facing = ceiling_pixels & facing
             ceiling_share = float((ceiling_facing & beyond).sum() / max(int(ceiling_facing.sum()), 1))
             applied = ceiling_facing.any() and ceiling_share <= params.closed_ceiling_share
             record["ceiling_beyond_share"] = ceiling_share
@@ -343,6 +343,14 @@ def onto_walls(distance: np.ndarray, bearings: np.ndarray, walls, params: PlaneR
             out = np.where(beyond & (on_wall < out), on_wall, out)
         records.append({**record, "applied": bool(applied)})
     return out.astype(np.float32), records
+
+
+def on_ceiling(distance: np.ndarray, bearings: np.ndarray, height: float, tolerance: float) -> np.ndarray:
+    """(H, W) bool: the pixels whose point lies at the ceiling's height, within ``tolerance`` of ``height`` (relative;
+    ``height`` the ceiling's height relative to C's centre, metres, > 0; non-finite distances: not)."""
+    d = np.asarray(distance, np.float64)
+    with np.errstate(invalid="ignore"):
+        return np.isfinite(d) & (np.abs(d * bearings[..., 2] - height) <= tolerance * abs(height))
 
 
 def ceiling_walls(distance: np.ndarray, bearings: np.ndarray, height: float, normals: np.ndarray, quantile: float,
@@ -374,8 +382,7 @@ def ceiling_walls(distance: np.ndarray, bearings: np.ndarray, height: float, nor
     h, w = d.shape
     _, lat = pixel_to_lonlat(np.zeros((h, 1)), np.arange(h)[:, None], w, h)
     solid = np.broadcast_to(np.cos(lat), d.shape)  # each row's pixel solid angle, relative
-    with np.errstate(invalid="ignore"):
-        on = np.isfinite(d) & (np.abs(d * b[..., 2] - height) <= tolerance * abs(height))
+    on = on_ceiling(d, b, height, tolerance)
     points = d[on][:, None] * b[on]
     area = solid[on] * d[on] ** 2 / np.abs(b[on][:, 2])
     need = max(1, int(np.ceil(min_share * d.size)))
