@@ -362,29 +362,20 @@ def test_a_sweep_stored_before_the_wall_yaw_option_reads_as_the_normals_vote():
     assert config_difference(old, presets.fused_mirror().config()) == wanted
 
 
-def test_a_sweep_stored_before_the_ceiling_edge_option_reads_as_no_ceiling_edge():
+@pytest.mark.parametrize("keys, wanted", [
+    (("ceiling_edge",), "sweep.refine_planes.ceiling_edge: 0.0 vs 0.99"),
+    (("closed_max_share", "closed_ceiling_share"), "sweep.refine_planes.closed_ceiling_share: 0.0 vs 0.04"),
+], ids=["ceiling_edge", "closed_walls"])
+def test_a_wall_step_stored_before_an_option_reads_as_without_it(keys, wanted):
     default = presets.fused_mirror()
     without = dataclasses.replace(default, sweep=dataclasses.replace(
-        default.sweep, refine_planes=dataclasses.replace(default.sweep.refine_planes, ceiling_edge=0.0)))
+        default.sweep, refine_planes=dataclasses.replace(default.sweep.refine_planes, **dict.fromkeys(keys, 0.0))))
     old = json.loads(json.dumps(without.config()))
-    del old["sweep"]["refine_planes"]["ceiling_edge"]
-    assert config_difference(old, without.config()) is None
-    old = json.loads(json.dumps(presets.fused_mirror().config()))
-    del old["sweep"]["refine_planes"]["ceiling_edge"]
-    wanted = "sweep.refine_planes.ceiling_edge: 0.0 vs 0.99"
-    assert config_difference(old, presets.fused_mirror().config()) == wanted
-
-
-def test_a_sweep_stored_before_the_closed_wall_option_reads_as_no_closed_wall():
-    default = presets.fused_mirror()
-    without = dataclasses.replace(default, sweep=dataclasses.replace(
-        default.sweep, refine_planes=dataclasses.replace(default.sweep.refine_planes, closed_max_share=0.0,
-                                                         closed_ceiling_share=0.0)))
-    old = json.loads(json.dumps(without.config()))
-    for key in ("closed_max_share", "closed_ceiling_share"):
+    for key in keys:
         del old["sweep"]["refine_planes"][key]
     assert config_difference(old, without.config()) is None
-    old = json.loads(json.dumps(presets.fused_mirror().config()))
-    del old["sweep"]["refine_planes"]["closed_max_share"]
-    wanted = "sweep.refine_planes.closed_max_share: 0.0 vs 0.1"
-    assert config_difference(old, presets.fused_mirror().config()) == wanted
+    # the default stored without them reads as without them: the first that differs is named
+    old = json.loads(json.dumps(default.config()))
+    for key in keys:
+        del old["sweep"]["refine_planes"][key]
+    assert config_difference(old, default.config()) == wanted
